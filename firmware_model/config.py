@@ -1,0 +1,160 @@
+"""Build configuration of a firmware program: the user-facing, physical-units description from which the integer
+build constants (docs/firmware-spec.md §3) are derived by :mod:`firmware_model.constants`.
+
+Everything here is in SI units or raw sensor counts; nothing here is in Q formats. Validation errors are
+:class:`~firmware_model.errors.UserError` naming the field and the value.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from firmware_model.errors import UserError
+
+#: Firmware programs, in the order of docs/firmware-spec.md.
+PROGRAMS: tuple[str, ...] = ("recursive", "kalman_baro", "kalman_accel", "recursive_seed_literal")
+#: Rounding modes for every right shift (docs/firmware-spec.md §1).
+ROUNDINGS: tuple[str, ...] = ("floor", "half_up")
+#: Process-noise models for the gain design (DESIGN.md §6).
+NOISE_MODELS: tuple[str, ...] = ("accel_only", "jerk", "dwna")
+
+
+@dataclass(frozen=True)
+class BuildConfig:
+    """One firmware build.
+
+    Sensor description:
+      * ``baro_bits``: barometer ADC width (bits, 8..16); ``baro_sign``: -1 for a pressure ADC (falls as the rocket
+        climbs), +1 for a reading that grows with altitude.
+      * ``units_per_metre``: barometer counts per metre of altitude near the pad (> 0). For a pressure ADC this is
+        counts/Pa x rho*g; it converts the velocity thresholds into state units (Q24.8 counts/s).
+      * ``accel_counts_per_mps2``: accelerometer counts per m/s^2 (> 0; positive counts = upward acceleration).
+    Filter:
+      * ``k``: sample period dt = 2^-k s (0..10). ``rounding``: ``floor`` or ``half_up``.
+      * recursive: ``shift`` S (weight 2^-S, 1..8), ``threshold_q8`` (apogee threshold below the extreme in Q24.8
+        units of 1/256 count: 128 = 1/2 LSB, 64 = 1/4, 32 = 1/8), ``gate_mps`` (velocity gate, m/s).
+      * Kalman: ``noise_model`` (``accel_only``, ``jerk``, ``dwna``), ``ratio`` (R/q, measurement variance over
+        process-noise intensity), ``baro_sigma`` (barometer noise, counts), ``accel_sigma`` (accelerometer noise,
+        counts), ``mach_lo_mps``/``mach_hi_mps`` (Mach-lockout velocity window, m/s), ``mach_innov_m`` (innovation
+        that triggers lockout, m), ``baro_min``/``baro_max`` (valid raw ADC range; ``None`` = full range).
+      * all: ``liftoff_mps`` (liftoff velocity threshold, m/s).
+    """
+
+    program: str = "kalman_baro"
+    k: int = 7
+    rounding: str = "floor"
+    baro_bits: int = 16
+    baro_sign: int = -1
+    units_per_metre: float = 3.5
+    accel_counts_per_mps2: float = 2048.0 / 9.80665
+    shift: int = 5
+    threshold_q8: int = 64
+    gate_mps: float = 61.0
+    noise_model: str = "accel_only"
+    ratio: float = 50_000.0
+    baro_sigma: float = 2.0
+    accel_sigma: float = 20.0
+    mach_lo_mps: float = 244.0
+    mach_hi_mps: float = 366.0
+    mach_innov_m: float = 30.0
+    baro_min: int | None = None
+    baro_max: int | None = None
+    liftoff_mps: float = 30.0
+    extra: dict[str, Any] = field(default_factory=dict, compare=False, hash=False)
+
+    def __post_init__(self) -> None:
+        self.validate()
+
+    # ------------------------------------------------------------------ validation
+    def validate(self) -> None:
+        """Raise :class:`UserError` naming the first field whose value is out of its documented range."""
+
+        def bad(name: str, why: str) -> UserError:
+            return UserError(f"build config: {name}={getattr(self, name)!r}: {why}")
+
+        if self.program not in PROGRAMS:
+            raise bad("program", f"must be one of {', '.join(PROGRAMS)}")
+        if not isinstance(self.k, int) or not 0 <= self.k <= 10:
+            raise bad("k", "sample period 2^-k needs an integer k in 0..10")
+        if self.rounding not in ROUNDINGS:
+            raise bad("rounding", f"must be one of {', '.join(ROUNDINGS)}")
+        if not isinstance(self.baro_bits, int) or not 8 <= self.baro_bits <= 16:
+            raise bad("baro_bits", "barometer ADC width must be 8..16 bits")
+        if self.baro_sign not in (1, -1):
+            raise bad("baro_sign", "must be +1 or -1")
+        for name in ("units_per_metre", "accel_counts_per_mps2", "ratio", "baro_sigma", "accel_sigma"):
+            value = getattr(self, name)
+            if not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+                raise bad(name, "must be a finite number > 0")
+        if not isinstance(self.shift, int) or not 1 <= self.shift <= 8:
+            raise bad("shift", "recursive filter shift S must be 1..8 (ADC << (8-S) must be a left shift)")
+        if not isinstance(self.threshold_q8, int) or not 1 <= self.threshold_q8 <= 1 << 20:
+            raise bad("threshold_q8", "apogee threshold must be 1..2^20 (Q24.8)")
+        if self.noise_model not in NOISE_MODELS:
+            raise bad("noise_model", f"must be one of {', '.join(NOISE_MODELS)}")
+        for name in ("gate_mps", "liftoff_mps", "mach_lo_mps", "mach_hi_mps", "mach_innov_m"):
+            value = getattr(self, name)
+            if not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
+                raise bad(name, "must be a finite number >= 0")
+        if self.mach_lo_mps >= self.mach_hi_mps:
+            raise bad("mach_lo_mps", f"must be below mach_hi_mps={self.mach_hi_mps}")
+        full = (1 << self.baro_bits) - 1
+        lo, hi = self.baro_range
+        if not 0 <= lo <= hi <= full:
+            raise bad("baro_min", f"valid ADC range [{lo}, {hi}] must lie inside [0, {full}]")
+
+    # ------------------------------------------------------------------ derived
+    @property
+    def dt(self) -> float:
+        """Sample period in seconds (2^-k)."""
+        return 2.0 ** -self.k
+
+    @property
+    def baro_range(self) -> tuple[int, int]:
+        """Valid raw barometer range (inclusive), with ``None`` bounds replaced by the ADC's full range."""
+        full = (1 << self.baro_bits) - 1
+        lo = 0 if self.baro_min is None else self.baro_min
+        hi = full if self.baro_max is None else self.baro_max
+        return lo, hi
+
+    def replace(self, **changes: Any) -> BuildConfig:
+        """Return a copy with ``changes`` applied (validated)."""
+        return dataclasses.replace(self, **changes)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The config as a JSON-ready dict (``extra`` omitted when empty)."""
+        data = dataclasses.asdict(self)
+        if not data["extra"]:
+            del data["extra"]
+        return data
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any], where: str = "build config") -> BuildConfig:
+        """Build a config from a dict, rejecting unknown keys with a message naming ``where`` and the key."""
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(data) - names)
+        if unknown:
+            raise UserError(f"{where}: unknown field(s) {', '.join(unknown)}; known: {', '.join(sorted(names))}")
+        try:
+            return cls(**data)
+        except TypeError as exc:  # wrong type for a field
+            raise UserError(f"{where}: {exc}") from None
+
+    @classmethod
+    def from_file(cls, path: str | Path) -> BuildConfig:
+        """Read a config from a JSON file; errors name the file."""
+        path = Path(path)
+        try:
+            data = json.loads(path.read_text())
+        except FileNotFoundError:
+            raise UserError(f"{path}: no such build config file") from None
+        except json.JSONDecodeError as exc:
+            raise UserError(f"{path}:{exc.lineno}:{exc.colno}: invalid JSON: {exc.msg}") from None
+        if not isinstance(data, dict):
+            raise UserError(f"{path}: a build config must be a JSON object")
+        return cls.from_dict(data, where=str(path))
