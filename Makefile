@@ -1,0 +1,54 @@
+# fwemu — every target installs what it needs (a .venv made here; Debian tools via apt when run as root).
+#   make main   golden vectors + budget report for the default firmware on the default input
+#   make test   the whole test suite (what CI runs)
+PYTHON ?= python3
+VENV := .venv
+PY := $(VENV)/bin/python
+FWEMU := $(VENV)/bin/fwemu
+STAMP := $(VENV)/.installed
+# Debian packages the tests use: GNU as for the encoding oracle; cross toolchains + simulators for the MCU runs.
+APT_TOOLS := binutils-m68k-linux-gnu
+APT_PROBE := m68k-linux-gnu-as
+
+.PHONY: all venv tools test test-thorough vectors budget main bench clean
+
+all: main
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install -q --upgrade pip
+	$(PY) -m pip install -q -e '.[test]'
+	touch $(STAMP)
+
+venv: $(STAMP)
+
+# Install the Debian tools when missing and we are root (CI, fresh machines); otherwise the tests that need them skip.
+tools:
+	@missing=""; for t in $(APT_PROBE); do command -v $$t >/dev/null 2>&1 || missing="$$missing $$t"; done; \
+	if [ -n "$$missing" ]; then \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
+	    echo "installing Debian tools ($(APT_TOOLS)) for:$$missing"; \
+	    (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(APT_TOOLS) >/dev/null) \
+	      || echo "warning: apt-get install failed; tests needing$$missing will skip"; \
+	  else echo "note:$$missing not installed (not root): tests needing it will skip"; fi; \
+	fi
+
+test: $(STAMP) tools
+	$(PY) -m pytest -q -n 2 -p no:cacheprovider
+
+test-thorough: $(STAMP) tools
+	HYPOTHESIS_PROFILE=thorough $(PY) -m pytest -q -n 2 -p no:cacheprovider
+
+vectors: $(STAMP)
+	$(FWEMU) vectors --all --out vectors
+
+budget: $(STAMP)
+	$(FWEMU) budget --out out/budget
+
+main: vectors budget
+
+bench: $(STAMP)
+	$(PY) bench/bench_cpu.py
+
+clean:
+	rm -rf $(VENV) build *.egg-info out
