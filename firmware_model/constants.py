@@ -1,0 +1,186 @@
+"""Integer build constants of a firmware program (docs/firmware-spec.md §3), derived from a
+:class:`~firmware_model.config.BuildConfig`.
+
+Every program (model, assembly via :meth:`FirmwareConstants.equates`, C port, golden vectors) reads its constants
+from :func:`build_constants`. Conversions (documented in docs/gain-design.md), all rounded to the nearest integer
+(ties away from zero):
+
+* Kalman velocities (``V_LIFT`` for Kalman programs, ``MACH_VLO``, ``MACH_VHI``): ``v_mps * units_per_metre * 256``
+  (Q24.8 units/s); ``MACH_E = mach_innov_m * units_per_metre * 256`` (Q24.8 units).
+* Recursive velocities (``V_LIFT`` for recursive programs, ``V_GATE``): ``v_mps * accel_counts_per_mps2 * 2^K``
+  (accelerometer counts x samples: VEL is the running sum of ``acc - ACC0``).
+* ``THR = threshold_q8``; ``BARO_MIN``/``BARO_MAX`` = ``cfg.baro_range``; ``ROUND`` 0 floor / 1 half_up.
+* Gains: :func:`quantize_gain` (16-bit mantissa, >= 15 significant bits).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from fractions import Fraction
+
+from firmware_model.config import BuildConfig
+from firmware_model.errors import UserError
+
+#: Largest gain shift (docs/firmware-spec.md §1 mulg).
+MAX_SHIFT: int = 47
+#: Mantissa magnitude range for >= 15 significant bits.
+M_MIN: int = 1 << 14
+M_MAX: int = (1 << 15) - 1
+INT32_MIN: int = -(1 << 31)
+INT32_MAX: int = (1 << 31) - 1
+
+
+@dataclass(frozen=True)
+class QGain:
+    """A quantized constant ``g = m / 2**s`` (docs/firmware-spec.md §1 mulg): ``m`` a signed 16-bit mantissa,
+    ``s`` a right shift 0..47, ``target`` the float value it approximates."""
+
+    m: int
+    s: int
+    target: float
+
+    def __post_init__(self) -> None:
+        if not -32768 <= self.m <= 32767 or not 0 <= self.s <= MAX_SHIFT:
+            raise UserError(f"QGain(m={self.m}, s={self.s}): need -32768 <= m <= 32767 and 0 <= s <= {MAX_SHIFT}")
+
+    @property
+    def value(self) -> float:
+        """The represented value m / 2^s (exact in float64)."""
+        return math.ldexp(float(self.m), -self.s)
+
+    @property
+    def exact(self) -> Fraction:
+        """The represented value as an exact fraction."""
+        return Fraction(self.m, 1 << self.s)
+
+    @property
+    def rel_error(self) -> float:
+        """(value - target) / target, 0 when target == 0."""
+        if self.target == 0:
+            return 0.0
+        return float((self.exact - Fraction(self.target)) / Fraction(self.target))
+
+
+def quantize_gain(name: str, g: float) -> QGain:
+    """Quantize ``g`` to ``m / 2^s`` with ``2^14 <= |m| <= 2^15 - 1`` (>= 15 significant bits, so
+    ``|rel_error| <= 2^-15``), ``m = round(g * 2^s)`` (nearest; exact). ``g == 0`` gives (0, 0).
+
+    Raises :class:`UserError` naming the gain when it is not finite, too large (|g| >= 32767.5, which would need a
+    negative shift) or too small (|g| < 2^-33, which would need a shift above 47 for 15 significant bits).
+    """
+    if not math.isfinite(g):
+        raise UserError(f"gain {name}={g!r}: not a finite number")
+    if g == 0:
+        return QGain(0, 0, 0.0)
+    e = math.frexp(abs(g))[1] - 1            # 2^e <= |g| < 2^(e+1)
+    s = 14 - e                               # |g| * 2^s in [2^14, 2^15)
+    exact = Fraction(g) * (Fraction(2) ** s) if s >= 0 else Fraction(g) / (1 << -s)
+    m = _round_half_away(exact)
+    if abs(m) > M_MAX:                       # rounded up to 2^15: one bit less of shift, m = +-2^14
+        s -= 1
+        m = _round_half_away(exact / 2)
+    if s < 0:
+        raise UserError(f"gain {name}={g!r}: too large for a 16-bit mantissa with shift >= 0 (|g| must be < 32767.5)")
+    if s > MAX_SHIFT:
+        raise UserError(f"gain {name}={g!r}: too small for 15 significant bits with shift <= {MAX_SHIFT} "
+                        f"(|g| must be >= 2^{14 - MAX_SHIFT})")
+    return QGain(int(m), int(s), float(g))
+
+
+def _round_half_away(x: Fraction) -> int:
+    """Nearest integer to an exact fraction, ties away from zero."""
+    sign = -1 if x < 0 else 1
+    return sign * math.floor(abs(x) + Fraction(1, 2))
+
+
+def _round_int(name: str, value: float, where: str) -> int:
+    """Round a physical threshold to the nearest integer (ties away from zero), checking it fits int32."""
+    if not math.isfinite(value):
+        raise UserError(f"{where}: {name}={value!r} is not finite")
+    r = _round_half_away(Fraction(value))
+    if not INT32_MIN <= r <= INT32_MAX:
+        raise UserError(f"{where}: {name}={r} does not fit a signed 32-bit word (reduce the velocity/innovation "
+                        "threshold or the units scale)")
+    return r
+
+
+@dataclass(frozen=True)
+class FirmwareConstants:
+    """The integer constants of one build (docs/firmware-spec.md §3). Velocities/innovations are integers in the
+    units of the spec; gains are :class:`QGain`; ``float_gains`` are the unquantized design gains (same keys)."""
+
+    program: str
+    K: int
+    ROUND: int
+    BARO_SIGN: int
+    S: int
+    THR: int
+    V_LIFT: int
+    V_GATE: int
+    gains: dict[str, QGain]
+    MACH_VLO: int
+    MACH_VHI: int
+    MACH_E: int
+    BARO_MIN: int
+    BARO_MAX: int
+    float_gains: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def rounding(self) -> str:
+        """The rounding mode name (``floor`` or ``half_up``)."""
+        return "half_up" if self.ROUND else "floor"
+
+    def equates(self) -> dict[str, int]:
+        """Assembler symbols (all int32): K ROUND BARO_SIGN S THR V_LIFT V_GATE MACH_VLO MACH_VHI MACH_E BARO_MIN
+        BARO_MAX and, per gain, ``<NAME>_M`` and ``<NAME>_S``."""
+        eq = {name: int(getattr(self, name)) for name in
+              ("K", "ROUND", "BARO_SIGN", "S", "THR", "V_LIFT", "V_GATE", "MACH_VLO", "MACH_VHI", "MACH_E",
+               "BARO_MIN", "BARO_MAX")}
+        for name, g in self.gains.items():
+            eq[f"{name}_M"] = int(g.m)
+            eq[f"{name}_S"] = int(g.s)
+        for name, value in eq.items():
+            if not INT32_MIN <= value <= INT32_MAX:
+                raise UserError(f"equate {name}={value} does not fit a signed 32-bit word")
+        return eq
+
+
+def build_constants(cfg: BuildConfig) -> FirmwareConstants:
+    """Derive the integer build constants of ``cfg`` (gain design + quantization + threshold conversion).
+
+    Raises :class:`UserError` naming the config and field for a degenerate design, an unrepresentable gain or a
+    threshold that does not fit int32."""
+    from firmware_model.design import describe, float_gains  # local: design imports config only
+
+    if not isinstance(cfg, BuildConfig):
+        raise UserError(f"build_constants needs a BuildConfig, got {type(cfg).__name__}")
+    where = describe(cfg)
+    fg = float_gains(cfg)
+    gains: dict[str, QGain] = {}
+    for name, g in fg.items():
+        try:
+            gains[name] = quantize_gain(name, g)
+        except UserError as exc:
+            raise UserError(f"{where}: {exc}") from None
+    kalman_v = cfg.units_per_metre * 256.0           # Q24.8 units/s per m/s
+    rec_v = cfg.accel_counts_per_mps2 * 2.0**cfg.k     # accel counts x samples per m/s
+    recursive = cfg.program in ("recursive", "recursive_seed_literal")
+    lo, hi = cfg.baro_range
+    return FirmwareConstants(
+        program=cfg.program,
+        K=cfg.k,
+        ROUND=1 if cfg.rounding == "half_up" else 0,
+        BARO_SIGN=cfg.baro_sign,
+        S=cfg.shift,
+        THR=cfg.threshold_q8,
+        V_LIFT=_round_int("V_LIFT", cfg.liftoff_mps * (rec_v if recursive else kalman_v), where),
+        V_GATE=_round_int("V_GATE", cfg.gate_mps * rec_v, where),
+        gains=gains,
+        MACH_VLO=_round_int("MACH_VLO", cfg.mach_lo_mps * kalman_v, where),
+        MACH_VHI=_round_int("MACH_VHI", cfg.mach_hi_mps * kalman_v, where),
+        MACH_E=_round_int("MACH_E", cfg.mach_innov_m * kalman_v, where),
+        BARO_MIN=lo,
+        BARO_MAX=hi,
+        float_gains=fg,
+    )
