@@ -1,0 +1,306 @@
+"""Float64 references for the firmware programs.
+
+Two kinds (DESIGN.md §6): fixed vs **float mirror** isolates quantization; float mirror vs **ideal** isolates the
+algorithm's own approximations (steady-state gains, flight logic).
+
+* :func:`mirror`: the firmware's steps (docs/firmware-spec.md §5-§7) in float64, with the same flight logic and
+  the same integer thresholds, the *design* gains (``FirmwareConstants.float_gains``) instead of the quantized
+  ones (or the quantized ones with ``gains="quantized"``), no rounding (a shift by ``s`` is an exact division by
+  ``2^s``) and no wrap-around.
+* :func:`ideal_kalman`: the textbook Kalman filter with the design's F, H, Q, R, time-varying from ``P0`` or with
+  the steady-state gain, no flight logic except liftoff/apogee flags from its own velocity.
+
+Every float output is in the *word scale* of the integer state (Q24.8 LSB = 1, i.e. value x 256), so integer and
+float traces subtract directly: X1 in 1/256 unit, X2 in 1/256 unit/s, X3 in 1/256 unit/s^2, EST/EXT in 1/256
+unit, where "unit" = barometer count x BARO_SIGN (docs/firmware-spec.md §2).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from firmware_model.errors import UserError
+from firmware_model.trace import EVENT_BITS, LATCHED_EVENTS, STATE_WORDS, word_names
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    from firmware_model.config import BuildConfig
+    from firmware_model.constants import FirmwareConstants
+
+_LIFTOFF = EVENT_BITS["LIFTOFF"]
+_ARMED = EVENT_BITS["ARMED"]
+_APOGEE = EVENT_BITS["APOGEE"]
+_MACH = EVENT_BITS["MACH_LOCKOUT"]
+_BARO_INVALID = EVENT_BITS["BARO_INVALID"]
+_PREDICTED = EVENT_BITS["APOGEE_PREDICTED"]
+
+
+@dataclass
+class FloatTrace:
+    """Outputs of a float reference, shaped like :class:`firmware_model.trace.Trace`.
+
+    ``words`` is float64 ``(n, n_words)`` or ``(streams, n, n_words)`` in word scale (Q24.8 LSB = 1); the
+    ``EVENTS`` column holds exact small integers; ``init_words`` is the state after ``init``.
+    """
+
+    program: str
+    names: tuple[str, ...]
+    words: np.ndarray
+    init_words: np.ndarray
+
+    def column(self, name: str) -> np.ndarray:
+        """Per-sample values of word ``name`` (shape ``words.shape[:-1]``), float64 in word scale."""
+        return self.words[..., self.names.index(name)]
+
+    def first_event(self, bit: str) -> np.ndarray | int:
+        """Index of the first sample with event ``bit`` set, or -1 (per stream when many)."""
+        if "EVENTS" not in self.names:
+            raise UserError(f"{self.program}: this trace has no EVENTS word")
+        hit = (self.column("EVENTS").astype(np.int64) & EVENT_BITS[bit]) != 0
+        first = np.where(hit.any(axis=-1), hit.argmax(axis=-1), -1)
+        return int(first) if first.ndim == 0 else first
+
+
+def _streams(values: Any, name: str) -> np.ndarray:
+    arr = np.asarray(values, dtype=np.float64)
+    if arr.ndim not in (1, 2) or arr.shape[-1] < 1:
+        raise UserError(f"{name}: expected a non-empty array of shape (n,) or (streams, n), got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise UserError(f"{name}: non-finite sample(s)")
+    return np.atleast_2d(arr)
+
+
+def _inputs(adc: Any, acc: Any) -> tuple[np.ndarray, np.ndarray, bool]:
+    one = np.ndim(adc) == 1
+    a = _streams(adc, "adc")
+    b = np.zeros_like(a) if acc is None else _streams(acc, "acc")
+    if b.shape != a.shape:
+        raise UserError(f"acc: shape {np.shape(acc)} differs from adc shape {np.shape(adc)}")
+    return a, b, one
+
+
+def _gain_values(consts: "FirmwareConstants", gains: str) -> dict[str, float]:
+    if gains == "design":
+        return dict(consts.float_gains)
+    if gains == "quantized":
+        return {name: g.value for name, g in consts.gains.items()}
+    raise UserError(f"gains={gains!r}: must be 'design' or 'quantized'")
+
+
+# ---------------------------------------------------------------------------------------------------- mirror
+def mirror(consts: "FirmwareConstants", adc: np.ndarray, acc: np.ndarray | None = None,
+           gains: str = "design") -> FloatTrace:
+    """Float64 mirror of ``consts.program`` (docs/firmware-spec.md §5-§7 without quantization).
+
+    Same inputs and sequencing as :func:`firmware_model.model.run_model` (``adc`` counts, ``acc`` counts,
+    shape ``(n,)`` or ``(streams, n)``). ``gains``: ``"design"`` (unquantized ``float_gains``; default) or
+    ``"quantized"`` (the 16-bit mantissa values ``m / 2^s``, to separate gain quantization from rounding).
+    Outputs in word scale. APFRAC is the unrounded ``65536 * X2 / d`` (capped at 65535), no pre-shifts.
+    ``recursive_seed_literal`` mirrors the literal (diverging) listing; the *intended* seed filter is the
+    ``EST`` of ``mirror`` of ``recursive`` (identical to ``P[n+1] = x ADC + (1 - x) P[n]``, x = 2^-S).
+    """
+    program = consts.program
+    if program not in STATE_WORDS:
+        raise UserError(f"build constants: unknown program {program!r}")
+    a, b, one = _inputs(adc, acc)
+    if program in ("recursive", "recursive_seed_literal"):
+        init, words = _mirror_recursive(consts, a, b, literal=program == "recursive_seed_literal")
+    else:
+        init, words = _mirror_kalman(consts, _gain_values(consts, gains), a, b)
+    names = word_names(program)
+    if one:
+        return FloatTrace(program, names, words[0], init[0])
+    return FloatTrace(program, names, words, init)
+
+
+def _mirror_recursive(consts: "FirmwareConstants", adc: np.ndarray, acc: np.ndarray,
+                      literal: bool) -> tuple[np.ndarray, np.ndarray]:
+    n_streams, n = adc.shape
+    x = 2.0 ** -int(consts.S)
+    z = adc * float(consts.BARO_SIGN)
+    est = z[:, 0] * 256.0
+    if literal:
+        out = np.empty((n_streams, n, 1))
+        init = est[:, None].copy()
+        with np.errstate(over="ignore", invalid="ignore"):
+            for i in range(n):
+                est = est + est * x - z[:, i] * 256.0 * x
+                out[:, i, 0] = est
+        return init, out
+    ext = est.copy()
+    vel = np.zeros(n_streams)
+    acc0 = acc[:, 0].copy()
+    ev = np.zeros(n_streams, dtype=np.int64)
+    init = np.stack([est, ext, vel, acc0, ev.astype(float)], axis=-1)
+    out = np.empty((n_streams, n, 5))
+    for i in range(n):
+        vel = vel + (acc[:, i] - acc0)
+        ev = np.where(((ev & _LIFTOFF) == 0) & (vel > consts.V_LIFT), ev | _LIFTOFF, ev)
+        ev = np.where(((ev & _LIFTOFF) != 0) & ((ev & _ARMED) == 0) & (vel < consts.V_GATE), ev | _ARMED, ev)
+        est = est + z[:, i] * 256.0 * x - est * x
+        up = est > ext
+        ext = np.where(up, est, ext)
+        fire = ~up & ((ev & _ARMED) != 0) & ((ev & _APOGEE) == 0) & (ext - est >= consts.THR)
+        ev = np.where(fire, ev | _APOGEE, ev)
+        out[:, i] = np.stack([est, ext, vel, acc0, ev.astype(float)], axis=-1)
+    return init, out
+
+
+def _mirror_kalman(consts: "FirmwareConstants", g: dict[str, float], adc: np.ndarray,
+                   acc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    accel = consts.program == "kalman_accel"
+    n_streams, n = adc.shape
+    dt = 2.0 ** -int(consts.K)
+    half_dt2 = 2.0 ** -(2 * int(consts.K) + 1)
+    z8 = adc * float(consts.BARO_SIGN) * 256.0
+    baro_ok_all = (adc >= consts.BARO_MIN) & (adc <= consts.BARO_MAX)
+    x1 = z8[:, 0].copy()
+    x2 = np.zeros(n_streams)
+    x3 = np.zeros(n_streams)
+    acc0 = acc[:, 0].copy()
+    ev = np.zeros(n_streams, dtype=np.int64)
+    apfrac = np.zeros(n_streams)
+    cols = [x1, x2, x3] + ([acc0] if accel else []) + [ev.astype(float), apfrac]
+    init = np.stack(cols, axis=-1)
+    out = np.empty((n_streams, n, len(cols)))
+    g1 = (g["G11"], g["G21"], g["G31"])
+    g2 = (g["G12"], g["G22"], g["G32"]) if accel else (0.0, 0.0, 0.0)
+    for i in range(n):
+        x1 = x1 + x2 * dt + x3 * half_dt2
+        x2 = x2 + x3 * dt
+        ev = ev & LATCHED_EVENTS
+        baro_ok = baro_ok_all[:, i]
+        ev = np.where(baro_ok, ev, ev | _BARO_INVALID)
+        e1 = z8[:, i] - x1
+        lift = (ev & _LIFTOFF) != 0
+        lockout = (baro_ok & lift & (x2 > consts.MACH_VLO) & (x2 < consts.MACH_VHI)
+                   & ((e1 > consts.MACH_E) | (e1 < -consts.MACH_E)))
+        ev = np.where(lockout, ev | _MACH, ev)
+        e2 = (acc[:, i] - acc0) * g["ACC_G"] - x3 if accel else 0.0
+        use1 = baro_ok & ~lockout
+        c1 = np.where(use1, e1, 0.0)
+        x1 = x1 + g1[0] * c1 + g2[0] * e2
+        x2 = x2 + g1[1] * c1 + g2[1] * e2
+        x3 = x3 + g1[2] * c1 + g2[2] * e2
+        x1 = np.where(lockout, z8[:, i], x1)
+        ev = np.where(((ev & _LIFTOFF) == 0) & (x2 > consts.V_LIFT), ev | _LIFTOFF, ev)
+        lift = (ev & _LIFTOFF) != 0
+        ev = np.where(lift & ((ev & _APOGEE) == 0) & ~lockout & (x2 < 0), ev | _APOGEE, ev)
+        d = -x3 * dt
+        hit = lift & ((ev & (_APOGEE | _PREDICTED)) == 0) & (x2 > 0) & (x2 < d)
+        if hit.any():
+            with np.errstate(divide="ignore", invalid="ignore"):
+                frac = np.minimum(65535.0, 65536.0 * x2 / np.where(hit, d, 1.0))
+            apfrac = np.where(hit, frac, apfrac)
+            ev = np.where(hit, ev | _PREDICTED, ev)
+        row = [x1, x2, x3] + ([acc0] if accel else []) + [ev.astype(float), apfrac]
+        out[:, i] = np.stack(row, axis=-1)
+    return init, out
+
+
+# ---------------------------------------------------------------------------------------------------- ideal Kalman
+def kalman_matrices(cfg: "BuildConfig") -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(F, H, Q, R)`` of the gain design (:func:`firmware_model.design.design_config`) in word scale (Q24.8
+    LSB = 1: Q and R multiplied by 256^2), so that the reference and the design cannot drift apart.
+
+    State ``[alt, vel, acc]`` (1/256 unit, 1/256 unit/s, 1/256 unit/s^2); ``F = [[1, dt, dt^2/2], [0, 1, dt],
+    [0, 0, 1]]`` with ``dt = 2^-k`` s; ``H = [1 0 0]`` (kalman_baro) or ``[[1,0,0],[0,0,1]]`` (kalman_accel);
+    R and Q as documented in :mod:`firmware_model.design`. Raises :class:`UserError` for a non-Kalman program.
+    """
+    from firmware_model.design import design_config
+
+    ss = design_config(cfg)
+    return ss.F.copy(), ss.H.copy(), ss.Q * 65536.0, ss.R * 65536.0
+
+
+def steady_state(cfg: "BuildConfig", tol: float = 1e-13, max_iter: int = 10_000_000) -> tuple[np.ndarray, np.ndarray]:
+    """Steady-state filter-form gain ``K`` (3 x m) and a-priori covariance ``P`` (word scale^2) by iterating the
+    Riccati recursion to convergence (relative change of K below ``tol``). ``K[i, j]`` is the design gain
+    ``G(i+1)(j+1)`` (units 1, 1/s, 1/s^2 for the barometer column)."""
+    F, H, Q, R = kalman_matrices(cfg)
+    P = np.eye(3) * R[0, 0]
+    K = np.zeros((3, H.shape[0]))
+    for _ in range(max_iter):
+        S = H @ P @ H.T + R
+        K_new = P @ H.T @ np.linalg.inv(S)
+        Pu = (np.eye(3) - K_new @ H) @ P
+        P = F @ Pu @ F.T + Q
+        P = (P + P.T) / 2
+        if np.max(np.abs(K_new - K) / np.maximum(np.abs(K_new), 1e-300)) < tol:
+            return K_new, P
+        K = K_new
+    raise UserError(f"steady-state Riccati iteration did not converge in {max_iter} steps for {cfg}")
+
+
+def ideal_kalman(cfg: "BuildConfig", adc: np.ndarray, acc: np.ndarray | None = None, *,
+                 steady: bool = False, P0: np.ndarray | None = None) -> FloatTrace:
+    """The ideal float64 Kalman filter for ``cfg`` (``kalman_baro`` or ``kalman_accel``), word scale.
+
+    Same input conventions and sequencing as the firmware: ``x = [z0 * 256, 0, 0]`` after ``init``; each
+    sample: ``x = F x``, ``P = F P F^T + Q``, ``K = P H^T (H P H^T + R)^-1``, ``x += K (y - H x)``,
+    ``P = (I - K H) P``, with ``y = [BARO_SIGN * adc * 256]`` (+ ``(acc - acc0) * 256 * units_per_metre /
+    accel_counts_per_mps2`` for kalman_accel). ``steady=True`` uses the steady-state gain every sample.
+    ``P0`` (word scale^2) defaults to ``diag(R_baro, (256 * units_per_metre * 1 m/s)^2, (256 * units_per_metre *
+    1 m/s^2)^2)``: the pad state is known well. No barometer range check and no Mach lockout; EVENTS carries
+    LIFTOFF (X2 > liftoff threshold) and APOGEE (X2 < 0 after liftoff) only. Words ``X1, X2, X3, EVENTS``.
+    """
+    if cfg.program not in ("kalman_baro", "kalman_accel"):
+        raise UserError(f"ideal_kalman: program {cfg.program!r} is not a Kalman program")
+    a, b, one = _inputs(adc, acc)
+    n_streams, n = a.shape
+    F, H, Q, R = kalman_matrices(cfg)
+    m = H.shape[0]
+    y = np.empty((n_streams, n, m))
+    y[..., 0] = a * cfg.baro_sign * 256.0
+    if m == 2:
+        y[..., 1] = (b - b[:, :1]) * 256.0 * cfg.units_per_metre / cfg.accel_counts_per_mps2
+    v_lift = cfg.liftoff_mps * cfg.units_per_metre * 256.0
+    if steady:
+        K_ss, _ = steady_state(cfg)
+    if P0 is None:
+        P = np.diag([R[0, 0], (256.0 * cfg.units_per_metre) ** 2, (256.0 * cfg.units_per_metre) ** 2])
+    else:
+        P = np.asarray(P0, dtype=np.float64)
+        if P.shape != (3, 3):
+            raise UserError(f"ideal_kalman: P0 must be 3x3, got {P.shape}")
+    x = np.zeros((n_streams, 3))
+    x[:, 0] = y[:, 0, 0]
+    ev = np.zeros(n_streams, dtype=np.int64)
+    init = np.concatenate([x, ev[:, None].astype(float)], axis=1)
+    out = np.empty((n_streams, n, 4))
+    I3 = np.eye(3)
+    for i in range(n):
+        x = x @ F.T
+        if steady:
+            K = K_ss
+        else:
+            P = F @ P @ F.T + Q
+            K = P @ H.T @ np.linalg.inv(H @ P @ H.T + R)
+            P = (I3 - K @ H) @ P
+        x = x + (y[:, i, :] - x @ H.T) @ K.T
+        ev = np.where(((ev & _LIFTOFF) == 0) & (x[:, 1] > v_lift), ev | _LIFTOFF, ev)
+        ev = np.where(((ev & _LIFTOFF) != 0) & (x[:, 1] < 0), ev | _APOGEE, ev)
+        out[:, i, :3] = x
+        out[:, i, 3] = ev
+    names = ("X1", "X2", "X3", "EVENTS")
+    prog = cfg.program
+    if one:
+        return FloatTrace(prog, names, out[0], init[0])
+    return FloatTrace(prog, names, out, init)
+
+
+def ideal_recursive(consts: "FirmwareConstants", adc: np.ndarray) -> np.ndarray:
+    """Seed 000's intended recursive filter ``P[n+1] = x * ADC + (1 - x) * P[n]`` (x = 2^-S) on ``z =
+    BARO_SIGN * adc``, in word scale (x 256), starting from ``P = z0 * 256`` and seeing sample 0 again in the
+    first step like the firmware. Returns float64 of the input's shape."""
+    a, _, one = _inputs(adc, None)
+    x = 2.0 ** -int(consts.S)
+    z = a * float(consts.BARO_SIGN) * 256.0
+    p = z[:, 0].copy()
+    out = np.empty_like(z)
+    for i in range(z.shape[1]):
+        p = x * z[:, i] + (1.0 - x) * p
+        out[:, i] = p
+    return out[0] if one else out
