@@ -151,7 +151,7 @@ def _imm_words(instr: Instruction, value: int, size: Size | None) -> list[int]:
         return [v >> 16, v & 0xFFFF]
     if size is Size.B:
         _check(-128 <= value <= 255, instr, f"immediate {value} out of range -128..255 for .b")
-        return [value & 0xFF]
+        return [value & 0xFFFF]  # as GNU as: a negative byte immediate is sign-extended into the word
     _check(-32768 <= value <= 65535, instr, f"immediate {value} out of range -32768..65535 for .w")
     return [value & 0xFFFF]
 
