@@ -304,3 +304,82 @@ def ideal_recursive(consts: "FirmwareConstants", adc: np.ndarray) -> np.ndarray:
         p = x * z[:, i] + (1.0 - x) * p
         out[:, i] = p
     return out[0] if one else out
+
+
+# ---------------------------------------------------------------------------------------------------- error bounds
+def rounding_error_bound(s: int, mode: str) -> float:
+    """Largest ``|rs(x, s, mode) - x / 2^s|`` over all integers x (in LSB of the result): 0 for ``s == 0``,
+    ``1 - 2^-s`` for ``floor`` (error in ``[-(1 - 2^-s), 0]``), ``1/2`` for ``half_up`` (``[-1/2 + 2^-s, 1/2]``)."""
+    if s == 0:
+        return 0.0
+    return 1.0 - 2.0 ** -s if mode == "floor" else 0.5
+
+
+def _l1_sums(A: np.ndarray, B: np.ndarray, rel_tol: float = 1e-16) -> np.ndarray:
+    """Elementwise ``sum_t |A^t B|`` (t = 0..inf) for a stable A; stops when the terms are below ``rel_tol``
+    relative to the sum and then adds the geometric tail bound with the spectral radius."""
+    total = np.zeros_like(B, dtype=np.float64)
+    M = np.asarray(B, dtype=np.float64).copy()
+    rho = float(np.max(np.abs(np.linalg.eigvals(A))))
+    if not rho < 1.0:
+        raise UserError(f"closed-loop matrix is not stable (spectral radius {rho}); no error bound exists")
+    for t in range(10_000_000):
+        total += np.abs(M)
+        M = A @ M
+        if t > 8 and np.max(np.abs(M)) <= rel_tol * max(np.max(total), 1e-300):
+            break
+    # tail: |A^t B| decays at least like rho^t up to a modest constant; bound generously
+    return total + np.abs(M) * (4.0 / (1.0 - rho))
+
+
+def kalman_error_bound(consts: "FirmwareConstants", e1_max: float, e2_max: float = 0.0,
+                       acc_dev_max: float = 0.0) -> np.ndarray:
+    """Bound (word scale: Q24.8 LSB; X1 in 1/256 unit, X2 in 1/256 unit/s, X3 in 1/256 unit/s^2) on
+    ``|X_int - X_mirror|`` for ``X1, X2, X3`` of a Kalman program, valid at every sample while both runs take the
+    plain update (barometer valid, no Mach lockout). Derivation (docs/numerics.md, "Kalman bound"):
+
+    ``delta' = A delta + (I - K H) u + r`` with ``A = (I - K H) F`` (design gain K, dt = 2^-K), ``u`` the predict
+    rounding (``|u1| <= rho(K) + rho(2K+1)``, ``|u2| <= rho(K)``), ``r_i`` the gain-multiply rounding
+    (``rho(s_Gij)`` per gain), the gain quantization ``|Kq - K|_ij * |e_j|`` and, for kalman_accel, ``K_i2 *
+    (rho(s_ACC_G) + |ACC_Gq - ACC_G| * acc_dev_max)``; ``rho`` = :func:`rounding_error_bound`. Summing the
+    impulse response: ``|delta| <= L_u u_bar + L_r r_bar`` with ``L_u = sum_t |A^t (I - K H)|``, ``L_r = sum_t
+    |A^t|``. The integer innovations are bounded by the mirror's (``e1_max``, ``e2_max``, word scale) plus the
+    bound itself (``|e1_int| <= e1_max + (|F| B + u_bar)_1``), solved by fixed-point iteration (a contraction:
+    the gain errors are <= 2^-15 relative). ``acc_dev_max`` = max ``|acc - ACC0|`` (counts).
+    """
+    if consts.program not in ("kalman_baro", "kalman_accel"):
+        raise UserError(f"kalman_error_bound: {consts.program!r} is not a Kalman program")
+    mode = "half_up" if consts.ROUND else "floor"
+    accel = consts.program == "kalman_accel"
+    K = int(consts.K)
+    dt = 2.0 ** -K
+    F = np.array([[1.0, dt, dt * dt / 2], [0.0, 1.0, dt], [0.0, 0.0, 1.0]])
+    cols = [("G11", "G21", "G31")] + ([("G12", "G22", "G32")] if accel else [])
+    Kf = np.array([[consts.float_gains[c[i]] for c in cols] for i in range(3)])
+    Kq = np.array([[consts.gains[c[i]].value for c in cols] for i in range(3)])
+    H = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])[: len(cols)]
+    IKH = np.eye(3) - Kf @ H
+    A = IKH @ F
+    Lu = _l1_sums(A, IKH)
+    Lr = _l1_sums(A, np.eye(3))
+    rho = lambda s: rounding_error_bound(s, mode)  # noqa: E731
+    u_bar = np.array([rho(K) + rho(2 * K + 1), rho(K), 0.0])
+    mul_round = np.array([sum(rho(consts.gains[c[i]].s) for c in cols) for i in range(3)])
+    dK = np.abs(Kq - Kf)
+    acc_term = np.zeros(3)
+    if accel:
+        g = consts.gains["ACC_G"]
+        a_err = rho(g.s) + abs(g.value - consts.float_gains["ACC_G"]) * acc_dev_max
+        acc_term = np.abs(Kf[:, 1]) * a_err
+    B = np.zeros(3)
+    for _ in range(200):
+        e1 = e1_max + (np.abs(F) @ B + u_bar)[0]
+        r_bar = mul_round + dK[:, 0] * e1 + acc_term
+        if accel:
+            e2 = e2_max + B[2] + a_err
+            r_bar = r_bar + dK[:, 1] * e2
+        B_new = Lu @ u_bar + Lr @ r_bar
+        if np.all(np.abs(B_new - B) <= 1e-12 * np.maximum(B_new, 1.0)):
+            return B_new
+        B = B_new
+    raise UserError("kalman_error_bound: the fixed-point iteration did not converge (gain errors too large)")
