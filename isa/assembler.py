@@ -1,0 +1,1105 @@
+"""Two-pass (fixed-point) assembler for the MC68000 subset of :mod:`isa`, Motorola syntax.
+
+``assemble(text, filename, origin, include_paths, defines) -> Program``. The accepted language:
+
+* Lines: ``[label[:]] [operation[.size] [operands]] [; comment]``. A label starts in column 1 (colon optional) or
+  anywhere when followed by ``:``. ``*`` or ``;`` as the first non-blank character makes a comment line. Only
+  ``;`` starts a comment after the operation; spaces are allowed inside the operand field (``move.l X, D0``).
+* Mnemonics, registers, directives and symbols are case-insensitive (symbols keep their spelling in
+  :attr:`Program.symbols`). Local labels ``.name`` and ``1$`` are scoped to the previous global label.
+* Expressions: see :mod:`isa.expr` (C precedence, ``*`` = current location, ``$hex %bin @oct 'c'``).
+* Directives: ``EQU`` / ``=`` (constant), ``SET`` (redefinable), ``DC.B/W/L`` (strings allowed in ``DC.B``),
+  ``DS.B/W/L n``, ``DCB.B/W/L n,value``, ``ORG addr``, ``EVEN``, ``ALIGN n`` (n bytes, a power of two),
+  ``SECTION code|text|data|bss``, ``TEXT``/``CODE``/``DATA``/``BSS``, ``INCLUDE "file"``, ``MACRO``/``ENDM``
+  (``name MACRO [p1,p2..]`` or ``MACRO name``; ``\\1``..``\\9``, ``\\0`` = size suffix of the call, ``\\name`` for
+  named parameters, ``\\@`` = unique ``_NNN`` per expansion), ``IF/IFNE expr``, ``IFEQ/IFGT/IFGE/IFLT/IFLE expr``,
+  ``IFD/IFND symbol``, ``ELSE``, ``ENDIF``/``ENDC`` (nested), ``FAIL message``, ``END``.
+* Layout: each of the sections code, data, bss has its own location counter. Code starts at ``origin``; data
+  follows the highest code address (rounded up to even), bss follows data (even). ``ORG`` starts a new block of
+  the current section at an absolute address. Word/long data and instructions at odd addresses are errors (use
+  ``EVEN``). Blocks that overlap are an error.
+* Expressions that decide the layout (``DS``/``DCB`` counts, ``ORG``, ``ALIGN``, ``IF`` conditions) may only use
+  symbols defined earlier in the source; everything else may reference forward.
+* Encoding is what is written: no MOVE->MOVEQ or ADD->ADDQ rewrites. Absolute operands are ``abs.L`` unless
+  written ``x.w`` / ``(x).w``; branches without a size are ``.W``, ``.s``/``.b`` select the 8-bit form.
+  ``MOVE``/``ADD``/``SUB``/``CMP`` with an address-register destination assemble as ``MOVEA``/``ADDA``/``SUBA``/
+  ``CMPA`` (their only encoding, as every Motorola assembler does). ``x(PC)`` / ``(x,PC)``: ``x`` is the target
+  address. Aliases: ``shl``/``shr`` = ``lsl``/``lsr`` (with a warning), ``dbf`` = ``dbra``, ``bhs``/``blo`` =
+  ``bcc``/``bcs`` (also for ``DBcc``/``Scc``).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from isa.encoder import encode, length
+from isa.errors import AssemblyError, EncodingError
+from isa.expr import ExprParser, Token, Where, tokenize
+from isa.operands import IndexReg, Instruction, Mode, Operand, Size
+from isa.program import ListingLine, Program, Segment, SourceLine, Symbol
+from isa.table import BY_MNEMONIC
+
+__all__ = ["assemble"]
+
+#: Highest address + 1 of the 24-bit address space.
+ADDRESS_LIMIT = 1 << 24
+_MAX_PASSES = 12
+_MAX_INCLUDE_DEPTH = 32
+_MAX_MACRO_DEPTH = 64
+_MAX_EXPANDED_LINES = 1_000_000
+
+_SECTIONS = ("code", "data", "bss")
+_SECTION_NAMES = {"code": "code", "text": "code", "data": "data", "bss": "bss"}
+
+_ALIASES: dict[str, tuple[str, bool]] = {  # alias -> (canonical mnemonic, warn)
+    "shl": ("lsl", True),
+    "shr": ("lsr", True),
+    "dbf": ("dbra", False),
+    "bhs": ("bcc", False),
+    "blo": ("bcs", False),
+    "dbhs": ("dbcc", False),
+    "dblo": ("dbcs", False),
+    "shs": ("scc", False),
+    "slo": ("scs", False),
+}
+_TO_A_FORM = {"move": "movea", "add": "adda", "sub": "suba", "cmp": "cmpa"}
+
+_DIRECTIVES = frozenset(
+    "equ set dc ds dcb org even align section text code data bss include macro endm if ifne ifeq ifgt ifge iflt "
+    "ifle ifd ifnd else endif endc end fail".split()
+)
+_IF_OPS = frozenset("if ifne ifeq ifgt ifge iflt ifle ifd ifnd".split())
+_REGISTERS = {f"d{i}": (Mode.DREG, i) for i in range(8)} | {f"a{i}": (Mode.AREG, i) for i in range(8)}
+_REGISTERS["sp"] = (Mode.AREG, 7)
+_UNSUPPORTED_REGS = frozenset({"sr", "ccr", "usp", "ssp"})
+_RESERVED = frozenset(_REGISTERS) | _UNSUPPORTED_REGS | {"pc"}
+
+_LABEL_RE = re.compile(r"(\.?[A-Za-z_][A-Za-z0-9_]*|\.[0-9]+|[0-9]+\$)")
+_OP_RE = re.compile(r"([A-Za-z_][A-Za-z0-9_]*)(?:\.([A-Za-z0-9_]*))?")
+_MACRO_ARG_RE = re.compile(r"\\(@|[0-9]|[A-Za-z_][A-Za-z0-9_]*)")
+_DATA_RANGE = {1: (-0x80, 0xFF), 2: (-0x8000, 0xFFFF), 4: (-0x8000_0000, 0xFFFF_FFFF)}
+
+
+@dataclass(frozen=True)
+class _Rec:
+    """One source line to process: where it really comes from, its text, and a macro-expansion note."""
+
+    file: str
+    line: int
+    text: str
+    note: str = ""
+
+    def where(self, text: str | None = None) -> Where:
+        return Where(self.file, self.line, self.text if text is None else text, self.note)
+
+
+@dataclass
+class _Parsed:
+    """The fields of one statement; columns are 1-based."""
+
+    label: str | None = None
+    label_col: int = 1
+    label_colon: bool = False
+    op: str | None = None  # lower case
+    op_text: str = ""
+    op_col: int = 1
+    size: str | None = None  # lower case size letter(s) as written
+    size_col: int = 1
+    operands: str = ""
+    operand_col: int = 1
+
+
+@dataclass
+class _Macro:
+    name: str
+    params: list[str]
+    body: list[_Rec]
+    rec: _Rec
+
+
+@dataclass
+class _Chunk:
+    start: int
+    data: bytearray
+    size: int = 0
+
+
+@dataclass
+class _Section:
+    name: str
+    chunks: list[_Chunk] = field(default_factory=list)
+    pending: int | None = None  # start of the next chunk, set by ORG
+
+
+@dataclass
+class _Sym:
+    name: str
+    value: int
+    section: str  # code/data/bss for labels, "absolute" otherwise
+    kind: str  # label, equ, set, define
+    local: bool
+    order: int
+    rec: _Rec | None
+
+
+@dataclass
+class _Cond:
+    active: bool  # lines in this branch are assembled
+    parent_active: bool
+    taken: bool  # some branch of this IF was already active
+    seen_else: bool
+    rec: _Rec
+    col: int
+
+
+class _End(Exception):
+    """The END directive: stop reading source."""
+
+
+def _find_comment(text: str) -> int:
+    """Index of the ``;`` starting the comment (outside quotes), or ``len(text)``."""
+    quote = ""
+    for i, ch in enumerate(text):
+        if quote:
+            if ch == quote:
+                quote = ""
+        elif ch in "'\"":
+            quote = ch
+        elif ch == ";":
+            return i
+    return len(text)
+
+
+def _split_args(text: str) -> list[tuple[str, int]]:
+    """Split a macro argument field at top-level commas: (argument, offset) pairs; ``<a,b>`` groups one argument."""
+    out: list[tuple[str, int]] = []
+    depth = 0
+    quote = ""
+    start = 0
+    for i, ch in enumerate(text):
+        if quote:
+            if ch == quote:
+                quote = ""
+        elif ch in "'\"":
+            quote = ch
+        elif ch in "(<":
+            depth += 1
+        elif ch in ")>":
+            depth = max(depth - 1, 0)
+        elif ch == "," and depth == 0:
+            out.append((text[start:i], start))
+            start = i + 1
+    out.append((text[start:], start))
+    result = []
+    for arg, off in out:
+        stripped = arg.strip()
+        if len(stripped) >= 2 and stripped[0] == "<" and stripped[-1] == ">":
+            stripped = stripped[1:-1]
+        result.append((stripped, off))
+    return result
+
+
+def _split_commas(tokens: list[Token]) -> list[list[Token]]:
+    """Split tokens (without the trailing ``end``) at commas outside parentheses."""
+    groups: list[list[Token]] = [[]]
+    depth = 0
+    for t in tokens:
+        if t.kind == "lparen":
+            depth += 1
+        elif t.kind == "rparen":
+            depth -= 1
+        if t.kind == "comma" and depth == 0:
+            groups.append([])
+        else:
+            groups[-1].append(t)
+    return groups
+
+
+class _Assembler:
+    """State of one assembly (all passes)."""
+
+    def __init__(
+        self,
+        text: str,
+        filename: str,
+        origin: int,
+        include_paths: Sequence[str | Path],
+        defines: Mapping[str, int] | None,
+    ) -> None:
+        self.filename = filename
+        self.origin = origin
+        self.include_paths = [Path(p) for p in include_paths]
+        self.defines = dict(defines or {})
+        self.main_recs = self._recs_of(text, filename)
+        self.file_cache: dict[str, list[_Rec]] = {}
+        self.prev: dict[str, _Sym] = {}
+        self.prev_bases: dict[str, int] = {"code": origin, "data": origin, "bss": origin}
+        self.final = False
+
+    # --- driver -----------------------------------------------------------------------------------------------
+    @staticmethod
+    def _recs_of(text: str, filename: str) -> list[_Rec]:
+        return [_Rec(filename, i + 1, line) for i, line in enumerate(text.splitlines())]
+
+    def run(self) -> Program:
+        """Run passes until symbol values and section bases are stable, then a final encoding pass."""
+        if not isinstance(self.origin, int) or not 0 <= self.origin < ADDRESS_LIMIT:
+            raise AssemblyError(f"origin {self.origin!r} outside the 24-bit address space", self.filename, 0, 0)
+        if self.origin & 1:
+            raise AssemblyError(f"origin ${self.origin:X} is odd", self.filename, 0, 0)
+        for name, value in self.defines.items():
+            if not isinstance(name, str) or not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", name):
+                raise AssemblyError(f"bad define name {name!r}", self.filename, 0, 0)
+            if name.lower() in _RESERVED:
+                raise AssemblyError(f"define name {name!r} is a register name", self.filename, 0, 0)
+            if isinstance(value, bool) or not isinstance(value, int):
+                raise AssemblyError(f"define {name} = {value!r} is not an integer", self.filename, 0, 0)
+        snapshot = None
+        for _ in range(_MAX_PASSES):
+            self._pass()
+            new = (self._snapshot(), dict(self.bases))
+            if new == snapshot:
+                break
+            snapshot = new
+            self.prev = self.cur
+            self.prev_bases = dict(self.bases)
+        else:
+            changing = [s for s in self.cur.values() if self.prev.get(s.name.lower(), s).value != s.value]
+            sym = changing[0] if changing else None
+            if sym is not None and sym.rec is not None:
+                raise sym.rec.where().error(f"value of '{sym.name}' does not converge (circular definition?)", 1)
+            raise AssemblyError("symbol values do not converge (circular definition?)", self.filename, 0, 0)
+        self.final = True
+        self._pass()
+        return self._program()
+
+    def _snapshot(self) -> dict[str, int]:
+        return {k: s.value for k, s in self.cur.items() if s.kind != "set"}
+
+    def _pass(self) -> None:
+        self.cur: dict[str, _Sym] = {}
+        for name, value in self.defines.items():
+            self.cur[name.lower()] = _Sym(name, value, "absolute", "define", False, len(self.cur), None)
+        self.sections = {name: _Section(name) for name in _SECTIONS}
+        self.section = self.sections["code"]
+        self.bases = {"code": self.origin, "data": self.prev_bases["data"], "bss": self.prev_bases["bss"]}
+        self.macros: dict[str, _Macro] = {}
+        self.conds: list[_Cond] = []
+        self.scope = ""
+        self.unique = 0
+        self.listing: list[ListingLine] = []
+        self.source_map: dict[int, SourceLine] = {}
+        self.warnings: list[str] = []
+        self.include_stack: list[str] = [os.path.abspath(self.filename)]
+        self.macro_depth = 0
+        self.lines_done = 0
+        self.defining: _Macro | None = None
+        try:
+            self._unit(self.main_recs, "file")
+        except _End:
+            pass
+        # Data follows code, bss follows data (each rounded up to even) unless placed by ORG.
+        code_end = self._section_end("code", self.origin)
+        self.bases["data"] = (code_end + 1) & ~1
+        data_end = self._section_end("data", self.bases["data"])
+        self.bases["bss"] = (data_end + 1) & ~1
+
+    def _section_end(self, name: str, default: int) -> int:
+        chunks = self.sections[name].chunks
+        return max((c.start + c.size for c in chunks), default=default)
+
+    # --- line processing --------------------------------------------------------------------------------------
+    def _unit(self, recs: list[_Rec], kind: str) -> None:
+        """Process the lines of one file or macro expansion; IF and MACRO blocks must close within it."""
+        cond_base = len(self.conds)
+        for rec in recs:
+            self.lines_done += 1
+            if self.lines_done > _MAX_EXPANDED_LINES:
+                raise rec.where().error("too many lines after macro expansion (runaway recursion?)", 1)
+            self._line(rec, cond_base)
+        if self.defining is not None:  # a definition cannot span units (nothing nests while defining)
+            mac = self.defining
+            self.defining = None
+            raise mac.rec.where().error(f"unterminated MACRO '{mac.name}' (missing ENDM)", 1)
+        if len(self.conds) > cond_base:
+            cond = self.conds[-1]
+            raise cond.rec.where().error("unterminated IF (missing ENDIF)", cond.col)
+
+    def _active(self) -> bool:
+        return not self.conds or self.conds[-1].active
+
+    def _line(self, rec: _Rec, cond_base: int) -> None:
+        # Macro body collection: only ENDM (and a nested MACRO, which is refused) are looked at.
+        if self.defining is not None:
+            p = self._parse_fields(rec, lenient=True)
+            if p.op == "endm":
+                self.macros[self.defining.name.lower()] = self.defining
+                self.defining = None
+                self._list(rec, None)
+            elif p.op == "macro":
+                raise rec.where().error("nested MACRO definitions are not supported", p.op_col)
+            else:
+                self.defining.body.append(rec)
+                self._list(rec, None)
+            return
+        if not self._active():
+            p = self._parse_fields(rec, lenient=True)
+            if p.op in _IF_OPS:
+                self.conds.append(_Cond(False, False, True, False, rec, p.op_col))
+            elif p.op in ("else", "endif", "endc"):
+                self._cond_op(rec, p, cond_base)
+            return
+        p = self._parse_fields(rec, lenient=False)
+        if p.op in _IF_OPS or p.op in ("else", "endif", "endc"):
+            if p.label is not None:
+                raise rec.where().error("a label is not allowed on a conditional directive", p.label_col)
+            self._cond_op(rec, p, cond_base)
+            self._list(rec, None)
+            return
+        if p.op == "macro":
+            self._macro_def(rec, p)
+            self._list(rec, None)
+            return
+        if p.op == "endm":
+            raise rec.where().error("ENDM without MACRO", p.op_col)
+        if p.op in ("equ", "set") or p.op == "=":
+            self._equ(rec, p)
+            return
+        if p.label is not None:
+            self._define_label(rec, p)
+        if p.op is None:
+            self._list(rec, self._here() if p.label is not None else None)
+            return
+        if p.op in self.macros:
+            self._list(rec, None)
+            self._expand(rec, p)
+            return
+        if p.op in _DIRECTIVES:
+            self._directive(rec, p)
+            return
+        self._instruction(rec, p)
+
+    def _parse_fields(self, rec: _Rec, lenient: bool) -> _Parsed:
+        """Split a line into label, operation, size and operand field."""
+        text = rec.text.replace("\t", " ") if "\t" in rec.text else rec.text
+        p = _Parsed()
+        stripped = text.lstrip()
+        if not stripped or stripped[0] in "*;":
+            return p
+        body = text[: _find_comment(text)].rstrip()
+        i = 0
+        if body and body[0] != " ":
+            m = _LABEL_RE.match(body)
+            if m is None:
+                if lenient:
+                    return p
+                raise rec.where().error(f"bad label or statement starting with {body[0]!r}", 1)
+            p.label = m.group(1)
+            p.label_col = 1
+            i = m.end()
+            if i < len(body) and body[i] == ":":
+                p.label_colon = True
+                i += 1
+            elif i < len(body) and body[i] not in " =":
+                if lenient:
+                    return p
+                raise rec.where().error(f"bad character {body[i]!r} in label", i + 1)
+        else:
+            m = re.compile(r" *" + _LABEL_RE.pattern + ":").match(body)
+            if m is not None:
+                p.label = m.group(1)
+                p.label_col = m.start(1) + 1
+                p.label_colon = True
+                i = m.end()
+        while i < len(body) and body[i] == " ":
+            i += 1
+        if i >= len(body):
+            return p
+        if body[i] == "=":
+            p.op, p.op_text, p.op_col = "=", "=", i + 1
+            i += 1
+        else:
+            m = _OP_RE.match(body, i)
+            if m is None:
+                if lenient:
+                    return p
+                raise rec.where().error(f"expected an instruction or directive, found {body[i]!r}", i + 1)
+            p.op = m.group(1).lower()
+            p.op_text = m.group(0)
+            p.op_col = i + 1
+            if m.group(2) is not None:
+                p.size = m.group(2).lower()
+                p.size_col = m.start(2)
+            i = m.end()
+            if i < len(body) and body[i] != " ":
+                if lenient:
+                    return p
+                raise rec.where().error(f"unexpected {body[i]!r} after '{p.op_text}'", i + 1)
+        while i < len(body) and body[i] == " ":
+            i += 1
+        p.operands = body[i:]
+        p.operand_col = i + 1
+        if (
+            not lenient
+            and p.label is not None
+            and not p.label_colon
+            and p.label_col == 1
+            and (p.label.lower() in BY_MNEMONIC or p.label.lower() in _DIRECTIVES or p.label.lower() in _ALIASES)
+        ):
+            raise rec.where().error(
+                f"'{p.label}' in column 1 is taken as a label; indent instructions and directives", 1
+            )
+        return p
+
+    def _list(self, rec: _Rec, address: int | None, data: bytes = b"", cycles: tuple[int, int] | None = None) -> None:
+        if self.final:
+            self.listing.append(ListingLine(address, bytes(data), cycles, SourceLine(rec.file, rec.line, rec.text)))
+
+    # --- symbols ------------------------------------------------------------------------------------------------
+    def _qualify(self, name: str) -> tuple[str, bool]:
+        """Full name of a (possibly local) symbol and whether it is local."""
+        if name.startswith(".") or name.endswith("$"):
+            return self.scope + (name if name.startswith(".") else "." + name), True
+        return name, False
+
+    def _check_name(self, rec: _Rec, name: str, col: int) -> None:
+        if name.lower() in _RESERVED:
+            raise rec.where().error(f"'{name}' is a register name and cannot be a symbol", col)
+
+    def _define(self, rec: _Rec, name: str, col: int, value: int, section: str, kind: str) -> None:
+        self._check_name(rec, name, col)
+        full, local = self._qualify(name)
+        key = full.lower()
+        old = self.cur.get(key)
+        if old is not None and not (old.kind == "set" and kind == "set"):
+            where = f" (first defined at {old.rec.file}:{old.rec.line})" if old.rec else " (a define)"
+            raise rec.where().error(f"duplicate symbol '{full}'{where}", col)
+        self.cur[key] = _Sym(full, value, section, kind, local, len(self.cur), rec)
+
+    def _define_label(self, rec: _Rec, p: _Parsed) -> None:
+        assert p.label is not None
+        self._define(rec, p.label, p.label_col, self._here(), self.section.name, "label")
+        if not (p.label.startswith(".") or p.label.endswith("$")):
+            self.scope = p.label
+
+    def _resolver(self, rec: _Rec, strict: bool):
+        """A symbol resolver for :class:`ExprParser`; ``strict`` allows only symbols defined earlier."""
+
+        def resolve(name: str, tok: Token) -> int:
+            low = name.lower()
+            if low in _RESERVED:
+                raise rec.where().error(f"register '{name}' is not allowed in an expression", tok.col)
+            full, _ = self._qualify(name)
+            key = full.lower()
+            sym = self.cur.get(key)
+            if sym is not None:
+                return sym.value
+            if strict:
+                raise rec.where().error(
+                    f"symbol '{full}' must be defined before this line (it decides the layout)", tok.col
+                )
+            sym = self.prev.get(key)
+            if sym is not None and sym.kind != "set":
+                return sym.value
+            if self.final:
+                raise rec.where().error(f"undefined symbol '{full}'", tok.col)
+            return 0
+
+        return resolve
+
+    # --- expressions ----------------------------------------------------------------------------------------------
+    def _tokens(self, rec: _Rec, text: str, col: int) -> list[Token]:
+        return tokenize(text, col, rec.where())
+
+    def _eval_tokens(self, rec: _Rec, toks: list[Token], strict: bool = False, what: str = "expression") -> int:
+        """Evaluate a complete token list (must be one expression)."""
+        if not toks or toks[0].kind == "end":
+            col = toks[0].col if toks else 1
+            raise rec.where().error(f"missing {what}", col)
+        if toks[-1].kind != "end":
+            toks = toks + [Token("end", "", toks[-1].col + len(toks[-1].text))]
+        parser = ExprParser(toks, rec.where(), self._resolver(rec, strict), self._here())
+        value = parser.parse()
+        if parser.tok.kind != "end":
+            raise parser.error(f"unexpected '{parser.tok.text}' in {what}")
+        return value
+
+    def _eval(self, rec: _Rec, text: str, col: int, strict: bool = False, what: str = "expression") -> int:
+        return self._eval_tokens(rec, self._tokens(rec, text, col), strict, what)
+
+    # --- location counter -------------------------------------------------------------------------------------------
+    def _here(self) -> int:
+        sec = self.section
+        if sec.pending is not None:
+            return sec.pending
+        if sec.chunks:
+            c = sec.chunks[-1]
+            return c.start + c.size
+        return self.bases[sec.name]
+
+    def _emit(self, rec: _Rec, data: bytes, col: int, reserve: int = 0) -> int:
+        """Append ``data`` (or reserve ``reserve`` zero bytes) to the current section; return its address."""
+        sec = self.section
+        addr = self._here()
+        n = len(data) + reserve
+        if addr + n > ADDRESS_LIMIT:
+            raise rec.where().error(f"address ${addr + n:X} beyond the 24-bit address space", col)
+        if sec.pending is not None or not sec.chunks:
+            sec.chunks.append(_Chunk(addr, bytearray()))
+            sec.pending = None
+        chunk = sec.chunks[-1]
+        if sec.name != "bss":
+            chunk.data += data
+            if reserve:
+                chunk.data += bytes(reserve)
+        chunk.size += n
+        return addr
+
+    def _require_even(self, rec: _Rec, what: str, col: int) -> None:
+        addr = self._here()
+        if addr & 1:
+            raise rec.where().error(f"{what} at odd address ${addr:X} (insert EVEN)", col)
+
+    # --- directives ---------------------------------------------------------------------------------------------
+    def _equ(self, rec: _Rec, p: _Parsed) -> None:
+        if p.label is None:
+            raise rec.where().error(f"'{p.op_text}' needs a symbol name in the label field", p.op_col)
+        if p.size is not None:
+            raise rec.where().error(f"bad size suffix '.{p.size}' on '{p.op}'", p.size_col)
+        value = self._eval(rec, p.operands, p.operand_col)
+        kind = "set" if p.op == "set" else "equ"
+        self._define(rec, p.label, p.label_col, value, "absolute", kind)
+        self._list(rec, None)
+
+    def _directive(self, rec: _Rec, p: _Parsed) -> None:
+        op = p.op
+        assert op is not None
+        sized = op in ("dc", "ds", "dcb")
+        if p.size is not None and (not sized or p.size not in ("b", "w", "l")):
+            raise rec.where().error(f"bad size suffix '.{p.size}' on '{op}'", p.size_col)
+        no_operands = op in ("even", "text", "code", "data", "bss", "end")
+        if no_operands and p.operands:
+            raise rec.where().error(f"'{op}' takes no operands", p.operand_col)
+        if op in ("dc", "ds", "dcb"):
+            self._data(rec, p)
+        elif op == "org":
+            addr = self._eval(rec, p.operands, p.operand_col, strict=True, what="address")
+            if not 0 <= addr < ADDRESS_LIMIT:
+                raise rec.where().error(f"ORG address {addr} outside the 24-bit address space", p.operand_col)
+            self.section.pending = addr
+            self._list(rec, addr)
+        elif op in ("even", "align"):
+            n = 2
+            if op == "align":
+                n = self._eval(rec, p.operands, p.operand_col, strict=True, what="alignment")
+                if n < 1 or n & (n - 1) or n > 0x10000:
+                    raise rec.where().error(f"alignment {n} is not a power of two in 1..65536", p.operand_col)
+            pad = -self._here() % n
+            addr = self._emit(rec, b"", p.op_col, reserve=pad) if pad else self._here()
+            self._list(rec, addr, bytes(pad) if self.section.name != "bss" else b"")
+        elif op == "section":
+            self._section(rec, p)
+        elif op in ("text", "code", "data", "bss"):
+            self.section = self.sections[_SECTION_NAMES.get(op, op)]
+            self._list(rec, None)
+        elif op == "include":
+            self._include(rec, p)
+        elif op == "fail":
+            raise rec.where().error(f"FAIL: {p.operands}" if p.operands else "FAIL", p.op_col)
+        elif op == "end":
+            self._list(rec, None)
+            raise _End
+        else:  # pragma: no cover - every directive is handled above
+            raise rec.where().error(f"directive '{op}' not handled", p.op_col)
+
+    def _section(self, rec: _Rec, p: _Parsed) -> None:
+        parts = [s.strip().lower() for s in p.operands.split(",")]
+        name = None
+        for part in reversed(parts):
+            part = part.lstrip(".")
+            if part in _SECTION_NAMES:
+                name = _SECTION_NAMES[part]
+                break
+        if name is None:
+            raise rec.where().error(
+                f"unknown section '{p.operands}' (use code/text, data or bss)", p.operand_col if p.operands else p.op_col
+            )
+        self.section = self.sections[name]
+        self._list(rec, None)
+
+    def _data(self, rec: _Rec, p: _Parsed) -> None:
+        op = p.op
+        width = {"b": 1, "w": 2, "l": 4}[p.size or "w"]
+        bss = self.section.name == "bss"
+        if width > 1:
+            self._require_even(rec, f"{op}.{'wl'[width == 4]}", p.op_col)
+        toks = self._tokens(rec, p.operands, p.operand_col)
+        groups = _split_commas(toks[:-1])
+        if op == "ds":
+            if len(groups) != 1:
+                raise rec.where().error("DS takes one operand (the count)", p.operand_col)
+            count = self._eval_tokens(rec, groups[0], strict=True, what="count")
+            if count < 0 or count * width >= ADDRESS_LIMIT:
+                raise rec.where().error(f"DS count {count} out of range", p.operand_col)
+            addr = self._emit(rec, b"", p.op_col, reserve=count * width)
+            self._list(rec, addr, b"" if bss else bytes(count * width))
+            return
+        if bss:
+            raise rec.where().error("initialized data (DC/DCB) in the bss section", p.op_col)
+        if op == "dcb":
+            if len(groups) not in (1, 2):
+                raise rec.where().error("DCB takes a count and an optional value", p.operand_col)
+            count = self._eval_tokens(rec, groups[0], strict=True, what="count")
+            if count < 0 or count * width >= ADDRESS_LIMIT:
+                raise rec.where().error(f"DCB count {count} out of range", p.operand_col)
+            value = self._eval_tokens(rec, groups[1]) if len(groups) == 2 else 0
+            item = self._pack(rec, value, width, groups[1][0].col if len(groups) == 2 else p.operand_col)
+            data = item * count
+        else:
+            data = bytearray()
+            for g in groups:
+                if not g:
+                    col = toks[0].col if toks else p.operand_col
+                    raise rec.where().error("missing value in DC", col)
+                if width == 1 and len(g) == 1 and g[0].kind == "str":
+                    s = str(g[0].value)
+                    if any(ord(ch) > 255 for ch in s):
+                        raise rec.where().error("string holds a character outside 8 bits", g[0].col)
+                    data += s.encode("latin-1")
+                    continue
+                data += self._pack(rec, self._eval_tokens(rec, g), width, g[0].col)
+        addr = self._emit(rec, bytes(data), p.op_col)
+        self._list(rec, addr, bytes(data))
+
+    def _pack(self, rec: _Rec, value: int, width: int, col: int) -> bytes:
+        lo, hi = _DATA_RANGE[width]
+        if not lo <= value <= hi:
+            if not self.final:
+                value = 0
+            else:
+                raise rec.where().error(f"value {value} out of range {lo}..{hi} for {width}-byte data", col)
+        return (value & ((1 << (8 * width)) - 1)).to_bytes(width, "big")
+
+    def _include(self, rec: _Rec, p: _Parsed) -> None:
+        name = p.operands.strip()
+        if len(name) >= 2 and name[0] == name[-1] and name[0] in "'\"" or (name[:1] == "<" and name[-1:] == ">"):
+            name = name[1:-1]
+        if not name:
+            raise rec.where().error("INCLUDE needs a file name", p.op_col)
+        base = Path(rec.file).parent if rec.file and not rec.file.startswith("<") else Path(".")
+        candidates = [Path(name)] if os.path.isabs(name) else [base / name] + [d / name for d in self.include_paths]
+        path = next((c for c in candidates if c.is_file()), None)
+        if path is None:
+            tried = ", ".join(str(c) for c in candidates)
+            raise rec.where().error(f"cannot find INCLUDE file '{name}' (tried {tried})", p.operand_col)
+        key = os.path.abspath(path)
+        if key in self.include_stack:
+            chain = " -> ".join(self.include_stack + [key])
+            raise rec.where().error(f"include recursion: {chain}", p.operand_col)
+        if len(self.include_stack) > _MAX_INCLUDE_DEPTH:
+            raise rec.where().error("INCLUDE nested too deeply", p.operand_col)
+        recs = self.file_cache.get(key)
+        if recs is None:
+            try:
+                text = path.read_text(encoding="utf-8")
+            except (OSError, UnicodeDecodeError) as exc:
+                raise rec.where().error(f"cannot read INCLUDE file '{path}': {exc}", p.operand_col) from None
+            recs = self._recs_of(text, str(path))
+            self.file_cache[key] = recs
+        self._list(rec, None)
+        self.include_stack.append(key)
+        saved_macro_depth, self.macro_depth = self.macro_depth, 0
+        try:
+            self._unit(recs, "file")
+        finally:
+            self.include_stack.pop()
+            self.macro_depth = saved_macro_depth
+
+    # --- conditionals ----------------------------------------------------------------------------------------------
+    def _cond_op(self, rec: _Rec, p: _Parsed, cond_base: int) -> None:
+        op = p.op
+        if op in _IF_OPS:
+            parent = self._active()
+            value = False
+            if parent:
+                if op in ("ifd", "ifnd"):
+                    toks = self._tokens(rec, p.operands, p.operand_col)
+                    if len(toks) != 2 or toks[0].kind != "ident":
+                        raise rec.where().error(f"{op.upper()} needs one symbol name", p.operand_col)
+                    full, _ = self._qualify(toks[0].text)
+                    defined = full.lower() in self.cur
+                    value = defined if op == "ifd" else not defined
+                else:
+                    v = self._eval(rec, p.operands, p.operand_col, strict=True, what="condition")
+                    value = {
+                        "if": v != 0,
+                        "ifne": v != 0,
+                        "ifeq": v == 0,
+                        "ifgt": v > 0,
+                        "ifge": v >= 0,
+                        "iflt": v < 0,
+                        "ifle": v <= 0,
+                    }[op]
+            self.conds.append(_Cond(parent and value, parent, value, False, rec, p.op_col))
+            return
+        if len(self.conds) <= cond_base:
+            raise rec.where().error(f"{op.upper()} without IF", p.op_col)
+        if p.operands and op != "else":
+            raise rec.where().error(f"'{op}' takes no operands", p.operand_col)
+        cond = self.conds[-1]
+        if op == "else":
+            if cond.seen_else:
+                raise rec.where().error("second ELSE for the same IF", p.op_col)
+            cond.seen_else = True
+            cond.active = cond.parent_active and not cond.taken
+            cond.taken = True
+        else:
+            self.conds.pop()
+
+    # --- macros ----------------------------------------------------------------------------------------------------
+    def _macro_def(self, rec: _Rec, p: _Parsed) -> None:
+        if p.size is not None:
+            raise rec.where().error(f"bad size suffix '.{p.size}' on 'macro'", p.size_col)
+        params_text = p.operands
+        if p.label is not None:
+            name, col = p.label, p.label_col
+        else:
+            m = re.match(r"([A-Za-z_][A-Za-z0-9_]*)\s*,?\s*", params_text)
+            if m is None:
+                raise rec.where().error("MACRO needs a name", p.operand_col)
+            name, col = m.group(1), p.operand_col
+            params_text = params_text[m.end() :]
+        low = name.lower()
+        if low in BY_MNEMONIC or low in _DIRECTIVES or low in _ALIASES or low in _RESERVED:
+            raise rec.where().error(f"macro name '{name}' is a reserved word", col)
+        if low in self.macros:
+            raise rec.where().error(f"macro '{name}' already defined", col)
+        params = [a.strip() for a in params_text.split(",")] if params_text.strip() else []
+        for prm in params:
+            if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", prm):
+                raise rec.where().error(f"bad macro parameter name '{prm}'", p.operand_col)
+        self.defining = _Macro(name, [x.lower() for x in params], [], rec)
+
+    def _expand(self, rec: _Rec, p: _Parsed) -> None:
+        mac = self.macros[p.op or ""]
+        args = [a for a, _ in _split_args(p.operands)] if p.operands.strip() else []
+        if len(args) > 9 and not mac.params:
+            raise rec.where().error("more than 9 macro arguments", p.operand_col)
+        if self.macro_depth >= _MAX_MACRO_DEPTH:
+            raise rec.where().error(f"macro '{mac.name}' nested too deeply (recursive macro?)", p.op_col)
+        self.unique += 1
+        unique = f"_{self.unique:03d}"
+        named = {prm: (args[i] if i < len(args) else "") for i, prm in enumerate(mac.params)}
+
+        def sub(m: re.Match[str]) -> str:
+            key = m.group(1)
+            if key == "@":
+                return unique
+            if key.isdigit():
+                n = int(key)
+                if n == 0:
+                    return p.size or ""
+                return args[n - 1] if n <= len(args) else ""
+            return named.get(key.lower(), m.group(0))
+
+        where = f"{rec.file}:{rec.line}"
+        note = f"in macro '{mac.name}' called at {where}" + (f"; {rec.note}" if rec.note else "")
+        body = [_Rec(r.file, r.line, _MACRO_ARG_RE.sub(sub, r.text), note) for r in mac.body]
+        self.macro_depth += 1
+        try:
+            self._unit(body, "macro")
+        finally:
+            self.macro_depth -= 1
+
+    # --- instructions ----------------------------------------------------------------------------------------------
+    def _instruction(self, rec: _Rec, p: _Parsed) -> None:
+        mn = p.op or ""
+        if mn in _ALIASES:
+            canon, warn = _ALIASES[mn]
+            if warn and self.final:
+                self.warnings.append(
+                    f"{rec.file}:{rec.line}:{p.op_col}: warning: '{mn}' is not a 68000 mnemonic; assembled as "
+                    f"'{canon}'"
+                )
+            mn = canon
+        rows = BY_MNEMONIC.get(mn)
+        if rows is None:
+            raise rec.where().error(f"unknown mnemonic '{p.op_text}'", p.op_col)
+        is_branch = any(r.is_branch for r in rows)
+        size: Size | None = None
+        if p.size is not None:
+            legal = {s for r in rows for s in r.sizes if s is not None}
+            if is_branch:
+                legal |= {Size.B} if Size.S in legal else set()
+            letter = p.size
+            if letter not in ("b", "w", "l", "s") or Size(letter) not in legal:
+                allowed = "/".join("." + s.value for s in sorted(legal, key=lambda s: "bwls".index(s.value)))
+                raise rec.where().error(
+                    f"bad size suffix '.{p.size}' for '{mn}' (allowed: {allowed or 'none'})", p.size_col
+                )
+            size = Size(letter)
+            if is_branch and size is Size.B:
+                size = Size.S
+        elif is_branch:
+            size = Size.W
+        if self.section.name == "bss":
+            raise rec.where().error("instruction in the bss section", p.op_col)
+        self._require_even(rec, "instruction", p.op_col)
+        operands = self._operands(rec, p)
+        if mn in _TO_A_FORM and len(operands) == 2 and operands[1].mode is Mode.AREG:
+            mn = _TO_A_FORM[mn]
+        instr = Instruction(mn, size, tuple(operands))
+        addr = self._here()
+        try:
+            n = length(instr)
+            data = encode(instr, addr) if self.final else bytes(n)
+        except EncodingError as exc:
+            col = p.operand_col if p.operands else p.op_col
+            written = f"{p.op_text} {p.operands}".strip()
+            raise rec.where().error(f"cannot encode '{written}': {exc}", col) from None
+        if len(data) != n:  # pragma: no cover - encoder contract
+            raise rec.where().error(f"internal error: encoder length {len(data)} != {n}", p.op_col)
+        cycles = None
+        if self.final:
+            self.source_map[addr] = SourceLine(rec.file, rec.line, rec.text)
+            cycles = _cycle_range(instr)
+        self._emit(rec, data, p.op_col)
+        self._list(rec, addr, data, cycles)
+
+    def _operands(self, rec: _Rec, p: _Parsed) -> list[Operand]:
+        if not p.operands:
+            return []
+        toks = self._tokens(rec, p.operands, p.operand_col)
+        groups = _split_commas(toks[:-1])
+        out = []
+        for g in groups:
+            if not g:
+                raise rec.where().error("missing operand", toks[0].col if toks else p.operand_col)
+            out.append(self._operand(rec, g))
+        return out
+
+    def _operand(self, rec: _Rec, toks: list[Token]) -> Operand:
+        end = Token("end", "", toks[-1].col + len(toks[-1].text))
+        t = toks + [end]
+        where = rec.where()
+        resolve = self._resolver(rec, strict=False)
+        ps = ExprParser(t, where, resolve, self._here())
+
+        def reg_at(i: int) -> tuple[Mode, int] | None:
+            tok = t[i]
+            return _REGISTERS.get(tok.text.lower()) if tok.kind == "ident" else None
+
+        def is_pc(i: int) -> bool:
+            return t[i].kind == "ident" and t[i].text.lower() == "pc"
+
+        def finish() -> None:
+            if ps.tok.kind != "end":
+                raise ps.error(f"unexpected '{ps.tok.text}' in operand")
+
+        first = t[0]
+        if first.kind == "ident" and first.text.lower() in _UNSUPPORTED_REGS:
+            raise where.error(f"register '{first.text}' is not supported by this 68000 subset", first.col)
+        # #immediate
+        if first.kind == "hash":
+            ps.next()
+            value = ps.parse()
+            finish()
+            return Operand(Mode.IMM, value=value)
+        # Dn, An, register list
+        r = reg_at(0)
+        if r is not None:
+            if t[1].kind == "end":
+                return Operand(r[0], reg=r[1])
+            if t[1].kind == "op" and t[1].text in ("-", "/"):
+                return Operand(Mode.REGLIST, value=self._reglist(rec, t))
+            raise where.error(f"unexpected '{t[1].text}' after register '{first.text}'", t[1].col)
+        if is_pc(0):
+            raise where.error("'pc' is only allowed as a base register: write label(pc)", first.col)
+        # -(An)
+        if first.kind == "op" and first.text == "-" and t[1].kind == "lparen" and reg_at(2) and t[3].kind == "rparen":
+            mode, num = reg_at(2)  # type: ignore[misc]
+            if mode is not Mode.AREG:
+                raise where.error("predecrement needs an address register", t[2].col)
+            if t[4].kind != "end":
+                raise where.error(f"unexpected '{t[4].text}' after -(An)", t[4].col)
+            return Operand(Mode.APREDEC, reg=num)
+        # (An) (An)+ (An,Xn) (PC...) (d,An) (d,An,Xn) (d,PC) (d,PC,Xn)
+        if first.kind == "lparen":
+            if reg_at(1) is not None or is_pc(1):
+                ps.next()
+                return self._indirect(rec, ps, None, first.col)
+            save = ps.pos
+            ps.next()
+            disp = ps.parse()
+            if ps.tok.kind == "comma":
+                ps.next()
+                return self._indirect(rec, ps, disp, first.col)
+            ps.pos = save  # a parenthesized expression: (expr), (expr).w, (a+b)*2 ...
+        value = ps.parse()
+        if ps.tok.kind == "lparen":
+            ps.next()
+            return self._indirect(rec, ps, value, first.col)
+        if ps.tok.kind == "size":
+            size_tok = ps.next()
+            finish()
+            if size_tok.value == "w":
+                return Operand(Mode.ABSW, value=value)
+            if size_tok.value == "l":
+                return Operand(Mode.ABSL, value=value)
+            raise where.error(f"bad size suffix '{size_tok.text}' on an absolute address (use .w or .l)", size_tok.col)
+        finish()
+        return Operand(Mode.ABSL, value=value)
+
+    def _indirect(self, rec: _Rec, ps: ExprParser, disp: int | None, col: int) -> Operand:
+        """Parse after ``(`` [or ``d(`` / ``(d,``]: base register, optional index, ``)``, optional ``+``."""
+        where = rec.where()
+        base = ps.next()
+        low = base.text.lower() if base.kind == "ident" else ""
+        if low == "pc":
+            pc = True
+            num = 0
+        elif low in _REGISTERS and _REGISTERS[low][0] is Mode.AREG:
+            pc = False
+            num = _REGISTERS[low][1]
+        else:
+            raise where.error(f"expected an address register or PC, found '{base.text or 'end of line'}'", base.col)
+        index: IndexReg | None = None
+        if ps.tok.kind == "comma":
+            ps.next()
+            xt = ps.next()
+            xr = _REGISTERS.get(xt.text.lower()) if xt.kind == "ident" else None
+            if xr is None:
+                raise where.error(f"expected an index register, found '{xt.text or 'end of line'}'", xt.col)
+            long = False
+            if ps.tok.kind == "size":
+                st = ps.next()
+                if st.value not in ("w", "l"):
+                    raise where.error(f"bad index size '{st.text}' (use .w or .l)", st.col)
+                long = st.value == "l"
+            index = IndexReg(xr[0] is Mode.AREG, xr[1], long)
+        ps.expect("rparen", "')'")
+        postinc = False
+        if ps.tok.kind == "op" and ps.tok.text == "+":
+            if disp is not None or index is not None or pc:
+                raise ps.error("postincrement only applies to (An)")
+            ps.next()
+            postinc = True
+        if ps.tok.kind != "end":
+            raise ps.error(f"unexpected '{ps.tok.text}' in operand")
+        if pc:
+            if disp is None:
+                raise where.error("PC-relative operand needs a target: write label(pc)", col)
+            return Operand(Mode.PCINDEX if index else Mode.PCDISP, value=disp, index=index)
+        if postinc:
+            return Operand(Mode.APOSTINC, reg=num)
+        if index is not None:
+            return Operand(Mode.AINDEX, reg=num, value=disp or 0, index=index)
+        if disp is None:
+            return Operand(Mode.AIND, reg=num)
+        return Operand(Mode.ADISP, reg=num, value=disp)
+
+    def _reglist(self, rec: _Rec, t: list[Token]) -> int:
+        where = rec.where()
+        mask = 0
+        i = 0
+
+        def reg_index(tok: Token) -> int:
+            r = _REGISTERS.get(tok.text.lower()) if tok.kind == "ident" else None
+            if r is None:
+                raise where.error(f"expected a register in register list, found '{tok.text or 'end of line'}'", tok.col)
+            return r[1] + (8 if r[0] is Mode.AREG else 0)
+
+        while True:
+            lo = reg_index(t[i])
+            i += 1
+            hi = lo
+            if t[i].kind == "op" and t[i].text == "-":
+                hi_tok = t[i + 1]
+                hi = reg_index(hi_tok)
+                if hi < lo:
+                    raise where.error("register range must go upwards (e.g. d0-d3)", hi_tok.col)
+                i += 2
+            for k in range(lo, hi + 1):
+                mask |= 1 << k
+            if t[i].kind == "end":
+                return mask
+            if t[i].kind == "op" and t[i].text == "/":
+                i += 1
+                continue
+            raise where.error(f"unexpected '{t[i].text}' in register list", t[i].col)
+
+    # --- result ----------------------------------------------------------------------------------------------------
+    def _program(self) -> Program:
+        blocks: list[tuple[str, int, _Chunk]] = []
+        segments: list[Segment] = []
+        for name in _SECTIONS:
+            for k, c in enumerate(self.sections[name].chunks):
+                if c.size == 0:
+                    continue
+                seg_name = name if k == 0 else f"{name}.{k}"
+                data = bytes(c.size) if name == "bss" else bytes(c.data)
+                segments.append(Segment(seg_name, c.start, data, bss=name == "bss"))
+                blocks.append((seg_name, k, c))
+        ordered = sorted(segments, key=lambda s: s.origin)
+        for a, b in zip(ordered, ordered[1:]):
+            if a.origin + len(a.data) > b.origin:
+                raise AssemblyError(
+                    f"segments '{a.name}' (${a.origin:06X}-${a.origin + len(a.data) - 1:06X}) and '{b.name}' "
+                    f"(${b.origin:06X}-${b.origin + len(b.data) - 1:06X}) overlap",
+                    self.filename,
+                    0,
+                    0,
+                )
+        code_chunks = [c for c in self.sections["code"].chunks if c.size]
+        origin = code_chunks[0].start if code_chunks else self.origin
+        code = bytes(code_chunks[0].data) if code_chunks else b""
+        symbols: dict[str, Symbol] = {}
+        labels = sorted((s for s in self.cur.values() if s.kind == "label"), key=lambda s: (s.value, s.order))
+        for s in sorted(self.cur.values(), key=lambda s: s.order):
+            size = 0
+            if s.kind == "label":
+                size = self._label_size(s, labels)
+            symbols[s.name] = Symbol(s.name, s.value, s.section, size)
+        return Program(segments, origin, code, symbols, self.listing, self.source_map, self.warnings)
+
+    def _label_size(self, s: _Sym, labels: list[_Sym]) -> int:
+        chunk_end = s.value
+        for c in self.sections[s.section].chunks:
+            if c.start <= s.value <= c.start + c.size:
+                chunk_end = c.start + c.size
+        nxt = chunk_end
+        for other in labels:
+            if other is s or other.section != s.section or (not s.local and other.local):
+                continue
+            if (other.value, other.order) > (s.value, s.order) and other.value <= chunk_end:
+                nxt = min(nxt, other.value)
+        return max(nxt - s.value, 0)
+
+
+def _cycle_range(instr: Instruction) -> tuple[int, int] | None:
+    """``isa.timing.cycle_range(instr)``; None if timing cannot price this instruction."""
+    from isa.timing import cycle_range  # noqa: PLC0415
+
+    return cycle_range(instr)
+
+
+def assemble(
+    text: str,
+    filename: str = "<source>",
+    origin: int = 0,
+    include_paths: Sequence[str | Path] = (),
+    defines: Mapping[str, int] | None = None,
+) -> Program:
+    """Assemble Motorola-syntax 68000 source ``text`` into a :class:`~isa.program.Program`.
+
+    ``filename`` names the source in errors, the listing and the source map, and INCLUDE paths are relative to
+    its directory (then to each of ``include_paths``, in order). ``origin`` is the byte address of the first code
+    byte (even, 24-bit). ``defines`` pre-sets EQU symbols (integers). Raises :class:`~isa.errors.AssemblyError`
+    (``file:line:col: message`` plus the line and a caret) for any error in the source."""
+    if not isinstance(text, str):
+        raise AssemblyError(f"source must be text, not {type(text).__name__}", filename, 0, 0)
+    return _Assembler(text, filename, origin, include_paths, defines).run()

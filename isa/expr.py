@@ -1,0 +1,361 @@
+"""Lexer and expression evaluator of the assembler (private to :mod:`isa.assembler`).
+
+Expressions are integer-valued (Python ints, no wrap-around; the consumer range-checks). Operators, highest
+precedence first (C-like, all left-associative)::
+
+    unary  - + ~ !
+    *  /  %          ( / and % truncate toward zero, as C and GNU as do; division by zero is an error )
+    +  -
+    <<  >>           ( >> is arithmetic )
+    &
+    ^
+    |
+    == != <> < <= > >=   ( 1 when true, 0 when false )
+
+Primaries: decimal ``123``, ``$7F`` / ``0x7F`` hex, ``%1010`` binary, ``@17`` octal, ``'c'`` / ``'ab'`` character
+constants (up to 4 characters, big-endian), symbols, local labels ``.name`` and ``1$``, ``*`` (the current
+location, where an operand is expected), and parentheses.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from isa.errors import AssemblyError
+
+SIZE_LETTERS = frozenset("bwls")
+
+
+@dataclass(frozen=True)
+class Token:
+    """One lexical token: ``kind`` is ``num ident str op size hash comma lparen rparen end``; ``col`` is the 1-based
+    column in the source line; ``value`` holds the number (``num``), the size letter (``size``) or the string
+    contents (``str``)."""
+
+    kind: str
+    text: str
+    col: int
+    value: object = None
+
+
+class Where:
+    """Error context of one source line: raises :class:`AssemblyError` with file, line, column and text."""
+
+    def __init__(self, file: str, line: int, text: str, note: str = "") -> None:
+        self.file = file
+        self.line = line
+        self.text = text
+        self.note = note
+
+    def error(self, message: str, col: int) -> AssemblyError:
+        """Build an :class:`AssemblyError` for ``message`` at 1-based column ``col`` of this line."""
+        if self.note:
+            message = f"{message} ({self.note})"
+        return AssemblyError(message, self.file, self.line, max(col, 1), self.text)
+
+
+_TERM_END = frozenset({"num", "ident", "str", "rparen", "size"})
+_TWO_CHAR_OPS = ("<<", ">>", "<=", ">=", "==", "!=", "<>")
+_ONE_CHAR_OPS = "+-*/%&|^~!<>"
+
+
+def _is_ident_start(ch: str) -> bool:
+    return ch.isascii() and (ch.isalpha() or ch == "_")
+
+
+def _is_ident_char(ch: str) -> bool:
+    return ch.isascii() and (ch.isalnum() or ch == "_")
+
+
+def tokenize(text: str, col0: int, where: Where) -> list[Token]:
+    """Split an operand field into tokens. ``col0`` is the 1-based column of ``text[0]`` in the source line.
+
+    Raises :class:`AssemblyError` for characters that cannot start a token, bad numbers and unterminated
+    strings."""
+    tokens: list[Token] = []
+    i = 0
+    n = len(text)
+
+    def prev_is_term() -> bool:
+        return bool(tokens) and tokens[-1].kind in _TERM_END
+
+    while i < n:
+        ch = text[i]
+        col = col0 + i
+        if ch in " \t":
+            i += 1
+            continue
+        if ch.isdigit():
+            j = i
+            while j < n and _is_ident_char(text[j]):
+                j += 1
+            word = text[i:j]
+            if j < n and text[j] == "$" and word.isdigit():
+                tokens.append(Token("ident", word + "$", col))
+                i = j + 1
+                continue
+            try:
+                if word[:2].lower() == "0x":
+                    value = int(word[2:], 16)
+                else:
+                    value = int(word, 10)
+            except ValueError:
+                raise where.error(f"bad number '{word}'", col) from None
+            tokens.append(Token("num", word, col, value))
+            i = j
+            continue
+        if ch == "$" or (ch in "%@" and not prev_is_term()):
+            base = {"$": 16, "%": 2, "@": 8}[ch]
+            j = i + 1
+            while j < n and _is_ident_char(text[j]):
+                j += 1
+            word = text[i + 1 : j]
+            try:
+                if not word:
+                    raise ValueError
+                value = int(word, base)
+            except ValueError:
+                raise where.error(f"bad number '{text[i:j]}'", col) from None
+            tokens.append(Token("num", text[i:j], col, value))
+            i = j
+            continue
+        if _is_ident_start(ch):
+            j = i
+            while j < n and _is_ident_char(text[j]):
+                j += 1
+            tokens.append(Token("ident", text[i:j], col))
+            i = j
+            continue
+        if ch == ".":
+            j = i + 1
+            while j < n and _is_ident_char(text[j]):
+                j += 1
+            word = text[i + 1 : j]
+            if not word:
+                raise where.error("stray '.'", col)
+            glued = i > 0 and text[i - 1] not in " \t"
+            if glued and prev_is_term() and word.lower() in SIZE_LETTERS:
+                tokens.append(Token("size", text[i:j], col, word.lower()))
+            elif word[0].isdigit() and not word.isdigit():
+                raise where.error(f"bad local label '.{word}'", col)
+            else:
+                tokens.append(Token("ident", text[i:j], col))
+            i = j
+            continue
+        if ch in "'\"":
+            j = i + 1
+            chars: list[str] = []
+            while True:
+                if j >= n:
+                    raise where.error("unterminated string", col)
+                if text[j] == ch:
+                    if j + 1 < n and text[j + 1] == ch:  # doubled quote = one quote character
+                        chars.append(ch)
+                        j += 2
+                        continue
+                    break
+                chars.append(text[j])
+                j += 1
+            s = "".join(chars)
+            tokens.append(Token("str", text[i : j + 1], col, s))
+            i = j + 1
+            continue
+        if ch == "#":
+            tokens.append(Token("hash", ch, col))
+            i += 1
+            continue
+        if ch == ",":
+            tokens.append(Token("comma", ch, col))
+            i += 1
+            continue
+        if ch == "(":
+            tokens.append(Token("lparen", ch, col))
+            i += 1
+            continue
+        if ch == ")":
+            tokens.append(Token("rparen", ch, col))
+            i += 1
+            continue
+        two = text[i : i + 2]
+        if two in _TWO_CHAR_OPS:
+            tokens.append(Token("op", two, col))
+            i += 2
+            continue
+        if ch in _ONE_CHAR_OPS:
+            tokens.append(Token("op", ch, col))
+            i += 1
+            continue
+        if ch == "=":
+            tokens.append(Token("op", "==", col))
+            i += 1
+            continue
+        raise where.error(f"unexpected character {ch!r}", col)
+    tokens.append(Token("end", "", col0 + n))
+    return tokens
+
+
+#: Binary operator precedence levels, lowest first.
+_LEVELS: tuple[frozenset[str], ...] = (
+    frozenset({"==", "!=", "<>", "<", "<=", ">", ">="}),
+    frozenset({"|"}),
+    frozenset({"^"}),
+    frozenset({"&"}),
+    frozenset({"<<", ">>"}),
+    frozenset({"+", "-"}),
+    frozenset({"*", "/", "%"}),
+)
+
+#: Largest shift count accepted in an expression (keeps a fuzzer from building huge ints).
+_MAX_SHIFT = 64
+#: Deepest nesting of parentheses and unary operators accepted (keeps recursion far from Python's limit).
+_MAX_DEPTH = 40
+
+
+def _c_div(a: int, b: int) -> int:
+    q = abs(a) // abs(b)
+    return q if (a >= 0) == (b >= 0) else -q
+
+
+class ExprParser:
+    """Recursive-descent evaluator over a token list.
+
+    ``resolve(name, token)`` returns a symbol's value (it raises or returns a placeholder for undefined symbols);
+    ``here`` is the current location for ``*``."""
+
+    def __init__(
+        self, tokens: list[Token], where: Where, resolve: Callable[[str, Token], int], here: int | None
+    ) -> None:
+        self.tokens = tokens
+        self.pos = 0
+        self.where = where
+        self.resolve = resolve
+        self.here = here
+        self.depth = 0
+
+    @property
+    def tok(self) -> Token:
+        """The current token."""
+        return self.tokens[self.pos]
+
+    def next(self) -> Token:
+        """Consume and return the current token."""
+        t = self.tokens[self.pos]
+        if t.kind != "end":
+            self.pos += 1
+        return t
+
+    def error(self, message: str, tok: Token | None = None) -> AssemblyError:
+        """An :class:`AssemblyError` at ``tok`` (default: the current token)."""
+        return self.where.error(message, (tok or self.tok).col)
+
+    def expect(self, kind: str, what: str) -> Token:
+        """Consume a token of ``kind`` or raise naming ``what`` was expected."""
+        if self.tok.kind != kind:
+            raise self.error(f"expected {what}, found {self._describe(self.tok)}")
+        return self.next()
+
+    @staticmethod
+    def _describe(tok: Token) -> str:
+        return "end of line" if tok.kind == "end" else f"'{tok.text}'"
+
+    def parse(self, level: int = 0) -> int:
+        """Parse and evaluate an expression starting at the current token (binary level ``level``)."""
+        if level == len(_LEVELS):
+            return self.unary()
+        if level == 0:
+            self.depth += 1
+            if self.depth > _MAX_DEPTH:
+                raise self.error("expression nested too deeply")
+            try:
+                return self._binary(0)
+            finally:
+                self.depth -= 1
+        return self._binary(level)
+
+    def _binary(self, level: int) -> int:
+        left = self.parse(level + 1)
+        ops = _LEVELS[level]
+        while self.tok.kind == "op" and self.tok.text in ops:
+            op_tok = self.next()
+            right = self.parse(level + 1)
+            left = self._apply(op_tok, left, right)
+        return left
+
+    def _apply(self, op_tok: Token, a: int, b: int) -> int:
+        op = op_tok.text
+        if op == "+":
+            return a + b
+        if op == "-":
+            return a - b
+        if op == "*":
+            r = a * b
+            if abs(r) >= 1 << 128:
+                raise self.error("expression value too large", op_tok)
+            return r
+        if op in ("/", "%"):
+            if b == 0:
+                raise self.error("division by zero in expression", op_tok)
+            q = _c_div(a, b)
+            return q if op == "/" else a - q * b
+        if op in ("<<", ">>"):
+            if b < 0 or b > _MAX_SHIFT:
+                raise self.error(f"shift count {b} out of range 0..{_MAX_SHIFT}", op_tok)
+            return a << b if op == "<<" else a >> b
+        if op == "&":
+            return a & b
+        if op == "|":
+            return a | b
+        if op == "^":
+            return a ^ b
+        return int(
+            {
+                "==": a == b,
+                "!=": a != b,
+                "<>": a != b,
+                "<": a < b,
+                "<=": a <= b,
+                ">": a > b,
+                ">=": a >= b,
+            }[op]
+        )
+
+    def unary(self) -> int:
+        """Parse a unary expression."""
+        t = self.tok
+        if t.kind == "op" and t.text in ("-", "+", "~", "!"):
+            self.next()
+            self.depth += 1
+            if self.depth > _MAX_DEPTH:
+                raise self.error("expression nested too deeply")
+            v = self.unary()
+            self.depth -= 1
+            return {"-": -v, "+": v, "~": ~v, "!": int(v == 0)}[t.text]
+        return self.primary()
+
+    def primary(self) -> int:
+        """Parse a number, symbol, character constant, ``*`` or parenthesized expression."""
+        t = self.next()
+        if t.kind == "num":
+            return int(t.value)  # type: ignore[arg-type]
+        if t.kind == "ident":
+            return self.resolve(t.text, t)
+        if t.kind == "str":
+            s = str(t.value)
+            if not 1 <= len(s) <= 4:
+                raise self.error(f"character constant {t.text} must hold 1 to 4 characters", t)
+            v = 0
+            for ch in s:
+                if ord(ch) > 255:
+                    raise self.error(f"character {ch!r} is not an 8-bit character", t)
+                v = (v << 8) | ord(ch)
+            return v
+        if t.kind == "op" and t.text == "*":
+            if self.here is None:
+                raise self.error("'*' (current location) is not available here", t)
+            return self.here
+        if t.kind == "lparen":
+            v = self.parse()
+            self.expect("rparen", "')'")
+            return v
+        raise self.error(f"expected an expression, found {self._describe(t)}", t)
