@@ -1,0 +1,241 @@
+"""Deterministic synthetic input streams for the firmware: edge-case patterns and a simple seeded flight.
+
+Every stream is integer samples at the firmware's sample period ``dt = 2^-k`` s:
+
+* ``adc``: barometer ADC counts, unsigned ``bits``-bit (0 .. 2^bits - 1);
+* ``acc``: accelerometer counts, signed 16-bit (-32768 .. 32767), positive = upward specific force, so a rocket on
+  the pad reads +1 g (``accel_counts_per_mps2 * 9.80665`` counts plus the sensor offset).
+
+Randomness comes only from a :class:`numpy.random.Generator` seeded explicitly (``numpy.random.default_rng(seed)``);
+the global RNG is never touched, so the same arguments give the same stream on every machine and numpy version
+that keeps the PCG64 / ``standard_normal`` stream stable.
+
+The flight here is deliberately simple (constant-thrust boost, ballistic coast with quadratic drag, apogee, drogue
+descent); the full simulator with a thrust curve and Mach-dependent drag lives elsewhere.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from firmware_model.errors import UserError
+
+#: Standard gravity, m/s^2.
+G0: float = 9.80665
+#: Sea-level standard pressure (Pa) and the ISA troposphere pressure law constants.
+P0_PA: float = 101325.0
+_ISA_A: float = 2.25577e-5   # 1/m
+_ISA_N: float = 5.25588
+
+#: Edge-case stream kinds, in generation order.
+EDGE_KINDS: tuple[str, ...] = ("constant", "step", "ramp", "adc_min", "adc_max", "alternating", "ties")
+
+ACC_MIN: int = -32768
+ACC_MAX: int = 32767
+
+
+@dataclass(frozen=True)
+class Stream:
+    """One input stream.
+
+    * ``name``: short identifier (``edge_step``, ``flight`` ...).
+    * ``adc``: int64 array (n,), barometer counts 0 .. 2^bits-1; ``acc``: int64 array (n,), accelerometer counts.
+    * ``k``: sample period 2^-k s; ``bits``: barometer ADC width.
+    * ``provenance``: JSON-ready description of how the stream was made (generator, parameters, seed).
+    * ``truth``: JSON-ready true values where known (e.g. ``apogee_s``, the true apogee time in s from the first
+      sample, and ``apogee_sample``), empty for edge streams.
+    """
+
+    name: str
+    adc: np.ndarray
+    acc: np.ndarray
+    k: int
+    bits: int
+    provenance: dict[str, Any]
+    truth: dict[str, Any] = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return int(self.adc.shape[0])
+
+
+def _check_common(k: int, bits: int, n: int | None = None) -> None:
+    if not isinstance(k, int) or not 0 <= k <= 10:
+        raise UserError(f"input stream: k={k!r}: sample period 2^-k needs an integer k in 0..10")
+    if not isinstance(bits, int) or not 8 <= bits <= 16:
+        raise UserError(f"input stream: bits={bits!r}: barometer ADC width must be 8..16")
+    if n is not None and (not isinstance(n, int) or n < 4):
+        raise UserError(f"input stream: n={n!r}: need at least 4 samples")
+
+
+def edge_stream(kind: str, n: int, bits: int, k: int) -> Stream:
+    """An edge-case stream of ``n`` samples for a ``bits``-bit barometer ADC at dt = 2^-k s.
+
+    Kinds (``full`` = 2^bits - 1, ``mid`` = full // 2, 1 g = 2048 accelerometer counts):
+
+    * ``constant``: adc = mid, acc = 2048 throughout (a rocket resting on the pad).
+    * ``step``: adc = mid for the first quarter, then mid - full // 8 (a pressure drop: altitude step up); acc 2048
+      then 20480 (10 g).
+    * ``ramp``: adc falls by 3 counts per sample from mid (clamped at 0); acc rises by 97 counts per sample from
+      2048 (clamped at 32767).
+    * ``adc_min``: adc = 0, acc = -32768 (both registers at their minimum).
+    * ``adc_max``: adc = full, acc = 32767 (both at their maximum).
+    * ``alternating``: adc alternates full, 0, full, ...; acc alternates 32767, -32768 (worst-case noise).
+    * ``ties``: adc toggles between two adjacent codes (mid, mid + 1) in the pattern 0,1,1,0 and acc between 2048
+      and 2049, so the filters sit on half-LSB values and exercise the rounding of ties.
+
+    No randomness. Raises :class:`UserError` for an unknown kind or bad sizes.
+    """
+    _check_common(k, bits, n)
+    full = (1 << bits) - 1
+    mid = full // 2
+    i = np.arange(n, dtype=np.int64)
+    one_g = 2048
+    if kind == "constant":
+        adc = np.full(n, mid, np.int64)
+        acc = np.full(n, one_g, np.int64)
+    elif kind == "step":
+        adc = np.where(i < n // 4, mid, mid - full // 8).astype(np.int64)
+        acc = np.where(i < n // 4, one_g, 10 * one_g).astype(np.int64)
+    elif kind == "ramp":
+        adc = np.clip(mid - 3 * i, 0, full)
+        acc = np.clip(one_g + 97 * i, ACC_MIN, ACC_MAX)
+    elif kind == "adc_min":
+        adc = np.zeros(n, np.int64)
+        acc = np.full(n, ACC_MIN, np.int64)
+    elif kind == "adc_max":
+        adc = np.full(n, full, np.int64)
+        acc = np.full(n, ACC_MAX, np.int64)
+    elif kind == "alternating":
+        adc = np.where(i % 2 == 0, full, 0).astype(np.int64)
+        acc = np.where(i % 2 == 0, ACC_MAX, ACC_MIN).astype(np.int64)
+    elif kind == "ties":
+        pattern = np.array([0, 1, 1, 0], np.int64)[i % 4]
+        adc = mid + pattern
+        acc = one_g + pattern
+    else:
+        raise UserError(f"edge stream: unknown kind {kind!r}; known: {', '.join(EDGE_KINDS)}")
+    return Stream(name=f"edge_{kind}", adc=adc.astype(np.int64), acc=acc.astype(np.int64), k=k, bits=bits,
+                  provenance={"generator": "fwemu.inputs.edge_stream", "kind": kind, "n": n, "bits": bits, "k": k,
+                              "seed": None})
+
+
+@dataclass(frozen=True)
+class FlightParams:
+    """A simple vertical flight and its sensors (SI units unless stated).
+
+    * Vehicle: ``boost_accel_g`` net upward acceleration during the burn (g), ``burn_s`` burn time, ``drag_per_m``
+      quadratic drag coefficient (1/m: deceleration = drag_per_m * v * |v|), ``drogue_mps`` descent rate under the
+      drogue (deployed ``drogue_delay_s`` after apogee), ``pad_s`` time on the pad before ignition,
+      ``after_apogee_s`` how long the stream continues after apogee, ``pad_altitude_m`` above sea level.
+    * Barometer: ``units_per_metre`` counts per metre near the pad, ``baro_sign`` (-1: pressure ADC, counts fall as
+      altitude grows), ``pad_fraction`` pad reading as a fraction of full scale, ``baro_sigma`` noise (counts rms).
+    * Accelerometer: ``accel_counts_per_mps2``, ``accel_offset`` (counts at zero specific force), ``accel_sigma``
+      noise (counts rms).
+    """
+
+    boost_accel_g: float = 10.0
+    burn_s: float = 0.8
+    drag_per_m: float = 0.0012
+    drogue_mps: float = 20.0
+    drogue_delay_s: float = 0.5
+    pad_s: float = 0.5
+    after_apogee_s: float = 1.5
+    pad_altitude_m: float = 0.0
+    units_per_metre: float = 3.5
+    baro_sign: int = -1
+    pad_fraction: float = 0.85
+    baro_sigma: float = 2.0
+    accel_counts_per_mps2: float = 2048.0 / G0
+    accel_offset: float = 0.0
+    accel_sigma: float = 20.0
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready parameters."""
+        return {name: getattr(self, name) for name in self.__dataclass_fields__}
+
+
+def pressure_pa(h_m: np.ndarray | float) -> np.ndarray | float:
+    """ISA troposphere pressure (Pa) at altitude ``h_m`` metres above sea level."""
+    return P0_PA * (1.0 - _ISA_A * np.asarray(h_m, dtype=np.float64)) ** _ISA_N
+
+
+def _trajectory(p: FlightParams, dt: float, sub: int) -> tuple[np.ndarray, np.ndarray, float]:
+    """Integrate the flight at dt/sub; return (height m above pad, kinematic acceleration m/s^2) at every sample
+    and the true apogee time (s from the first sample)."""
+    h = v = t = 0.0
+    h_out: list[float] = []
+    a_out: list[float] = []
+    apogee_t: float | None = None
+    h_step = dt / sub
+    t_end = math.inf
+
+    def accel(t: float, v: float) -> float:
+        t_rel = t - p.pad_s
+        if t_rel < 0:
+            return 0.0
+        if t_rel < p.burn_s:
+            return p.boost_accel_g * G0 - p.drag_per_m * v * abs(v)
+        if apogee_t is None or t < apogee_t + p.drogue_delay_s:
+            return -G0 - p.drag_per_m * v * abs(v)
+        return (-p.drogue_mps - v) * 2.0          # drogue: first-order approach to the descent rate
+
+    while t < t_end:
+        h_out.append(h)                           # the state at the sample instant
+        a_out.append(accel(t, v))
+        for _ in range(sub):
+            v_new = v + accel(t, v) * h_step
+            if apogee_t is None and t - p.pad_s > p.burn_s and v > 0 >= v_new:
+                apogee_t = t + h_step * v / (v - v_new)
+                t_end = apogee_t + p.after_apogee_s
+            h += (v + v_new) * 0.5 * h_step
+            v = v_new
+            t += h_step
+        if t > 3600:
+            raise UserError("synthetic flight: no apogee within an hour (check boost_accel_g and drag_per_m)")
+    assert apogee_t is not None
+    return np.array(h_out), np.array(a_out), apogee_t
+
+
+def synthetic_flight(k: int, bits: int = 16, seed: int = 0, params: FlightParams | None = None,
+                     name: str = "flight") -> Stream:
+    """A seeded synthetic flight at dt = 2^-k s for a ``bits``-bit barometer.
+
+    Physics: pad, constant-acceleration boost, coast under gravity and quadratic drag, apogee, drogue descent
+    (:class:`FlightParams`), integrated with 8 sub-steps per sample. Barometer: ISA pressure at the altitude,
+    mapped linearly to counts so that one metre near the pad is ``units_per_metre`` counts (``baro_sign`` = -1:
+    counts fall as the rocket climbs), plus Gaussian noise ``baro_sigma``, rounded to the nearest count and clipped
+    to 0..2^bits-1. Accelerometer: specific force ``(a + g)`` times ``accel_counts_per_mps2`` plus offset and noise,
+    rounded and clipped to int16. Noise from ``numpy.random.default_rng(seed)`` (barometer noise drawn first, then
+    accelerometer noise).
+    """
+    _check_common(k, bits)
+    p = params or FlightParams()
+    if p.baro_sign not in (1, -1):
+        raise UserError(f"synthetic flight: baro_sign={p.baro_sign!r} must be +1 or -1")
+    if not 0.0 <= p.pad_fraction <= 1.0:
+        raise UserError(f"synthetic flight: pad_fraction={p.pad_fraction!r} must be in [0, 1]")
+    dt = 2.0 ** -k
+    h, a, apogee_t = _trajectory(p, dt, 8)
+    full = (1 << bits) - 1
+    p_pad = float(pressure_pa(p.pad_altitude_m))
+    counts_per_pa = p.units_per_metre / (p_pad - float(pressure_pa(p.pad_altitude_m + 1.0)))
+    pad_counts = p.pad_fraction * full
+    rng = np.random.default_rng(seed)
+    baro_noise = rng.standard_normal(h.shape[0]) * p.baro_sigma
+    acc_noise = rng.standard_normal(h.shape[0]) * p.accel_sigma
+    drop = (p_pad - pressure_pa(p.pad_altitude_m + h)) * counts_per_pa      # counts, grows with altitude
+    baro = pad_counts + p.baro_sign * drop + baro_noise
+    adc = np.clip(np.rint(baro), 0, full).astype(np.int64)
+    acc_f = p.accel_offset + (a + G0) * p.accel_counts_per_mps2 + acc_noise
+    acc = np.clip(np.rint(acc_f), ACC_MIN, ACC_MAX).astype(np.int64)
+    prov = {"generator": "fwemu.inputs.synthetic_flight", "k": k, "bits": bits, "seed": seed,
+            "params": p.to_dict(), "rng": "numpy.random.default_rng(seed) PCG64, baro noise then accel noise"}
+    truth = {"apogee_s": round(apogee_t, 6), "apogee_sample": int(math.floor(apogee_t / dt)),
+             "apogee_height_m": round(float(h.max()), 3), "max_speed_mps": None}
+    v = np.diff(h) / dt
+    truth["max_speed_mps"] = round(float(v.max()), 3) if v.size else 0.0
+    return Stream(name=name, adc=adc, acc=acc, k=k, bits=bits, provenance=prov, truth=truth)

@@ -1,0 +1,248 @@
+/*
+ * fw.c -- portable C99 port of the fwemu rocket apogee filters (see fw.h and docs/firmware-spec.md).
+ */
+#include "fw.h"
+
+int32_t fw_wrap32(int64_t x)
+{
+    /* Conversion to uint32_t is defined (reduction modulo 2^32); convert back without implementation-defined
+       behaviour by splitting on the sign bit. */
+    uint32_t w = (uint32_t)x;
+    if (w & UINT32_C(0x80000000)) {
+        return -(int32_t)(~w) - 1; /* ~w <= 0x7FFFFFFF */
+    }
+    return (int32_t)w;
+}
+
+static int64_t floor_shift(int64_t x, int32_t s)
+{
+    /* floor(x / 2^s) without right-shifting a negative value: for x < 0, ~x = -x - 1 >= 0 and
+       floor(x / 2^s) = ~(floor(~x / 2^s)). */
+    if (s <= 0) {
+        return x;
+    }
+    if (x >= 0) {
+        return x >> s;
+    }
+    return ~((~x) >> s);
+}
+
+int64_t fw_rs(int64_t x, int32_t s, int32_t mode)
+{
+    if (s <= 0) {
+        return x;
+    }
+    if (mode) {
+        return floor_shift(x + ((int64_t)1 << (s - 1)), s);
+    }
+    return floor_shift(x, s);
+}
+
+int32_t fw_mulg(int64_t e, fw_gain g, int32_t mode)
+{
+    return fw_wrap32(fw_rs(e * (int64_t)g.m, g.s, mode));
+}
+
+/* x << s for s >= 0 as an exact multiplication (never shifts a negative value). */
+static int64_t ls(int64_t x, int32_t s)
+{
+    return x * ((int64_t)1 << s);
+}
+
+static int32_t baro_z(const fw_consts *c, uint16_t adc)
+{
+    return c->BARO_SIGN * (int32_t)adc;
+}
+
+void fw_init(fw_program prog, const fw_consts *c, fw_state *st, uint16_t adc, int16_t acc)
+{
+    int32_t z8 = fw_wrap32(ls(baro_z(c, adc), 8));
+    st->EST = st->EXT = st->VEL = 0;
+    st->X1 = st->X2 = st->X3 = 0;
+    st->ACC0 = 0;
+    st->EVENTS = 0;
+    st->APFRAC = 0;
+    switch (prog) {
+    case FW_RECURSIVE:
+        st->EST = z8;
+        st->EXT = z8;
+        st->VEL = 0;
+        st->ACC0 = acc;
+        break;
+    case FW_RECURSIVE_SEED_LITERAL:
+        st->EST = z8;
+        break;
+    case FW_KALMAN_ACCEL:
+        st->ACC0 = acc;
+        /* fall through */
+    case FW_KALMAN_BARO:
+        st->X1 = z8;
+        break;
+    }
+}
+
+static void step_recursive(const fw_consts *c, fw_state *st, uint16_t adc, int16_t acc)
+{
+    int64_t z = baro_z(c, adc);
+    st->EVENTS &= (uint16_t)~FW_EV_PER_SAMPLE;
+    /* 1. velocity: running sum of (acc - ACC0) */
+    st->VEL = fw_wrap32((int64_t)st->VEL + ((int64_t)acc - (int64_t)st->ACC0));
+    /* 2. liftoff */
+    if (!(st->EVENTS & FW_EV_LIFTOFF) && st->VEL > c->V_LIFT) {
+        st->EVENTS |= FW_EV_LIFTOFF;
+    }
+    /* 3. velocity gate */
+    if ((st->EVENTS & FW_EV_LIFTOFF) && !(st->EVENTS & FW_EV_ARMED) && st->VEL < c->V_GATE) {
+        st->EVENTS |= FW_EV_ARMED;
+    }
+    /* 4. EST += (z << (8 - S)) - rs(EST, S) */
+    st->EST = fw_wrap32((int64_t)st->EST + ls(z, 8 - c->S) - fw_rs(st->EST, c->S, c->ROUND));
+    /* 5. extreme and apogee */
+    if (st->EST > st->EXT) {
+        st->EXT = st->EST;
+    } else if ((st->EVENTS & FW_EV_ARMED) && !(st->EVENTS & FW_EV_APOGEE)
+               && (int64_t)st->EXT - (int64_t)st->EST >= (int64_t)c->THR) {
+        st->EVENTS |= FW_EV_APOGEE;
+    }
+}
+
+static void step_seed_literal(const fw_consts *c, fw_state *st, uint16_t adc)
+{
+    int64_t z = baro_z(c, adc);
+    /* seed 000's listing, subtraction backwards: EST += rs(EST, S) - (z << (8 - S)) */
+    st->EST = fw_wrap32((int64_t)st->EST + fw_rs(st->EST, c->S, c->ROUND) - ls(z, 8 - c->S));
+}
+
+static void step_kalman(const fw_consts *c, fw_state *st, uint16_t adc, int16_t acc, int with_accel)
+{
+    const int32_t mode = c->ROUND;
+    const int32_t K = c->K;
+    int64_t z8 = ls(baro_z(c, adc), 8);
+    int64_t t1, t2;
+    int32_t e1, e2 = 0;
+    int baro_ok, lockout;
+    int64_t c1_1 = 0, c1_2 = 0, c1_3 = 0, c2_1 = 0, c2_2 = 0, c2_3 = 0;
+
+    st->EVENTS &= (uint16_t)~FW_EV_PER_SAMPLE;
+    /* 1. predict */
+    t1 = fw_rs(st->X2, K, mode) + fw_rs(st->X3, 2 * K + 1, mode);
+    t2 = fw_rs(st->X3, K, mode);
+    st->X1 = fw_wrap32((int64_t)st->X1 + t1);
+    st->X2 = fw_wrap32((int64_t)st->X2 + t2);
+    /* 2. barometer range */
+    baro_ok = (int32_t)adc >= c->BARO_MIN && (int32_t)adc <= c->BARO_MAX;
+    if (!baro_ok) {
+        st->EVENTS |= FW_EV_BARO_INVALID;
+    }
+    /* 3. innovation */
+    e1 = fw_wrap32(z8 - (int64_t)st->X1);
+    /* 4. Mach lockout */
+    lockout = baro_ok && (st->EVENTS & FW_EV_LIFTOFF) && c->MACH_VLO < st->X2 && st->X2 < c->MACH_VHI
+              && ((int64_t)e1 > (int64_t)c->MACH_E || (int64_t)e1 < -(int64_t)c->MACH_E);
+    if (lockout) {
+        st->EVENTS |= FW_EV_MACH_LOCKOUT;
+    }
+    /* 5. accelerometer innovation */
+    if (with_accel) {
+        int32_t a = fw_mulg((int64_t)acc - (int64_t)st->ACC0, c->ACC_G, mode);
+        e2 = fw_wrap32((int64_t)a - (int64_t)st->X3);
+        c2_1 = fw_mulg(e2, c->G12, mode);
+        c2_2 = fw_mulg(e2, c->G22, mode);
+        c2_3 = fw_mulg(e2, c->G32, mode);
+    }
+    /* 6. correct */
+    if (baro_ok && !lockout) {
+        c1_1 = fw_mulg(e1, c->G11, mode);
+        c1_2 = fw_mulg(e1, c->G21, mode);
+        c1_3 = fw_mulg(e1, c->G31, mode);
+    }
+    st->X1 = fw_wrap32((int64_t)st->X1 + c1_1 + c2_1);
+    st->X2 = fw_wrap32((int64_t)st->X2 + c1_2 + c2_2);
+    st->X3 = fw_wrap32((int64_t)st->X3 + c1_3 + c2_3);
+    /* 7. lockout: altitude := measurement */
+    if (lockout) {
+        st->X1 = fw_wrap32(z8);
+    }
+    /* 8. liftoff */
+    if (!(st->EVENTS & FW_EV_LIFTOFF) && st->X2 > c->V_LIFT) {
+        st->EVENTS |= FW_EV_LIFTOFF;
+    }
+    /* 9. apogee */
+    if ((st->EVENTS & FW_EV_LIFTOFF) && !(st->EVENTS & FW_EV_APOGEE) && !lockout && st->X2 < 0) {
+        st->EVENTS |= FW_EV_APOGEE;
+    }
+    /* 10. low-rate apogee prediction */
+    if ((st->EVENTS & FW_EV_LIFTOFF) && !(st->EVENTS & FW_EV_APOGEE) && !(st->EVENTS & FW_EV_APOGEE_PREDICTED)
+        && st->X2 > 0) {
+        int64_t d = -fw_rs(st->X3, K, mode);
+        if ((int64_t)st->X2 < d) {
+            int64_t v = st->X2; /* 0 < v < d */
+            int64_t q;
+            st->EVENTS |= FW_EV_APOGEE_PREDICTED;
+            while (d >= 32768) {
+                d >>= 1; /* both positive: plain shifts are floor */
+                v >>= 1;
+            }
+            q = (v * 65536) / d;
+            st->APFRAC = (uint16_t)(q > 65535 ? 65535 : q);
+        }
+    }
+    (void)e2;
+}
+
+void fw_step(fw_program prog, const fw_consts *c, fw_state *st, uint16_t adc, int16_t acc)
+{
+    switch (prog) {
+    case FW_RECURSIVE:
+        step_recursive(c, st, adc, acc);
+        break;
+    case FW_RECURSIVE_SEED_LITERAL:
+        step_seed_literal(c, st, adc);
+        break;
+    case FW_KALMAN_BARO:
+        step_kalman(c, st, adc, acc, 0);
+        break;
+    case FW_KALMAN_ACCEL:
+        step_kalman(c, st, adc, acc, 1);
+        break;
+    }
+}
+
+int fw_words(fw_program prog, const fw_state *st, int32_t out[FW_MAX_WORDS])
+{
+    switch (prog) {
+    case FW_RECURSIVE:
+        out[0] = st->EST; out[1] = st->EXT; out[2] = st->VEL; out[3] = st->ACC0; out[4] = st->EVENTS;
+        return 5;
+    case FW_RECURSIVE_SEED_LITERAL:
+        out[0] = st->EST;
+        return 1;
+    case FW_KALMAN_BARO:
+        out[0] = st->X1; out[1] = st->X2; out[2] = st->X3; out[3] = st->EVENTS; out[4] = st->APFRAC;
+        return 5;
+    case FW_KALMAN_ACCEL:
+        out[0] = st->X1; out[1] = st->X2; out[2] = st->X3; out[3] = st->ACC0; out[4] = st->EVENTS;
+        out[5] = st->APFRAC;
+        return 6;
+    }
+    return 0;
+}
+
+const char *fw_word_name(fw_program prog, int i)
+{
+    static const char *const rec[] = {"EST", "EXT", "VEL", "ACC0", "EVENTS"};
+    static const char *const lit[] = {"EST"};
+    static const char *const kb[] = {"X1", "X2", "X3", "EVENTS", "APFRAC"};
+    static const char *const ka[] = {"X1", "X2", "X3", "ACC0", "EVENTS", "APFRAC"};
+    switch (prog) {
+    case FW_RECURSIVE:
+        return (i >= 0 && i < 5) ? rec[i] : "?";
+    case FW_RECURSIVE_SEED_LITERAL:
+        return (i == 0) ? lit[0] : "?";
+    case FW_KALMAN_BARO:
+        return (i >= 0 && i < 5) ? kb[i] : "?";
+    case FW_KALMAN_ACCEL:
+        return (i >= 0 && i < 6) ? ka[i] : "?";
+    }
+    return "?";
+}

@@ -1,0 +1,85 @@
+/*
+ * fw.h -- portable C99 port of the fwemu rocket apogee filters.
+ *
+ * Written from docs/firmware-spec.md (the integer contract), independently of the Python model and of the 68000
+ * assembly.  Every state word is a signed 32-bit two's complement integer in Q24.8 unless noted; the event and
+ * apogee-fraction words are unsigned 16-bit.  No implementation-defined or undefined behaviour is relied upon:
+ *   - right shifts of negative values go through fw_rs() (floor or half-up, exact, on int64_t);
+ *   - left shifts are multiplications by a power of two on int64_t (never shift a negative value);
+ *   - every store to a 32-bit state word is fw_wrap32() of an exact int64_t sum (wrap via uint32_t).
+ * Constants come in an fw_consts struct filled from a golden-vector header (FWV_<CASE>_<NAME> macros).
+ */
+#ifndef FW_H
+#define FW_H
+
+#include <stdint.h>
+
+/* Programs (docs/firmware-spec.md sections 5 and 6). */
+typedef enum {
+    FW_RECURSIVE = 0,
+    FW_KALMAN_BARO = 1,
+    FW_KALMAN_ACCEL = 2,
+    FW_RECURSIVE_SEED_LITERAL = 3
+} fw_program;
+
+/* Event bits of the EVENTS word (docs/firmware-spec.md section 4). */
+#define FW_EV_LIFTOFF          0x0001u /* latched */
+#define FW_EV_ARMED            0x0002u /* latched (recursive: velocity gate passed) */
+#define FW_EV_APOGEE           0x0004u /* latched */
+#define FW_EV_MACH_LOCKOUT     0x0008u /* this sample only */
+#define FW_EV_BARO_INVALID     0x0010u /* this sample only */
+#define FW_EV_APOGEE_PREDICTED 0x0020u /* latched */
+#define FW_EV_PER_SAMPLE       (FW_EV_MACH_LOCKOUT | FW_EV_BARO_INVALID)
+
+/* A quantized gain g = m / 2^s: m signed 16-bit mantissa, 0 <= s <= 47. */
+typedef struct {
+    int32_t m;
+    int32_t s;
+} fw_gain;
+
+/* Build constants (docs/firmware-spec.md section 3).  Unused fields of a program may be left 0. */
+typedef struct {
+    int32_t K;          /* sample period dt = 2^-K s, 0..10 */
+    int32_t ROUND;      /* 0 = floor, 1 = half_up (every right shift) */
+    int32_t BARO_SIGN;  /* +1 or -1: z = BARO_SIGN * adc */
+    int32_t S;          /* recursive weight 2^-S, 1..8 */
+    int32_t THR;        /* recursive apogee threshold, Q24.8 units */
+    int32_t V_LIFT;     /* liftoff velocity: recursive accel counts x samples; Kalman Q24.8 units/s */
+    int32_t V_GATE;     /* recursive velocity gate, accel counts x samples */
+    fw_gain G11, G21, G31; /* Kalman gains on the barometer innovation */
+    fw_gain G12, G22, G32; /* kalman_accel gains on the accelerometer innovation */
+    fw_gain ACC_G;         /* accelerometer counts -> Q24.8 units/s^2 */
+    int32_t MACH_VLO;   /* Mach-lockout window, Q24.8 units/s (exclusive bounds) */
+    int32_t MACH_VHI;
+    int32_t MACH_E;     /* Mach-lockout innovation magnitude, Q24.8 units */
+    int32_t BARO_MIN;   /* valid raw ADC range, inclusive */
+    int32_t BARO_MAX;
+} fw_consts;
+
+/* The state of any program (the words each program uses are listed in fw_words()). */
+typedef struct {
+    int32_t EST, EXT, VEL;  /* recursive: Q24.8 units, Q24.8 units, accel counts x samples */
+    int32_t X1, X2, X3;     /* Kalman: Q24.8 units, units/s, units/s^2 */
+    int32_t ACC0;           /* pad accelerometer reading, counts */
+    uint16_t EVENTS;        /* event bits */
+    uint16_t APFRAC;        /* unsigned Q0.16 fraction of a sample period */
+} fw_state;
+
+/* Maximum number of output words of any program. */
+#define FW_MAX_WORDS 6
+
+/* Exact helpers (exposed for unit tests). */
+int32_t fw_wrap32(int64_t x);                      /* x reduced to int32 two's complement */
+int64_t fw_rs(int64_t x, int32_t s, int32_t mode); /* rounding right shift, mode 0 floor / 1 half_up */
+int32_t fw_mulg(int64_t e, fw_gain g, int32_t mode); /* wrap32(rs(e * m, s, mode)), exact 48-bit product */
+
+/* init: state after the first sample (adc unsigned 16-bit raw, acc signed 16-bit counts). */
+void fw_init(fw_program prog, const fw_consts *c, fw_state *st, uint16_t adc, int16_t acc);
+/* step: one sample through the program. */
+void fw_step(fw_program prog, const fw_consts *c, fw_state *st, uint16_t adc, int16_t acc);
+/* The output words of prog in docs/firmware-spec.md section 7 order (.w words zero-extended); returns the count. */
+int fw_words(fw_program prog, const fw_state *st, int32_t out[FW_MAX_WORDS]);
+/* Name of output word i of prog ("EST", "X1", ...), or "?" when out of range. */
+const char *fw_word_name(fw_program prog, int i);
+
+#endif /* FW_H */
