@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 
 import numpy as np
 import pytest
@@ -249,3 +250,57 @@ def test_design_report_is_json_and_consistent(program: str) -> None:
         # quantization moves the poles by about the gain error, not more
         for pf, pq in zip(rep["poles"], rep["poles_quantized"]):
             assert abs(pf["abs"] - pq["abs"]) < 1e-4
+
+
+# ---------------------------------------------------------------------------------------------------- CLI
+def run_cli(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
+    """Run ``fwemu`` through its real main() (error handling included) with only the design command loaded,
+    so this test does not depend on the other parts' CLI modules."""
+    import firmware_model.cli as cli
+
+    monkeypatch.setattr(cli, "COMMAND_MODULES", ("firmware_model.cli_design",))
+    rc = cli.main(list(argv))
+    out, err = capsys.readouterr()
+    return rc, out, err
+
+
+def test_cli_design_text(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    rc, out, err = run_cli(monkeypatch, capsys, "design")
+    assert rc == 0 and err == ""
+    assert "G11" in out and "G31_S" in out and "closed-loop poles" in out
+    c = design_report(BuildConfig())
+    assert f"G11_M      EQU {c['gains']['G11']['m']}" in out
+
+
+def test_cli_design_json_overrides(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str],
+                                   tmp_path) -> None:
+    cfg = tmp_path / "b.json"
+    cfg.write_text(json.dumps({"program": "kalman_accel", "ratio": 100, "k": 5}))
+    rc, out, _ = run_cli(monkeypatch, capsys, "design", "--config", str(cfg), "--k", "6", "--noise-model", "jerk",
+                         "--rounding", "half_up", "--json")
+    assert rc == 0
+    rep = json.loads(out)
+    assert rep["config"]["k"] == 6 and rep["config"]["noise_model"] == "jerk" and rep["equates"]["ROUND"] == 1
+    assert rep["config"]["ratio"] == 100 and "G32" in rep["gains"]
+    assert rep == json.loads(json.dumps(design_report(BuildConfig(program="kalman_accel", ratio=100, k=6,
+                                                                  noise_model="jerk", rounding="half_up"))))
+
+
+@pytest.mark.parametrize("args,content,pattern", [
+    (("--k", "11"), None, r"k=11"),
+    (("--ratio", "0"), None, r"ratio=0\.0"),
+    (("--ratio", "1e300"), None, r"ratio=1e\+300"),
+    ((), '{"k": 7, "ratoi": 3}', r"b\.json: unknown field\(s\) ratoi"),
+    ((), '{"k": 7,\n "ratio": }', r"b\.json:2:.*invalid JSON"),
+])
+def test_cli_design_bad_config_is_one_line(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str],
+                                           tmp_path, args: tuple[str, ...], content: str | None,
+                                           pattern: str) -> None:
+    argv = ["design", *args]
+    if content is not None:
+        (tmp_path / "b.json").write_text(content)
+        argv += ["--config", str(tmp_path / "b.json")]
+    rc, out, err = run_cli(monkeypatch, capsys, *argv)
+    assert rc == 2 and out == ""
+    assert err.startswith("fwemu: error: ") and err.count("\n") == 1 and "Traceback" not in err
+    assert re.search(pattern, err), err
