@@ -7,8 +7,8 @@ PY := $(VENV)/bin/python
 FWEMU := $(VENV)/bin/fwemu
 STAMP := $(VENV)/.installed
 # Debian packages the tests use: GNU as for the encoding oracle; cross toolchains + simulators for the MCU runs.
-APT_TOOLS := binutils-m68k-linux-gnu
-APT_PROBE := m68k-linux-gnu-as
+APT_TOOLS := binutils-m68k-linux-gnu gcc-avr avr-libc simavr
+APT_PROBE := m68k-linux-gnu-as avr-gcc simavr
 
 .PHONY: all venv tools test test-thorough vectors budget main bench clean
 
@@ -17,7 +17,7 @@ all: main
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q -e '.[test]'
+	$(PY) -m pip install -q -e '.[test,plot]'
 	touch $(STAMP)
 
 venv: $(STAMP)
