@@ -304,3 +304,17 @@ def test_cli_design_bad_config_is_one_line(monkeypatch: pytest.MonkeyPatch, caps
     assert rc == 2 and out == ""
     assert err.startswith("fwemu: error: ") and err.count("\n") == 1 and "Traceback" not in err
     assert re.search(pattern, err), err
+
+
+@pytest.mark.parametrize("k", [0, 4, 7, 10])
+def test_dwna_equals_accel_only_for_baro_only(k: int) -> None:
+    """DWNA: x_(n+1) = F (x_n + e3 w_n); accel_only: x_(n+1) = F x_n + e3 w_n. With u_n = x_n + e3 w_n the
+    DWNA model is u_(n+1) = F u_n + e3 w_(n+1) (accel_only) and z_n = H u_n + v_n because H e3 = 0 for the
+    barometer; w_n is independent of z_0..z_n, so E[x_n | z] = E[u_n | z] and the gains are identical. The
+    accelerometer row has H e3 = 1, so with it they must differ."""
+    a = design_kalman(k, "accel_only", 5e4)
+    b = design_kalman(k, "dwna", 5e4)
+    np.testing.assert_allclose(a.K, b.K, rtol=1e-10)
+    a2 = design_kalman(k, "accel_only", 100.0, with_accel=True, baro_sigma=2.0, accel_sigma_units=0.335)
+    b2 = design_kalman(k, "dwna", 100.0, with_accel=True, baro_sigma=2.0, accel_sigma_units=0.335)
+    assert np.max(np.abs(b2.K / a2.K - 1)) > 0.1
