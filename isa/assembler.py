@@ -239,6 +239,7 @@ class _Assembler:
         self.prev: dict[str, _Sym] = {}
         self.prev_bases: dict[str, int] = {"code": origin, "data": origin, "bss": origin}
         self.final = False
+        self.label_ref = False  # set by the resolver when an expression used a label
 
     # --- driver -----------------------------------------------------------------------------------------------
     @staticmethod
@@ -258,18 +259,20 @@ class _Assembler:
                 raise AssemblyError(f"define name {name!r} is a register name", self.filename, 0, 0)
             if isinstance(value, bool) or not isinstance(value, int):
                 raise AssemblyError(f"define {name} = {value!r} is not an integer", self.filename, 0, 0)
-        snapshot = None
+        snapshot: tuple[dict[str, int], dict[str, int]] | None = None
+        changing: list[str] = []
         for _ in range(_MAX_PASSES):
             self._pass()
             new = (self._snapshot(), dict(self.bases))
             if new == snapshot:
                 break
+            if snapshot is not None:
+                changing = [k for k, v in new[0].items() if snapshot[0].get(k) != v]
             snapshot = new
             self.prev = self.cur
             self.prev_bases = dict(self.bases)
         else:
-            changing = [s for s in self.cur.values() if self.prev.get(s.name.lower(), s).value != s.value]
-            sym = changing[0] if changing else None
+            sym = self.cur.get(changing[0]) if changing else None
             if sym is not None and sym.rec is not None:
                 raise sym.rec.where().error(f"value of '{sym.name}' does not converge (circular definition?)", 1)
             raise AssemblyError("symbol values do not converge (circular definition?)", self.filename, 0, 0)
@@ -418,6 +421,11 @@ class _Assembler:
         while i < len(body) and body[i] == " ":
             i += 1
         if i >= len(body):
+            low = (p.label or "").lower()
+            if not lenient and not p.label_colon and (low in BY_MNEMONIC or low in _DIRECTIVES or low in _ALIASES):
+                raise rec.where().error(
+                    f"'{p.label}' in column 1 is taken as a label; indent instructions and directives", 1
+                )
             return p
         if body[i] == "=":
             p.op, p.op_text, p.op_col = "=", "=", i + 1
@@ -433,7 +441,7 @@ class _Assembler:
             p.op_col = i + 1
             if m.group(2) is not None:
                 p.size = m.group(2).lower()
-                p.size_col = m.start(2)
+                p.size_col = m.start(2) + 1
             i = m.end()
             if i < len(body) and body[i] != " ":
                 if lenient:
@@ -443,16 +451,6 @@ class _Assembler:
             i += 1
         p.operands = body[i:]
         p.operand_col = i + 1
-        if (
-            not lenient
-            and p.label is not None
-            and not p.label_colon
-            and p.label_col == 1
-            and (p.label.lower() in BY_MNEMONIC or p.label.lower() in _DIRECTIVES or p.label.lower() in _ALIASES)
-        ):
-            raise rec.where().error(
-                f"'{p.label}' in column 1 is taken as a label; indent instructions and directives", 1
-            )
         return p
 
     def _list(self, rec: _Rec, address: int | None, data: bytes = b"", cycles: tuple[int, int] | None = None) -> None:
@@ -497,6 +495,7 @@ class _Assembler:
             key = full.lower()
             sym = self.cur.get(key)
             if sym is not None:
+                self.label_ref |= sym.kind == "label"
                 return sym.value
             if strict:
                 raise rec.where().error(
@@ -504,9 +503,11 @@ class _Assembler:
                 )
             sym = self.prev.get(key)
             if sym is not None and sym.kind != "set":
+                self.label_ref |= sym.kind == "label"
                 return sym.value
             if self.final:
                 raise rec.where().error(f"undefined symbol '{full}'", tok.col)
+            self.label_ref = True  # unknown yet: do not refuse a PC-relative form before the final pass
             return 0
 
         return resolve
@@ -852,6 +853,12 @@ class _Assembler:
         operands = self._operands(rec, p)
         if mn in _TO_A_FORM and len(operands) == 2 and operands[1].mode is Mode.AREG:
             mn = _TO_A_FORM[mn]
+        if mn == "movem" and len(operands) == 2:  # a one-register list written as a plain register
+            regs = (Mode.DREG, Mode.AREG)
+            for k in (0, 1):
+                if operands[k].mode in regs and operands[1 - k].mode not in regs:
+                    r = operands[k]
+                    operands[k] = Operand(Mode.REGLIST, value=1 << (r.reg + (8 if r.mode is Mode.AREG else 0)))
         instr = Instruction(mn, size, tuple(operands))
         addr = self._here()
         try:
@@ -888,6 +895,7 @@ class _Assembler:
         where = rec.where()
         resolve = self._resolver(rec, strict=False)
         ps = ExprParser(t, where, resolve, self._here())
+        self.label_ref = False
 
         def reg_at(i: int) -> tuple[Mode, int] | None:
             tok = t[i]
@@ -993,6 +1001,11 @@ class _Assembler:
         if pc:
             if disp is None:
                 raise where.error("PC-relative operand needs a target: write label(pc)", col)
+            if not (ps.used_here or self.label_ref) and self.final:
+                self.warnings.append(
+                    f"{rec.file}:{rec.line}:{col}: warning: the number in x(pc) is taken as the target address "
+                    f"${disp & 0xFFFFFF:06X} (GNU as would take a plain number as the displacement)"
+                )
             return Operand(Mode.PCINDEX if index else Mode.PCDISP, value=disp, index=index)
         if postinc:
             return Operand(Mode.APOSTINC, reg=num)

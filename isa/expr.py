@@ -232,6 +232,7 @@ class ExprParser:
         self.resolve = resolve
         self.here = here
         self.depth = 0
+        self.used_here = False  #: set when ``*`` was evaluated
 
     @property
     def tok(self) -> Token:
@@ -353,6 +354,7 @@ class ExprParser:
         if t.kind == "op" and t.text == "*":
             if self.here is None:
                 raise self.error("'*' (current location) is not available here", t)
+            self.used_here = True
             return self.here
         if t.kind == "lparen":
             v = self.parse()
