@@ -44,15 +44,15 @@ def format_listing(program: Program, symbols: bool = True) -> str:
 
 
 def format_symbols(program: Program) -> str:
-    """The symbol table: name, value in hex (and decimal for constants), section and size in bytes, sorted by
+    """The symbol table: name, value in hex, section, size in bytes (labels) or ``= decimal`` (constants), sorted by
     section (code, data, bss, absolute) then value."""
     order = {"code": 0, "data": 1, "bss": 2, "absolute": 3}
     lines = ["Symbols:", f"  {'name':<24} {'value':>9}  {'section':<8} {'size':>6}"]
     syms = sorted(program.symbols.values(), key=lambda s: (order.get(s.section, 4), s.address, s.name.lower()))
     for s in syms:
         if s.section == "absolute":
-            value = f"${s.address & 0xFFFFFFFF:08X}" + (f" ({s.address})" if s.address < 0 or s.address > 9 else "")
-            lines.append(f"  {s.name:<24} {value:>9}  {s.section:<8}")
+            value = f"${s.address & 0xFFFFFFFF:08X}"
+            lines.append(f"  {s.name:<24} {value:>9}  {s.section:<8} {'':>6}  = {s.address}")
         else:
             lines.append(f"  {s.name:<24} {'$' + format(s.address, '06X'):>9}  {s.section:<8} {s.size:>6}")
     return "\n".join(lines)

@@ -12,7 +12,7 @@ COUNT   equ     (table_end-table)/2     ; number of words in the table
         section code
 start:  lea     table,a0                ; A0 -> first word
         moveq   #1,d4                   ; D4 = i, the next element to insert
-.outer  cmp.w   #COUNT,d4
+.outer  cmpi.w  #COUNT,d4
         bge.s   .sorted
         move.w  d4,d5
         add.w   d5,d5                   ; D5 = 2*i (byte offset)

@@ -1,0 +1,192 @@
+"""``fwemu asm`` and ``fwemu exec``: assemble a 68000 source file (listing with cycles, symbols, binary and
+S-record output) or assemble and run it on the interpreter to a ``TRAP`` or a limit.
+
+Both commands load code at ``--origin`` (default ``$1000``). ``exec`` maps all 16 MiB as RAM, sets A7 to
+``--stack`` (default ``$FFFF00``) and SR to ``$2700``, runs from the origin and prints D0-D7, A0-A7, PC, SR and the
+instruction and cycle totals. It exits 0 when the program stopped at a ``TRAP`` and 1 when it reached
+``--max-instructions`` / ``--max-cycles``; CPU faults and assembly errors exit 2 with one ``fwemu: error:`` line
+(plus the source line and a caret for assembly errors).
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+import sys
+from pathlib import Path
+from typing import Any
+
+from isa.errors import IsaError
+from isa.program import Program
+
+#: Default load address of ``fwemu asm`` / ``fwemu exec``.
+DEFAULT_ORIGIN = 0x1000
+#: Default initial A7 of ``fwemu exec``.
+DEFAULT_STACK = 0xFFFF00
+
+
+def parse_int(text: str) -> int:
+    """An integer from the command line: decimal, ``$hex``, ``0x`` hex, ``%bin``/``0b`` binary."""
+    t = text.strip().replace("_", "")
+    try:
+        if t.startswith("$"):
+            return int(t[1:], 16)
+        if t.startswith("%"):
+            return int(t[1:], 2)
+        return int(t, 0)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r} (use decimal, $hex or 0xhex)") from None
+
+
+def _address(text: str) -> int:
+    value = parse_int(text)
+    if not 0 <= value < (1 << 24) or value & 1:
+        raise argparse.ArgumentTypeError(f"address {text!r} must be even and inside the 24-bit address space")
+    return value
+
+
+def _count(text: str) -> int:
+    value = parse_int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"limit {text!r} must be a positive integer")
+    return value
+
+
+def _define(text: str) -> tuple[str, int]:
+    m = re.fullmatch(r"([A-Za-z_][A-Za-z0-9_]*)(?:=(.*))?", text)
+    if m is None:
+        raise argparse.ArgumentTypeError(f"bad define {text!r} (use NAME or NAME=VALUE)")
+    return m.group(1), parse_int(m.group(2)) if m.group(2) is not None else 1
+
+
+def _add_source_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("source", metavar="FILE.s", help="68000 assembly source (Motorola syntax)")
+    p.add_argument("--origin", type=_address, default=DEFAULT_ORIGIN, metavar="N",
+                   help="address of the first code byte (default $1000)")
+    p.add_argument("-I", dest="include", action="append", default=[], metavar="DIR",
+                   help="directory searched for INCLUDE files after the including file's own (repeatable)")
+    p.add_argument("-D", dest="defines", action="append", type=_define, default=[], metavar="NAME[=VALUE]",
+                   help="pre-define an EQU symbol (repeatable; VALUE defaults to 1)")
+
+
+def register(subparsers: Any) -> None:
+    """Add the ``asm`` and ``exec`` subcommands to the ``fwemu`` parser's ``subparsers``."""
+    p = subparsers.add_parser("asm", help="assemble a 68000 source: listing with cycles, symbols, .bin/.s19 output",
+                              description="Assemble FILE.s and print the listing (address, bytes, cycles, source) "
+                              "and the symbol table. Warnings go to stderr.")
+    _add_source_args(p)
+    p.add_argument("-o", "--output", metavar="FILE.bin",
+                   help="write a flat binary image (lowest to highest loaded address, gaps zero-filled, no bss)")
+    p.add_argument("--srec", metavar="FILE.s19", help="write Motorola S-records (S0/S1/S9, or S2/S8 above $FFFF)")
+    p.add_argument("-q", "--quiet", action="store_true", help="do not print the listing")
+    p.set_defaults(func=cmd_asm)
+
+    p = subparsers.add_parser("exec", help="assemble a 68000 source and run it to a TRAP or a limit",
+                              description="Assemble FILE.s, load it into a CPU with 16 MiB of RAM, run from the "
+                              "origin until TRAP #n or a limit, and print the registers and totals. Exit status 0 "
+                              "at a TRAP, 1 at a limit.")
+    _add_source_args(p)
+    p.add_argument("--max-instructions", type=_count, default=10_000_000, metavar="N",
+                   help="stop after N instructions (default 10000000)")
+    p.add_argument("--max-cycles", type=_count, default=None, metavar="N", help="stop after N clock cycles")
+    p.add_argument("--stack", type=_address, default=DEFAULT_STACK, metavar="N",
+                   help="initial A7 (default $FFFF00)")
+    p.set_defaults(func=cmd_exec)
+
+
+def _assemble(args: argparse.Namespace) -> Program:
+    from isa.assembler import assemble
+
+    path = Path(args.source)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise IsaError(f"cannot read {path}: {getattr(exc, 'strerror', None) or exc}") from None
+    program = assemble(text, filename=str(path), origin=args.origin, include_paths=args.include,
+                       defines=dict(args.defines))
+    for warning in program.warnings:
+        print(warning, file=sys.stderr)
+    return program
+
+
+def _write(path: str, data: bytes | str) -> None:
+    try:
+        if isinstance(data, str):
+            Path(path).write_text(data, encoding="ascii")
+        else:
+            Path(path).write_bytes(data)
+    except OSError as exc:
+        raise IsaError(f"cannot write {path}: {exc.strerror or exc}") from None
+
+
+def cmd_asm(args: argparse.Namespace) -> int:
+    """``fwemu asm``: print the listing and symbols; write ``-o`` binary and ``--srec`` S-records if asked."""
+    from isa.listing import format_listing, to_binary, to_srec
+
+    program = _assemble(args)
+    if not args.quiet:
+        sys.stdout.write(format_listing(program))
+    if args.output:
+        base, image = to_binary(program)
+        _write(args.output, image)
+        print(f"wrote {args.output}: {len(image)} bytes at ${base:06X}", file=sys.stderr)
+    if args.srec:
+        _write(args.srec, to_srec(program, header=Path(args.source).name))
+        print(f"wrote {args.srec}", file=sys.stderr)
+    return 0
+
+
+def format_registers(cpu: Any) -> str:
+    """D0-D7 and A0-A7 as ``$XXXXXXXX`` with the signed decimal value of the data registers, then PC and SR
+    with the X N Z V C flags."""
+    lines = []
+    for i in range(8):
+        d = cpu.d[i]
+        signed = d - (1 << 32) if d & 0x80000000 else d
+        lines.append(f"D{i} = ${d:08X} {signed:>12}    A{i} = ${cpu.a[i]:08X}")
+    sr = cpu.sr
+    flags = "".join(ch if sr & bit else "-" for ch, bit in zip("XNZVC", (16, 8, 4, 2, 1)))
+    lines.append(f"PC = ${cpu.pc:06X}    SR = ${sr:04X} (XNZVC {flags})")
+    return "\n".join(lines)
+
+
+def cmd_exec(args: argparse.Namespace) -> int:
+    """``fwemu exec``: assemble, run to a TRAP or a limit, print registers and totals; 0 at a TRAP, 1 at a limit."""
+    from isa.cpu import CPU
+
+    program = _assemble(args)
+    cpu = CPU()
+    cpu.load(program)
+    cpu.a[7] = args.stack
+    result = cpu.run(max_instructions=args.max_instructions, max_cycles=args.max_cycles, stop_at_limit=True)
+    if result.reason == "trap":
+        print(f"stopped: TRAP #{result.trap_number} (PC after the TRAP ${result.pc:06X})")
+    elif result.reason == "max_instructions":
+        print(f"stopped: instruction limit {args.max_instructions} reached at PC ${result.pc:06X}")
+    elif result.reason == "max_cycles":
+        print(f"stopped: cycle limit {args.max_cycles} reached at PC ${result.pc:06X}")
+    else:  # pragma: no cover - run() has no other reason without until_pc
+        print(f"stopped: {result.reason} at PC ${result.pc:06X}")
+    print(format_registers(cpu))
+    print(f"instructions: {result.instructions}    cycles: {result.cycles}")
+    return 0 if result.reason == "trap" else 1
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run ``asm``/``exec`` alone (``python -m isa.cli asm FILE.s``), without the rest of ``fwemu``."""
+    parser = argparse.ArgumentParser(prog="fwemu")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+    register(sub)
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except IsaError as exc:
+        print(f"fwemu: error: {exc}", file=sys.stderr)
+        return 2
+    except BrokenPipeError:
+        return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
