@@ -25,6 +25,7 @@ of a run), ``ram_written`` (number of distinct bytes written by executed instruc
 
 from __future__ import annotations
 
+import mmap
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any
@@ -1330,7 +1331,7 @@ def h_rts(ctx: _Ctx) -> Callable[[], int]:
         a = R[15]
         v = rl(a)
         R[15] = (a + 4) & M32
-        if v & 1:
+        if v & 1 and (v & 0xFFFFFF) != CALL_SENTINEL:
             raise _Fault(AddressError, f"return to odd address ${v & 0xFFFFFF:06X}")
         return (v & 0xFFFFFF) | cyc
 
@@ -1509,8 +1510,9 @@ class CPU:
 
     def __init__(self, mapped: bool = True) -> None:
         """``mapped=True``: all 16 MiB are RAM. ``mapped=False``: nothing is mapped; call :meth:`map`."""
-        self._mem = bytearray(_TOP + _PAD)
-        self._flags = bytearray(_TOP + _PAD)
+        # Anonymous mmaps: zero-filled lazily by the OS, so an unused 16 MiB space costs nothing to create.
+        self._mem = mmap.mmap(-1, _TOP + _PAD)
+        self._flags = mmap.mmap(-1, _TOP + _PAD)
         self._regions: list[Region] = []
         self._R: list[int] = [0] * 17  # D0-D7, A0-A7, SR
         self._R[16] = 0x2700
@@ -1562,18 +1564,23 @@ class CPU:
     @property
     def ram_written(self) -> int:
         """Number of distinct bytes written by executed instructions since construction/:meth:`reset_counters`."""
-        return self._flags.translate(_WRITTEN_TABLE).count(1)
+        fl = self._flags
+        return sum(fl[r.start : r.start + r.size].translate(_WRITTEN_TABLE).count(1) for r in self._regions)
 
     def written_ranges(self) -> list[tuple[int, int]]:
         """The bytes counted by :attr:`ram_written`, as sorted ``(start, end_exclusive)`` address ranges."""
-        marks = self._flags.translate(_WRITTEN_TABLE)
         out: list[tuple[int, int]] = []
-        i = marks.find(1)
-        while i != -1:
-            j = marks.find(0, i)
-            j = len(marks) if j == -1 else j
-            out.append((i, j))
-            i = marks.find(1, j)
+        for r in self._regions:
+            marks = self._flags[r.start : r.start + r.size].translate(_WRITTEN_TABLE)
+            i = marks.find(1)
+            while i != -1:
+                j = marks.find(0, i)
+                j = len(marks) if j == -1 else j
+                if out and out[-1][1] == r.start + i:
+                    out[-1] = (out[-1][0], r.start + j)
+                else:
+                    out.append((r.start + i, r.start + j))
+                i = marks.find(1, j)
         return out
 
     def reset_counters(self) -> None:
@@ -1584,7 +1591,8 @@ class CPU:
         self._min_sp[0] = self._R[15]
         fl = self._flags
         table = bytes(b & ~_WRITTEN for b in range(256))
-        fl[:] = fl.translate(table)
+        for r in self._regions:
+            fl[r.start : r.start + r.size] = fl[r.start : r.start + r.size].translate(table)
 
     # ------------------------------------------------------------------------------------------------- memory
     def map(self, start: int, size: int, name: str, writable: bool = True) -> None:
