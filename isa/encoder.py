@@ -139,6 +139,23 @@ def length(instr: Instruction) -> int:
     return 2 + 2 * sum(_op_words(spec, op, sel.size) for spec, op in zip(sel.row.operands, sel.operands))
 
 
+def extension_offsets(instr: Instruction) -> tuple[int | None, ...]:
+    """Per operand (source order), the byte offset from the opcode of its first extension word, or None when the
+    operand has none (PC-relative displacements are relative to that word)."""
+    sel = select(instr)
+    row = sel.row
+    offsets: list[int | None] = [None] * len(row.operands)
+    off = 2
+    for i in row.extension_order:
+        n = _op_words(row.operands[i], sel.operands[i], sel.size)
+        if n:
+            offsets[i] = off
+        off += 2 * n
+    if row.swappable and sel.operands != instr.operands:
+        offsets.reverse()
+    return tuple(offsets)
+
+
 def _check(cond: bool, instr: Instruction, msg: str) -> None:
     if not cond:
         raise EncodingError(f"{_describe(instr)}: {msg}")

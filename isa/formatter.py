@@ -15,10 +15,12 @@ Motorola form (:func:`format_instruction`), read back by :mod:`isa.assembler`::
 
 GNU form (:func:`format_gnu`) is what ``m68k-linux-gnu-as -m68000`` accepts: ``%`` register prefixes,
 ``(d,%an)`` / ``(d,%an,%xn.w)`` / ``(d,%pc)`` operands, ``0x`` hex, and targets written relative to a label so
-that GNU as computes the same displacements (``(start+0x40,%pc)``, ``bra.s start+0x40``).
+that GNU as computes the same displacements (``(L7+0x2,%pc)``, ``bra.s L9``).
 """
 
 from __future__ import annotations
+
+from collections.abc import Callable
 
 from isa.errors import EncodingError
 from isa.operands import IndexReg, Instruction, Mode, Operand
@@ -118,15 +120,14 @@ def format_instruction(instr: Instruction) -> str:
     return text + (" " + ",".join(ops) if ops else "")
 
 
-def _gnu_target(value: int, origin: int, label: str | None) -> str:
-    if label is None:
+def _gnu_target(value: int, symbolize: Callable[[int], str] | None) -> str:
+    if symbolize is None:
         return _num(value, "0x")
-    off = value - origin
-    return f"{label}{'+' if off >= 0 else '-'}0x{abs(off):x}"
+    return symbolize(value)
 
 
-def format_gnu_operand(op: Operand, origin: int = 0, label: str | None = None) -> str:
-    """One operand in GNU as syntax; PC-relative targets relative to ``label`` (at address ``origin``)."""
+def format_gnu_operand(op: Operand, symbolize: Callable[[int], str] | None = None) -> str:
+    """One operand in GNU as syntax; PC-relative targets through ``symbolize`` (see :func:`format_gnu`)."""
     m = op.mode
     if m is Mode.DREG:
         return f"%d{op.reg}"
@@ -148,9 +149,9 @@ def format_gnu_operand(op: Operand, origin: int = 0, label: str | None = None) -
     if m is Mode.ABSL:
         return f"(0x{op.value & 0xFFFFFFFF:x}).l"
     if m is Mode.PCDISP:
-        return f"({_gnu_target(op.value, origin, label)},%pc)"
+        return f"({_gnu_target(op.value, symbolize)},%pc)"
     if m is Mode.PCINDEX:
-        return f"({_gnu_target(op.value, origin, label)},%pc,{_index(op.index, '%')})"
+        return f"({_gnu_target(op.value, symbolize)},%pc,{_index(op.index, '%')})"
     if m is Mode.IMM:
         return "#" + _num(op.value, "0x")
     if m is Mode.REGLIST:
@@ -158,20 +159,30 @@ def format_gnu_operand(op: Operand, origin: int = 0, label: str | None = None) -
     raise EncodingError(f"cannot format operand mode {m}")
 
 
-def format_gnu(instr: Instruction, origin: int = 0, label: str | None = None) -> str:
+def format_gnu(instr: Instruction, symbolize: Callable[[int], str] | None = None, address: int | None = None) -> str:
     """``instr`` in ``m68k-linux-gnu-as -m68000`` syntax (``move.l %d0,(%a1)+``).
 
-    Branch and PC-relative targets are written ``label+offset`` where ``label`` is a symbol GNU as knows at
-    address ``origin`` (so GNU as computes the displacement itself); with ``label=None`` they are written as
-    plain numbers (which GNU as treats as absolute symbols, not useful for PC-relative code)."""
+    Branch and PC-relative targets are written ``symbolize(target_address)`` (e.g. ``L12+0x4`` for a label GNU as
+    knows, so that it computes the displacement itself; keep the addend small: GNU as rejects a PC-relative
+    ``sym+addend`` whose addend does not fit 16 bits, and silently wraps an out-of-range forward displacement).
+    Without ``symbolize`` targets are plain numbers, which GNU as treats as absolute symbols.
+
+    GNU as rejects ``(sym,%pc,%xn)`` whose displacement comes out 0 ("invalid byte branch offset"); when the
+    instruction's ``address`` is given, such an operand is written ``(%pc,%xn)``."""
+    from isa.encoder import extension_offsets
+
     row = _row(instr)
     text = instr.mnemonic + _suffix(instr, row)
     ops = []
-    for op in instr.operands:
-        if row is not None and row.handler in ("bcc", "bra", "bsr", "dbcc") and op.mode in (Mode.ABSL, Mode.ABSW):
-            ops.append(_gnu_target(op.value, origin, label))
+    offsets = extension_offsets(instr) if address is not None and row is not None else None
+    for i, op in enumerate(instr.operands):
+        off = offsets[i] if offsets is not None else None
+        if op.mode is Mode.PCINDEX and address is not None and off is not None and op.value == address + off:
+            ops.append(f"(%pc,{_index(op.index, '%')})")
+        elif row is not None and row.handler in ("bcc", "bra", "bsr", "dbcc") and op.mode in (Mode.ABSL, Mode.ABSW):
+            ops.append(_gnu_target(op.value, symbolize))
         else:
-            ops.append(format_gnu_operand(op, origin, label))
+            ops.append(format_gnu_operand(op, symbolize))
     return text + (" " + ",".join(ops) if ops else "")
 
 
