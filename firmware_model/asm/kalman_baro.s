@@ -1,0 +1,8 @@
+*****************************************************************************************************************
+* kalman_baro.s -- barometer-only steady-state Kalman filter (state altitude, velocity, acceleration) with
+* liftoff, Mach lockout, barometer over-range, apogee and low-rate apogee prediction.
+* docs/firmware-spec.md section 6; the code is in kalman.inc, shared with kalman_accel.s.
+*****************************************************************************************************************
+KALMAN_ACCEL    equ     0
+        include "fwemu.inc"
+        include "kalman.inc"
