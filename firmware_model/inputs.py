@@ -131,6 +131,8 @@ class FlightParams:
       quadratic drag coefficient (1/m: deceleration = drag_per_m * v * |v|), ``drogue_mps`` descent rate under the
       drogue (deployed ``drogue_delay_s`` after apogee), ``pad_s`` time on the pad before ignition,
       ``after_apogee_s`` how long the stream continues after apogee, ``pad_altitude_m`` above sea level.
+    * Transonic barometer error: while the speed is inside ``transonic_band_mps`` (lo, hi) the barometer reads
+      ``transonic_error_m`` metres too high (the pressure dip ahead of the shock; 0 = none).
     * Barometer: ``units_per_metre`` counts per metre near the pad, ``baro_sign`` (-1: pressure ADC, counts fall as
       altitude grows), ``pad_fraction`` pad reading as a fraction of full scale, ``baro_sigma`` noise (counts rms).
     * Accelerometer: ``accel_counts_per_mps2``, ``accel_offset`` (counts at zero specific force), ``accel_sigma``
@@ -143,7 +145,7 @@ class FlightParams:
     drogue_mps: float = 20.0
     drogue_delay_s: float = 0.5
     pad_s: float = 0.5
-    after_apogee_s: float = 1.5
+    after_apogee_s: float = 3.0
     pad_altitude_m: float = 0.0
     units_per_metre: float = 3.5
     baro_sign: int = -1
@@ -152,10 +154,13 @@ class FlightParams:
     accel_counts_per_mps2: float = 2048.0 / G0
     accel_offset: float = 0.0
     accel_sigma: float = 20.0
+    transonic_error_m: float = 0.0
+    transonic_band_mps: tuple[float, float] = (290.0, 375.0)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready parameters."""
-        return {name: getattr(self, name) for name in self.__dataclass_fields__}
+        return {name: (list(v) if isinstance(v := getattr(self, name), tuple) else v)
+                for name in self.__dataclass_fields__}
 
 
 def pressure_pa(h_m: np.ndarray | float) -> np.ndarray | float:
@@ -227,7 +232,10 @@ def synthetic_flight(k: int, bits: int = 16, seed: int = 0, params: FlightParams
     rng = np.random.default_rng(seed)
     baro_noise = rng.standard_normal(h.shape[0]) * p.baro_sigma
     acc_noise = rng.standard_normal(h.shape[0]) * p.accel_sigma
-    drop = (p_pad - pressure_pa(p.pad_altitude_m + h)) * counts_per_pa      # counts, grows with altitude
+    speed = np.abs(np.gradient(h, dt)) if h.shape[0] > 1 else np.zeros_like(h)
+    lo, hi = p.transonic_band_mps
+    h_baro = h + np.where((speed > lo) & (speed < hi), p.transonic_error_m, 0.0)
+    drop = (p_pad - pressure_pa(p.pad_altitude_m + h_baro)) * counts_per_pa  # counts, grows with altitude
     baro = pad_counts + p.baro_sign * drop + baro_noise
     adc = np.clip(np.rint(baro), 0, full).astype(np.int64)
     acc_f = p.accel_offset + (a + G0) * p.accel_counts_per_mps2 + acc_noise

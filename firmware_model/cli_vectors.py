@@ -1,0 +1,61 @@
+"""``fwemu vectors``: golden vectors for microcontroller ports (docs/vectors.md).
+
+* ``fwemu vectors --all --out vectors`` regenerates the whole committed set (byte-identical on every run).
+* ``fwemu vectors --firmware NAME --input FILE.csv [--config FILE.json] --out DIR`` makes a one-case set from a
+  user stream (CSV with a header naming ``adc`` and optionally ``acc``).
+* ``fwemu vectors --check DIR`` verifies a set against its manifest (exit 1 on any difference).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from firmware_model.config import PROGRAMS
+from firmware_model.errors import UserError
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``vectors`` subcommand to the ``fwemu`` parser (contract in :mod:`firmware_model.cli`)."""
+    p = subparsers.add_parser("vectors", help="golden vectors (JSON + C headers) for firmware ports",
+                              description=__doc__.splitlines()[0] if __doc__ else None)
+    mode = p.add_mutually_exclusive_group(required=True)
+    mode.add_argument("--all", action="store_true", help="regenerate the whole committed case matrix")
+    mode.add_argument("--firmware", choices=PROGRAMS, help="program for a vector set from a user stream")
+    mode.add_argument("--check", metavar="DIR", help="verify a vector set against its manifest.json")
+    p.add_argument("--input", metavar="FILE.csv", help="user stream: CSV with columns adc[,acc] (with --firmware)")
+    p.add_argument("--config", metavar="FILE.json", help="build config (with --firmware; default BuildConfig)")
+    p.add_argument("--out", metavar="DIR", help="output directory (vector set layout, see docs/vectors.md)")
+    p.add_argument("--generator", choices=("emulation", "model"), default="emulation",
+                   help="emulation: 68000 firmware on the emulated CPU, cross-checked against the integer model "
+                        "(default); model: the integer model only (marked as such in every file)")
+    p.add_argument("--jobs", type=int, default=1, metavar="N", help="worker processes for --all (default 1)")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Execute ``fwemu vectors``; returns the exit code."""
+    from firmware_model import vectors
+
+    if args.check:
+        problems = vectors.check_set(args.check)
+        for line in problems:
+            print(f"{args.check}: {line}")
+        print(f"{args.check}: {'OK' if not problems else f'{len(problems)} problem(s)'}")
+        return 1 if problems else 0
+    if not args.out:
+        raise UserError("vectors: --out DIR is required")
+    if args.jobs < 1:
+        raise UserError(f"vectors: --jobs={args.jobs} must be >= 1")
+    if args.all:
+        if args.input or args.config:
+            raise UserError("vectors: --input/--config go with --firmware, not --all (the committed matrix is fixed)")
+        files = vectors.generate_all(args.out, args.generator, jobs=args.jobs)
+    else:
+        if not args.input:
+            raise UserError("vectors: --firmware needs --input FILE.csv")
+        files = vectors.generate_user(args.firmware, args.input, args.out, args.config, args.generator)
+    n_cases = sum(1 for name in files if name.endswith(".json") and name.startswith("cases/"))
+    size = sum(len(data) for data in files.values())
+    print(f"wrote {n_cases} case(s), {len(files)} files, {size / 1e6:.2f} MB to {args.out}", file=sys.stderr)
+    return 0

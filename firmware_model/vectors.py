@@ -1,0 +1,793 @@
+"""Golden vectors for microcontroller ports (DESIGN.md §8, docs/vectors.md).
+
+A *vector set* is a directory::
+
+    <out>/manifest.json        every generated file with its SHA-256 (and the set kind)
+    <out>/schema.json          JSON Schema of a case JSON
+    <out>/cases/<name>.json    one case: description, build config, constants, inputs, expected words
+    <out>/cases/<name>.h       the same data as C99 ``const`` arrays and ``#define`` constants
+    <out>/c/cases.h            the table of every case for vectors/c/harness.c
+    <out>/c/cases_avr.h        (full set only) the subset that fits an ATmega2560, for ``make -C vectors/c avr``
+
+Expected words come from the 68000 firmware run on the emulated CPU (:mod:`firmware_model.harness`) and are
+cross-checked, every word of every sample, against the numpy integer model (:func:`firmware_model.model.run_model`)
+before anything is written. ``generator="model"`` (model only) exists for bootstrapping and is marked as such in
+every file. Output is deterministic to the byte: sorted keys, floats with 12 significant digits, no timestamps.
+Files are written into a temporary directory first and moved into place only when everything succeeded.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import json
+import math
+import os
+import shutil
+import sys
+import tempfile
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from firmware_model.config import PROGRAMS, ROUNDINGS, BuildConfig
+from firmware_model.errors import UserError
+from firmware_model.inputs import EDGE_KINDS, FlightParams, Stream, edge_stream, synthetic_flight
+from firmware_model.trace import EVENT_BITS, STATE_WORDS, word_names
+
+#: Version of the case JSON layout (bump on any incompatible change; schema.json says the same).
+SCHEMA_VERSION: int = 1
+#: Generator labels written into every case.
+GENERATOR_EMULATION: str = "68000 emulation (isa), cross-checked against the numpy model"
+GENERATOR_MODEL: str = "model"
+#: Program ids of vectors/c/fw.h (fw_program).
+PROGRAM_IDS: dict[str, int] = {"recursive": 0, "kalman_baro": 1, "kalman_accel": 2, "recursive_seed_literal": 3}
+C_PROGRAM_ENUM: dict[str, str] = {"recursive": "FW_RECURSIVE", "kalman_baro": "FW_KALMAN_BARO",
+                                  "kalman_accel": "FW_KALMAN_ACCEL",
+                                  "recursive_seed_literal": "FW_RECURSIVE_SEED_LITERAL"}
+#: Gains in fw_consts order (vectors/c/fw.h).
+GAIN_NAMES: tuple[str, ...] = ("G11", "G21", "G31", "G12", "G22", "G32", "ACC_G")
+#: Scalar constants in fw_consts order.
+SCALAR_CONSTANTS: tuple[str, ...] = ("K", "ROUND", "BARO_SIGN", "S", "THR", "V_LIFT", "V_GATE", "MACH_VLO",
+                                     "MACH_VHI", "MACH_E", "BARO_MIN", "BARO_MAX")
+
+# ------------------------------------------------------------------------------------------- the case matrix
+#: k values (sample period 2^-k s) of the committed set.
+MATRIX_K: tuple[int, ...] = (4, 5, 6, 7, 8)
+#: Barometer ADC widths of the committed set.
+MATRIX_BITS: tuple[int, ...] = (12, 16)
+#: Samples per edge stream.
+EDGE_SAMPLES: int = 32
+#: Seed of the synthetic flight of the committed set (one flight profile, sampled at every k).
+FLIGHT_SEED: int = 20240601
+#: Programs that get the synthetic flight (the seed-literal filter diverges; it gets the edge streams only).
+FLIGHT_PROGRAMS: tuple[str, ...] = ("recursive", "kalman_baro", "kalman_accel")
+#: The fast (transonic) flight: Kalman programs only, 16-bit barometer, these k (it is long: ~20 s).
+FAST_FLIGHT_PROGRAMS: tuple[str, ...] = ("kalman_baro", "kalman_accel")
+FAST_FLIGHT_K: tuple[int, ...] = (4, 5)
+FAST_FLIGHT_BITS: int = 16
+FAST_FLIGHT_SEED: int = 20240602
+
+Q_FORMATS: dict[str, dict[str, str]] = {
+    "recursive": {"EST": "Q24.8 barometer units (z = BARO_SIGN*adc)", "EXT": "Q24.8 barometer units",
+                  "VEL": "Q32.0 accelerometer counts x samples", "ACC0": "Q32.0 accelerometer counts",
+                  "EVENTS": "uint16 event bits"},
+    "recursive_seed_literal": {"EST": "Q24.8 barometer units (z = BARO_SIGN*adc)"},
+    "kalman_baro": {"X1": "Q24.8 barometer units", "X2": "Q24.8 units/s", "X3": "Q24.8 units/s^2",
+                    "EVENTS": "uint16 event bits", "APFRAC": "UQ0.16 fraction of a sample period"},
+    "kalman_accel": {"X1": "Q24.8 barometer units", "X2": "Q24.8 units/s", "X3": "Q24.8 units/s^2",
+                     "ACC0": "Q32.0 accelerometer counts", "EVENTS": "uint16 event bits",
+                     "APFRAC": "UQ0.16 fraction of a sample period"},
+}
+
+
+def units_per_metre_for(bits: int) -> float:
+    """Barometer counts per metre used for a ``bits``-bit ADC in the committed set: 3.5 counts/m at 16 bits,
+    scaled by 2^(bits-16) (the same pressure sensor read with fewer bits)."""
+    return 3.5 * 2.0 ** (bits - 16)
+
+
+def baro_sigma_for(bits: int) -> float:
+    """Barometer noise (counts rms) of the committed set: 2 counts at 16 bits, scaled like the counts, but not
+    below 0.5 count (quantization noise)."""
+    return max(0.5, 2.0 * 2.0 ** (bits - 16))
+
+
+def case_config(program: str, rounding: str, k: int, bits: int) -> BuildConfig:
+    """The build config of one committed case: defaults of :class:`BuildConfig` except the ADC width, its counts
+    per metre and noise, and a valid barometer range that excludes the two rail codes (0 and 2^bits-1: a saturated
+    reading is invalid), so that the adc_min / adc_max / alternating streams exercise BARO_INVALID."""
+    return BuildConfig(program=program, rounding=rounding, k=k, baro_bits=bits,
+                       units_per_metre=units_per_metre_for(bits), baro_sigma=baro_sigma_for(bits),
+                       baro_min=1, baro_max=(1 << bits) - 2)
+
+
+def flight_params_for(cfg: BuildConfig, fast: bool = False) -> FlightParams:
+    """The synthetic flight's sensor parameters matching ``cfg`` (same counts/metre, noise, baro sign).
+    ``fast``: a transonic flight (14 g for 2 s, peak ~300 m/s, with a 60 m barometer error in 290..375 m/s) that
+    exercises the Mach lockout."""
+    sensors = dict(units_per_metre=cfg.units_per_metre, baro_sign=cfg.baro_sign, baro_sigma=cfg.baro_sigma,
+                   accel_counts_per_mps2=cfg.accel_counts_per_mps2, accel_sigma=cfg.accel_sigma)
+    if fast:
+        return FlightParams(boost_accel_g=14.0, burn_s=2.5, drag_per_m=0.0004, transonic_error_m=60.0, **sensors)
+    return FlightParams(**sensors)
+
+
+@dataclass(frozen=True)
+class CaseSpec:
+    """One golden-vector case: a build config and an input stream."""
+
+    name: str
+    cfg: BuildConfig
+    stream: Stream
+
+
+def case_name(program: str, rounding: str, k: int, bits: int, stream: str) -> str:
+    """``<program>_<rounding>_k<k>_b<bits>_<stream>`` (a C identifier)."""
+    return f"{program}_{rounding}_k{k}_b{bits}_{stream}"
+
+
+def case_matrix() -> list[CaseSpec]:
+    """Every case of the committed set, in a fixed order (documented in docs/vectors.md):
+    programs x roundings x k in :data:`MATRIX_K` x ADC bits in :data:`MATRIX_BITS` x (the
+    :data:`~firmware_model.inputs.EDGE_KINDS` edge streams of :data:`EDGE_SAMPLES` samples, plus the synthetic
+    flight for :data:`FLIGHT_PROGRAMS`)."""
+    specs: list[CaseSpec] = []
+    flights: dict[tuple[int, int], Stream] = {}
+    for program in PROGRAMS:
+        for rounding in ROUNDINGS:
+            for k in MATRIX_K:
+                for bits in MATRIX_BITS:
+                    cfg = case_config(program, rounding, k, bits)
+                    for kind in EDGE_KINDS:
+                        stream = edge_stream(kind, EDGE_SAMPLES, bits, k)
+                        specs.append(CaseSpec(case_name(program, rounding, k, bits, stream.name), cfg, stream))
+                    if program in FLIGHT_PROGRAMS:
+                        key = (k, bits)
+                        if key not in flights:
+                            flights[key] = synthetic_flight(k, bits, FLIGHT_SEED, flight_params_for(cfg))
+                        stream = flights[key]
+                        specs.append(CaseSpec(case_name(program, rounding, k, bits, stream.name), cfg, stream))
+                    if program in FAST_FLIGHT_PROGRAMS and k in FAST_FLIGHT_K and bits == FAST_FLIGHT_BITS:
+                        key = (k, -bits)
+                        if key not in flights:
+                            flights[key] = synthetic_flight(k, bits, FAST_FLIGHT_SEED, flight_params_for(cfg, True),
+                                                            name="flight_fast")
+                        stream = flights[key]
+                        specs.append(CaseSpec(case_name(program, rounding, k, bits, stream.name), cfg, stream))
+    return specs
+
+
+#: The subset run on the ATmega2560 under simavr (must fit 64 KiB of program-memory data).
+AVR_CASES: tuple[str, ...] = tuple(
+    [case_name(p, r, 4, 16, "flight") for p in FLIGHT_PROGRAMS for r in ROUNDINGS]
+    + [case_name(p, r, 4, 16, "edge_" + kind) for p in PROGRAMS for r in ROUNDINGS for kind in ("ties", "step")]
+    + [case_name("kalman_baro", "floor", 4, 16, "flight_fast")]
+)
+
+
+# ------------------------------------------------------------------------------------------- running a case
+@dataclass
+class CaseResult:
+    """Expected outputs of one case: words (n, n_words) and init words as Python ints, plus run metadata."""
+
+    spec: CaseSpec
+    generator: str
+    source: str | None
+    source_sha256: str | None
+    consts: Any
+    init: list[int]
+    words: list[list[int]]
+    cycles: dict[str, Any] | None
+    first_wrap: int
+    wrap_word: str
+
+
+def _asm_source_path(program: str) -> Path:
+    return Path(__file__).resolve().parent / "asm" / f"{program}.s"
+
+
+def _sha256_file(path: Path) -> str | None:
+    try:
+        return hashlib.sha256(path.read_bytes()).hexdigest()
+    except OSError:
+        return None
+
+
+def compute_case(spec: CaseSpec, generator: str = "emulation") -> CaseResult:
+    """Run one case. ``generator="emulation"``: the 68000 firmware on the emulated CPU, then the integer model on
+    the same inputs; any differing word raises :class:`UserError` naming case, sample and word.
+    ``generator="model"``: the integer model only (bootstrap; marked in the output)."""
+    from firmware_model.constants import build_constants
+    from firmware_model.model import run_model
+
+    cfg, stream = spec.cfg, spec.stream
+    adc = np.asarray(stream.adc, dtype=np.int64)
+    acc = np.asarray(stream.acc, dtype=np.int64)
+    cycles: dict[str, Any] | None = None
+    if generator == "emulation":
+        try:
+            from firmware_model.build import build_firmware
+            from firmware_model.harness import run_firmware
+        except ImportError as exc:  # pragma: no cover - only while the harness is being written
+            raise UserError(f"vectors: the 68000 harness is not available ({exc}); use --generator model") from None
+        build = build_firmware(cfg)
+        consts = build.consts
+        trace = run_firmware(build, adc, acc)
+        model = run_model(consts, adc, acc)
+        _cross_check(spec.name, trace, model)
+        label = GENERATOR_EMULATION
+        source_sha = build.source_sha256
+        if trace.cycles is not None:
+            cyc = np.asarray(trace.cycles, dtype=np.int64)
+            worst = int(np.argmax(cyc))
+            cycles = {"cpu": "MC68000, zero wait states", "step_min": int(cyc.min()), "step_max": int(cyc.max()),
+                      "step_max_sample": worst, "step_mean": round(float(cyc.mean()), 3),
+                      "init": None if trace.init_cycles is None else int(trace.init_cycles)}
+    elif generator == "model":
+        consts = build_constants(cfg)
+        model = run_model(consts, adc, acc)
+        trace = model
+        label = GENERATOR_MODEL
+        source_sha = _sha256_file(_asm_source_path(cfg.program))
+    else:
+        raise UserError(f"vectors: unknown generator {generator!r} (emulation or model)")
+    words = np.asarray(trace.words, dtype=np.int64)
+    return CaseResult(spec=spec, generator=label, source=f"firmware_model/asm/{cfg.program}.s",
+                      source_sha256=source_sha, consts=consts,
+                      init=[int(v) for v in np.asarray(trace.init_words).tolist()],
+                      words=[[int(v) for v in row] for row in words.tolist()], cycles=cycles,
+                      first_wrap=int(model.first_wrap), wrap_word=str(model.wrap_word))
+
+
+def _cross_check(name: str, trace: Any, model: Any) -> None:
+    """Raise :class:`UserError` at the first word where the emulated firmware and the integer model differ."""
+    names = list(model.names)
+    a_init, b_init = np.asarray(trace.init_words), np.asarray(model.init_words)
+    if a_init.shape != b_init.shape or np.any(a_init != b_init):
+        j = int(np.argmax(a_init != b_init)) if a_init.shape == b_init.shape else 0
+        raise UserError(f"vectors: case {name}: emulated firmware and model differ after init, word {names[j]}: "
+                        f"firmware {a_init.tolist()} model {b_init.tolist()}")
+    a, b = np.asarray(trace.words), np.asarray(model.words)
+    if a.shape != b.shape:
+        raise UserError(f"vectors: case {name}: firmware trace shape {a.shape} != model {b.shape}")
+    diff = np.argwhere(a != b)
+    if diff.size:
+        i, j = (int(v) for v in diff[0])
+        raise UserError(f"vectors: case {name}: emulated firmware and model differ at sample {i} word {names[j]}: "
+                        f"firmware {int(a[i, j])} model {int(b[i, j])}")
+
+
+# ------------------------------------------------------------------------------------------- formatting
+def _fmt_float(x: float) -> float | None:
+    """A float rounded to 12 significant digits (stable across platforms/BLAS); None for non-finite."""
+    if not math.isfinite(x):
+        return None
+    return float(f"{x:.12g}")
+
+
+def _clean(obj: Any) -> Any:
+    """Recursively convert numpy scalars and floats into stable JSON values."""
+    if isinstance(obj, dict):
+        return {str(k): _clean(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_clean(v) for v in obj]
+    if isinstance(obj, (bool, np.bool_)):
+        return bool(obj)
+    if isinstance(obj, (int, np.integer)):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        return _fmt_float(float(obj))
+    return obj
+
+
+def _dumps(value: Any) -> str:
+    return json.dumps(value, sort_keys=True, separators=(", ", ": "), ensure_ascii=True, allow_nan=False)
+
+
+def tool_version() -> str:
+    """The fwemu package version (``fwemu <version>``)."""
+    try:
+        from importlib.metadata import version
+
+        return f"fwemu {version('fwemu')}"
+    except Exception:  # pragma: no cover - not installed
+        return "fwemu unknown"
+
+
+def case_document(res: CaseResult) -> dict[str, Any]:
+    """The JSON document of one case (see schema.json)."""
+    spec, consts = res.spec, res.consts
+    cfg, stream = spec.cfg, spec.stream
+    program = cfg.program
+    names = word_names(program)
+    gains = {}
+    for gname, g in sorted(consts.gains.items()):
+        gains[gname] = {"m": int(g.m), "s": int(g.s), "value": g.value, "target": g.target,
+                        "rel_error": g.rel_error}
+    words_first: dict[str, int] = {}
+    if "EVENTS" in names:
+        col = names.index("EVENTS")
+        for ev, bit in EVENT_BITS.items():
+            idx = next((i for i, row in enumerate(res.words) if row[col] & bit), -1)
+            words_first[ev] = idx
+    doc = {
+        "schema_version": SCHEMA_VERSION,
+        "name": spec.name,
+        "generator": res.generator,
+        "tool": tool_version(),
+        "firmware": {"program": program, "source": res.source, "source_sha256": res.source_sha256,
+                     "c_program_id": PROGRAM_IDS[program]},
+        "build_config": cfg.to_dict(),
+        "rounding": cfg.rounding,
+        "sample_period": {"k": cfg.k, "dt_s": cfg.dt},
+        "constants": {name: int(getattr(consts, name)) for name in SCALAR_CONSTANTS},
+        "gains": gains,
+        "q_formats": dict(Q_FORMATS[program]),
+        "words": list(names),
+        "word_bytes": {name: size for name, size in STATE_WORDS[program]},
+        "event_bits": dict(EVENT_BITS),
+        "events_first_sample": words_first,
+        "input": {"name": stream.name, "n_samples": len(stream), "adc_bits": stream.bits,
+                  "provenance": stream.provenance, "truth": stream.truth},
+        "int32_wrap": {"first_sample": res.first_wrap, "quantity": res.wrap_word},
+        "cycles_68000": res.cycles,
+        "sequencing": "sample 0 is written before init and before the first step; init is sample -1",
+        "init": res.init,
+    }
+    return _clean(doc)
+
+
+def case_json(res: CaseResult) -> str:
+    """The case JSON text: sorted keys, one line per key, the inputs and expected words one sample per line."""
+    doc = case_document(res)
+    doc["adc"] = None
+    doc["acc"] = None
+    doc["expected"] = None
+    lines = []
+    keys = sorted(doc)
+    for n, key in enumerate(keys):
+        comma = "," if n + 1 < len(keys) else ""
+        if key in ("adc", "acc"):
+            values = getattr(res.spec.stream, key)
+            lines.append(f' "{key}": [{", ".join(str(int(v)) for v in values)}]{comma}')
+        elif key == "expected":
+            rows = ",\n  ".join("[" + ", ".join(str(v) for v in row) + "]" for row in res.words)
+            lines.append(f' "expected": [\n  {rows}\n ]{comma}')
+        else:
+            lines.append(f' "{key}": {_dumps(doc[key])}{comma}')
+    return "{\n" + "\n".join(lines) + "\n}\n"
+
+
+def _c_rows(values: Iterable[int], per_line: int = 16) -> str:
+    vals = [str(int(v)) for v in values]
+    return ",\n".join("    " + ", ".join(vals[i:i + per_line]) for i in range(0, len(vals), per_line))
+
+
+def _c_i32(v: int) -> str:
+    """An int32 value as a C constant valid for every compiler (INT32_MIN is written as an expression)."""
+    return "(-2147483647 - 1)" if v == -(1 << 31) else str(v)
+
+
+def case_header(res: CaseResult) -> str:
+    """The C99 header of one case: ``FWV_<NAME>_*`` macros and ``fwv_<name>_*`` const arrays (FWV_ROM placement,
+    empty by default: define it to PROGMEM or a section attribute before including)."""
+    spec, consts = res.spec, res.consts
+    cfg, stream = spec.cfg, spec.stream
+    name = spec.name
+    up = name.upper()
+    names = word_names(cfg.program)
+    n, nw = len(stream), len(names)
+    out = [f"/* Golden vectors: case {name}. Generated by {tool_version()}; do not edit (fwemu vectors). */",
+           f"/* generator: {res.generator} */",
+           f"/* program {cfg.program}, rounding {cfg.rounding}, dt = 2^-{cfg.k} s, {stream.bits}-bit barometer, "
+           f"input {stream.name} ({n} samples) */",
+           f"/* firmware source sha256: {res.source_sha256} */",
+           f"#ifndef FWV_{up}_H", f"#define FWV_{up}_H", "", "#include <stdint.h>", "",
+           "#ifndef FWV_ROM", "#define FWV_ROM /* e.g. PROGMEM on AVR */", "#endif", "",
+           f'#define FWV_{up}_PROGRAM "{cfg.program}"',
+           f"#define FWV_{up}_PROGRAM_ID {PROGRAM_IDS[cfg.program]}",
+           f'#define FWV_{up}_ROUNDING "{cfg.rounding}"',
+           f"#define FWV_{up}_N_SAMPLES {n}", f"#define FWV_{up}_N_WORDS {nw}"]
+    for cname in SCALAR_CONSTANTS:
+        out.append(f"#define FWV_{up}_{cname} ({_c_i32(int(getattr(consts, cname)))})")
+    for gname in GAIN_NAMES:
+        if gname in consts.gains:
+            g = consts.gains[gname]
+            out.append(f"#define FWV_{up}_{gname}_M ({int(g.m)}) /* {gname} = m / 2^s = {g.value!r} */")
+            out.append(f"#define FWV_{up}_{gname}_S ({int(g.s)})")
+    out.append("/* column index of each state word in fwv_" + name + "_expected (and _init) */")
+    for j, wname in enumerate(names):
+        out.append(f"#define FWV_{up}_W_{wname} {j} /* {Q_FORMATS[cfg.program][wname]} */")
+    out += ["", f"/* barometer ADC counts (unsigned {stream.bits}-bit), sample 0 is also the init sample */",
+            f"static const uint16_t fwv_{name}_adc[{n}] FWV_ROM = {{", _c_rows(stream.adc), "};",
+            "/* accelerometer counts (signed 16-bit) */",
+            f"static const int16_t fwv_{name}_acc[{n}] FWV_ROM = {{",
+            _c_rows(stream.acc), "};",
+            "/* state words after init (.w words zero-extended) */",
+            f"static const int32_t fwv_{name}_init[{nw}] FWV_ROM = {{ {', '.join(_c_i32(v) for v in res.init)} }};",
+            f"/* state words after step i: {' '.join(names)} */",
+            f"static const int32_t fwv_{name}_expected[{n}][{nw}] FWV_ROM = {{"]
+    out.append(",\n".join("    { " + ", ".join(_c_i32(v) for v in row) + " }" for row in res.words))
+    out += ["};", "", f"#endif /* FWV_{up}_H */", ""]
+    return "\n".join(out)
+
+
+def cases_table_header(results: Sequence[CaseResult], guard: str) -> str:
+    """The harness's case table (vectors/c/cases.h or cases_avr.h): includes every case header and fills an
+    ``fwv_case`` per case (missing gains are {0, 0})."""
+    out = [f"/* Case table for vectors/c/harness.c. Generated by {tool_version()}; do not edit. */",
+           f"#ifndef {guard}", f"#define {guard}", "", '#include "fwv_case.h"', ""]
+    for res in results:
+        out.append(f'#include "{res.spec.name}.h"')
+    out += ["", f"#define FWV_N_CASES {len(results)}u", "static const fwv_case fwv_cases[] FWV_ROM = {"]
+    rows = []
+    for res in results:
+        name, up = res.spec.name, res.spec.name.upper()
+        program = res.spec.cfg.program
+        scal = {c: f"FWV_{up}_{c}" for c in SCALAR_CONSTANTS}
+        gains = {g: (f"{{FWV_{up}_{g}_M, FWV_{up}_{g}_S}}" if g in res.consts.gains else "{0, 0}")
+                 for g in GAIN_NAMES}
+        consts = ("{" + ", ".join(scal[c] for c in ("K", "ROUND", "BARO_SIGN", "S", "THR", "V_LIFT", "V_GATE"))
+                  + ", " + ", ".join(gains[g] for g in GAIN_NAMES) + ", "
+                  + ", ".join(scal[c] for c in ("MACH_VLO", "MACH_VHI", "MACH_E", "BARO_MIN", "BARO_MAX")) + "}")
+        rows.append(f'    {{"{name}", {C_PROGRAM_ENUM[program]}, {consts},\n'
+                    f"     FWV_{up}_N_SAMPLES, FWV_{up}_N_WORDS, fwv_{name}_adc, fwv_{name}_acc, fwv_{name}_init,\n"
+                    f"     &fwv_{name}_expected[0][0]}}")
+    out.append(",\n".join(rows))
+    out += ["};", "", f"#endif /* {guard} */", ""]
+    return "\n".join(out)
+
+
+# ------------------------------------------------------------------------------------------- schema
+def case_schema() -> dict[str, Any]:
+    """JSON Schema (draft 2020-12) of a case JSON."""
+    int_array = {"type": "array", "items": {"type": "integer"}}
+    gain = {"type": "object", "required": ["m", "s", "value", "target", "rel_error"],
+            "properties": {"m": {"type": "integer", "minimum": -32768, "maximum": 32767},
+                           "s": {"type": "integer", "minimum": 0, "maximum": 47},
+                           "value": {"type": "number"}, "target": {"type": "number"},
+                           "rel_error": {"type": "number"}}}
+    return {
+        "$schema": "https://json-schema.org/draft/2020-12/schema",
+        "$id": "https://fwemu.invalid/vectors/schema.json",
+        "title": "fwemu golden-vector case",
+        "description": "One firmware build run on one input stream: inputs and the expected state words after init "
+                       "and after every step (docs/firmware-spec.md section 7). .l words are int32, .w words "
+                       "unsigned 16-bit.",
+        "type": "object",
+        "required": ["schema_version", "name", "generator", "tool", "firmware", "build_config", "rounding",
+                     "sample_period", "constants", "gains", "q_formats", "words", "word_bytes", "event_bits",
+                     "events_first_sample", "input", "int32_wrap", "cycles_68000", "sequencing", "init", "adc",
+                     "acc", "expected"],
+        "additionalProperties": False,
+        "properties": {
+            "schema_version": {"const": SCHEMA_VERSION},
+            "name": {"type": "string", "pattern": "^[a-z][a-z0-9_]*$"},
+            "generator": {"enum": [GENERATOR_EMULATION, GENERATOR_MODEL]},
+            "tool": {"type": "string"},
+            "firmware": {"type": "object", "required": ["program", "source", "source_sha256", "c_program_id"],
+                         "properties": {"program": {"enum": list(PROGRAMS)},
+                                        "source": {"type": "string"},
+                                        "source_sha256": {"type": ["string", "null"]},
+                                        "c_program_id": {"type": "integer", "minimum": 0, "maximum": 3}}},
+            "build_config": {"type": "object", "required": ["program", "k", "rounding", "baro_bits"]},
+            "rounding": {"enum": list(ROUNDINGS)},
+            "sample_period": {"type": "object", "required": ["k", "dt_s"],
+                              "properties": {"k": {"type": "integer", "minimum": 0, "maximum": 10},
+                                             "dt_s": {"type": "number"}}},
+            "constants": {"type": "object", "required": list(SCALAR_CONSTANTS),
+                          "additionalProperties": {"type": "integer"}},
+            "gains": {"type": "object", "additionalProperties": gain},
+            "q_formats": {"type": "object", "additionalProperties": {"type": "string"}},
+            "words": {"type": "array", "items": {"type": "string"}, "minItems": 1, "maxItems": 6},
+            "word_bytes": {"type": "object", "additionalProperties": {"enum": [2, 4]}},
+            "event_bits": {"type": "object", "additionalProperties": {"type": "integer"}},
+            "events_first_sample": {"type": "object", "additionalProperties": {"type": "integer", "minimum": -1}},
+            "input": {"type": "object", "required": ["name", "n_samples", "adc_bits", "provenance", "truth"],
+                      "properties": {"n_samples": {"type": "integer", "minimum": 1},
+                                     "adc_bits": {"type": "integer", "minimum": 8, "maximum": 16}}},
+            "int32_wrap": {"type": "object", "required": ["first_sample", "quantity"]},
+            "cycles_68000": {"type": ["object", "null"]},
+            "sequencing": {"type": "string"},
+            "init": int_array,
+            "adc": {"type": "array", "items": {"type": "integer", "minimum": 0, "maximum": 65535}},
+            "acc": {"type": "array", "items": {"type": "integer", "minimum": -32768, "maximum": 32767}},
+            "expected": {"type": "array", "items": {"type": "array", "items": {
+                "type": "integer", "minimum": -2147483648, "maximum": 2147483647}}},
+        },
+    }
+
+
+def validate(instance: Any, schema: dict[str, Any], where: str = "$") -> list[str]:
+    """Check ``instance`` against the subset of JSON Schema that :func:`case_schema` uses (type, const, enum,
+    required, properties, additionalProperties, items, minimum/maximum, minItems/maxItems, pattern). Returns the
+    problems found as ``<json path>: <why>`` strings (empty when valid)."""
+    import re
+
+    errs: list[str] = []
+    types = {"object": dict, "array": list, "string": str, "number": (int, float), "integer": int,
+             "null": type(None), "boolean": bool}
+    if "type" in schema:
+        allowed = schema["type"] if isinstance(schema["type"], list) else [schema["type"]]
+        ok = any(isinstance(instance, types[t]) and not (t in ("integer", "number") and isinstance(instance, bool))
+                 for t in allowed)
+        if not ok:
+            return [f"{where}: expected {'/'.join(allowed)}, got {type(instance).__name__}"]
+    if "const" in schema and instance != schema["const"]:
+        errs.append(f"{where}: must be {schema['const']!r}")
+    if "enum" in schema and instance not in schema["enum"]:
+        errs.append(f"{where}: {instance!r} not one of {schema['enum']!r}")
+    if isinstance(instance, (int, float)) and not isinstance(instance, bool):
+        if "minimum" in schema and instance < schema["minimum"]:
+            errs.append(f"{where}: {instance} < minimum {schema['minimum']}")
+        if "maximum" in schema and instance > schema["maximum"]:
+            errs.append(f"{where}: {instance} > maximum {schema['maximum']}")
+    if isinstance(instance, str) and "pattern" in schema and not re.search(schema["pattern"], instance):
+        errs.append(f"{where}: {instance!r} does not match {schema['pattern']!r}")
+    if isinstance(instance, dict):
+        for key in schema.get("required", []):
+            if key not in instance:
+                errs.append(f"{where}: missing required key {key!r}")
+        props = schema.get("properties", {})
+        extra = schema.get("additionalProperties", True)
+        for key, value in instance.items():
+            if key in props:
+                errs += validate(value, props[key], f"{where}.{key}")
+            elif extra is False:
+                errs.append(f"{where}: unexpected key {key!r}")
+            elif isinstance(extra, dict):
+                errs += validate(value, extra, f"{where}.{key}")
+    if isinstance(instance, list):
+        if "minItems" in schema and len(instance) < schema["minItems"]:
+            errs.append(f"{where}: fewer than {schema['minItems']} items")
+        if "maxItems" in schema and len(instance) > schema["maxItems"]:
+            errs.append(f"{where}: more than {schema['maxItems']} items")
+        if "items" in schema:
+            for i, value in enumerate(instance):
+                errs += validate(value, schema["items"], f"{where}[{i}]")
+                if len(errs) > 20:
+                    break
+    return errs
+
+
+# ------------------------------------------------------------------------------------------- writing a set
+def _sha256_bytes(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+class _Progress:
+    """A one-line progress bar on stderr, drawn only when stderr is a terminal."""
+
+    def __init__(self, total: int, label: str, enabled: bool | None = None) -> None:
+        self.total = max(total, 1)
+        self.label = label
+        self.enabled = sys.stderr.isatty() if enabled is None else enabled
+        self.done = 0
+
+    def step(self, what: str) -> None:
+        self.done += 1
+        if not self.enabled:
+            return
+        width = 30
+        fill = int(width * self.done / self.total)
+        sys.stderr.write(f"\r{self.label} [{'#' * fill}{'.' * (width - fill)}] {self.done}/{self.total} "
+                         f"{what[:40]:<40}")
+        sys.stderr.flush()
+
+    def close(self) -> None:
+        if self.enabled:
+            sys.stderr.write("\n")
+            sys.stderr.flush()
+
+
+def render_set(results: Sequence[CaseResult], kind: str, avr: Sequence[str] = ()) -> dict[str, bytes]:
+    """All files of a vector set as {relative path: bytes}, including manifest.json (computed last)."""
+    files: dict[str, bytes] = {}
+    for res in results:
+        files[f"cases/{res.spec.name}.json"] = case_json(res).encode()
+        files[f"cases/{res.spec.name}.h"] = case_header(res).encode()
+    files["c/cases.h"] = cases_table_header(results, "FWV_CASES_H").encode()
+    if avr:
+        by_name = {r.spec.name: r for r in results}
+        missing = [n for n in avr if n not in by_name]
+        if missing:
+            raise UserError(f"vectors: AVR subset names unknown cases: {', '.join(missing)}")
+        files["c/cases_avr.h"] = cases_table_header([by_name[n] for n in avr], "FWV_CASES_AVR_H").encode()
+    files["schema.json"] = (json.dumps(case_schema(), sort_keys=True, indent=1) + "\n").encode()
+    manifest = {"schema_version": SCHEMA_VERSION, "kind": kind, "tool": tool_version(),
+                "generators": sorted({r.generator for r in results}), "n_cases": len(results),
+                "files": {path: _sha256_bytes(data) for path, data in sorted(files.items())}}
+    files["manifest.json"] = (json.dumps(manifest, sort_keys=True, indent=1) + "\n").encode()
+    return files
+
+
+def write_set(files: dict[str, bytes], out: str | Path, kind: str) -> None:
+    """Write a rendered set into ``out`` atomically per part: everything goes to a temporary directory inside
+    ``out`` first; then ``cases/`` is swapped in with a rename and each other file replaced with ``os.replace``,
+    the manifest last. On any error before the swap nothing in ``out`` changes. A user set (kind ``user``) refuses to
+    overwrite a directory holding the committed set (manifest kind ``all``)."""
+    out = Path(out)
+    old_manifest = out / "manifest.json"
+    if kind != "all" and old_manifest.exists():
+        try:
+            old_kind = json.loads(old_manifest.read_text()).get("kind")
+        except (OSError, ValueError):
+            old_kind = None
+        if old_kind == "all":
+            raise UserError(f"vectors: {out} holds the committed vector set; choose another --out for a user set")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=".fwemu-vectors-", dir=out))
+    except OSError as exc:
+        raise UserError(f"vectors: cannot create output directory {out}: {exc}") from None
+    try:
+        for rel, data in files.items():
+            path = tmp / rel
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_bytes(data)
+        # swap cases/
+        (out / "c").mkdir(exist_ok=True)
+        old = out / f".old-cases-{os.getpid()}"
+        if (out / "cases").exists():
+            os.replace(out / "cases", old)
+        os.replace(tmp / "cases", out / "cases")
+        for rel in sorted(files):
+            if rel.startswith("cases/") or rel == "manifest.json":
+                continue
+            os.replace(tmp / rel, out / rel)
+        os.replace(tmp / "manifest.json", out / "manifest.json")
+        shutil.rmtree(old, ignore_errors=True)
+    except OSError as exc:
+        raise UserError(f"vectors: writing {out} failed: {exc}") from None
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def generate(specs: Sequence[CaseSpec], generator: str = "emulation", progress: bool | None = None,
+             jobs: int = 1) -> list[CaseResult]:
+    """Run every case (in order); ``jobs`` > 1 runs them in that many worker processes (same results)."""
+    bar = _Progress(len(specs), "vectors", progress)
+    results: list[CaseResult] = []
+    try:
+        if jobs > 1:
+            from concurrent.futures import ProcessPoolExecutor
+
+            with ProcessPoolExecutor(max_workers=jobs) as pool:
+                for res in pool.map(compute_case, specs, [generator] * len(specs), chunksize=4):
+                    results.append(res)
+                    bar.step(res.spec.name)
+        else:
+            for spec in specs:
+                results.append(compute_case(spec, generator))
+                bar.step(spec.name)
+    finally:
+        bar.close()
+    return results
+
+
+def generate_all(out: str | Path, generator: str = "emulation", progress: bool | None = None,
+                 jobs: int = 1) -> dict[str, bytes]:
+    """Regenerate the whole committed set (:func:`case_matrix`) into ``out``; returns the files written."""
+    results = generate(case_matrix(), generator, progress, jobs)
+    files = render_set(results, "all", AVR_CASES)
+    write_set(files, out, "all")
+    return files
+
+
+def generate_subset(names: Sequence[str], out: str | Path, generator: str = "emulation") -> dict[str, bytes]:
+    """Write the cases of the committed matrix named ``names`` (in matrix order) as a set of kind ``subset``."""
+    wanted = set(names)
+    specs = [spec for spec in case_matrix() if spec.name in wanted]
+    unknown = wanted - {spec.name for spec in specs}
+    if unknown:
+        raise UserError(f"vectors: unknown case name(s): {', '.join(sorted(unknown))}")
+    files = render_set(generate(specs, generator, progress=False), "subset")
+    write_set(files, out, "subset")
+    return files
+
+
+def check_set(directory: str | Path) -> list[str]:
+    """Problems with a vector set on disk: files listed in manifest.json that are missing or whose SHA-256 differs,
+    and generated files present but not listed. Empty list = consistent."""
+    directory = Path(directory)
+    try:
+        manifest = json.loads((directory / "manifest.json").read_text())
+    except (OSError, ValueError) as exc:
+        return [f"{directory / 'manifest.json'}: unreadable ({exc})"]
+    problems = []
+    listed = manifest.get("files", {})
+    for rel, digest in sorted(listed.items()):
+        path = directory / rel
+        if not path.is_file():
+            problems.append(f"{rel}: listed in the manifest but missing")
+        elif _sha256_file(path) != digest:
+            problems.append(f"{rel}: SHA-256 differs from the manifest")
+    for path in sorted((directory / "cases").glob("*")) if (directory / "cases").is_dir() else []:
+        rel = f"cases/{path.name}"
+        if rel not in listed:
+            problems.append(f"{rel}: not listed in the manifest")
+    return problems
+
+
+# ------------------------------------------------------------------------------------------- user streams
+def read_stream_csv(path: str | Path, bits: int, k: int) -> Stream:
+    """Read a user stream from CSV: a header row naming ``adc`` and optionally ``acc`` (other columns ignored),
+    then one integer sample per row. Errors name the file and line: missing columns, empty file, non-integer or
+    out-of-range values (adc 0..2^bits-1, acc -32768..32767)."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise UserError(f"{path}: no such input file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise UserError(f"{path}: cannot read ({exc})") from None
+    reader = csv.reader(text.splitlines())
+    header: list[str] | None = None
+    adc: list[int] = []
+    acc: list[int] = []
+    full = (1 << bits) - 1
+    for lineno, row in enumerate(reader, start=1):
+        cells = [c.strip() for c in row]
+        if not cells or all(c == "" for c in cells) or cells[0].startswith("#"):
+            continue
+        if header is None:
+            header = [c.lower() for c in cells]
+            if "adc" not in header:
+                raise UserError(f"{path}:{lineno}: header must name an 'adc' column (and optionally 'acc'); "
+                                f"got {', '.join(cells)}")
+            i_adc = header.index("adc")
+            i_acc = header.index("acc") if "acc" in header else None
+            continue
+        if len(cells) != len(header):
+            raise UserError(f"{path}:{lineno}: expected {len(header)} fields, got {len(cells)}")
+        values = []
+        for col, lo, hi in (("adc", 0, full), ("acc", -32768, 32767)):
+            idx = i_adc if col == "adc" else i_acc
+            if idx is None:
+                values.append(0)
+                continue
+            cell = cells[idx]
+            try:
+                v = int(cell, 10)
+            except ValueError:
+                raise UserError(f"{path}:{lineno}: {col}={cell!r} is not an integer") from None
+            if not lo <= v <= hi:
+                raise UserError(f"{path}:{lineno}: {col}={v} outside [{lo}, {hi}]"
+                                + (f" ({bits}-bit barometer ADC)" if col == "adc" else ""))
+            values.append(v)
+        adc.append(values[0])
+        acc.append(values[1])
+    if header is None:
+        raise UserError(f"{path}: empty file (need a header row with 'adc' and at least one sample)")
+    if not adc:
+        raise UserError(f"{path}: no samples after the header")
+    prov = {"generator": "user CSV", "file": path.name, "sha256": _sha256_file(path), "n": len(adc),
+            "bits": bits, "k": k, "seed": None, "columns": "adc,acc" if i_acc is not None else "adc"}
+    return Stream(name=_identifier(path.stem), adc=np.array(adc, np.int64), acc=np.array(acc, np.int64), k=k,
+                  bits=bits, provenance=prov)
+
+
+def _identifier(text: str) -> str:
+    out = "".join(c if c.isalnum() else "_" for c in text.lower()).strip("_")
+    return out if out and out[0].isalpha() else f"s_{out}"
+
+
+def generate_user(program: str, input_csv: str | Path, out: str | Path, config: str | Path | None = None,
+                  generator: str = "emulation") -> dict[str, bytes]:
+    """A one-case vector set from a user CSV stream, built with ``config`` (JSON BuildConfig; default
+    :class:`BuildConfig`) and ``program`` (overrides the config's program)."""
+    if program not in PROGRAMS:
+        raise UserError(f"vectors: unknown firmware {program!r}; known: {', '.join(PROGRAMS)}")
+    cfg = BuildConfig.from_file(config) if config else BuildConfig()
+    cfg = cfg.replace(program=program)
+    stream = read_stream_csv(input_csv, cfg.baro_bits, cfg.k)
+    spec = CaseSpec(case_name(program, cfg.rounding, cfg.k, cfg.baro_bits, stream.name), cfg, stream)
+    results = generate([spec], generator, progress=False)
+    files = render_set(results, "user")
+    write_set(files, out, "user")
+    return files
+

@@ -1,0 +1,296 @@
+"""Golden vectors: the committed set is fresh (regenerating it changes no byte), self-consistent (manifest hashes,
+schema, JSON == header), generated deterministically, and every expected word equals the integer model's
+(computed here from the build config alone, independently of the generator's run)."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from firmware_model import vectors
+from firmware_model.config import BuildConfig
+from firmware_model.constants import build_constants
+from firmware_model.errors import UserError
+from firmware_model.inputs import EDGE_KINDS, FlightParams, edge_stream, synthetic_flight
+from firmware_model.model import run_model
+from firmware_model.trace import EVENT_BITS
+
+ROOT = Path(__file__).resolve().parents[1]
+VECTORS = ROOT / "vectors"
+
+
+def committed_cases() -> list[Path]:
+    return sorted((VECTORS / "cases").glob("*.json"))
+
+
+@pytest.fixture(scope="module")
+def manifest() -> dict:
+    return json.loads((VECTORS / "manifest.json").read_text())
+
+
+@pytest.fixture(scope="module")
+def docs() -> dict[str, dict]:
+    return {p.stem: json.loads(p.read_text()) for p in committed_cases()}
+
+
+# ----------------------------------------------------------------------------------------------- freshness
+@pytest.fixture(scope="module")
+def regenerated(tmp_path_factory: pytest.TempPathFactory, manifest: dict) -> Path:
+    """The whole set regenerated from scratch with the generator the committed set names."""
+    gens = manifest["generators"]
+    generator = "emulation" if gens == [vectors.GENERATOR_EMULATION] else "model"
+    out = tmp_path_factory.mktemp("regen") / "vectors"
+    vectors.generate_all(out, generator, progress=False)
+    return out
+
+
+def test_committed_set_is_the_emulated_firmware_cross_checked(manifest: dict) -> None:
+    assert manifest["kind"] == "all"
+    assert manifest["generators"] == [vectors.GENERATOR_EMULATION], \
+        "the committed vectors must come from the 68000 emulation (fwemu vectors --all --out vectors)"
+
+
+def test_committed_vectors_are_fresh(regenerated: Path, manifest: dict) -> None:
+    new = json.loads((regenerated / "manifest.json").read_text())
+    stale = sorted(p for p in set(new["files"]) | set(manifest["files"])
+                   if new["files"].get(p) != manifest["files"].get(p))
+    assert not stale, f"{len(stale)} stale vector file(s), e.g. {stale[:5]}: run `fwemu vectors --all --out vectors`"
+    assert (regenerated / "manifest.json").read_bytes() == (VECTORS / "manifest.json").read_bytes()
+    for rel in new["files"]:
+        assert (regenerated / rel).read_bytes() == (VECTORS / rel).read_bytes(), rel
+
+
+def test_manifest_matches_files_on_disk() -> None:
+    assert vectors.check_set(VECTORS) == []
+
+
+def test_checker_catches_a_corrupted_manifest_hash(tmp_path: Path) -> None:
+    import shutil
+
+    copy = tmp_path / "set"
+    shutil.copytree(VECTORS, copy, ignore=shutil.ignore_patterns("build"))
+    assert vectors.check_set(copy) == []
+    man = json.loads((copy / "manifest.json").read_text())
+    victim = sorted(man["files"])[3]
+    digest = man["files"][victim]
+    man["files"][victim] = ("0" if digest[0] != "0" else "1") + digest[1:]
+    (copy / "manifest.json").write_text(json.dumps(man, sort_keys=True, indent=1) + "\n")
+    assert vectors.check_set(copy) == [f"{victim}: SHA-256 differs from the manifest"]
+    # and a file changed on disk (hash in the manifest intact) is caught too
+    man["files"][victim] = digest
+    (copy / "manifest.json").write_text(json.dumps(man, sort_keys=True, indent=1) + "\n")
+    (copy / victim).write_bytes((copy / victim).read_bytes() + b" ")
+    assert vectors.check_set(copy) == [f"{victim}: SHA-256 differs from the manifest"]
+    (copy / "cases" / "extra.h").write_text("/* stray */\n")
+    assert "cases/extra.h: not listed in the manifest" in vectors.check_set(copy)
+
+
+SUBSET = ["recursive_floor_k4_b16_edge_ties", "kalman_baro_half_up_k5_b12_edge_step",
+          "kalman_accel_floor_k4_b16_flight", "recursive_seed_literal_half_up_k6_b16_edge_ramp",
+          "kalman_baro_floor_k4_b16_flight_fast"]
+
+
+def test_second_generation_changes_no_byte(tmp_path: Path) -> None:
+    """Two generations in separate interpreters with different hash seeds, the second over the first's output."""
+    script = ("import sys; from firmware_model import vectors; "
+              "vectors.generate_subset(sys.argv[2:], sys.argv[1], 'model')")
+    out = tmp_path / "set"
+    snapshots = []
+    for seed in ("1", "2"):
+        env = dict(os.environ, PYTHONHASHSEED=seed)
+        subprocess.run([sys.executable, "-c", script, str(out), *SUBSET], check=True, env=env, cwd=ROOT)
+        snapshots.append({p.relative_to(out).as_posix(): p.read_bytes() for p in sorted(out.rglob("*"))
+                          if p.is_file()})
+    assert snapshots[0] == snapshots[1]
+    assert len([p for p in snapshots[0] if p.endswith(".json") and p.startswith("cases/")]) == len(SUBSET)
+    assert not [p for p in out.iterdir() if p.name.startswith(".")], "temporary directories left behind"
+
+
+# ----------------------------------------------------------------------------------------------- contents
+def test_case_matrix_size_and_coverage(docs: dict[str, dict]) -> None:
+    names = {spec.name for spec in vectors.case_matrix()}
+    assert names == set(docs)
+    total = sum(p.stat().st_size for p in VECTORS.rglob("*") if p.is_file() and "build" not in p.parts)
+    assert total < 20e6
+    programs = {d["firmware"]["program"] for d in docs.values()}
+    assert programs == {"recursive", "kalman_baro", "kalman_accel", "recursive_seed_literal"}
+    assert {d["rounding"] for d in docs.values()} == {"floor", "half_up"}
+    assert {d["sample_period"]["k"] for d in docs.values()} == set(vectors.MATRIX_K)
+    # every event bit occurs somewhere in the expected words (the vectors exercise every branch of the logic)
+    seen = 0
+    for d in docs.values():
+        if "EVENTS" in d["words"]:
+            col = d["words"].index("EVENTS")
+            for row in d["expected"]:
+                seen |= row[col]
+    assert seen == sum(EVENT_BITS.values())
+
+
+def test_every_case_validates_against_the_schema(docs: dict[str, dict]) -> None:
+    schema = json.loads((VECTORS / "schema.json").read_text())
+    assert schema == vectors.case_schema()
+    for name, doc in docs.items():
+        assert vectors.validate(doc, schema) == [], name
+        assert len(doc["adc"]) == len(doc["acc"]) == len(doc["expected"]) == doc["input"]["n_samples"]
+        assert all(len(row) == len(doc["words"]) for row in doc["expected"])
+
+
+def test_schema_validator_reports_bad_documents(docs: dict[str, dict]) -> None:
+    schema = vectors.case_schema()
+    doc = json.loads(json.dumps(docs["kalman_baro_floor_k4_b16_edge_step"]))
+    del doc["init"]
+    doc["adc"][3] = 70000
+    doc["gains"]["G11"]["s"] = "7"
+    doc["surprise"] = 1
+    errs = vectors.validate(doc, schema)
+    assert "$: missing required key 'init'" in errs
+    assert "$.adc[3]: 70000 > maximum 65535" in errs
+    assert "$.gains.G11.s: expected integer, got str" in errs
+    assert "$: unexpected key 'surprise'" in errs
+
+
+def test_expected_words_equal_the_integer_model(docs: dict[str, dict]) -> None:
+    """Independent check: rebuild the constants from each case's build config and run the integer model."""
+    consts_by_cfg: dict[str, object] = {}
+    for name, doc in docs.items():
+        key = json.dumps(doc["build_config"], sort_keys=True)
+        if key not in consts_by_cfg:
+            consts_by_cfg[key] = build_constants(BuildConfig.from_dict(doc["build_config"]))
+        consts = consts_by_cfg[key]
+        assert doc["constants"] == {c: int(getattr(consts, c)) for c in vectors.SCALAR_CONSTANTS}, name
+        assert {g: (v["m"], v["s"]) for g, v in doc["gains"].items()} == \
+            {g: (q.m, q.s) for g, q in consts.gains.items()}, name
+        model = run_model(consts, np.array(doc["adc"]), np.array(doc["acc"]))
+        assert model.init_words.tolist() == doc["init"], name
+        exp = np.array(doc["expected"], dtype=np.int64)
+        diff = np.argwhere(model.words != exp)
+        assert diff.size == 0, f"{name}: first difference at sample/word {diff[0].tolist()}"
+
+
+_ARRAY = re.compile(r"static const (u?int\d+_t) fwv_(\w+?)_(adc|acc|init|expected)\[[^=]*= \{(.*?)\};", re.S)
+
+
+def test_headers_hold_the_same_data_as_the_json(docs: dict[str, dict]) -> None:
+    for name, doc in docs.items():
+        text = (VECTORS / "cases" / f"{name}.h").read_text()
+        arrays = {}
+        for ctype, case, what, body in _ARRAY.findall(text):
+            assert case == name
+            body = body.replace("(-2147483647 - 1)", "-2147483648")
+            arrays[what] = [int(v) for v in re.findall(r"-?\d+", body)]
+        assert arrays["adc"] == doc["adc"], name
+        assert arrays["acc"] == doc["acc"], name
+        assert arrays["init"] == doc["init"], name
+        assert arrays["expected"] == [v for row in doc["expected"] for v in row], name
+        up = name.upper()
+        for c, v in doc["constants"].items():
+            assert re.search(rf"#define FWV_{up}_{c} \({v}\)", text) or v == -(1 << 31), (name, c)
+        for g, q in doc["gains"].items():
+            assert f"#define FWV_{up}_{g}_M ({q['m']})" in text and f"#define FWV_{up}_{g}_S ({q['s']})" in text
+
+
+def test_flight_cases_see_liftoff_and_emulation_cycles(docs: dict[str, dict]) -> None:
+    for name, doc in docs.items():
+        if doc["input"]["name"].startswith("flight"):
+            assert doc["events_first_sample"]["LIFTOFF"] >= 0, name
+            assert doc["input"]["truth"]["apogee_sample"] > doc["events_first_sample"]["LIFTOFF"], name
+        if doc["generator"] == vectors.GENERATOR_EMULATION:
+            cyc = doc["cycles_68000"]
+            assert 0 < cyc["step_min"] <= cyc["step_mean"] <= cyc["step_max"], name
+            assert doc["firmware"]["source_sha256"] and len(doc["firmware"]["source_sha256"]) == 64
+
+
+# ----------------------------------------------------------------------------------------------- inputs
+def test_streams_are_deterministic_and_in_range() -> None:
+    for bits in (8, 12, 16):
+        full = (1 << bits) - 1
+        for kind in EDGE_KINDS:
+            s = edge_stream(kind, 40, bits, 5)
+            assert s.adc.min() >= 0 and s.adc.max() <= full and s.acc.min() >= -32768 and s.acc.max() <= 32767
+        a = synthetic_flight(5, bits, seed=7, params=FlightParams(units_per_metre=3.5 * 2.0 ** (bits - 16)))
+        b = synthetic_flight(5, bits, seed=7, params=FlightParams(units_per_metre=3.5 * 2.0 ** (bits - 16)))
+        c = synthetic_flight(5, bits, seed=8, params=FlightParams(units_per_metre=3.5 * 2.0 ** (bits - 16)))
+        assert np.array_equal(a.adc, b.adc) and np.array_equal(a.acc, b.acc)
+        assert not np.array_equal(a.acc, c.acc)
+        assert a.adc.min() >= 0 and a.adc.max() <= full
+    assert edge_stream("adc_max", 8, 12, 4).adc.tolist() == [4095] * 8
+    assert edge_stream("adc_min", 8, 16, 4).acc.tolist() == [-32768] * 8
+    assert edge_stream("ties", 8, 16, 4).adc.tolist() == [32767, 32768, 32768, 32767] * 2
+    with pytest.raises(UserError, match="unknown kind 'wobble'"):
+        edge_stream("wobble", 8, 16, 4)
+    with pytest.raises(UserError, match="bits=20"):
+        edge_stream("step", 8, 20, 4)
+
+
+def test_synthetic_flight_physics_is_plausible() -> None:
+    """Noise-free flight: the barometer minimum (pressure ADC) is at the true apogee, the pad reading is 1 g, the
+    altitude in counts matches units_per_metre near the pad."""
+    p = FlightParams(baro_sigma=1e-9, accel_sigma=1e-9, units_per_metre=3.5)
+    s = synthetic_flight(6, 16, seed=0, params=p)
+    dt = 2.0 ** -6
+    assert abs(int(np.argmin(s.adc)) - s.truth["apogee_s"] / dt) < 0.6 / dt   # flat top of +-0.6 s (1 count)
+    assert abs(s.acc[0] - 2048) <= 1
+    drop = s.adc[0] - s.adc.min()
+    assert abs(drop - 3.5 * s.truth["apogee_height_m"]) < 0.05 * drop   # ISA non-linearity < 5 % below 1 km
+    # the kinematic integral of (acc - pad) recovers the peak speed
+    v = np.cumsum(s.acc - s.acc[0]) / p.accel_counts_per_mps2 * dt
+    assert abs(v.max() - s.truth["max_speed_mps"]) < 0.03 * s.truth["max_speed_mps"]
+
+
+# ----------------------------------------------------------------------------------------------- user streams
+def test_user_csv_errors_name_file_and_line(tmp_path: Path) -> None:
+    f = tmp_path / "log.csv"
+    cases = [("", "empty file"), ("adc,acc\n", "no samples"), ("time,acc\n1,2\n", ":1: header must name"),
+             ("adc,acc\n100,0\n200\n", ":3: expected 2 fields"), ("adc,acc\n100,0\nabc,1\n", ":3: adc='abc'"),
+             ("adc,acc\n100,0\n100,40000\n", ":3: acc=40000 outside"), ("adc\n70000\n", ":2: adc=70000 outside")]
+    for text, msg in cases:
+        f.write_text(text)
+        with pytest.raises(UserError) as exc:
+            vectors.read_stream_csv(f, 16, 7)
+        assert str(f) in str(exc.value) and msg in str(exc.value), (text, str(exc.value))
+    with pytest.raises(UserError, match="no such input file"):
+        vectors.read_stream_csv(tmp_path / "missing.csv", 16, 7)
+
+
+def test_user_set_from_csv_runs_and_refuses_the_committed_dir(tmp_path: Path) -> None:
+    f = tmp_path / "My Log.csv"
+    rows = ["# a comment", "adc,acc,extra"] + [f"{40000 - 3 * i},{2048 + (i % 3)},x" for i in range(20)]
+    f.write_text("\n".join(rows) + "\n")
+    cfg = tmp_path / "cfg.json"
+    cfg.write_text(json.dumps({"k": 5, "rounding": "half_up", "ratio": 1000.0}))
+    out = tmp_path / "out"
+    files = vectors.generate_user("kalman_baro", f, out, cfg, generator="model")
+    name = "kalman_baro_half_up_k5_b16_my_log"
+    assert f"cases/{name}.json" in files and f"cases/{name}.h" in files and "c/cases.h" in files
+    doc = json.loads((out / "cases" / f"{name}.json").read_text())
+    assert doc["build_config"]["ratio"] == 1000.0 and doc["input"]["provenance"]["generator"] == "user CSV"
+    assert doc["adc"][:2] == [40000, 39997] and vectors.check_set(out) == []
+    with pytest.raises(UserError, match="holds the committed vector set"):
+        vectors.generate_user("kalman_baro", f, VECTORS, cfg, generator="model")
+
+
+def test_failed_generation_writes_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    out = tmp_path / "out"
+    vectors.generate_subset(SUBSET[:2], out, "model")
+    before = {p: p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    calls = {"n": 0}
+    real = vectors.compute_case
+
+    def flaky(spec, generator="emulation"):
+        calls["n"] += 1
+        if calls["n"] == 3:
+            raise UserError("boom")
+        return real(spec, generator)
+
+    monkeypatch.setattr(vectors, "compute_case", flaky)
+    with pytest.raises(UserError, match="boom"):
+        vectors.generate_subset(SUBSET, out, "model")
+    after = {p: p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    assert after == before
