@@ -96,24 +96,26 @@ def select(instr: Instruction) -> Selected:
     candidates = match_mnemonic(instr.mnemonic)
     if not candidates:
         raise EncodingError(f"unknown mnemonic {instr.mnemonic!r}")
+    # Report the failure of the row that came closest: right operand count first, then how far matching got.
     best: tuple[int, str] = (-1, "")
     for row, cond in candidates:
+        count_ok = 100 if len(instr.operands) == len(row.operands) else 0
         size = _effective_size(row, instr.size)
         if isinstance(size, str):
-            best = max(best, (0, size))
+            best = max(best, (count_ok + 1, size))
             continue
         orders = [instr.operands]
         if row.swappable and len(instr.operands) == 2:
             orders.append(instr.operands[::-1])
         for ops in orders:
             if len(ops) != len(row.operands):
-                best = max(best, (1, f"expects {len(row.operands)} operand(s), got {len(ops)}"))
+                best = max(best, (0, f"expects {len(row.operands)} operand(s), got {len(ops)}"))
                 continue
             matched: list[Operand] = []
             for i, (spec, op) in enumerate(zip(row.operands, ops)):
                 res = _match_operand(row, i, spec, op, size)
                 if isinstance(res, str):
-                    best = max(best, (2 + i, res))
+                    best = max(best, (count_ok + 2 + i, res))
                     break
                 matched.append(res)
             else:
