@@ -318,3 +318,27 @@ def test_dwna_equals_accel_only_for_baro_only(k: int) -> None:
     a2 = design_kalman(k, "accel_only", 100.0, with_accel=True, baro_sigma=2.0, accel_sigma_units=0.335)
     b2 = design_kalman(k, "dwna", 100.0, with_accel=True, baro_sigma=2.0, accel_sigma_units=0.335)
     assert np.max(np.abs(b2.K / a2.K - 1)) > 0.1
+
+
+@given(st.integers(0, 10), st.sampled_from(MODELS), st.booleans(), st.floats(-8.0, 14.0))
+def test_design_succeeds_and_is_a_riccati_fixed_point_over_extreme_ratios(k: int, model: str, with_accel: bool,
+                                                                          log_ratio: float) -> None:
+    """Every documented model/k works for R/q from 1e-8 to 1e14 (scipy's QZ-based solver fails on some of these):
+    the returned P_prior is a fixed point of one textbook Riccati step (computed here, unscaled) and the gain is
+    the filter-form gain of that P."""
+    ss = design_kalman(k, model, 10.0**log_ratio, with_accel=with_accel, baro_sigma=BARO_SIGMA,
+                       accel_sigma_units=ACCEL_SIGMA_UNITS)
+    P = ss.P_prior
+    S_inv = np.linalg.inv(ss.H @ P @ ss.H.T + ss.R)
+    K = P @ ss.H.T @ S_inv
+    # the oracle's own rounding: sums of terms that can cancel (baro+accel), so bound by the sum of |terms|
+    cancel = np.abs(P) @ np.abs(ss.H.T) @ np.abs(S_inv)
+    assert np.all(np.abs(ss.K - K) <= 1e-8 * np.abs(K) + 1e-12 * cancel)
+    P_next = ss.F @ ((np.eye(3) - K @ ss.H) @ P) @ ss.F.T + ss.Q
+    # per diagonal entry (they span many decades): relative 1e-8, plus the oracle's own rounding where
+    # (I - KH) P cancels (e.g. P33 = 4e8 against an accelerometer trusted 1e8 times more than the model)
+    F_abs = np.abs(ss.F)
+    cancel_p = F_abs @ (np.abs(P) + np.abs(K) @ np.abs(ss.H) @ np.abs(P)) @ F_abs.T + np.abs(ss.Q)
+    for i in range(3):
+        assert abs(P_next[i, i] - P[i, i]) <= 1e-8 * P[i, i] + 1e-12 * cancel_p[i, i], i
+    assert np.all(np.abs(ss.poles) < 1)
