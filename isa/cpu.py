@@ -505,6 +505,12 @@ def _reader(ctx: _Ctx, op: Operand, nb: int) -> Callable[[], int]:
         v = op.value & M
         return lambda: v
     rd = ctx.rd[nb]
+    r = 8 + op.reg
+    if m is _M.AIND:
+        return lambda: rd(R[r])
+    if m is _M.ADISP:
+        d = op.value
+        return lambda: rd(R[r] + d)
     const, fn = _addr(ctx, op, nb)
     if fn is None:
         c = const
@@ -873,6 +879,27 @@ def h_move(ctx: _Ctx) -> Callable[[], int]:
     src = _reader(ctx, src_op, nb)
     wr = ctx.wr[nb]
     const, fn = _addr(ctx, dst, nb)
+    if dst.mode in (_M.AIND, _M.ADISP):
+        ar = 8 + dst.reg
+        disp = dst.value if dst.mode is _M.ADISP else 0
+        if src_op.mode is _M.DREG:
+            j = src_op.reg
+
+            def move_rd() -> int:
+                v = R[j] & M
+                R[16] = (R[16] & 0xFF10) | (8 if v & S else (0 if v else 4))
+                wr(R[ar] + disp, v)
+                return K
+
+            return move_rd
+
+        def move_xd() -> int:
+            v = src()
+            R[16] = (R[16] & 0xFF10) | (8 if v & S else (0 if v else 4))
+            wr(R[ar] + disp, v)
+            return K
+
+        return move_xd
     if fn is None:
         c = const
 
