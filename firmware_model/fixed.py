@@ -103,6 +103,8 @@ def wrap(x: IntLike, bits: int) -> IntLike:
 def wrapped(exact: IntLike, bits: int = 32) -> Union[bool, np.ndarray]:
     """Whether reducing the exact integer(s) to signed ``bits`` bits changes the value (i.e. a 68000 ``.l``
     operation producing it would have overflowed). Returns a bool, or a bool array for array input."""
+    if isinstance(bits, bool) or not isinstance(bits, int) or bits < 1:
+        raise FixedPointError(f"bits={bits!r}: must be an integer >= 1")
     exact = _as_int64(exact)
     lo, hi = -(1 << (bits - 1)), (1 << (bits - 1)) - 1
     if _is_array(exact):

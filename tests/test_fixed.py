@@ -176,3 +176,10 @@ def test_qformat_q24_8() -> None:
     assert QFormat(1, 15).describe()["lsb"] == 2.0**-15
     with pytest.raises(FixedPointError):
         QFormat(0, 8)
+
+
+def test_wrap_helpers_reject_bad_width() -> None:
+    with pytest.raises(FixedPointError, match="bits=0"):
+        wrapped(5, 0)
+    with pytest.raises(FixedPointError, match="bits=0"):
+        wrap(5, 0)
