@@ -294,3 +294,33 @@ def test_failed_generation_writes_nothing(tmp_path: Path, monkeypatch: pytest.Mo
         vectors.generate_subset(SUBSET, out, "model")
     after = {p: p.read_bytes() for p in out.rglob("*") if p.is_file()}
     assert after == before
+
+
+# ----------------------------------------------------------------------------------------------- CLI
+def _cli(argv: list[str]) -> int:
+    """Run ``fwemu vectors`` through the module's own ``register`` (the contract of firmware_model.cli)."""
+    import argparse
+
+    from firmware_model import cli_vectors
+
+    parser = argparse.ArgumentParser(prog="fwemu")
+    cli_vectors.register(parser.add_subparsers())
+    args = parser.parse_args(["vectors", *argv])
+    return args.func(args)
+
+
+def test_cli_check_and_user_set(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert _cli(["--check", str(VECTORS)]) == 0
+    assert capsys.readouterr().out.strip().endswith(": OK")
+    f = tmp_path / "s.csv"
+    f.write_text("adc\n" + "\n".join(str(30000 + i) for i in range(10)) + "\n")
+    out = tmp_path / "out"
+    assert _cli(["--firmware", "recursive", "--input", str(f), "--out", str(out), "--generator", "model"]) == 0
+    assert "wrote 1 case(s)" in capsys.readouterr().err
+    (out / "cases" / "recursive_floor_k7_b16_s.h").write_text("tampered\n")
+    assert _cli(["--check", str(out)]) == 1
+    assert "cases/recursive_floor_k7_b16_s.h: SHA-256 differs" in capsys.readouterr().out
+    with pytest.raises(UserError, match="--firmware needs --input"):
+        _cli(["--firmware", "recursive", "--out", str(out)])
+    with pytest.raises(UserError, match="go with --firmware"):
+        _cli(["--all", "--config", "x.json", "--out", str(out)])
