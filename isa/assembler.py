@@ -7,7 +7,8 @@
   ``;`` starts a comment after the operation; spaces are allowed inside the operand field (``move.l X, D0``).
 * Mnemonics, registers, directives and symbols are case-insensitive (symbols keep their spelling in
   :attr:`Program.symbols`). Local labels ``.name`` and ``1$`` are scoped to the previous global label.
-* Expressions: see :mod:`isa.expr` (C precedence, ``*`` = current location, ``$hex %bin @oct 'c'``).
+* Expressions: see :mod:`isa.expr` (C precedence, ``$hex %bin @oct 'c'``); ``*`` is the address of the start
+  of the current statement (for every item of a ``DC``).
 * Directives: ``EQU`` / ``=`` (constant), ``SET`` (redefinable), ``DC.B/W/L`` (strings allowed in ``DC.B``),
   ``DS.B/W/L n``, ``DCB.B/W/L n,value``, ``ORG addr``, ``EVEN``, ``ALIGN n`` (n bytes, a power of two),
   ``SECTION code|text|data|bss``, ``TEXT``/``CODE``/``DATA``/``BSS``, ``INCLUDE "file"``, ``MACRO``/``ENDM``
@@ -17,15 +18,21 @@
 * Layout: each of the sections code, data, bss has its own location counter. Code starts at ``origin``; data
   follows the highest code address (rounded up to even), bss follows data (even). ``ORG`` starts a new block of
   the current section at an absolute address. Word/long data and instructions at odd addresses are errors (use
-  ``EVEN``). Blocks that overlap are an error.
+  ``EVEN``; nothing is padded silently). Blocks that overlap are an error. ``Program.code`` is the first code
+  block; every block is a :class:`~isa.program.Segment` (``code``, ``code.1``, ..., ``data``, ``bss``).
+* Symbols: a global label's size runs to the next global label of its section (local labels do not cut it), a
+  local label's to the next label of any kind, both bounded by the end of their block. Local labels appear in
+  :attr:`Program.symbols` as ``global.local`` (``step.loop``, ``step.1$``). Register names are not symbols.
 * Expressions that decide the layout (``DS``/``DCB`` counts, ``ORG``, ``ALIGN``, ``IF`` conditions) may only use
-  symbols defined earlier in the source; everything else may reference forward.
+  symbols defined earlier in the source, and ``IFD``/``IFND`` see only those; everything else may reference
+  forward.
 * Encoding is what is written: no MOVE->MOVEQ or ADD->ADDQ rewrites. Absolute operands are ``abs.L`` unless
   written ``x.w`` / ``(x).w``; branches without a size are ``.W``, ``.s``/``.b`` select the 8-bit form.
   ``MOVE``/``ADD``/``SUB``/``CMP`` with an address-register destination assemble as ``MOVEA``/``ADDA``/``SUBA``/
   ``CMPA`` (their only encoding, as every Motorola assembler does). ``x(PC)`` / ``(x,PC)``: ``x`` is the target
-  address. Aliases: ``shl``/``shr`` = ``lsl``/``lsr`` (with a warning), ``dbf`` = ``dbra``, ``bhs``/``blo`` =
-  ``bcc``/``bcs`` (also for ``DBcc``/``Scc``).
+  address (a warning when ``x`` is a plain number, which GNU as would read as the displacement). Aliases:
+  ``shl``/``shr`` = ``lsl``/``lsr`` (with a warning), ``dbf`` = ``dbra``, ``bhs``/``blo`` = ``bcc``/``bcs`` (also
+  for ``DBcc``/``Scc``). Shifts need an explicit count (``lsl.w #1,d0``); ``asl (a0)`` is the memory form.
 """
 
 from __future__ import annotations
@@ -39,11 +46,12 @@ from pathlib import Path
 from isa.encoder import encode, length
 from isa.errors import AssemblyError, EncodingError
 from isa.expr import ExprParser, Token, Where, tokenize
+from isa.listing import format_listing
 from isa.operands import IndexReg, Instruction, Mode, Operand, Size
 from isa.program import ListingLine, Program, Segment, SourceLine, Symbol
 from isa.table import BY_MNEMONIC
 
-__all__ = ["assemble"]
+__all__ = ["assemble", "format_listing"]
 
 #: Highest address + 1 of the 24-bit address space.
 ADDRESS_LIMIT = 1 << 24
@@ -79,6 +87,7 @@ _UNSUPPORTED_REGS = frozenset({"sr", "ccr", "usp", "ssp"})
 _RESERVED = frozenset(_REGISTERS) | _UNSUPPORTED_REGS | {"pc"}
 
 _LABEL_RE = re.compile(r"(\.?[A-Za-z_][A-Za-z0-9_]*|\.[0-9]+|[0-9]+\$)")
+_INDENTED_LABEL_RE = re.compile(r" *" + _LABEL_RE.pattern + ":")
 _OP_RE = re.compile(r"([A-Za-z_][A-Za-z0-9_]*)(?:\.([A-Za-z0-9_]*))?")
 _MACRO_ARG_RE = re.compile(r"\\(@|[0-9]|[A-Za-z_][A-Za-z0-9_]*)")
 _DATA_RANGE = {1: (-0x80, 0xFF), 2: (-0x8000, 0xFFFF), 4: (-0x8000_0000, 0xFFFF_FFFF)}
@@ -412,7 +421,7 @@ class _Assembler:
                     return p
                 raise rec.where().error(f"bad character {body[i]!r} in label", i + 1)
         else:
-            m = re.compile(r" *" + _LABEL_RE.pattern + ":").match(body)
+            m = _INDENTED_LABEL_RE.match(body)
             if m is not None:
                 p.label = m.group(1)
                 p.label_col = m.start(1) + 1
@@ -626,9 +635,8 @@ class _Assembler:
                 name = _SECTION_NAMES[part]
                 break
         if name is None:
-            raise rec.where().error(
-                f"unknown section '{p.operands}' (use code/text, data or bss)", p.operand_col if p.operands else p.op_col
-            )
+            col = p.operand_col if p.operands else p.op_col
+            raise rec.where().error(f"unknown section '{p.operands}' (use code/text, data or bss)", col)
         self.section = self.sections[name]
         self._list(rec, None)
 
@@ -749,7 +757,7 @@ class _Assembler:
             return
         if len(self.conds) <= cond_base:
             raise rec.where().error(f"{op.upper()} without IF", p.op_col)
-        if p.operands and op != "else":
+        if p.operands:
             raise rec.where().error(f"'{op}' takes no operands", p.operand_col)
         cond = self.conds[-1]
         if op == "else":
@@ -866,6 +874,9 @@ class _Assembler:
             data = encode(instr, addr) if self.final else bytes(n)
         except EncodingError as exc:
             col = p.operand_col if p.operands else p.op_col
+            m = re.search(r"\boperand (\d+)\b", str(exc))
+            if m is not None and 1 <= int(m.group(1)) <= len(self.operand_cols):
+                col = self.operand_cols[int(m.group(1)) - 1]  # point at the operand the encoder names
             written = f"{p.op_text} {p.operands}".strip()
             raise rec.where().error(f"cannot encode '{written}': {exc}", col) from None
         if len(data) != n:  # pragma: no cover - encoder contract
@@ -878,6 +889,7 @@ class _Assembler:
         self._list(rec, addr, data, cycles)
 
     def _operands(self, rec: _Rec, p: _Parsed) -> list[Operand]:
+        self.operand_cols: list[int] = []
         if not p.operands:
             return []
         toks = self._tokens(rec, p.operands, p.operand_col)
@@ -886,6 +898,7 @@ class _Assembler:
         for g in groups:
             if not g:
                 raise rec.where().error("missing operand", toks[0].col if toks else p.operand_col)
+            self.operand_cols.append(g[0].col)
             out.append(self._operand(rec, g))
         return out
 

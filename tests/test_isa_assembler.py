@@ -381,6 +381,9 @@ def test_include_relative_then_include_paths(tmp_path: Path) -> None:
     [
         (" nop\n fooz d0", "<source>:2:2", "unknown mnemonic 'fooz'"),
         (" lea d0,a0", "<source>:1:6", "cannot encode"),
+        (" move.l d0,#3", "<source>:1:12", "operand 2 mode #imm not allowed"),
+        (" lea 4(a0),d1", "<source>:1:12", "cannot encode"),
+        (" move.w 40000(a0),d0", "<source>:1:9", "displacement 40000 out of range"),
         (" moveq #200,d0", "<source>:1:8", "cannot encode"),
         (" addq.w #9,d0", "<source>:1:9", "cannot encode"),
         (" move.l nothere,d0", "<source>:1:9", "undefined symbol 'nothere'"),

@@ -113,7 +113,8 @@ def test_asm_listing_outputs_and_warnings(tmp_path: Path, capsys: pytest.Capture
     assert binf.read_bytes() == bytes.fromhex("E288 C1C1 4E71")
     records = srecf.read_text().splitlines()
     assert records[0].startswith("S0") and records[-1] == "S9031000EC"
-    assert records[1] == "S109" + "1000" + "E288C1C14E71" + f"{~(9 + 0x10 + 0xE2 + 0x88 + 0xC1 * 2 + 0x4E + 0x71) & 0xFF:02X}"
+    checksum = ~(0x09 + 0x10 + 0x00 + 0xE2 + 0x88 + 0xC1 + 0xC1 + 0x4E + 0x71) & 0xFF  # count, address, data
+    assert records[1] == "S109" + "1000" + "E288C1C14E71" + f"{checksum:02X}"
 
 
 def test_asm_error_is_reported_with_position(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
