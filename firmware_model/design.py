@@ -199,23 +199,31 @@ def describe(cfg: BuildConfig) -> str:
             f"baro_sigma={cfg.baro_sigma:g}, accel_sigma={cfg.accel_sigma:g})")
 
 
-def design_kalman(k: int, noise_model: str, ratio: float, *, with_accel: bool = False, baro_sigma: float = 1.0,
-                  accel_sigma_units: float = 1.0, where: str | None = None) -> SteadyState:
+def design_kalman(k: int, noise_model: str, ratio: float | None, *, with_accel: bool = False,
+                  baro_sigma: float = 1.0, accel_sigma_units: float = 1.0, q: float | None = None,
+                  where: str | None = None) -> SteadyState:
     """Steady-state design for dt = 2^-k s (k = 0..10), ``noise_model`` and R/q = ``ratio`` (q = baro_sigma^2 /
-    ratio), barometer only or barometer + accelerometer (accelerometer sigma in units/s^2). Gains in physical
-    units: column 0 for the barometer innovation (units -> units, units/s, units/s^2 per unit), column 1 for the
-    accelerometer innovation. Raises :class:`UserError` for k outside 0..10, ratio <= 0, a bad model or a
-    degenerate design."""
-    where = where or f"design (k={k}, noise_model={noise_model}, ratio={ratio:g})"
+    ratio), barometer only or barometer + accelerometer (barometer sigma in counts, accelerometer sigma in
+    units/s^2). Alternatively give the process-noise intensity ``q`` itself (units of the model, see the module
+    docstring) and ``ratio=None``. Gains in physical units: column 0 for the barometer innovation (per unit:
+    1, 1/s, 1/s^2), column 1 for the accelerometer innovation (per units/s^2: s^2, s, 1). Raises
+    :class:`UserError` for k outside 0..10, ratio or q <= 0, a bad model or a degenerate design."""
+    if (ratio is None) == (q is None):
+        raise UserError(f"design (k={k}, noise_model={noise_model}): give exactly one of ratio={ratio!r} and q={q!r}")
+    where = where or (f"design (k={k}, noise_model={noise_model}, "
+                      + (f"ratio={ratio!r})" if ratio is not None else f"q={q!r})"))
     if isinstance(k, bool) or not isinstance(k, int) or not 0 <= k <= 10:
         raise UserError(f"{where}: k={k!r}: sample period 2^-k needs an integer k in 0..10")
-    for name, val in (("ratio", ratio), ("baro_sigma", baro_sigma), ("accel_sigma", accel_sigma_units)):
-        if not isinstance(val, (int, float)) or not math.isfinite(val) or val <= 0:
+    for name, val in (("ratio", ratio), ("q", q), ("baro_sigma", baro_sigma), ("accel_sigma", accel_sigma_units)):
+        if val is None:
+            continue
+        if isinstance(val, bool) or not isinstance(val, (int, float)) or not math.isfinite(val) or val <= 0:
             raise UserError(f"{where}: {name}={val!r}: must be a finite number > 0")
     if noise_model not in NOISE_MODELS:
         raise UserError(f"{where}: noise_model={noise_model!r}: must be one of {', '.join(NOISE_MODELS)}")
     dt = math.ldexp(1.0, -k)
-    q = baro_sigma**2 / ratio
+    if q is None:
+        q = baro_sigma**2 / ratio
     F = transition(dt)
     Q = process_noise(noise_model, dt, q)
     H, R = measurement(with_accel, baro_sigma, accel_sigma_units)

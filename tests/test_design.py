@@ -342,3 +342,18 @@ def test_design_succeeds_and_is_a_riccati_fixed_point_over_extreme_ratios(k: int
     for i in range(3):
         assert abs(P_next[i, i] - P[i, i]) <= 1e-8 * P[i, i] + 1e-12 * cancel_p[i, i], i
     assert np.all(np.abs(ss.poles) < 1)
+
+
+@pytest.mark.parametrize("model", MODELS)
+def test_design_from_q_equals_design_from_ratio(model: str) -> None:
+    """q given directly (units of the model) is the same design as ratio = baro_sigma^2 / q."""
+    a = design_kalman(6, model, None, q=3e-4, baro_sigma=BARO_SIGMA, with_accel=True,
+                      accel_sigma_units=ACCEL_SIGMA_UNITS)
+    b = design_kalman(6, model, BARO_SIGMA**2 / 3e-4, baro_sigma=BARO_SIGMA, with_accel=True,
+                      accel_sigma_units=ACCEL_SIGMA_UNITS)
+    np.testing.assert_allclose(a.K, b.K, rtol=1e-12)
+    np.testing.assert_allclose(a.Q, process_noise(model, 2.0**-6, 3e-4), rtol=1e-15)
+    with pytest.raises(UserError, match="exactly one of ratio"):
+        design_kalman(6, model, 100.0, q=1.0)
+    with pytest.raises(UserError, match="q=-1.0"):
+        design_kalman(6, model, None, q=-1.0)
