@@ -241,6 +241,8 @@ class _Assembler:
     ) -> None:
         self.filename = filename
         self.origin = origin
+        if isinstance(include_paths, (str, Path)):  # one directory given bare: not a sequence of characters
+            include_paths = [include_paths]
         self.include_paths = [Path(p) for p in include_paths]
         self.defines = dict(defines or {})
         self.main_recs = self._recs_of(text, filename)

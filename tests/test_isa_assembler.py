@@ -373,6 +373,19 @@ def test_include_relative_then_include_paths(tmp_path: Path) -> None:
     assert str(tmp_path / "src" / "deep.inc") in files
 
 
+def test_end_stops_and_include_path_may_be_a_single_directory(tmp_path: Path) -> None:
+    (tmp_path / "one.inc").write_text(" dc.b 1\n")
+    prog = assemble(' include "one.inc"\n dc.b 2\n end\n this is not assembled', include_paths=str(tmp_path))
+    assert prog.code == h("01 02")
+
+
+def test_align_and_even_rules() -> None:
+    assert where(err(" align 3")) == "<source>:1:8"
+    assert code(" dc.b 1\n align 1\n dc.b 2") == h("01 02")
+    prog = assemble(" section bss\n ds.b 1\n even\nw ds.w 1")
+    assert prog.symbol("w").address == 2 and prog.segments[0].data == bytes(4)
+
+
 # --- errors with exact positions ----------------------------------------------------------------------------------
 
 
