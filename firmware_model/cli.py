@@ -1,4 +1,6 @@
-"""``fwemu``: the command-line entry point.
+"""fwemu: a cycle-exact 68000 subset, bit-exact apogee-filter firmware, golden vectors and budgets.
+
+The command-line entry point.
 
 Each subcommand lives in its own module, which exposes ``register(subparsers) -> None`` adding one or more
 subparsers whose ``func`` attribute is called with the parsed arguments and returns an exit code. Errors meant
@@ -17,7 +19,6 @@ from collections.abc import Sequence
 COMMAND_MODULES: tuple[str, ...] = (
     "isa.cli",
     "firmware_model.cli_design",
-    "firmware_model.cli_inputs",
     "firmware_model.cli_run",
     "firmware_model.cli_vectors",
 )
