@@ -556,3 +556,14 @@ def test_against_m68000_python(src: str, d0: int, d1: int, ccr: int) -> None:
                                irc=rw(ORG + 2)))
     ref_clocks = ref.step()
     assert (cpu.d[0], cpu.d[1], cpu.ccr, clocks) == (ref.R[0], ref.R[1], ref.SR & 0x1F, ref_clocks)
+
+
+def test_execute_hand_built_instruction() -> None:
+    from isa.operands import Instruction, Mode, Operand, Size
+
+    cpu = CPU()
+    cpu.pc = 0x2000
+    cpu.d[1], cpu.d[2] = 0xFFFFFFFF, 1
+    ins = Instruction("add", Size.L, (Operand(Mode.DREG, 2), Operand(Mode.DREG, 1)))
+    assert cpu.execute(ins, 2) == 8  # ADD.L Dn,Dn (UM Table 8-4 note **)
+    assert cpu.d[1] == 0 and cpu.ccr == X | Z | C and cpu.pc == 0x2002 and cpu.instructions == 1
