@@ -17,6 +17,7 @@ unit, where "unit" = barometer count x BARO_SIGN (docs/firmware-spec.md §2).
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -332,6 +333,18 @@ def _l1_sums(A: np.ndarray, B: np.ndarray, rel_tol: float = 1e-16) -> np.ndarray
     return total + np.abs(M) * (4.0 / (1.0 - rho))
 
 
+@functools.lru_cache(maxsize=256)
+def _closed_loop_sums(K: int, Kf_rows: tuple[tuple[float, ...], ...]) -> tuple[np.ndarray, np.ndarray]:
+    """``(L_u, L_r)`` of :func:`kalman_error_bound` for shift K and design gain rows (cached: pure)."""
+    dt = 2.0 ** -K
+    F = np.array([[1.0, dt, dt * dt / 2], [0.0, 1.0, dt], [0.0, 0.0, 1.0]])
+    Kf = np.array(Kf_rows)
+    H = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])[: Kf.shape[1]]
+    IKH = np.eye(3) - Kf @ H
+    A = IKH @ F
+    return _l1_sums(A, IKH), _l1_sums(A, np.eye(3))
+
+
 def kalman_error_bound(consts: "FirmwareConstants", e1_max: float, e2_max: float = 0.0,
                        acc_dev_max: float = 0.0) -> np.ndarray:
     """Bound (word scale: Q24.8 LSB; X1 in 1/256 unit, X2 in 1/256 unit/s, X3 in 1/256 unit/s^2) on
@@ -358,10 +371,7 @@ def kalman_error_bound(consts: "FirmwareConstants", e1_max: float, e2_max: float
     Kf = np.array([[consts.float_gains[c[i]] for c in cols] for i in range(3)])
     Kq = np.array([[consts.gains[c[i]].value for c in cols] for i in range(3)])
     H = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])[: len(cols)]
-    IKH = np.eye(3) - Kf @ H
-    A = IKH @ F
-    Lu = _l1_sums(A, IKH)
-    Lr = _l1_sums(A, np.eye(3))
+    Lu, Lr = _closed_loop_sums(K, tuple(map(tuple, Kf)))
     rho = lambda s: rounding_error_bound(s, mode)  # noqa: E731
     u_bar = np.array([rho(K) + rho(2 * K + 1), rho(K), 0.0])
     mul_round = np.array([sum(rho(consts.gains[c[i]].s) for c in cols) for i in range(3)])
