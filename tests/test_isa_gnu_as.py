@@ -52,7 +52,8 @@ def _gnu_keeps(instr: Instruction) -> bool:
     if mn in ("add", "sub", "cmp", "and", "or") and ops and ops[0].mode is Mode.IMM:
         return False
     if mn == "move" and instr.size is Size.L and ops[0].mode is Mode.IMM and ops[1].mode is Mode.DREG:
-        if -128 <= ops[0].value <= 127:
+        v = ops[0].value & 0xFFFFFFFF
+        if v < 0x80 or v >= 0xFFFFFF80:  # -128..127 as a 32-bit value (also when written unsigned)
             return False
     if mn in ("add", "sub", "adda", "suba", "addi", "subi") and ops[0].mode is Mode.IMM and 1 <= ops[0].value <= 8:
         return False
@@ -65,7 +66,8 @@ def _pin(instr: Instruction) -> Instruction:
         return instr
     imm = instr.operands[0]
     shift = 300 if instr.mnemonic == "move" else 16  # move.l: out of -128..127; add/sub: out of 1..8 (fits .b)
-    return Instruction(instr.mnemonic, instr.size, (Operand(Mode.IMM, value=imm.value + shift), *instr.operands[1:]))
+    value = imm.value - (1 << 32) if imm.value >= 1 << 31 else imm.value
+    return Instruction(instr.mnemonic, instr.size, (Operand(Mode.IMM, value=value + shift), *instr.operands[1:]))
 
 
 def _layout(items: list[Instruction] | list[Form], rng: random.Random | None = None) -> list[tuple[int, Instruction]]:
@@ -199,6 +201,23 @@ def test_branches_at_range_limits_match_gnu_as(tmp_path: Path) -> None:
         put(lambda a: Instruction("move", Size.W, (Operand(Mode.PCINDEX, value=a + 2 + disp, index=IndexReg(True, 7, True)),
                                                      Operand(Mode.DREG, 0))))
     assert _compare(tmp_path, placed) == len(placed)
+
+
+def test_unsigned_and_extreme_immediates_match_gnu_as(tmp_path: Path) -> None:
+    """Immediates written unsigned (.b 128..255, .w 32768..65535, .l up to 2^32-1) and at the signed extremes:
+    GNU as writes a byte immediate's word as the 16-bit value written (-1 -> $FFFF, 255 -> $00FF)."""
+    placed: list[tuple[int, Instruction]] = []
+    addr = ORIGIN
+    d3 = Operand(Mode.DREG, 3)
+    for size, values in ((Size.B, (-128, -1, 127, 128, 200, 255)), (Size.W, (-32768, -1, 32767, 32768, 65535)),
+                         (Size.L, (-(1 << 31), -1, (1 << 31) - 1, 1 << 31, 0xFFFFFFFF))):
+        for v in values:
+            for mn in ("addi", "cmpi", "andi", "eori", "move"):
+                instr = _pin(Instruction(mn, size, (Operand(Mode.IMM, value=v), d3)))
+                if _gnu_keeps(instr):
+                    placed.append((addr, instr))
+                    addr += length(instr)
+    assert _compare(tmp_path, placed) == len(placed) > 60
 
 
 @settings(max_examples=examples(4))
