@@ -1,0 +1,230 @@
+"""``fwemu compare``: fixed (integer model) vs float mirror vs ideal filter on one input, and the floor-bias table.
+
+Statistics per state word and per pair of variants: max |err|, RMS and bias (mean error), in LSB (Q24.8: 1/256
+unit, unit = barometer count x BARO_SIGN) and in physical units (m, m/s, m/s^2 via ``units_per_metre``; the
+recursive VEL in counts x samples), plus the apogee sample index of each variant.
+
+``--bias-table`` prints the velocity bias that floor rounding puts into the Kalman filter vs half_up on a
+constant-acceleration input (docs/numerics.md, "Floor bias").
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from firmware_model.config import PROGRAMS, ROUNDINGS, BuildConfig
+from firmware_model.errors import UserError
+
+G0 = 9.80665
+
+
+def register(subparsers: Any) -> None:
+    """Add the ``compare`` subcommand to an argparse ``subparsers`` object."""
+    p = subparsers.add_parser("compare", help="integer model vs float mirror vs ideal filter error statistics",
+                              description=__doc__.splitlines()[0])
+    p.add_argument("--config", type=Path, help="build config JSON (overrides --program/--k/--rounding)")
+    p.add_argument("--program", choices=PROGRAMS, default="kalman_baro")
+    p.add_argument("--k", type=int, default=7, help="sample period 2^-k s (0..10)")
+    p.add_argument("--rounding", choices=ROUNDINGS, default="floor")
+    src = p.add_mutually_exclusive_group()
+    src.add_argument("--input", type=Path, help="CSV with an 'adc' column and optionally an 'acc' column")
+    src.add_argument("--synthetic", type=int, metavar="SEED", help="a synthetic flight from this seed (default 0)")
+    src.add_argument("--bias-table", action="store_true",
+                     help="print the floor-vs-half_up Kalman velocity bias table for k = 5..8 and exit")
+    p.set_defaults(func=run)
+
+
+# ---------------------------------------------------------------------------------------------------- inputs
+def read_csv(path: Path) -> tuple[np.ndarray, np.ndarray | None]:
+    """Read ``adc`` (and optional ``acc``) integer columns from a CSV with a header; errors name file and line."""
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise UserError(f"{path}: no such input file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise UserError(f"{path}: cannot read: {exc}") from None
+    rows = list(csv.reader(text.splitlines()))
+    if not rows:
+        raise UserError(f"{path}: empty file")
+    header = [h.strip().lower() for h in rows[0]]
+    if "adc" not in header:
+        raise UserError(f"{path}:1: missing 'adc' column (header: {', '.join(header)})")
+    ia = header.index("adc")
+    ic = header.index("acc") if "acc" in header else None
+    adc, acc = [], []
+    for lineno, row in enumerate(rows[1:], start=2):
+        if not row or all(not c.strip() for c in row):
+            continue
+        try:
+            adc.append(int(row[ia]))
+            if ic is not None:
+                acc.append(int(row[ic]))
+        except (ValueError, IndexError):
+            raise UserError(f"{path}:{lineno}: expected integer adc/acc values, got {row!r}") from None
+    if not adc:
+        raise UserError(f"{path}: no samples")
+    return np.array(adc, dtype=np.int64), (np.array(acc, dtype=np.int64) if ic is not None else None)
+
+
+def synthetic_flight(cfg: BuildConfig, seed: int) -> tuple[np.ndarray, np.ndarray, int]:
+    """A deterministic quick flight for ``cfg``: 1 s pad, 2 s boost at 6 g, drag-free coast, 4 s of descent
+    (barometer noise ``baro_sigma`` counts, accelerometer noise ``accel_sigma`` counts). Returns ``(adc, acc,
+    true apogee sample)``."""
+    rng = np.random.default_rng(seed)
+    dt = cfg.dt
+    t_pad, t_burn, a_b = 1.0, 2.0, 6.0 * G0
+    v_b = (a_b - G0) * t_burn
+    t_ap = t_pad + t_burn + v_b / G0
+    n = int((t_ap + 4.0) / dt)
+    t = np.arange(n) * dt
+    tb = np.clip(t - t_pad, 0.0, t_burn)
+    tc = np.clip(t - t_pad - t_burn, 0.0, None)
+    h = 0.5 * (a_b - G0) * tb ** 2 + v_b * tc - 0.5 * G0 * tc ** 2
+    spec = np.where(t < t_pad, G0, np.where(t < t_pad + t_burn, a_b, 0.0))
+    full = (1 << cfg.baro_bits) - 1
+    centre = full / 2 - cfg.baro_sign * min(h.max() * cfg.units_per_metre, full) / 2
+    adc = np.clip(np.round(centre + cfg.baro_sign * h * cfg.units_per_metre + rng.normal(0, cfg.baro_sigma, n)),
+                  0, full).astype(np.int64)
+    acc = np.clip(np.round(spec * cfg.accel_counts_per_mps2 + rng.normal(0, cfg.accel_sigma, n)),
+                  -32768, 32767).astype(np.int64)
+    return adc, acc, int(round(t_ap / dt))
+
+
+# ---------------------------------------------------------------------------------------------------- statistics
+def error_stats(a: np.ndarray, b: np.ndarray) -> dict[str, float]:
+    """max |a - b|, RMS and mean of ``a - b`` (same units as the inputs)."""
+    d = np.asarray(a, dtype=np.float64) - np.asarray(b, dtype=np.float64)
+    return {"max": float(np.max(np.abs(d))), "rms": float(np.sqrt(np.mean(d * d))), "bias": float(np.mean(d))}
+
+
+def _apogee(trace: Any) -> int:
+    return int(trace.first_event("APOGEE")) if "EVENTS" in trace.names else -1
+
+
+def compare(cfg: BuildConfig, adc: np.ndarray, acc: np.ndarray | None) -> dict[str, Any]:
+    """Run fixed, mirror and ideal on one stream; return per-pair, per-state statistics (LSB) and apogee indices."""
+    from firmware_model.constants import build_constants
+    from firmware_model.model import run_model
+    from firmware_model.reference import FloatTrace, ideal_kalman, ideal_recursive, mirror
+
+    consts = build_constants(cfg)
+    fixed = run_model(consts, adc, acc)
+    mir = mirror(consts, adc, acc)
+    if cfg.program in ("kalman_baro", "kalman_accel"):
+        ideal = ideal_kalman(cfg, adc, acc)
+        states = ("X1", "X2", "X3")
+    else:
+        est = ideal_recursive(consts, adc)
+        ideal = FloatTrace(cfg.program, ("EST",), est[:, None], np.array([est[0]]))
+        states = ("EST",)
+    variants = {"fixed": fixed, "mirror": mir, "ideal": ideal}
+    pairs = (("fixed", "mirror"), ("mirror", "ideal"), ("fixed", "ideal"))
+    stats = {f"{p}-{q}": {s: error_stats(variants[p].column(s), variants[q].column(s)) for s in states}
+             for p, q in pairs}
+    return {"stats": stats, "apogee": {name: _apogee(tr) for name, tr in variants.items()},
+            "wrap": (fixed.first_wrap, fixed.wrap_word), "n": int(np.size(adc))}
+
+
+def _phys(cfg: BuildConfig, state: str) -> tuple[float, str]:
+    """(LSB -> physical factor, unit) for a state word."""
+    per_m = 256.0 * cfg.units_per_metre
+    return {"X1": (1 / per_m, "m"), "X2": (1 / per_m, "m/s"), "X3": (1 / per_m, "m/s^2"),
+            "EST": (1 / per_m, "m")}[state]
+
+
+def format_report(cfg: BuildConfig, result: dict[str, Any]) -> str:
+    """Human-readable table of :func:`compare`'s result."""
+    lines = [f"program={cfg.program} k={cfg.k} rounding={cfg.rounding} samples={result['n']}",
+             f"{'pair':<14}{'state':<6}{'max|err| LSB':>14}{'RMS LSB':>12}{'bias LSB':>12}"
+             f"{'max|err|':>12}{'RMS':>12}{'bias':>12}  unit"]
+    for pair, per_state in result["stats"].items():
+        for state, s in per_state.items():
+            f, unit = _phys(cfg, state)
+            lines.append(f"{pair:<14}{state:<6}{s['max']:>14.2f}{s['rms']:>12.2f}{s['bias']:>12.2f}"
+                         f"{s['max'] * f:>12.4g}{s['rms'] * f:>12.4g}{s['bias'] * f:>12.4g}  {unit}")
+    ap = result["apogee"]
+    lines.append("apogee sample: " + ", ".join(f"{k}={v}" for k, v in ap.items()))
+    first, word = result["wrap"]
+    lines.append("wrap-around: " + (f"first at sample {first} in {word}" if first >= 0 else "none"))
+    return "\n".join(lines)
+
+
+# ---------------------------------------------------------------------------------------------------- bias table
+def bias_table(ks: tuple[int, ...] = (5, 6, 7, 8), accel_units: float = 8.0, seconds: float = 40.0) -> str:
+    """Bias (mean of integer minus float mirror over the second half) of the kalman_baro states on a
+    constant-acceleration input ``z = a t^2 / 2`` (a = ``accel_units`` units/s^2) plus Gaussian noise of 2 counts
+    (8 streams, seed 0), for floor and half_up, next to the linear steady-state prediction ``(I - A)^-1 ((I - KH)
+    u + r)`` with uniform rounding errors (floor: mean -1/2 LSB per shift; half_up: 0) and DESIGN.md §6's
+    prediction for the velocity, ``1/2 * 2^k / 256`` units/s = ``2^(k-1)`` LSB."""
+    from firmware_model.constants import build_constants
+    from firmware_model.model import run_model
+    from firmware_model.reference import mirror
+
+    rows = ["| k | rounding | X1 bias (LSB) | X2 bias (LSB) | X2 bias (units/s) | X3 bias (LSB) "
+            "| linear prediction X1, X2, X3 (LSB) | DESIGN §6 X2 (LSB) |", "|---|---|---|---|---|---|---|---|"]
+    for k in ks:
+        n = int(seconds * 2 ** k)
+        t = np.arange(n) / 2 ** k
+        rng = np.random.default_rng(0)
+        z = np.round(0.5 * accel_units * t[None, :] ** 2 + 1000 + rng.normal(0, 2, (8, n))).astype(np.int64)
+        for rounding in ROUNDINGS:
+            cfg = BuildConfig(program="kalman_baro", k=k, rounding=rounding, baro_sign=1)
+            consts = build_constants(cfg)
+            fx = run_model(consts, z)
+            fm = mirror(consts, z)
+            half = slice(n // 2, n)
+            b = [float(np.mean(fx.column(s)[:, half] - fm.column(s)[:, half])) for s in ("X1", "X2", "X3")]
+            dt = 2.0 ** -k
+            F = np.array([[1, dt, dt * dt / 2], [0, 1, dt], [0, 0, 1]])
+            Kf = np.array([[consts.float_gains[g]] for g in ("G11", "G21", "G31")])
+            IKH = np.eye(3) - Kf @ np.array([[1.0, 0.0, 0.0]])
+            m = 0.5 if rounding == "floor" else 0.0
+            u = -m * np.array([2.0, 1.0, 0.0])
+            r = -m * np.ones(3)
+            pred = np.linalg.solve(np.eye(3) - IKH @ F, IKH @ u + r)
+            rows.append(f"| {k} | {rounding} | {b[0]:.1f} | {b[1]:.1f} | {b[1] / 256:.3f} | {b[2]:.1f} | "
+                        f"{pred[0]:.1f}, {pred[1]:.1f}, {pred[2]:.1f} | {2 ** (k - 1)} |")
+    return "\n".join(rows)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Entry point of ``fwemu compare``; prints the report to stdout and returns 0."""
+    if args.bias_table:
+        print(bias_table())
+        return 0
+    if args.config is not None:
+        cfg = BuildConfig.from_file(args.config)
+    else:
+        cfg = BuildConfig(program=args.program, k=args.k, rounding=args.rounding)
+    if args.input is not None:
+        adc, acc = read_csv(args.input)
+        true_ap = None
+    else:
+        adc, acc, true_ap = synthetic_flight(cfg, 0 if args.synthetic is None else args.synthetic)
+    result = compare(cfg, adc, acc)
+    print(format_report(cfg, result))
+    if true_ap is not None:
+        print(f"true apogee sample (synthetic): {true_ap}")
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Standalone entry (``python -m firmware_model.cli_compare``) for when ``fwemu`` does not list this module."""
+    parser = argparse.ArgumentParser(prog="fwemu")
+    register(parser.add_subparsers(dest="command", required=True))
+    args = parser.parse_args(["compare", *(sys.argv[1:] if argv is None else argv)])
+    try:
+        return int(args.func(args) or 0)
+    except UserError as exc:
+        print(f"fwemu: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())
