@@ -206,3 +206,228 @@ def test_firmware_sources_assemble(program: str, rounding: str) -> None:
         assert got_size == size and RAM_START <= address < STACK_TOP and address % 2 == 0
     assert build.ram_bytes == sum(size for _, size in STATE_WORDS[program])
     assert len(build.source_sha256) == 64
+
+
+# ---------------------------------------------------------------------------------------------------- one step
+# Boundary conditions of the flight logic (e1 == -MACH_E - 1, X2 == MACH_VHI - 1, v == d after the DIVU
+# normalisation, EXT - EST == THR with an exact 33-bit difference, ...) are single values that input streams
+# practically never hit, so these tests put the firmware into chosen states (writing its RAM variables), run ONE
+# step on the emulated CPU and check it against docs/firmware-spec.md §5/§6 written out below as a one-step
+# oracle with Python integers.
+
+LIFTOFF, ARMED, APOGEE, MACH, INVALID, PRED = 1, 2, 4, 8, 16, 32
+LATCHED = LIFTOFF | ARMED | APOGEE | PRED
+
+
+def _mulg_exact(e: int, m: int, s: int, half_up: bool) -> int:
+    return wrap32(rs_exact(e * m, s, half_up))
+
+
+def spec_kalman_step(c: object, st: dict[str, int], adc: int, acc: int) -> dict[str, int]:
+    """docs/firmware-spec.md §6 step 1-10, one sample, exact integers."""
+    h = bool(c.ROUND)
+    K = c.K
+    x1, x2, x3 = st["X1"], st["X2"], st["X3"]
+    ev = st["EVENTS"] & LATCHED
+    frac = st["APFRAC"]
+    z8 = (c.BARO_SIGN * adc) << 8
+    t1 = rs_exact(x2, K, h) + rs_exact(x3, 2 * K + 1, h)
+    t2 = rs_exact(x3, K, h)
+    x1, x2 = wrap32(x1 + t1), wrap32(x2 + t2)
+    ok = c.BARO_MIN <= adc <= c.BARO_MAX
+    if not ok:
+        ev |= INVALID
+    e1 = wrap32(z8 - x1)
+    lock = ok and bool(ev & LIFTOFF) and c.MACH_VLO < x2 < c.MACH_VHI and (e1 > c.MACH_E or e1 < -c.MACH_E)
+    if lock:
+        ev |= MACH
+    g = {name: (q.m, q.s) for name, q in c.gains.items()}
+    accel = "ACC_G" in g
+    e2 = wrap32(_mulg_exact(acc - st["ACC0"], *g["ACC_G"], h) - x3) if accel else 0
+    xs = [x1, x2, x3]
+    for i in range(3):
+        c1 = _mulg_exact(e1, *g[f"G{i + 1}1"], h) if ok and not lock else 0
+        c2 = _mulg_exact(e2, *g[f"G{i + 1}2"], h) if accel else 0
+        xs[i] = wrap32(xs[i] + c1 + c2)
+    x1, x2, x3 = xs
+    if lock:
+        x1 = z8
+    if not ev & LIFTOFF and x2 > c.V_LIFT:
+        ev |= LIFTOFF
+    if ev & LIFTOFF and not ev & APOGEE and not lock and x2 < 0:
+        ev |= APOGEE
+    if ev & LIFTOFF and not ev & APOGEE and not ev & PRED and x2 > 0:
+        d = -rs_exact(x3, K, h)
+        if x2 < d:
+            ev |= PRED
+            v = x2
+            while d >= 32768:
+                d >>= 1
+                v >>= 1
+            frac = min(65535, (v << 16) // d)
+    out = dict(st, X1=x1, X2=x2, X3=x3, EVENTS=ev, APFRAC=frac)
+    return out
+
+
+def spec_recursive_step(c: object, st: dict[str, int], adc: int, acc: int) -> dict[str, int]:
+    """docs/firmware-spec.md §5 step 1-5, one sample, exact integers."""
+    h = bool(c.ROUND)
+    ev = st["EVENTS"]
+    vel = wrap32(st["VEL"] + (acc - st["ACC0"]))
+    if not ev & LIFTOFF and vel > c.V_LIFT:
+        ev |= LIFTOFF
+    if ev & LIFTOFF and not ev & ARMED and vel < c.V_GATE:
+        ev |= ARMED
+    est = wrap32(st["EST"] + ((c.BARO_SIGN * adc) << (8 - c.S)) - rs_exact(st["EST"], c.S, h))
+    ext = st["EXT"]
+    if est > ext:
+        ext = est
+    elif ev & ARMED and not ev & APOGEE and ext - est >= c.THR:
+        ev |= APOGEE
+    return dict(st, EST=est, EXT=ext, VEL=vel, EVENTS=ev)
+
+
+class _Board:
+    """The firmware build on the spec's memory map, with direct access to its state variables."""
+
+    def __init__(self, build: object) -> None:
+        from firmware_model.harness import _Machine
+
+        self.build = build
+        self.cpu = _Machine(build).cpu
+
+    def step(self, state: dict[str, int], adc: int, acc: int) -> dict[str, int]:
+        from firmware_model.build import ACCEL_ADC, BARO_ADC
+
+        for name, (address, size) in self.build.variables.items():
+            self.cpu.write(address, state[name] & ((1 << (8 * size)) - 1), size)
+        self.cpu.write(BARO_ADC, adc, 2)
+        self.cpu.write(ACCEL_ADC, acc & 0xFFFF, 2)
+        self.cpu.call(self.build.step_address, max_cycles=100_000)
+        out = {}
+        for name, (address, size) in self.build.variables.items():
+            v = self.cpu.read(address, size)
+            out[name] = s32(v) if size == 4 else v
+        return out
+
+
+@functools.lru_cache(maxsize=None)
+def _board(program: str, k: int, rounding: str) -> _Board:
+    from firmware_model.build import build_firmware
+    from firmware_model.config import BuildConfig
+
+    return _Board(build_firmware(BuildConfig(program=program, k=k, rounding=rounding, baro_min=100,
+                                             baro_max=65000)))
+
+
+def _near(*centres: int) -> st.SearchStrategy[int]:
+    """Integers at or next to the given boundaries (clamped to int32), or anywhere in int32."""
+    near = st.sampled_from(centres).flatmap(
+        lambda c: st.integers(-2, 2).map(lambda d: max(INT32_MIN, min(INT32_MAX, c + d))))
+    return st.one_of(near, near, st.integers(INT32_MIN, INT32_MAX))
+
+
+@settings(max_examples=examples(150))
+@given(program=st.sampled_from(("kalman_baro", "kalman_accel")), k=st.sampled_from((4, 6, 8)),
+       rounding=st.sampled_from(("floor", "half_up")), data=st.data())
+def test_kalman_one_step_boundaries(program: str, k: int, rounding: str, data: st.DataObject) -> None:
+    """Mach window and innovation limits, liftoff threshold, X2 sign, baro range edges, apogee prediction with
+    DIVU overflow: CPU == spec on all words after one step from a chosen state."""
+    board = _board(program, k, rounding)
+    c = board.build.consts
+    h = bool(c.ROUND)
+    adc = data.draw(st.one_of(st.sampled_from((0, 99, 100, 101, 64999, 65000, 65001, 65535)),
+                              st.integers(0, 65535)), label="adc")
+    acc0 = data.draw(st.integers(-32768, 32767), label="ACC0")
+    acc = data.draw(st.one_of(st.just(acc0), st.integers(-32768, 32767)), label="acc")
+    events = data.draw(st.sampled_from((0, LIFTOFF, LIFTOFF | APOGEE, LIFTOFF | PRED, LIFTOFF | MACH | INVALID)),
+                       label="EVENTS")
+    x3 = data.draw(st.one_of(st.just(0), _near(0, -(1 << (15 + k)), -(1 << 30), INT32_MIN, INT32_MAX)), label="X3")
+    mode = data.draw(st.sampled_from(("window", "predict", "free")), label="mode")
+    if mode == "predict":
+        # X2 after the step lands near 0 < X2 < d = -rs(X3, K), including v == d after the shifts (DIVU overflow)
+        d = -rs_exact(x3, k, h)
+        x2_target = data.draw(_near(1, 2, d - 1, d, d + 1, d // 2, (d + 1) // 2), label="x2_target")
+        x2 = wrap32(x2_target - rs_exact(x3, k, h))
+    else:
+        x2_target = data.draw(_near(c.MACH_VLO, c.MACH_VHI, c.V_LIFT, 0), label="x2_target")
+        x2 = wrap32(x2_target - rs_exact(x3, k, h))
+    # X1 such that the innovation after the prediction is (near) +-MACH_E
+    e1 = data.draw(_near(c.MACH_E, -c.MACH_E, 0), label="e1")
+    t1 = rs_exact(x2, k, h) + rs_exact(x3, 2 * k + 1, h)
+    x1 = wrap32(((c.BARO_SIGN * adc) << 8) - e1 - t1)
+    state = {"X1": x1, "X2": x2, "X3": x3, "ACC0": acc0, "EVENTS": events, "APFRAC": 0}
+    state = {name: state[name] for name in board.build.variables}
+    got = board.step(dict(state), adc, acc)
+    want = spec_kalman_step(c, dict(state), adc, acc)
+    want = {name: want[name] for name in board.build.variables}
+    assert got == want, f"{program} k={k} {rounding} state={state} adc={adc} acc={acc}"
+
+
+@settings(max_examples=examples(100))
+@given(k=st.sampled_from((4, 6, 8)), rounding=st.sampled_from(("floor", "half_up")), data=st.data())
+def test_recursive_one_step_boundaries(k: int, rounding: str, data: st.DataObject) -> None:
+    """Liftoff and gate thresholds, EXT - EST == THR (also as an exact difference beyond 2^31)."""
+    board = _board("recursive", k, rounding)
+    c = board.build.consts
+    h = bool(c.ROUND)
+    adc = data.draw(st.integers(0, 65535), label="adc")
+    acc0 = data.draw(st.integers(-32768, 32767), label="ACC0")
+    acc = data.draw(st.integers(-32768, 32767), label="acc")
+    vel_target = data.draw(_near(c.V_LIFT, c.V_GATE, 0, INT32_MAX, INT32_MIN), label="vel_target")
+    vel = wrap32(vel_target - (acc - acc0))
+    est = data.draw(_near(0, INT32_MIN, INT32_MAX, 1 << 20), label="EST")
+    est_new = wrap32(est + ((c.BARO_SIGN * adc) << (8 - c.S)) - rs_exact(est, c.S, h))
+    ext = data.draw(st.one_of(_near(est_new + c.THR, est_new, INT32_MAX), st.integers(INT32_MIN, INT32_MAX)),
+                    label="EXT")
+    events = data.draw(st.sampled_from((0, LIFTOFF, LIFTOFF | ARMED, LIFTOFF | ARMED | APOGEE)), label="EVENTS")
+    state = {"EST": est, "EXT": ext, "VEL": vel, "ACC0": acc0, "EVENTS": events}
+    got = board.step(dict(state), adc, acc)
+    assert got == spec_recursive_step(c, dict(state), adc, acc), f"k={k} {rounding} state={state} adc={adc}"
+
+
+@pytest.mark.parametrize("rounding", ["floor", "half_up"])
+@pytest.mark.parametrize("k", [4, 7])
+@pytest.mark.parametrize("program", ["kalman_baro", "kalman_accel"])
+def test_kalman_lockout_and_liftoff_exact_boundaries(program: str, k: int, rounding: str) -> None:
+    """Every combination of X2 at/next to MACH_VLO, MACH_VHI, V_LIFT, 0 and e1 at/next to +-MACH_E, from the
+    pad and after liftoff, with an accelerometer at rest (e2 = -X3 = 0)."""
+    board = _board(program, k, rounding)
+    c = board.build.consts
+    h = bool(c.ROUND)
+    adc = 30000
+    for events in (0, LIFTOFF):
+        for x2 in sorted({c.MACH_VLO + d for d in (-1, 0, 1)} | {c.MACH_VHI + d for d in (-1, 0, 1)}
+                         | {c.V_LIFT + d for d in (-1, 0, 1)} | {-1, 0, 1}):
+            for e1 in (c.MACH_E + 1, c.MACH_E, c.MACH_E - 1, 0, -c.MACH_E + 1, -c.MACH_E, -c.MACH_E - 1):
+                x1 = wrap32(((c.BARO_SIGN * adc) << 8) - e1 - rs_exact(x2, k, h))
+                state = {"X1": x1, "X2": x2, "X3": 0, "ACC0": 123, "EVENTS": events, "APFRAC": 0}
+                state = {name: state[name] for name in board.build.variables}
+                want = spec_kalman_step(c, dict(state), adc, 123)
+                want = {name: want[name] for name in board.build.variables}
+                assert board.step(dict(state), adc, 123) == want, f"{program} k={k} {rounding} state={state}"
+
+
+@pytest.mark.parametrize("rounding", ["floor", "half_up"])
+@pytest.mark.parametrize("k", [4, 5, 8])
+def test_kalman_apogee_prediction_exact_boundaries(k: int, rounding: str) -> None:
+    """Step 10 with the barometer invalid (no correction, so the state after the step is known): X2 at/next to
+    0, 1, d-1, d, d+1 for divisors d = -rs(X3, K) below and above 32768 (the normalisation loop), including
+    v == d after the shifts (DIVU quotient overflow -> APFRAC = 65535) and d = 2^31 (X3 = INT32_MIN, K = 0 ..
+    the unsigned compare)."""
+    board = _board("kalman_baro", k, rounding)
+    c = board.build.consts
+    h = bool(c.ROUND)
+    seen_overflow = False
+    for d in (2, 3, 100, 32767, 32768, 32769, 65535, (1 << 20) + 1, (1 << 20) + 3, 3 << 20, (1 << 31) >> k):
+        x3 = -(d << k) if -(d << k) >= INT32_MIN else INT32_MIN
+        dd = -rs_exact(x3, k, h)
+        for v in sorted({-1, 0, 1, 2, dd - 1, dd, dd + 1, dd // 2, (1 << 20) if dd == (1 << 20) + 1 else 1}):
+            x2 = wrap32(v - rs_exact(x3, k, h))
+            for events in (LIFTOFF, LIFTOFF | PRED, LIFTOFF | APOGEE, 0):
+                state = {"X1": 0, "X2": x2, "X3": x3, "EVENTS": events, "APFRAC": 7}
+                want = spec_kalman_step(c, dict(state), 0, 0)      # adc 0 < BARO_MIN: BARO_INVALID
+                got = board.step(dict(state), 0, 0)
+                assert got == want, f"k={k} {rounding} d={dd} v={v} state={state}"
+                seen_overflow |= want["APFRAC"] == 65535 and not events & PRED
+    assert seen_overflow, "no case reached the DIVU overflow"
