@@ -60,13 +60,20 @@ def test_decode_any_word_then_encode_gives_it_back(opcode: int, ext: list[int], 
     except IllegalInstruction:
         assume(False)  # brief extension word with bits 10..8 set (68020 forms)
         raise
+    if d.row.handler in ("bcc", "bra", "bsr", "dbcc"):
+        assume(d.instruction.operands[-1].value % 2 == 0)  # odd displacements decode (the CPU faults) but the
+        # encoder refuses odd branch targets
     again = encode(d.instruction, address)
     imm_b = d.instruction.size is Size.B and any(op.mode is Mode.IMM for op in d.instruction.operands) and \
         row.operands[0].kind in ("ea", "imm")
-    if imm_b:  # byte immediates: the 68000 ignores the high byte; we (like GNU as) write the sign extension
-        assume(code[:d.length] == again)
-    if d.row.is_branch and d.row.sizes == (Size.S,):
-        assume(opcode & 1 == 0)  # odd 8-bit displacements decode (the CPU faults on them) but do not encode
+    if imm_b and again != code[: d.length]:
+        # Byte immediates: the 68000 ignores the high byte of the word; we (like GNU as) write the sign extension
+        # of the low byte, so only the high byte may differ, and the re-encoding decodes to the same instruction.
+        assert len(again) == d.length
+        assert decode_bytes(again, address, address).instruction == d.instruction
+        diff = [k for k in range(d.length) if again[k] != code[k]]
+        assert len(diff) == 1 and diff[0] % 2 == 0, f"{format_instruction(d.instruction)}: bytes {diff} differ"
+        return
     assert again == code[: d.length], f"{format_instruction(d.instruction)}"
 
 

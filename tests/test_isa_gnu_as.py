@@ -12,7 +12,9 @@ GNU as relaxes some forms to shorter ones; the corpus pins or avoids them (see :
   ADDI/SUBI/CMPI/ANDI/ORI: a different encoding of the same operation (and the same length); excluded from the
   corpus because GNU as offers no way to pin the <ea>,Dn form. Our encoder still encodes exactly what is
   written; the round-trip test in test_isa_codec.py covers those forms.
-* ``(0,%an)`` displacement 0 and ``(0,%an,%xn)`` are kept by GNU as (checked by the corpus).
+* ``(0,%an)`` (d16 = 0) becomes ``(%an)``, 2 bytes shorter, in every position and even when written as an
+  expression (``(L1-L1,%an)``): GNU as offers no way to pin it, so the corpus uses displacement 2 instead.
+  ``(0,%an,%xn)`` and ``(0,%pc)`` are kept. Our assembler encodes ``0(a0)`` as written (d16).
 """
 
 from __future__ import annotations
@@ -49,6 +51,8 @@ def _gnu_keeps(instr: Instruction) -> bool:
     """False for instructions GNU as would silently rewrite into another encoding (see module docstring)."""
     ops = instr.operands
     mn = instr.mnemonic
+    if any(op.mode is Mode.ADISP and op.value == 0 for op in ops):
+        return False
     if mn in ("add", "sub", "cmp", "and", "or") and ops and ops[0].mode is Mode.IMM:
         return False
     if mn == "move" and instr.size is Size.L and ops[0].mode is Mode.IMM and ops[1].mode is Mode.DREG:
@@ -62,6 +66,9 @@ def _gnu_keeps(instr: Instruction) -> bool:
 
 def _pin(instr: Instruction) -> Instruction:
     """Move an immediate that GNU as would relax out of the relaxing range (keeping the same form)."""
+    if any(op.mode is Mode.ADISP and op.value == 0 for op in instr.operands):
+        instr = Instruction(instr.mnemonic, instr.size, tuple(
+            Operand(op.mode, op.reg, 2) if op.mode is Mode.ADISP and op.value == 0 else op for op in instr.operands))
     if _gnu_keeps(instr) or instr.mnemonic in ("add", "sub", "cmp", "and", "or"):
         return instr
     imm = instr.operands[0]
@@ -94,6 +101,8 @@ def _edge_draw(rng: random.Random):  # type: ignore[no-untyped-def]
             return lo
         if r < 0.3:
             return hi
+        if r < 0.4 and lo < 0 < hi:
+            return 0  # zero displacements/immediates (GNU as's d16 = 0 rewrite is pinned away by _pin)
         return rng.randint(lo, hi)
 
     return draw
