@@ -1,0 +1,58 @@
+"""``fwemu budget``: cycle, RAM, ROM and headroom budgets of firmware builds run on the emulated 68000."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from firmware_model.config import BuildConfig
+from firmware_model.errors import UserError
+
+#: Programs budgeted by default (the seed's literal listing is a counter-example, not firmware anyone ships).
+DEFAULT_PROGRAMS: tuple[str, ...] = ("recursive", "kalman_baro", "kalman_accel")
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    """Add the ``budget`` subcommand."""
+    p = subparsers.add_parser("budget", help="cycle/RAM/ROM/headroom budget of firmware builds (Markdown + JSON)",
+                              description="Run each build on the emulated 68000 over the synthetic flight and "
+                                          "every edge stream; write budget.md, budget.json, cycles.csv and "
+                                          "cycles.png into --out.")
+    p.add_argument("--config", type=Path, help="build config JSON (default: the defaults of each program)")
+    p.add_argument("--program", action="append", choices=("recursive", "kalman_baro", "kalman_accel",
+                                                           "recursive_seed_literal"),
+                   help=f"program to budget (repeatable; default: {', '.join(DEFAULT_PROGRAMS)})")
+    p.add_argument("--k", type=int, help="sample period 2^-k s (overrides the config)")
+    p.add_argument("--rounding", choices=("floor", "half_up"), help="rounding of right shifts (overrides config)")
+    p.add_argument("--clock-mhz", type=float, default=8.0, help="CPU clock for the load figures (default 8)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the synthetic flight (default 0)")
+    p.add_argument("--out", type=Path, default=Path("out/budget"), help="output directory (default out/budget)")
+    p.set_defaults(func=run_budget)
+
+
+def run_budget(args: argparse.Namespace) -> int:
+    """Budget every requested build, print the Markdown report and write the files. Returns the exit code."""
+    from firmware_model import budget
+    from firmware_model.build import build_firmware
+
+    base = BuildConfig.from_file(args.config) if args.config else BuildConfig()
+    programs = args.program or ([base.program] if args.config else list(DEFAULT_PROGRAMS))
+    changes = {key: value for key, value in (("k", args.k), ("rounding", args.rounding)) if value is not None}
+    results = []
+    show = sys.stderr.isatty()
+    for i, name in enumerate(programs, 1):
+        cfg = base.replace(program=name, **changes)
+        if show:
+            print(f"\r[{i}/{len(programs)}] {name} k={cfg.k} {cfg.rounding} ...", end="", file=sys.stderr, flush=True)
+        build = build_firmware(cfg)
+        streams = budget.default_streams(cfg.k, cfg.baro_bits, seed=args.seed)
+        results.append(budget.measure(build, streams, clock_hz=args.clock_mhz * 1e6))
+    if show:
+        print(file=sys.stderr)
+    if not results:
+        raise UserError("budget: nothing to do")
+    written = budget.write_reports(results, args.out)
+    print(budget.render_markdown(results), end="")
+    print("wrote " + ", ".join(str(p) for p in written))
+    return 0
