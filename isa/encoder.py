@@ -240,7 +240,6 @@ def encode(instr: Instruction, address: int) -> bytes:
         assert sel.cond is not None
         word |= row.put("C", sel.cond)
     predec = any(op.mode is Mode.APREDEC for op in sel.operands)
-    ext: dict[int, list[int]] = {}
     # Opcode fields first.
     for i, (spec, op) in enumerate(zip(row.operands, sel.operands)):
         kind = spec.kind

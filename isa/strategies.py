@@ -19,6 +19,7 @@ concrete instruction for a form from a :class:`random.Random` (used by the GNU a
 
 from __future__ import annotations
 
+import itertools
 import random
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
@@ -27,7 +28,7 @@ from hypothesis import strategies as st
 
 from isa.encoder import ea_words
 from isa.operands import IndexReg, Instruction, Mode, Operand, Size
-from isa.table import CONDITION_NAMES, TABLE, Row
+from isa.table import TABLE, Row
 
 #: Mode order used for deterministic enumeration.
 MODE_ORDER: tuple[Mode, ...] = tuple(Mode)
@@ -78,8 +79,6 @@ def forms(rows: Iterable[Row | str] | None = None, modes: frozenset[Mode] | None
     Conditional rows yield each condition when ``all_conditions`` is true, else one per row (codes cycle through
     the legal ones). ``modes`` restricts the EA operands (rows with an EA operand left without modes are
     skipped)."""
-    import itertools
-
     counter = 0
     for row in _select_rows(rows):
         for size in row.sizes:
@@ -207,13 +206,13 @@ def _instr(draw_: st.DrawFn, by_row: list[list[Form]], address: st.SearchStrateg
     def draw(lo: int, hi: int) -> int:
         return draw_(st.integers(lo, hi))
 
-    abs_fn = None
-    if absolute is not None:
+    def abs_from_strategy(short: bool) -> int:
+        assert absolute is not None
+        if short:
+            return draw_(absolute.filter(lambda a: a <= 0x7FFF or a >= 0xFF8000))
+        return draw_(absolute)
 
-        def abs_fn(short: bool) -> int:
-            if short:
-                return draw_(absolute.filter(lambda a: a <= 0x7FFF or a >= 0xFF8000))
-            return draw_(absolute)
+    abs_fn = abs_from_strategy if absolute is not None else None
 
     return build(form, addr, draw, abs_fn)
 
@@ -228,6 +227,8 @@ def instructions(rows: Iterable[Row | str] | None = None, address: int | st.Sear
       branch targets are generated within reach of it.
     * ``modes``: restrict EA operands to these modes (rows with no remaining mode are dropped).
     * ``absolute``: strategy for abs.W/abs.L addresses (e.g. inside your RAM); default any encodable value.
+      abs.W operands only use values that fit a sign-extended word (0..$7FFF, $FF8000..$FFFFFF): if yours
+      never do, leave ``Mode.ABSW`` out of ``modes``.
 
     Conditional rows draw every legal condition."""
     fs = list(forms(rows, modes, all_conditions=True))
@@ -240,4 +241,4 @@ def instructions(rows: Iterable[Row | str] | None = None, address: int | st.Sear
     return _instr(list(by_row.values()), addr, absolute)
 
 
-__all__ = ["Form", "forms", "build", "example", "instructions", "REGS_ONLY", "MODE_ORDER", "CONDITION_NAMES"]
+__all__ = ["Form", "forms", "build", "example", "instructions", "REGS_ONLY", "MODE_ORDER"]

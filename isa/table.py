@@ -51,7 +51,7 @@ of the branch group). Use :func:`match_mnemonic` to map a mnemonic to ``(row, co
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import cached_property
 
 from isa.operands import Mode, Size

@@ -200,3 +200,12 @@ def test_length_does_not_depend_on_values() -> None:
 
 def test_exg_accepts_either_order() -> None:
     assert encode(_i("exg", None, A0, D1), 0) == encode(_i("exg", None, D1, A0), 0) == bytes.fromhex("c388")
+
+
+@given(instructions(rows=["move", "tst"], modes=frozenset({Mode.DREG, Mode.ABSL, Mode.ABSW}),
+                    absolute=st.integers(0, 0x7FFE)))
+def test_strategy_absolute_addresses(instr: Instruction) -> None:
+    for op in instr.operands:
+        if op.mode in (Mode.ABSL, Mode.ABSW):
+            assert 0 <= op.value <= 0x7FFE
+    encode(instr, 0x1000)
