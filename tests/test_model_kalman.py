@@ -27,13 +27,15 @@ from profiles import examples
 PLAIN_BREAKERS = EVENT_BITS["MACH_LOCKOUT"] | EVENT_BITS["BARO_INVALID"]
 
 
-def _mirror_innovations(consts, fm, adc, acc):
-    """max |e1|, max |e2| (word scale) of the mirror, and max |acc - ACC0| (counts), over the compared samples."""
+def _mirror_innovations(consts, fm, adc, acc, n=None):
+    """max |e1|, max |e2| (word scale) of the mirror, and max |acc - ACC0| (counts), over the first n samples."""
     dt = 2.0 ** -consts.K
     w = np.atleast_3d(fm.words) if fm.words.ndim == 3 else fm.words[None]
     init = np.atleast_2d(fm.init_words)
     adc2, acc2 = np.atleast_2d(adc), np.atleast_2d(acc)
     prev = np.concatenate([init[:, None, :], w[:, :-1, :]], axis=1)
+    if n is not None:
+        prev, adc2, acc2 = prev[:, :n], adc2[:, :n], acc2[:, :n]
     x1p = prev[..., 0] + prev[..., 1] * dt + prev[..., 2] * dt * dt / 2
     e1 = np.abs(adc2 * consts.BARO_SIGN * 256.0 - x1p).max()
     if consts.program != "kalman_accel":
@@ -57,7 +59,7 @@ def _check_bound(consts, adc, acc) -> np.ndarray:
     assert tr.first_wrap == -1, (tr.first_wrap, tr.wrap_word)
     if n == 0:
         return np.zeros(3)
-    e1, e2, dev = _mirror_innovations(consts, fm, adc[:n], acc[:n])
+    e1, e2, dev = _mirror_innovations(consts, fm, adc, acc, n)
     bound = kalman_error_bound(consts, e1, e2, dev)
     d = np.abs(tr.words[:n, :3] - fm.words[:n, :3]).max(axis=0)
     assert np.all(d <= bound * (1 + 1e-9) + 1e-6), (d, bound)
