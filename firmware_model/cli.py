@@ -19,6 +19,7 @@ from collections.abc import Sequence
 COMMAND_MODULES: tuple[str, ...] = (
     "isa.cli",
     "firmware_model.cli_design",
+    "firmware_model.cli_compare",
     "firmware_model.cli_run",
     "firmware_model.cli_vectors",
 )
