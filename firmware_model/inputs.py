@@ -205,6 +205,22 @@ def _trajectory(p: FlightParams, dt: float, sub: int) -> tuple[np.ndarray, np.nd
     return np.array(h_out), np.array(a_out), apogee_t
 
 
+def true_trajectory(k: int, params: FlightParams | None = None) -> tuple[np.ndarray, np.ndarray, float]:
+    """The noise-free truth behind :func:`synthetic_flight` at dt = 2^-k s (same integration, same samples).
+
+    Returns ``(height_m, speed_mps, apogee_s)``: height above the pad (m) at every sample instant, the speed
+    ``|dh/dt|`` (m/s, ``numpy.gradient`` of the height, the quantity the transonic barometer error is keyed on:
+    the error applies where ``transonic_band_mps[0] < speed < transonic_band_mps[1]``) and the true apogee time
+    (s from the first sample). No randomness.
+    """
+    _check_common(k, 16)
+    p = params or FlightParams()
+    dt = 2.0 ** -k
+    h, _, apogee_t = _trajectory(p, dt, 8)
+    speed = np.abs(np.gradient(h, dt)) if h.shape[0] > 1 else np.zeros_like(h)
+    return h, speed, apogee_t
+
+
 def synthetic_flight(k: int, bits: int = 16, seed: int = 0, params: FlightParams | None = None,
                      name: str = "flight") -> Stream:
     """A seeded synthetic flight at dt = 2^-k s for a ``bits``-bit barometer.
@@ -225,6 +241,7 @@ def synthetic_flight(k: int, bits: int = 16, seed: int = 0, params: FlightParams
         raise UserError(f"synthetic flight: pad_fraction={p.pad_fraction!r} must be in [0, 1]")
     dt = 2.0 ** -k
     h, a, apogee_t = _trajectory(p, dt, 8)
+    speed = np.abs(np.gradient(h, dt)) if h.shape[0] > 1 else np.zeros_like(h)   # as true_trajectory()
     full = (1 << bits) - 1
     p_pad = float(pressure_pa(p.pad_altitude_m))
     counts_per_pa = p.units_per_metre / (p_pad - float(pressure_pa(p.pad_altitude_m + 1.0)))
@@ -232,7 +249,6 @@ def synthetic_flight(k: int, bits: int = 16, seed: int = 0, params: FlightParams
     rng = np.random.default_rng(seed)
     baro_noise = rng.standard_normal(h.shape[0]) * p.baro_sigma
     acc_noise = rng.standard_normal(h.shape[0]) * p.accel_sigma
-    speed = np.abs(np.gradient(h, dt)) if h.shape[0] > 1 else np.zeros_like(h)
     lo, hi = p.transonic_band_mps
     h_baro = h + np.where((speed > lo) & (speed < hi), p.transonic_error_m, 0.0)
     drop = (p_pad - pressure_pa(p.pad_altitude_m + h_baro)) * counts_per_pa  # counts, grows with altitude

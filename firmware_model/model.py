@@ -37,6 +37,7 @@ _APOGEE = EVENT_BITS["APOGEE"]
 _MACH = EVENT_BITS["MACH_LOCKOUT"]
 _BARO_INVALID = EVENT_BITS["BARO_INVALID"]
 _PREDICTED = EVENT_BITS["APOGEE_PREDICTED"]
+_GATE_HIGH = EVENT_BITS["GATE_HIGH"]
 
 
 @dataclass
@@ -168,7 +169,10 @@ def _run_recursive(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc:
     for i in range(n):
         vel = tr.w32(vel + (acc[:, i] - acc0), i, "VEL")
         ev = np.where(((ev & _LIFTOFF) == 0) & (vel > v_lift), ev | _LIFTOFF, ev)
-        ev = np.where(((ev & _LIFTOFF) != 0) & ((ev & _ARMED) == 0) & (vel < v_gate), ev | _ARMED, ev)
+        # 3a. armed once VEL is back below the gate, on a sample after the one that set GATE_HIGH (3b runs after)
+        ev = np.where(((ev & _GATE_HIGH) != 0) & ((ev & _ARMED) == 0) & (vel < v_gate), ev | _ARMED, ev)
+        # 3b. the accelerometer velocity has exceeded the gate since liftoff
+        ev = np.where(((ev & _LIFTOFF) != 0) & (vel > v_gate), ev | _GATE_HIGH, ev)
         est = tr.w32(est + zin[:, i] - rs(est, S, mode), i, "EST")
         up = est > ext
         ext = np.where(up, est, ext)
@@ -235,10 +239,13 @@ def _run_kalman(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np
         ev = np.where(baro_ok, ev, ev | _BARO_INVALID)
         # 3. innovation
         e1 = tr.w32(z8[:, i] - x1, i, "e1")
-        # 4. Mach lockout
-        lift = (ev & _LIFTOFF) != 0
-        lockout = baro_ok & lift & (x2 > vlo) & (x2 < vhi) & ((e1 > me) | (e1 < -me))
-        ev = np.where(lockout, ev | _MACH, ev)
+        # 4. Mach lockout: kalman_accel only (kalman_baro has no other measurement to run on meanwhile)
+        if accel:
+            lift = (ev & _LIFTOFF) != 0
+            lockout = baro_ok & lift & (x2 > vlo) & (x2 < vhi) & ((e1 > me) | (e1 < -me))
+            ev = np.where(lockout, ev | _MACH, ev)
+        else:
+            lockout = np.zeros(n_streams, dtype=bool)
         # 5. accelerometer innovation
         if accel:
             a = tr.mulg(acc[:, i] - acc0, acc_g, mode, i, "mulg(acc,ACC_G)")

@@ -36,6 +36,7 @@ _APOGEE = EVENT_BITS["APOGEE"]
 _MACH = EVENT_BITS["MACH_LOCKOUT"]
 _BARO_INVALID = EVENT_BITS["BARO_INVALID"]
 _PREDICTED = EVENT_BITS["APOGEE_PREDICTED"]
+_GATE_HIGH = EVENT_BITS["GATE_HIGH"]
 
 
 @dataclass
@@ -139,7 +140,8 @@ def _mirror_recursive(consts: "FirmwareConstants", adc: np.ndarray, acc: np.ndar
     for i in range(n):
         vel = vel + (acc[:, i] - acc0)
         ev = np.where(((ev & _LIFTOFF) == 0) & (vel > consts.V_LIFT), ev | _LIFTOFF, ev)
-        ev = np.where(((ev & _LIFTOFF) != 0) & ((ev & _ARMED) == 0) & (vel < consts.V_GATE), ev | _ARMED, ev)
+        ev = np.where(((ev & _GATE_HIGH) != 0) & ((ev & _ARMED) == 0) & (vel < consts.V_GATE), ev | _ARMED, ev)
+        ev = np.where(((ev & _LIFTOFF) != 0) & (vel > consts.V_GATE), ev | _GATE_HIGH, ev)
         est = est + z[:, i] * 256.0 * x - est * x
         up = est > ext
         ext = np.where(up, est, ext)
@@ -177,7 +179,7 @@ def _mirror_kalman(consts: "FirmwareConstants", g: dict[str, float], adc: np.nda
         e1 = z8[:, i] - x1
         lift = (ev & _LIFTOFF) != 0
         lockout = (baro_ok & lift & (x2 > consts.MACH_VLO) & (x2 < consts.MACH_VHI)
-                   & ((e1 > consts.MACH_E) | (e1 < -consts.MACH_E)))
+                   & ((e1 > consts.MACH_E) | (e1 < -consts.MACH_E)) & accel)   # kalman_accel only
         ev = np.where(lockout, ev | _MACH, ev)
         e2 = (acc[:, i] - acc0) * g["ACC_G"] - x3 if accel else 0.0
         use1 = baro_ok & ~lockout

@@ -26,9 +26,11 @@ EVENT_BITS: dict[str, int] = {
     "MACH_LOCKOUT": 1 << 3,
     "BARO_INVALID": 1 << 4,
     "APOGEE_PREDICTED": 1 << 5,
+    "GATE_HIGH": 1 << 6,
 }
-#: Bits that stay set once set.
-LATCHED_EVENTS: int = EVENT_BITS["LIFTOFF"] | EVENT_BITS["ARMED"] | EVENT_BITS["APOGEE"] | EVENT_BITS["APOGEE_PREDICTED"]
+#: Bits that stay set once set (all but the per-sample MACH_LOCKOUT and BARO_INVALID).
+LATCHED_EVENTS: int = (EVENT_BITS["LIFTOFF"] | EVENT_BITS["ARMED"] | EVENT_BITS["APOGEE"]
+                       | EVENT_BITS["APOGEE_PREDICTED"] | EVENT_BITS["GATE_HIGH"])
 
 
 def word_names(program: str) -> tuple[str, ...]:

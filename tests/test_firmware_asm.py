@@ -215,8 +215,8 @@ def test_firmware_sources_assemble(program: str, rounding: str) -> None:
 # step on the emulated CPU and check it against docs/firmware-spec.md §5/§6 written out below as a one-step
 # oracle with Python integers.
 
-LIFTOFF, ARMED, APOGEE, MACH, INVALID, PRED = 1, 2, 4, 8, 16, 32
-LATCHED = LIFTOFF | ARMED | APOGEE | PRED
+LIFTOFF, ARMED, APOGEE, MACH, INVALID, PRED, GATE_HIGH = 1, 2, 4, 8, 16, 32, 64
+LATCHED = LIFTOFF | ARMED | APOGEE | PRED | GATE_HIGH
 
 
 def _mulg_exact(e: int, m: int, s: int, half_up: bool) -> int:
@@ -224,7 +224,7 @@ def _mulg_exact(e: int, m: int, s: int, half_up: bool) -> int:
 
 
 def spec_kalman_step(c: object, st: dict[str, int], adc: int, acc: int) -> dict[str, int]:
-    """docs/firmware-spec.md §6 step 1-10, one sample, exact integers."""
+    """docs/firmware-spec.md §6 step 1-10, one sample, exact integers (Mach lockout: kalman_accel only)."""
     h = bool(c.ROUND)
     K = c.K
     x1, x2, x3 = st["X1"], st["X2"], st["X3"]
@@ -238,11 +238,12 @@ def spec_kalman_step(c: object, st: dict[str, int], adc: int, acc: int) -> dict[
     if not ok:
         ev |= INVALID
     e1 = wrap32(z8 - x1)
-    lock = ok and bool(ev & LIFTOFF) and c.MACH_VLO < x2 < c.MACH_VHI and (e1 > c.MACH_E or e1 < -c.MACH_E)
-    if lock:
-        ev |= MACH
     g = {name: (q.m, q.s) for name, q in c.gains.items()}
     accel = "ACC_G" in g
+    lock = (accel and ok and bool(ev & LIFTOFF) and c.MACH_VLO < x2 < c.MACH_VHI
+            and (e1 > c.MACH_E or e1 < -c.MACH_E))
+    if lock:
+        ev |= MACH
     e2 = wrap32(_mulg_exact(acc - st["ACC0"], *g["ACC_G"], h) - x3) if accel else 0
     xs = [x1, x2, x3]
     for i in range(3):
@@ -276,8 +277,10 @@ def spec_recursive_step(c: object, st: dict[str, int], adc: int, acc: int) -> di
     vel = wrap32(st["VEL"] + (acc - st["ACC0"]))
     if not ev & LIFTOFF and vel > c.V_LIFT:
         ev |= LIFTOFF
-    if ev & LIFTOFF and not ev & ARMED and vel < c.V_GATE:
+    if ev & GATE_HIGH and not ev & ARMED and vel < c.V_GATE:      # 3a (GATE_HIGH from an earlier sample)
         ev |= ARMED
+    if ev & LIFTOFF and vel > c.V_GATE:                              # 3b
+        ev |= GATE_HIGH
     est = wrap32(st["EST"] + ((c.BARO_SIGN * adc) << (8 - c.S)) - rs_exact(st["EST"], c.S, h))
     ext = st["EXT"]
     if est > ext:
@@ -340,7 +343,8 @@ def test_kalman_one_step_boundaries(program: str, k: int, rounding: str, data: s
                               st.integers(0, 65535)), label="adc")
     acc0 = data.draw(st.integers(-32768, 32767), label="ACC0")
     acc = data.draw(st.one_of(st.just(acc0), st.integers(-32768, 32767)), label="acc")
-    events = data.draw(st.sampled_from((0, LIFTOFF, LIFTOFF | APOGEE, LIFTOFF | PRED, LIFTOFF | MACH | INVALID)),
+    events = data.draw(st.sampled_from((0, LIFTOFF, LIFTOFF | APOGEE, LIFTOFF | PRED, LIFTOFF | MACH | INVALID,
+                                        LIFTOFF | GATE_HIGH)),
                        label="EVENTS")
     x3 = data.draw(st.one_of(st.just(0), _near(0, -(1 << (15 + k)), -(1 << 30), INT32_MIN, INT32_MAX)), label="X3")
     mode = data.draw(st.sampled_from(("window", "predict", "free")), label="mode")
@@ -367,7 +371,9 @@ def test_kalman_one_step_boundaries(program: str, k: int, rounding: str, data: s
 @settings(max_examples=examples(100))
 @given(k=st.sampled_from((4, 6, 8)), rounding=st.sampled_from(("floor", "half_up")), data=st.data())
 def test_recursive_one_step_boundaries(k: int, rounding: str, data: st.DataObject) -> None:
-    """Liftoff and gate thresholds, EXT - EST == THR (also as an exact difference beyond 2^31)."""
+    """Liftoff and gate thresholds, EXT - EST == THR (also as an exact difference beyond 2^31), from every
+    reachable EVENTS state (GATE_HIGH implies LIFTOFF, ARMED implies GATE_HIGH, APOGEE implies ARMED) and from
+    the unreachable ones that a corrupted RAM word could hold (the spec is total: each bit is tested as written)."""
     board = _board("recursive", k, rounding)
     c = board.build.consts
     h = bool(c.ROUND)
@@ -380,7 +386,10 @@ def test_recursive_one_step_boundaries(k: int, rounding: str, data: st.DataObjec
     est_new = wrap32(est + ((c.BARO_SIGN * adc) << (8 - c.S)) - rs_exact(est, c.S, h))
     ext = data.draw(st.one_of(_near(est_new + c.THR, est_new, INT32_MAX), st.integers(INT32_MIN, INT32_MAX)),
                     label="EXT")
-    events = data.draw(st.sampled_from((0, LIFTOFF, LIFTOFF | ARMED, LIFTOFF | ARMED | APOGEE)), label="EVENTS")
+    events = data.draw(st.one_of(
+        st.sampled_from((0, LIFTOFF, LIFTOFF | GATE_HIGH, LIFTOFF | GATE_HIGH | ARMED,
+                         LIFTOFF | GATE_HIGH | ARMED | APOGEE)),
+        st.sets(st.sampled_from((LIFTOFF, GATE_HIGH, ARMED, APOGEE))).map(sum)), label="EVENTS")
     state = {"EST": est, "EXT": ext, "VEL": vel, "ACC0": acc0, "EVENTS": events}
     got = board.step(dict(state), adc, acc)
     assert got == spec_recursive_step(c, dict(state), adc, acc), f"k={k} {rounding} state={state} adc={adc}"
@@ -391,11 +400,13 @@ def test_recursive_one_step_boundaries(k: int, rounding: str, data: st.DataObjec
 @pytest.mark.parametrize("program", ["kalman_baro", "kalman_accel"])
 def test_kalman_lockout_and_liftoff_exact_boundaries(program: str, k: int, rounding: str) -> None:
     """Every combination of X2 at/next to MACH_VLO, MACH_VHI, V_LIFT, 0 and e1 at/next to +-MACH_E, from the
-    pad and after liftoff, with an accelerometer at rest (e2 = -X3 = 0)."""
+    pad and after liftoff, with an accelerometer at rest (e2 = -X3 = 0). kalman_accel must lock out on some of
+    them; kalman_baro on none (spec §6 step 4: Mach lockout exists only in kalman_accel)."""
     board = _board(program, k, rounding)
     c = board.build.consts
     h = bool(c.ROUND)
     adc = 30000
+    locked = 0
     for events in (0, LIFTOFF):
         for x2 in sorted({c.MACH_VLO + d for d in (-1, 0, 1)} | {c.MACH_VHI + d for d in (-1, 0, 1)}
                          | {c.V_LIFT + d for d in (-1, 0, 1)} | {-1, 0, 1}):
@@ -405,7 +416,10 @@ def test_kalman_lockout_and_liftoff_exact_boundaries(program: str, k: int, round
                 state = {name: state[name] for name in board.build.variables}
                 want = spec_kalman_step(c, dict(state), adc, 123)
                 want = {name: want[name] for name in board.build.variables}
-                assert board.step(dict(state), adc, 123) == want, f"{program} k={k} {rounding} state={state}"
+                got = board.step(dict(state), adc, 123)
+                assert got == want, f"{program} k={k} {rounding} state={state}"
+                locked += bool(got["EVENTS"] & MACH)
+    assert (locked > 0) == (program == "kalman_accel"), f"{program}: {locked} lockouts"
 
 
 @pytest.mark.parametrize("rounding", ["floor", "half_up"])

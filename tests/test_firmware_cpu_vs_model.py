@@ -123,6 +123,8 @@ LOW_MACH = dict(mach_lo_mps=40.0, mach_hi_mps=100.0, mach_innov_m=20.0, baro_max
 LOW_MACH_FLIGHT = FlightParams(boost_accel_g=12.0, burn_s=1.0, transonic_error_m=40.0,
                                transonic_band_mps=(50.0, 90.0), after_apogee_s=1.5)
 KALMAN_EVENTS = ("LIFTOFF", "APOGEE", "MACH_LOCKOUT", "BARO_INVALID", "APOGEE_PREDICTED")
+#: Bits a program never sets (spec §4-§6): Mach lockout exists only in kalman_accel.
+NEVER_SET = {"kalman_baro": ("MACH_LOCKOUT", "ARMED", "GATE_HIGH"), "kalman_accel": ("ARMED", "GATE_HIGH")}
 
 
 @pytest.mark.parametrize("program", KALMAN)
@@ -131,17 +133,16 @@ KALMAN_EVENTS = ("LIFTOFF", "APOGEE", "MACH_LOCKOUT", "BARO_INVALID", "APOGEE_PR
 def test_cpu_equals_model_flights_all_kalman_events(program: str, k: int, rounding: str) -> None:
     """Two flights per build, CPU == model on every sample of both: (a) a barometer error inside a (lowered) Mach
     window plus samples above BARO_MAX; (b) clean flights with the default config. Together they must set every
-    Kalman event bit (so the whole flight logic is compared, not just the filter), and APFRAC must be written.
-
-    (The barometer-only filter often misses apogee in (a): during lockout it gets no correction at all, so X2
-    coasts on a stale X3. That is the spec's algorithm, identical on both sides; (b) covers apogee.)"""
+    event bit of the program (kalman_accel: all Kalman bits; kalman_baro: all but MACH_LOCKOUT, which it must
+    never set), so the whole flight logic is compared, not just the filter, and APFRAC must be written."""
     s = synthetic_flight(k, seed=k, params=LOW_MACH_FLIGHT)
     adc = s.adc.copy()
     adc[len(adc) // 3::97] = 65535              # over-range glitches: BARO_INVALID
     glitchy = assert_same(_cfg(program, k, rounding, **LOW_MACH), adc, s.acc)
     events = int(np.bitwise_or.reduce(glitchy.column("EVENTS")))
     apfrac = int(glitchy.column("APFRAC").max())
-    want = sum(EVENT_BITS[bit] for bit in KALMAN_EVENTS)
+    expected = [bit for bit in KALMAN_EVENTS if bit not in NEVER_SET[program]]
+    want = sum(EVENT_BITS[bit] for bit in expected)
     # Apogee prediction needs 0 < X2 < -rs(X3, K) on some sample, which noise can jump over (at k = 4 the
     # per-sample velocity step is ~0.6 m/s): up to 8 seeded clean flights, stopping when every event was seen.
     for seed in range(k + 1, k + 9):
@@ -151,20 +152,25 @@ def test_cpu_equals_model_flights_all_kalman_events(program: str, k: int, roundi
         clean = assert_same(_cfg(program, k, rounding), f.adc, f.acc)
         events |= int(np.bitwise_or.reduce(clean.column("EVENTS")))
         apfrac = max(apfrac, int(clean.column("APFRAC").max()))
-    for bit in KALMAN_EVENTS:
+    for bit in expected:
         assert events & EVENT_BITS[bit], f"{program} k={k} {rounding}: the flights never set {bit}"
+    for bit in NEVER_SET[program]:
+        assert not events & EVENT_BITS[bit], f"{program} k={k} {rounding}: {bit} must never be set"
     assert apfrac > 0
 
 
 @pytest.mark.parametrize("rounding", ROUNDINGS)
 @pytest.mark.parametrize("k", KS)
 def test_cpu_equals_model_recursive_flight_all_events(k: int, rounding: str) -> None:
-    """A subsonic flight for the recursive filter: LIFTOFF, ARMED and APOGEE must all occur."""
+    """A subsonic flight for the recursive filter: LIFTOFF, GATE_HIGH, ARMED and APOGEE must all occur, in that
+    order (ARMED strictly after GATE_HIGH: the velocity came back below the gate)."""
     s = synthetic_flight(k, seed=100 + k, params=FlightParams(after_apogee_s=2.0))
     cpu = assert_same(_cfg("recursive", k, rounding, threshold_q8=128), s.adc, s.acc)
     events = np.bitwise_or.reduce(cpu.column("EVENTS"))
-    for bit in ("LIFTOFF", "ARMED", "APOGEE"):
+    for bit in ("LIFTOFF", "GATE_HIGH", "ARMED", "APOGEE"):
         assert events & EVENT_BITS[bit], f"recursive k={k} {rounding}: the flight never set {bit}"
+    order = [cpu.first_event(bit) for bit in ("LIFTOFF", "GATE_HIGH", "ARMED", "APOGEE")]
+    assert order == sorted(set(order)), f"recursive k={k} {rounding}: first samples {order}"
 
 
 @pytest.mark.parametrize("program", PROGRAMS)

@@ -241,3 +241,65 @@ def test_wrap_detected_outside_the_design_range():
     tr = run_model(consts, adc)
     assert tr.any_wrap and tr.first_wrap >= 5
     assert tr.wrap_word in ("X1", "X2", "X3", "e1") or tr.wrap_word.startswith("mulg")
+
+
+# ---------------------------------------------------------------------------------------------------- transonic flight
+# Spec §6 step 4 (history: kalman_baro used to lock out too; with no other measurement X2/X3 then coasted on a stale
+# estimate, and on the committed transonic vector flight (k = 4) X2 sat just under MACH_VHI from sample ~200 to the
+# end: apogee was never declared). The transonic flight of the committed vectors: 14 g for 2.5 s, peak ~307 m/s,
+# the barometer reads 60 m high while the true speed is in 290..375 m/s (a step up entering, down leaving).
+def _fast_flight(program: str, k: int, rounding: str, error_m: float = 60.0):
+    from firmware_model.inputs import synthetic_flight, true_trajectory
+    from firmware_model.vectors import FAST_FLIGHT_SEED, case_config, flight_params_for
+
+    cfg = case_config(program, rounding, k, 16)
+    p = dataclasses.replace(flight_params_for(cfg, fast=True), transonic_error_m=error_m)
+    s = synthetic_flight(k, 16, FAST_FLIGHT_SEED, p)
+    _, speed, _ = true_trajectory(k, p)
+    lo, hi = p.transonic_band_mps
+    band = np.flatnonzero((speed > lo) & (speed < hi))
+    return run_model(build_constants(cfg), s.adc, s.acc), s, band
+
+
+@pytest.mark.parametrize("rounding", ["floor", "half_up"])
+@pytest.mark.parametrize("k", [4, 5, 6, 7, 8])
+def test_kalman_baro_transonic_flight_declares_apogee_without_lockout(k, rounding):
+    """kalman_baro never sets MACH_LOCKOUT and declares apogee; the transonic barometer error moves the
+    detection by at most 2 samples against the same flight without it (the 60 m step is corrected long before
+    apogee); for k >= 5 the detection is within 0.5 s of the true apogee (measured: +13, -6, -8, +6 samples at
+    k = 5..8). k = 4 is excluded from the truth window, not from the rest: at 16 samples/s the default R/q =
+    50,000 makes the filter so slow that its velocity overshoots and then undershoots (apogee 74 samples =
+    4.6 s early with or without the transonic error; a tuning limit, docs/firmware-spec.md §6 history)."""
+    tr, s, band = _fast_flight("kalman_baro", k, rounding)
+    assert band.size > 0
+    ev = tr.column("EVENTS")
+    assert not (ev & EVENT_BITS["MACH_LOCKOUT"]).any()
+    apogee = tr.first_event("APOGEE")
+    assert apogee > band.max(), (apogee, band.max())
+    clean, _, _ = _fast_flight("kalman_baro", k, rounding, error_m=0.0)
+    assert abs(apogee - clean.first_event("APOGEE")) <= 2
+    if k >= 5:
+        assert abs(apogee - s.truth["apogee_sample"]) * 2.0 ** -k <= 0.5, (apogee, s.truth)
+
+
+@pytest.mark.parametrize("rounding", ["floor", "half_up"])
+@pytest.mark.parametrize("k", [5, 6, 7, 8])
+def test_kalman_accel_transonic_flight_locks_out_in_the_window_and_declares_apogee(k, rounding):
+    """kalman_accel locks out on the barometer's steps entering and leaving the transonic band: MACH_LOCKOUT is
+    set at least twice, only on samples from the first band sample to 2 samples after the last (the step is
+    seen one sample late at most), and apogee is declared after the lockouts, within 2 samples of the same flight
+    without the transonic error. (At k = 4 the filter's X2 is still below MACH_VLO while the true speed is in the
+    band, so nothing locks out there.) Against the truth the detection leads by 28..273 samples (k = 4..8; ~1 s
+    at k >= 7) with or without the transonic error: not a lockout effect (docs/firmware-spec.md §6 history);
+    bounded here at 1.25 s early and never late."""
+    tr, s, band = _fast_flight("kalman_accel", k, rounding)
+    locked = np.flatnonzero(tr.column("EVENTS") & EVENT_BITS["MACH_LOCKOUT"])
+    assert locked.size >= 2, locked
+    assert locked.min() >= band.min() and locked.max() <= band.max() + 2, (locked, band.min(), band.max())
+    assert locked.min() <= band.min() + 2 and locked.max() >= band.max(), (locked, band.min(), band.max())
+    apogee = tr.first_event("APOGEE")
+    assert apogee > locked.max()
+    clean, _, _ = _fast_flight("kalman_accel", k, rounding, error_m=0.0)
+    assert abs(apogee - clean.first_event("APOGEE")) <= 2
+    lead = (s.truth["apogee_sample"] - apogee) * 2.0 ** -k
+    assert 0.0 <= lead <= 1.25, lead

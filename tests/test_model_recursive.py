@@ -21,6 +21,7 @@ from firmware_model.constants import build_constants
 from firmware_model.errors import UserError
 from firmware_model.model import run_model
 from firmware_model.reference import ideal_recursive, mirror
+from firmware_model.trace import EVENT_BITS
 from profiles import examples
 
 FLOAT_SLACK = 1e-6  # float64 round-off of the mirror (|EST| < 2^25, 2^-52 relative, a few thousand steps)
@@ -155,3 +156,74 @@ def test_many_streams_equal_one_by_one():
 def test_bad_input_is_a_user_error(adc, acc, msg):
     with pytest.raises(UserError, match=msg):
         run_model(_consts(), adc, acc)
+
+
+# ---------------------------------------------------------------------------------------------------- flight logic
+# Spec §5 step 3 (history: before the fix ARMED latched on the LIFTOFF sample because V_LIFT < V_GATE, so the gate
+# did nothing). Seed 000 "Algorithm Testing": apogee detection is enabled ("Velocity Gate Off") once the
+# accelerometer velocity has come back DOWN below ~200 ft/s after burnout.
+FLIGHT_SEEDS = (20240601, 1, 2, 3)     # the committed vector flight's seed and three more
+
+
+def _flights(k: int, seeds=FLIGHT_SEEDS, **params):
+    from firmware_model.inputs import FlightParams, synthetic_flight, true_trajectory
+
+    p = FlightParams(**params)
+    streams = [synthetic_flight(k, 16, seed, p) for seed in seeds]
+    h, v, apogee_s = true_trajectory(k, p)
+    return p, streams, v
+
+
+@pytest.mark.parametrize("rounding", ["floor", "half_up"])
+@pytest.mark.parametrize("k", [4, 5, 6, 7, 8])
+def test_recursive_gate_arms_after_the_velocity_peak_and_apogee_is_near_truth(k, rounding):
+    """On synthetic subsonic flights (peak ~76 m/s, gate 61 m/s, liftoff 30 m/s; default config):
+
+    * LIFTOFF < GATE_HIGH < ARMED (strictly), GATE_HIGH is the first sample after liftoff with VEL > V_GATE and
+      ARMED the first sample after GATE_HIGH with VEL < V_GATE (the definition, checked on the VEL column);
+    * physically: ARMED falls after burnout, before the true apogee, while the TRUE speed is within 1.5 m/s of
+      the 61 m/s gate (the accelerometer velocity is exact up to noise and rounding of the counts scale);
+    * APOGEE is declared in the window [true - 0.1 s, true + 2^S samples + 0.25 s]: the filter's delay on a
+      ramp is 2^S - 1 samples; then EST must fall THR (1/4 count, ~0.07 m) below its maximum, which near apogee
+      takes ~0.12 s (h = g t^2 / 2), and barometer noise (2 counts rms, ~0.25 count after the filter) can move
+      the crossing either way. Measured over these flights: +3 .. +46 samples (k = 8: 0.01 .. 0.18 s).
+    """
+    consts = _consts(k=k, rounding=rounding)
+    p, streams, v_true = _flights(k)
+    adc = np.stack([s.adc for s in streams])
+    acc = np.stack([s.acc for s in streams])
+    tr = run_model(consts, adc, acc)
+    dt = 2.0 ** -k
+    burnout = (p.pad_s + p.burn_s) / dt
+    for j, s in enumerate(streams):
+        vel = tr.column("VEL")[j]
+        ev = tr.column("EVENTS")[j]
+        first = {b: int(np.argmax(ev & EVENT_BITS[b])) if (ev & EVENT_BITS[b]).any() else -1
+                 for b in ("LIFTOFF", "GATE_HIGH", "ARMED", "APOGEE")}
+        lift, high, armed, apogee = (first[b] for b in ("LIFTOFF", "GATE_HIGH", "ARMED", "APOGEE"))
+        where = f"k={k} {rounding} seed={s.provenance['seed']} {first}"
+        assert 0 <= lift < high < armed < apogee, where
+        assert high == lift + int(np.argmax(vel[lift:] > consts.V_GATE)), where
+        assert vel[:high].max() <= consts.V_GATE and vel[high] > consts.V_GATE, where
+        assert armed == high + 1 + int(np.argmax(vel[high + 1:] < consts.V_GATE)), where
+        assert vel[high:armed].min() >= consts.V_GATE and vel[high:armed].max() > consts.V_GATE, where
+        assert burnout < armed < s.truth["apogee_sample"], where
+        assert abs(v_true[armed] - 61.0) <= 1.5, (where, v_true[armed])
+        lag = (apogee - s.truth["apogee_sample"]) * dt
+        assert -0.1 <= lag <= 2 ** consts.S * dt + 0.25, (where, lag)
+
+
+def test_recursive_flight_below_the_gate_is_never_armed():
+    """The documented limitation (spec §5): a flight whose accelerometer velocity never exceeds V_GATE (here a
+    4 g boost for 1.2 s, peak ~45 m/s: above the 30 m/s liftoff, below the 61 m/s gate) lifts off but is never
+    armed, so this program never declares apogee; the same flight with the gate at 40 m/s is armed and is."""
+    from firmware_model.inputs import FlightParams, synthetic_flight
+
+    s = synthetic_flight(6, 16, 5, FlightParams(boost_accel_g=4.0, burn_s=1.2))
+    assert 40.0 < s.truth["max_speed_mps"] < 55.0
+    tr = run_model(_consts(k=6), s.adc, s.acc)
+    assert tr.first_event("LIFTOFF") >= 0
+    for bit in ("GATE_HIGH", "ARMED", "APOGEE"):
+        assert tr.first_event(bit) == -1, bit
+    low = run_model(_consts(k=6, gate_mps=40.0), s.adc, s.acc)
+    assert 0 <= low.first_event("GATE_HIGH") < low.first_event("ARMED") < low.first_event("APOGEE")

@@ -4,8 +4,10 @@
 *
 *   EST += (z << (8-S)) - rs(EST, S)          EST is Q24.8; weight 2^-S
 *   VEL += acc - ACC0                          velocity in accel counts x samples (ACC0 = pad reading = 1 g)
-*   LIFTOFF when VEL > V_LIFT; ARMED when (after liftoff) VEL < V_GATE;
-*   EXT follows the maximum of EST; APOGEE when armed and EXT - EST >= THR.
+*   LIFTOFF when VEL > V_LIFT; GATE_HIGH when (after liftoff) VEL > V_GATE; ARMED when, on a later sample,
+*   VEL has come back below V_GATE ("Velocity Gate Off": apogee detection enabled once the accelerometer velocity
+*   is below ~200 ft/s after burnout); EXT follows the maximum of EST; APOGEE when armed and EXT - EST >= THR.
+*   A flight whose VEL never exceeds V_GATE is never armed: this program then never declares apogee.
 *
 * Contract: docs/firmware-spec.md section 5.  Constants (S, THR, V_LIFT, V_GATE, ROUND, BARO_SIGN) come from the
 * build.  Entry points: init, step (JSR/RTS).  Uses D0-D4, D7; no stack beyond the return address.
@@ -38,7 +40,7 @@ init    READZS  d0,8                    ; z << 8
 *****************************************************************************************************************
 * step -- one sample.  Register use: d1 = VEL, d2 = EST, d7 = EVENTS, d4 = 0 (rounding), d0/d3 scratch.
 * The only per-sample event bits (MACH_LOCKOUT, BARO_INVALID) are never set by this program, so EVENTS is not
-* masked at entry.
+* masked at entry.  Event bits used: LIFTOFF, GATE_HIGH, ARMED, APOGEE (all latched).
 *****************************************************************************************************************
 step    move.w  (ACCEL_ADC).w,d1
         ext.l   d1
@@ -50,19 +52,27 @@ step    move.w  (ACCEL_ADC).w,d1
 *---- 2. liftoff: not LIFTOFF and VEL > V_LIFT ----------------------------------------------------------------------
         moveq   #EV_LIFTOFF,d0
         and.w   d7,d0
-        bne.s   .lifted
+        bne.s   .gate
         cmpi.l  #V_LIFT,d1
-        ble.s   .est                    ; still on the pad: nothing else can be armed
+        ble.s   .gate
         ori.w   #EV_LIFTOFF,d7
-.lifted
-*---- 3. velocity gate: LIFTOFF and not ARMED and VEL < V_GATE -----------------------------------------------------
-        moveq   #EV_LIFTOFF|EV_ARMED,d0
+*---- 3a. GATE_HIGH and not ARMED and VEL < V_GATE: set ARMED -------------------------------------------------------
+*     (GATE_HIGH as it was before 3b of this sample: the sample that sets GATE_HIGH cannot also set ARMED)
+.gate   moveq   #EV_GATE_HIGH|EV_ARMED,d0
         and.w   d7,d0
-        subq.w  #EV_LIFTOFF,d0          ; zero only for "LIFTOFF and not ARMED"
-        bne.s   .est
+        cmpi.w  #EV_GATE_HIGH,d0        ; equal only for "GATE_HIGH and not ARMED"
+        bne.s   .gateb
         cmpi.l  #V_GATE,d1
-        bge.s   .est
+        bge.s   .est                    ; VEL >= V_GATE: 3b could only set GATE_HIGH again
         ori.w   #EV_ARMED,d7
+        bra.s   .est                    ; VEL < V_GATE: 3b cannot fire
+*---- 3b. LIFTOFF and VEL > V_GATE: set GATE_HIGH -------------------------------------------------------------------
+.gateb  moveq   #EV_LIFTOFF,d0
+        and.w   d7,d0
+        beq.s   .est
+        cmpi.l  #V_GATE,d1
+        ble.s   .est
+        ori.w   #EV_GATE_HIGH,d7
 
 *---- 4. EST = EST + (z << (8-S)) - rs(EST, S) ---------------------------------------------------------------------
 .est    READZS  d0,8-S                  ; z << (8-S): the ADC lined up with EST's binary point, divided by 2^S

@@ -91,9 +91,13 @@ static void step_recursive(const fw_consts *c, fw_state *st, uint16_t adc, int16
     if (!(st->EVENTS & FW_EV_LIFTOFF) && st->VEL > c->V_LIFT) {
         st->EVENTS |= FW_EV_LIFTOFF;
     }
-    /* 3. velocity gate */
-    if ((st->EVENTS & FW_EV_LIFTOFF) && !(st->EVENTS & FW_EV_ARMED) && st->VEL < c->V_GATE) {
+    /* 3. velocity gate: a. armed when VEL is back below the gate (GATE_HIGH from an earlier sample);
+          b. GATE_HIGH once VEL exceeds the gate after liftoff */
+    if ((st->EVENTS & FW_EV_GATE_HIGH) && !(st->EVENTS & FW_EV_ARMED) && st->VEL < c->V_GATE) {
         st->EVENTS |= FW_EV_ARMED;
+    }
+    if ((st->EVENTS & FW_EV_LIFTOFF) && st->VEL > c->V_GATE) {
+        st->EVENTS |= FW_EV_GATE_HIGH;
     }
     /* 4. EST += (z << (8 - S)) - rs(EST, S) */
     st->EST = fw_wrap32((int64_t)st->EST + ls(z, 8 - c->S) - fw_rs(st->EST, c->S, c->ROUND));
@@ -136,9 +140,9 @@ static void step_kalman(const fw_consts *c, fw_state *st, uint16_t adc, int16_t 
     }
     /* 3. innovation */
     e1 = fw_wrap32(z8 - (int64_t)st->X1);
-    /* 4. Mach lockout */
-    lockout = baro_ok && (st->EVENTS & FW_EV_LIFTOFF) && c->MACH_VLO < st->X2 && st->X2 < c->MACH_VHI
-              && ((int64_t)e1 > (int64_t)c->MACH_E || (int64_t)e1 < -(int64_t)c->MACH_E);
+    /* 4. Mach lockout: kalman_accel only (the barometer-only filter has nothing to run on meanwhile) */
+    lockout = with_accel && baro_ok && (st->EVENTS & FW_EV_LIFTOFF) && c->MACH_VLO < st->X2
+              && st->X2 < c->MACH_VHI && ((int64_t)e1 > (int64_t)c->MACH_E || (int64_t)e1 < -(int64_t)c->MACH_E);
     if (lockout) {
         st->EVENTS |= FW_EV_MACH_LOCKOUT;
     }

@@ -24,11 +24,12 @@ typedef enum {
 
 /* Event bits of the EVENTS word (docs/firmware-spec.md section 4). */
 #define FW_EV_LIFTOFF          0x0001u /* latched */
-#define FW_EV_ARMED            0x0002u /* latched (recursive: velocity gate passed) */
+#define FW_EV_ARMED            0x0002u /* latched (recursive: VEL back below V_GATE after GATE_HIGH) */
 #define FW_EV_APOGEE           0x0004u /* latched */
 #define FW_EV_MACH_LOCKOUT     0x0008u /* this sample only */
 #define FW_EV_BARO_INVALID     0x0010u /* this sample only */
 #define FW_EV_APOGEE_PREDICTED 0x0020u /* latched */
+#define FW_EV_GATE_HIGH        0x0040u /* latched (recursive: VEL has exceeded V_GATE since liftoff) */
 #define FW_EV_PER_SAMPLE       (FW_EV_MACH_LOCKOUT | FW_EV_BARO_INVALID)
 
 /* A quantized gain g = m / 2^s: m signed 16-bit mantissa, 0 <= s <= 47. */
@@ -49,7 +50,7 @@ typedef struct {
     fw_gain G11, G21, G31; /* Kalman gains on the barometer innovation */
     fw_gain G12, G22, G32; /* kalman_accel gains on the accelerometer innovation */
     fw_gain ACC_G;         /* accelerometer counts -> Q24.8 units/s^2 */
-    int32_t MACH_VLO;   /* Mach-lockout window, Q24.8 units/s (exclusive bounds) */
+    int32_t MACH_VLO;   /* Mach-lockout window (kalman_accel only), Q24.8 units/s (exclusive bounds) */
     int32_t MACH_VHI;
     int32_t MACH_E;     /* Mach-lockout innovation magnitude, Q24.8 units */
     int32_t BARO_MIN;   /* valid raw ADC range, inclusive */
