@@ -108,7 +108,7 @@ def case_config(program: str, rounding: str, k: int, bits: int) -> BuildConfig:
 def flight_params_for(cfg: BuildConfig, fast: bool = False) -> FlightParams:
     """The synthetic flight's sensor parameters matching ``cfg`` (same counts/metre, noise, baro sign).
     ``fast``: a transonic flight (14 g for 2 s, peak ~300 m/s, with a 60 m barometer error in 290..375 m/s) that
-    exercises the Mach lockout."""
+    exercises the Mach lockout of kalman_accel (kalman_baro has none: docs/firmware-spec.md §6)."""
     sensors = dict(units_per_metre=cfg.units_per_metre, baro_sign=cfg.baro_sign, baro_sigma=cfg.baro_sigma,
                    accel_counts_per_mps2=cfg.accel_counts_per_mps2, accel_sigma=cfg.accel_sigma)
     if fast:
