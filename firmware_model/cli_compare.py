@@ -11,17 +11,14 @@ constant-acceleration input (docs/numerics.md, "Floor bias").
 from __future__ import annotations
 
 import argparse
-import csv
-import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from firmware_model.config import PROGRAMS, ROUNDINGS, BuildConfig
-from firmware_model.errors import UserError
+from firmware_model.inputs import flight_params_for, read_stream_csv, synthetic_flight
 
-G0 = 9.80665
 
 
 def register(subparsers: Any) -> None:
@@ -38,62 +35,6 @@ def register(subparsers: Any) -> None:
     src.add_argument("--bias-table", action="store_true",
                      help="print the floor-vs-half_up Kalman velocity bias table for k = 5..8 and exit")
     p.set_defaults(func=run)
-
-
-# ---------------------------------------------------------------------------------------------------- inputs
-def read_csv(path: Path) -> tuple[np.ndarray, np.ndarray | None]:
-    """Read ``adc`` (and optional ``acc``) integer columns from a CSV with a header; errors name file and line."""
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise UserError(f"{path}: no such input file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise UserError(f"{path}: cannot read: {exc}") from None
-    rows = list(csv.reader(text.splitlines()))
-    if not rows:
-        raise UserError(f"{path}: empty file")
-    header = [h.strip().lower() for h in rows[0]]
-    if "adc" not in header:
-        raise UserError(f"{path}:1: missing 'adc' column (header: {', '.join(header)})")
-    ia = header.index("adc")
-    ic = header.index("acc") if "acc" in header else None
-    adc, acc = [], []
-    for lineno, row in enumerate(rows[1:], start=2):
-        if not row or all(not c.strip() for c in row):
-            continue
-        try:
-            adc.append(int(row[ia]))
-            if ic is not None:
-                acc.append(int(row[ic]))
-        except (ValueError, IndexError):
-            raise UserError(f"{path}:{lineno}: expected integer adc/acc values, got {row!r}") from None
-    if not adc:
-        raise UserError(f"{path}: no samples")
-    return np.array(adc, dtype=np.int64), (np.array(acc, dtype=np.int64) if ic is not None else None)
-
-
-def synthetic_flight(cfg: BuildConfig, seed: int) -> tuple[np.ndarray, np.ndarray, int]:
-    """A deterministic quick flight for ``cfg``: 1 s pad, 2 s boost at 6 g, drag-free coast, 4 s of descent
-    (barometer noise ``baro_sigma`` counts, accelerometer noise ``accel_sigma`` counts). Returns ``(adc, acc,
-    true apogee sample)``."""
-    rng = np.random.default_rng(seed)
-    dt = cfg.dt
-    t_pad, t_burn, a_b = 1.0, 2.0, 6.0 * G0
-    v_b = (a_b - G0) * t_burn
-    t_ap = t_pad + t_burn + v_b / G0
-    n = int((t_ap + 4.0) / dt)
-    t = np.arange(n) * dt
-    tb = np.clip(t - t_pad, 0.0, t_burn)
-    tc = np.clip(t - t_pad - t_burn, 0.0, None)
-    h = 0.5 * (a_b - G0) * tb ** 2 + v_b * tc - 0.5 * G0 * tc ** 2
-    spec = np.where(t < t_pad, G0, np.where(t < t_pad + t_burn, a_b, 0.0))
-    full = (1 << cfg.baro_bits) - 1
-    centre = full / 2 - cfg.baro_sign * min(h.max() * cfg.units_per_metre, full) / 2
-    adc = np.clip(np.round(centre + cfg.baro_sign * h * cfg.units_per_metre + rng.normal(0, cfg.baro_sigma, n)),
-                  0, full).astype(np.int64)
-    acc = np.clip(np.round(spec * cfg.accel_counts_per_mps2 + rng.normal(0, cfg.accel_sigma, n)),
-                  -32768, 32767).astype(np.int64)
-    return adc, acc, int(round(t_ap / dt))
 
 
 # ---------------------------------------------------------------------------------------------------- statistics
@@ -203,28 +144,14 @@ def run(args: argparse.Namespace) -> int:
     else:
         cfg = BuildConfig(program=args.program, k=args.k, rounding=args.rounding)
     if args.input is not None:
-        adc, acc = read_csv(args.input)
+        stream = read_stream_csv(args.input, cfg.baro_bits, cfg.k)
         true_ap = None
     else:
-        adc, acc, true_ap = synthetic_flight(cfg, 0 if args.synthetic is None else args.synthetic)
-    result = compare(cfg, adc, acc)
+        stream = synthetic_flight(cfg.k, cfg.baro_bits, 0 if args.synthetic is None else args.synthetic,
+                                  flight_params_for(cfg))
+        true_ap = stream.truth["apogee_sample"]
+    result = compare(cfg, stream.adc, stream.acc)
     print(format_report(cfg, result))
     if true_ap is not None:
         print(f"true apogee sample (synthetic): {true_ap}")
     return 0
-
-
-def main(argv: list[str] | None = None) -> int:
-    """Standalone entry (``python -m firmware_model.cli_compare``) for when ``fwemu`` does not list this module."""
-    parser = argparse.ArgumentParser(prog="fwemu")
-    register(parser.add_subparsers(dest="command", required=True))
-    args = parser.parse_args(["compare", *(sys.argv[1:] if argv is None else argv)])
-    try:
-        return int(args.func(args) or 0)
-    except UserError as exc:
-        print(f"fwemu: error: {exc}", file=sys.stderr)
-        return 2
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -24,6 +24,7 @@ import numpy as np
 from firmware_model.build import (ACCEL_ADC, BARO_ADC, IO_SIZE, IO_START, RAM_SIZE, RAM_START, ROM_SIZE, ROM_START,
                                   STACK_TOP, FirmwareBuild)
 from firmware_model.errors import UserError
+from firmware_model.inputs import as_input_streams
 from firmware_model.trace import Trace
 
 #: Default cycle limit of one ``init``/``step`` call: far above any real step (a few thousand clocks), low enough
@@ -42,29 +43,6 @@ class FirmwareTrace(Trace):
 
     stack_bytes: int = 0
     ram_written: int = 0
-
-
-def _as_streams(values: Any, name: str, lo: int, hi: int) -> np.ndarray:
-    """``values`` as an int64 array of shape (streams, n); raise :class:`UserError` naming the first bad value."""
-    try:
-        arr = np.asarray(values)
-    except Exception as exc:  # pragma: no cover - numpy rarely refuses
-        raise UserError(f"{name}: cannot convert to an array: {exc}") from None
-    if arr.ndim not in (1, 2):
-        raise UserError(f"{name}: expected shape (n,) or (streams, n), got {arr.shape}")
-    if arr.dtype.kind == "f":
-        if not np.all(np.isfinite(arr)) or np.any(arr != np.round(arr)):
-            bad = np.argwhere(~np.isfinite(arr) | (arr != np.round(arr)))[0]
-            raise UserError(f"{name}: sample {tuple(int(i) for i in bad)} = {arr[tuple(bad)]!r} is not an integer")
-    elif arr.dtype.kind not in "iub":
-        raise UserError(f"{name}: expected integers, got dtype {arr.dtype}")
-    arr2 = np.atleast_2d(arr.astype(np.int64))
-    out = (arr2 < lo) | (arr2 > hi)
-    if out.any():
-        s, i = (int(v) for v in np.argwhere(out)[0])
-        where = f"sample {i}" if arr.ndim == 1 else f"stream {s} sample {i}"
-        raise UserError(f"{name}: {where} = {int(arr2[s, i])} outside {lo}..{hi}")
-    return arr2
 
 
 class _Machine:
@@ -108,15 +86,7 @@ def run_firmware(build: FirmwareBuild, adc: Any, acc: Any = None, *,
     """
     if not isinstance(build, FirmwareBuild):
         raise UserError(f"run_firmware needs a FirmwareBuild (from build_firmware), got {type(build).__name__}")
-    adc2 = _as_streams(adc, "adc", 0, 0xFFFF)
-    if acc is None:
-        acc2 = np.zeros_like(adc2)
-    else:
-        acc2 = _as_streams(acc, "acc", -0x8000, 0x7FFF)
-        if acc2.shape != adc2.shape:
-            raise UserError(f"acc: shape {np.shape(acc)} differs from adc shape {np.shape(adc)}")
-    if adc2.shape[1] == 0:
-        raise UserError("adc: empty stream (at least one sample is needed: init reads sample 0)")
+    adc2, acc2 = as_input_streams(adc, acc)
     if not isinstance(max_cycles_per_call, int) or max_cycles_per_call <= 0:
         raise UserError(f"max_cycles_per_call={max_cycles_per_call!r} must be a positive integer")
     n_streams, n = adc2.shape

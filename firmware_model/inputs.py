@@ -16,12 +16,16 @@ descent); the full simulator with a thrust curve and Mach-dependent drag lives e
 
 from __future__ import annotations
 
+import csv
+import hashlib
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from firmware_model.config import BuildConfig
 from firmware_model.errors import UserError
 
 #: Standard gravity, m/s^2.
@@ -263,3 +267,116 @@ def synthetic_flight(k: int, bits: int = 16, seed: int = 0, params: FlightParams
     v = np.diff(h) / dt
     truth["max_speed_mps"] = round(float(v.max()), 3) if v.size else 0.0
     return Stream(name=name, adc=adc, acc=acc, k=k, bits=bits, provenance=prov, truth=truth)
+
+
+# ------------------------------------------------------------------------------------ validation and user files
+def as_input_streams(adc: Any, acc: Any = None) -> tuple[np.ndarray, np.ndarray]:
+    """Validate barometer and accelerometer samples as the firmware's 16-bit input registers hold them and return
+    them as int64 arrays of shape ``(streams, n)``.
+
+    ``adc``: integers 0..65535 (raw counts), shape ``(n,)`` or ``(streams, n)``; ``acc``: integers -32768..32767
+    (counts), the same shape, ``None`` = all zero. Raises :class:`UserError` naming the array, the (stream and)
+    sample and the value: wrong shape, empty stream, non-integer or out-of-range samples."""
+    adc2 = _as_streams(adc, "adc", 0, 0xFFFF)
+    if acc is None:
+        return adc2, np.zeros_like(adc2)
+    acc2 = _as_streams(acc, "acc", -0x8000, 0x7FFF)
+    if acc2.shape != adc2.shape:
+        raise UserError(f"acc: shape {np.shape(acc)} differs from adc shape {np.shape(adc)}")
+    return adc2, acc2
+
+
+def _as_streams(values: Any, name: str, lo: int, hi: int) -> np.ndarray:
+    arr = np.asarray(values)
+    if arr.ndim not in (1, 2):
+        raise UserError(f"{name}: expected shape (n,) or (streams, n), got {arr.shape}")
+    if arr.shape[-1] < 1:
+        raise UserError(f"{name}: empty stream (at least one sample is needed: init reads sample 0)")
+    if arr.dtype.kind == "f":
+        if not np.all(np.isfinite(arr)) or not np.all(arr == np.round(arr)):
+            bad = np.argwhere(~np.isfinite(arr) | (arr != np.round(arr)))[0]
+            raise UserError(f"{name}: sample {tuple(int(i) for i in bad)} = {arr[tuple(bad)]!r} is not an integer")
+    elif arr.dtype.kind not in "iub":
+        raise UserError(f"{name}: expected integer samples, got dtype {arr.dtype}")
+    out = np.atleast_2d(arr.astype(np.int64))
+    outside = (out < lo) | (out > hi)
+    if outside.any():
+        s, i = (int(v) for v in np.argwhere(outside)[0])
+        where = f"sample {i}" if arr.ndim == 1 else f"stream {s} sample {i}"
+        raise UserError(f"{name}: {where} = {int(out[s, i])} outside {lo}..{hi} (16-bit input register)")
+    return out
+
+
+def flight_params_for(cfg: BuildConfig, fast: bool = False) -> FlightParams:
+    """The synthetic flight's sensor parameters matching ``cfg`` (same counts/metre, noise, baro sign).
+    ``fast``: a transonic flight (14 g for 2 s, peak ~300 m/s, with a 60 m barometer error in 290..375 m/s) that
+    exercises the Mach lockout of kalman_accel (kalman_baro has none: docs/firmware-spec.md §6)."""
+    sensors = dict(units_per_metre=cfg.units_per_metre, baro_sign=cfg.baro_sign, baro_sigma=cfg.baro_sigma,
+                   accel_counts_per_mps2=cfg.accel_counts_per_mps2, accel_sigma=cfg.accel_sigma)
+    if fast:
+        return FlightParams(boost_accel_g=14.0, burn_s=2.5, drag_per_m=0.0004, transonic_error_m=60.0, **sensors)
+    return FlightParams(**sensors)
+
+
+def read_stream_csv(path: str | Path, bits: int, k: int) -> Stream:
+    """Read a user stream from CSV: a header row naming ``adc`` and optionally ``acc`` (other columns ignored),
+    then one integer sample per row. Errors name the file and line: missing columns, empty file, non-integer or
+    out-of-range values (adc 0..2^bits-1, acc -32768..32767)."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise UserError(f"{path}: no such input file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise UserError(f"{path}: cannot read ({exc})") from None
+    reader = csv.reader(text.splitlines())
+    header: list[str] | None = None
+    adc: list[int] = []
+    acc: list[int] = []
+    full = (1 << bits) - 1
+    for lineno, row in enumerate(reader, start=1):
+        cells = [c.strip() for c in row]
+        if not cells or all(c == "" for c in cells) or cells[0].startswith("#"):
+            continue
+        if header is None:
+            header = [c.lower() for c in cells]
+            if "adc" not in header:
+                raise UserError(f"{path}:{lineno}: header must name an 'adc' column (and optionally 'acc'); "
+                                f"got {', '.join(cells)}")
+            i_adc = header.index("adc")
+            i_acc = header.index("acc") if "acc" in header else None
+            continue
+        if len(cells) != len(header):
+            raise UserError(f"{path}:{lineno}: expected {len(header)} fields, got {len(cells)}")
+        values = []
+        for col, lo, hi in (("adc", 0, full), ("acc", -32768, 32767)):
+            idx = i_adc if col == "adc" else i_acc
+            if idx is None:
+                values.append(0)
+                continue
+            cell = cells[idx]
+            try:
+                v = int(cell, 10)
+            except ValueError:
+                raise UserError(f"{path}:{lineno}: {col}={cell!r} is not an integer") from None
+            if not lo <= v <= hi:
+                raise UserError(f"{path}:{lineno}: {col}={v} outside [{lo}, {hi}]"
+                                + (f" ({bits}-bit barometer ADC)" if col == "adc" else ""))
+            values.append(v)
+        adc.append(values[0])
+        acc.append(values[1])
+    if header is None:
+        raise UserError(f"{path}: empty file (need a header row with 'adc' and at least one sample)")
+    if not adc:
+        raise UserError(f"{path}: no samples after the header")
+    prov = {"generator": "user CSV", "file": path.name, "sha256": hashlib.sha256(path.read_bytes()).hexdigest(), "n": len(adc),
+            "bits": bits, "k": k, "seed": None, "columns": "adc,acc" if i_acc is not None else "adc"}
+    return Stream(name=_identifier(path.stem), adc=np.array(adc, np.int64), acc=np.array(acc, np.int64), k=k,
+                  bits=bits, provenance=prov)
+
+
+def _identifier(text: str) -> str:
+    out = "".join(c if c.isalnum() else "_" for c in text.lower()).strip("_")
+    return out if out and out[0].isalpha() else f"s_{out}"
+
+

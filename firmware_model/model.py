@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from firmware_model.errors import UserError
+from firmware_model.inputs import as_input_streams
 from firmware_model.fixed import rs, wrap32, wrapped
 from firmware_model.trace import EVENT_BITS, LATCHED_EVENTS, STATE_WORDS, Trace, word_names
 
@@ -89,28 +90,6 @@ class _WrapTracker:
         return self.w32(rs(e * np.int64(g.m), g.s, mode), sample, name)
 
 
-def _as_streams(values: Any, name: str, lo: int, hi: int) -> np.ndarray:
-    """Validate an input array (shape (n,) or (streams, n), integers in [lo, hi]) and return it as int64 2-D."""
-    arr = np.asarray(values)
-    if arr.ndim not in (1, 2):
-        raise UserError(f"{name}: expected shape (n,) or (streams, n), got {arr.shape}")
-    if arr.shape[-1] < 1:
-        raise UserError(f"{name}: a stream needs at least one sample")
-    if arr.dtype.kind == "f":
-        if not np.all(np.isfinite(arr)) or not np.all(arr == np.round(arr)):
-            bad = np.argwhere(~np.isfinite(arr) | (arr != np.round(arr)))[0]
-            raise UserError(f"{name}: sample {tuple(int(i) for i in bad)} = {arr[tuple(bad)]!r} is not an integer")
-    elif arr.dtype.kind not in "iub":
-        raise UserError(f"{name}: expected integer samples, got dtype {arr.dtype}")
-    out = np.atleast_2d(arr.astype(np.int64))
-    outside = (out < lo) | (out > hi)
-    if outside.any():
-        s, i = (int(v) for v in np.argwhere(outside)[0])
-        raise UserError(f"{name}: stream {s} sample {i} = {int(out[s, i])} is outside the 16-bit input register "
-                        f"range [{lo}, {hi}]")
-    return out
-
-
 def run_model(consts: "FirmwareConstants", adc: np.ndarray, acc: np.ndarray | None = None) -> ModelTrace:
     """Run the integer model of ``consts.program`` over one or many input streams, bit-exact per
     docs/firmware-spec.md §5-§7.
@@ -130,13 +109,7 @@ def run_model(consts: "FirmwareConstants", adc: np.ndarray, acc: np.ndarray | No
         raise UserError(f"build constants: unknown program {program!r}; known: {', '.join(STATE_WORDS)}")
     mode = rounding_mode(consts)
     one_stream = np.ndim(adc) == 1
-    adc2 = _as_streams(adc, "adc", 0, 0xFFFF)
-    if acc is None:
-        acc2 = np.zeros_like(adc2)
-    else:
-        acc2 = _as_streams(acc, "acc", -0x8000, 0x7FFF)
-        if acc2.shape != adc2.shape:
-            raise UserError(f"acc: shape {np.shape(acc)} differs from adc shape {np.shape(adc)}")
+    adc2, acc2 = as_input_streams(adc, acc)
     if consts.BARO_SIGN not in (1, -1):
         raise UserError(f"build constants: BARO_SIGN={consts.BARO_SIGN!r} must be +1 or -1")
     runner = {"recursive": _run_recursive, "recursive_seed_literal": _run_seed_literal,

@@ -372,7 +372,6 @@ def kalman_error_bound(consts: "FirmwareConstants", e1_max: float, e2_max: float
     cols = [("G11", "G21", "G31")] + ([("G12", "G22", "G32")] if accel else [])
     Kf = np.array([[consts.float_gains[c[i]] for c in cols] for i in range(3)])
     Kq = np.array([[consts.gains[c[i]].value for c in cols] for i in range(3)])
-    H = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])[: len(cols)]
     Lu, Lr = _closed_loop_sums(K, tuple(map(tuple, Kf)))
     rho = lambda s: rounding_error_bound(s, mode)  # noqa: E731
     u_bar = np.array([rho(K) + rho(2 * K + 1), rho(K), 0.0])

@@ -18,7 +18,6 @@ Files are written into a temporary directory first and moved into place only whe
 
 from __future__ import annotations
 
-import csv
 import hashlib
 import json
 import math
@@ -35,7 +34,8 @@ import numpy as np
 
 from firmware_model.config import PROGRAMS, ROUNDINGS, BuildConfig
 from firmware_model.errors import UserError
-from firmware_model.inputs import EDGE_KINDS, FlightParams, Stream, edge_stream, synthetic_flight
+from firmware_model.inputs import (EDGE_KINDS, Stream, edge_stream, flight_params_for, read_stream_csv,
+                                   synthetic_flight)
 from firmware_model.trace import EVENT_BITS, STATE_WORDS, word_names
 
 #: Version of the case JSON layout (bump on any incompatible change; schema.json says the same).
@@ -103,17 +103,6 @@ def case_config(program: str, rounding: str, k: int, bits: int) -> BuildConfig:
     return BuildConfig(program=program, rounding=rounding, k=k, baro_bits=bits,
                        units_per_metre=units_per_metre_for(bits), baro_sigma=baro_sigma_for(bits),
                        baro_min=1, baro_max=(1 << bits) - 2)
-
-
-def flight_params_for(cfg: BuildConfig, fast: bool = False) -> FlightParams:
-    """The synthetic flight's sensor parameters matching ``cfg`` (same counts/metre, noise, baro sign).
-    ``fast``: a transonic flight (14 g for 2 s, peak ~300 m/s, with a 60 m barometer error in 290..375 m/s) that
-    exercises the Mach lockout of kalman_accel (kalman_baro has none: docs/firmware-spec.md §6)."""
-    sensors = dict(units_per_metre=cfg.units_per_metre, baro_sign=cfg.baro_sign, baro_sigma=cfg.baro_sigma,
-                   accel_counts_per_mps2=cfg.accel_counts_per_mps2, accel_sigma=cfg.accel_sigma)
-    if fast:
-        return FlightParams(boost_accel_g=14.0, burn_s=2.5, drag_per_m=0.0004, transonic_error_m=60.0, **sensors)
-    return FlightParams(**sensors)
 
 
 @dataclass(frozen=True)
@@ -714,68 +703,6 @@ def check_set(directory: str | Path) -> list[str]:
 
 
 # ------------------------------------------------------------------------------------------- user streams
-def read_stream_csv(path: str | Path, bits: int, k: int) -> Stream:
-    """Read a user stream from CSV: a header row naming ``adc`` and optionally ``acc`` (other columns ignored),
-    then one integer sample per row. Errors name the file and line: missing columns, empty file, non-integer or
-    out-of-range values (adc 0..2^bits-1, acc -32768..32767)."""
-    path = Path(path)
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise UserError(f"{path}: no such input file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise UserError(f"{path}: cannot read ({exc})") from None
-    reader = csv.reader(text.splitlines())
-    header: list[str] | None = None
-    adc: list[int] = []
-    acc: list[int] = []
-    full = (1 << bits) - 1
-    for lineno, row in enumerate(reader, start=1):
-        cells = [c.strip() for c in row]
-        if not cells or all(c == "" for c in cells) or cells[0].startswith("#"):
-            continue
-        if header is None:
-            header = [c.lower() for c in cells]
-            if "adc" not in header:
-                raise UserError(f"{path}:{lineno}: header must name an 'adc' column (and optionally 'acc'); "
-                                f"got {', '.join(cells)}")
-            i_adc = header.index("adc")
-            i_acc = header.index("acc") if "acc" in header else None
-            continue
-        if len(cells) != len(header):
-            raise UserError(f"{path}:{lineno}: expected {len(header)} fields, got {len(cells)}")
-        values = []
-        for col, lo, hi in (("adc", 0, full), ("acc", -32768, 32767)):
-            idx = i_adc if col == "adc" else i_acc
-            if idx is None:
-                values.append(0)
-                continue
-            cell = cells[idx]
-            try:
-                v = int(cell, 10)
-            except ValueError:
-                raise UserError(f"{path}:{lineno}: {col}={cell!r} is not an integer") from None
-            if not lo <= v <= hi:
-                raise UserError(f"{path}:{lineno}: {col}={v} outside [{lo}, {hi}]"
-                                + (f" ({bits}-bit barometer ADC)" if col == "adc" else ""))
-            values.append(v)
-        adc.append(values[0])
-        acc.append(values[1])
-    if header is None:
-        raise UserError(f"{path}: empty file (need a header row with 'adc' and at least one sample)")
-    if not adc:
-        raise UserError(f"{path}: no samples after the header")
-    prov = {"generator": "user CSV", "file": path.name, "sha256": _sha256_file(path), "n": len(adc),
-            "bits": bits, "k": k, "seed": None, "columns": "adc,acc" if i_acc is not None else "adc"}
-    return Stream(name=_identifier(path.stem), adc=np.array(adc, np.int64), acc=np.array(acc, np.int64), k=k,
-                  bits=bits, provenance=prov)
-
-
-def _identifier(text: str) -> str:
-    out = "".join(c if c.isalnum() else "_" for c in text.lower()).strip("_")
-    return out if out and out[0].isalpha() else f"s_{out}"
-
-
 def generate_user(program: str, input_csv: str | Path, out: str | Path, config: str | Path | None = None,
                   generator: str = "emulation") -> dict[str, bytes]:
     """A one-case vector set from a user CSV stream, built with ``config`` (JSON BuildConfig; default

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import random
 from dataclasses import dataclass, field
-from typing import Callable, Sequence
+from typing import Sequence
 
 MASK32 = 0xFFFFFFFF
 RAM_SIZE = 0x20000  #: bytes of mapped RAM, from address 0
@@ -484,8 +484,8 @@ def ref_disassembly(code: bytes, address: int) -> str:
 
 from hypothesis import strategies as st  # noqa: E402
 
-from isa.operands import IndexReg, Instruction, Mode, Operand, Size  # noqa: E402
-from isa.table import CONDITIONS, TABLE  # noqa: E402
+from isa.operands import Instruction, Mode, Operand, Size  # noqa: E402
+from isa.table import TABLE  # noqa: E402
 
 #: 32-bit edge values every register and memory draw is biased towards.
 EDGE32 = (0, 1, 0xFFFFFFFF, 0x7FFF, 0x8000, 0x7FFFFFFF, 0x80000000, 0xFFFF, 0xFFFF8000, 0x7F, 0x80, 0xFF,

@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import argparse
 
-import numpy as np
 import pytest
 
 from firmware_model import cli_compare
 from firmware_model.config import BuildConfig
 from firmware_model.errors import UserError
+from firmware_model.inputs import flight_params_for, synthetic_flight
 
 
 def _run(argv: list[str]) -> int:
@@ -32,8 +32,8 @@ def test_compare_csv_input(tmp_path, capsys):
     assert "fixed-mirror  EST" in capsys.readouterr().out
 
 
-@pytest.mark.parametrize("text, msg", [("", "empty file"), ("x,y\n1,2\n", ":1: missing 'adc'"),
-                                       ("adc\n1\nfoo\n", ":3: expected integer")])
+@pytest.mark.parametrize("text, msg", [("", "empty file"), ("x,y\n1,2\n", ":1: header must name an 'adc' column"),
+                                       ("adc\n1\nfoo\n", ":3: adc='foo' is not an integer")])
 def test_compare_bad_csv(tmp_path, text, msg):
     p = tmp_path / "bad.csv"
     p.write_text(text)
@@ -44,7 +44,7 @@ def test_compare_bad_csv(tmp_path, text, msg):
 def test_fixed_vs_mirror_stats_consistent_with_recursive_bound():
     """On the synthetic flight, the reported fixed-mirror max error respects the recursive bound 2^S - 1."""
     cfg = BuildConfig(program="recursive", rounding="floor", shift=5)
-    adc, acc, _ = cli_compare.synthetic_flight(cfg, 0)
-    res = cli_compare.compare(cfg, adc, acc)
+    flight = synthetic_flight(cfg.k, cfg.baro_bits, 0, flight_params_for(cfg))
+    res = cli_compare.compare(cfg, flight.adc, flight.acc)
     s = res["stats"]["fixed-mirror"]["EST"]
     assert 0 < s["max"] <= 31 and s["bias"] > 0  # floor: the integer EST sits above the float one

@@ -146,10 +146,10 @@ def test_many_streams_equal_one_by_one():
 
 
 @pytest.mark.parametrize("adc, acc, msg", [
-    (np.array([1, 70000]), None, "adc: stream 0 sample 1 = 70000"),
-    (np.array([1, -1]), None, "adc: stream 0 sample 1 = -1"),
+    (np.array([1, 70000]), None, "adc: sample 1 = 70000"),
+    (np.array([1, -1]), None, "adc: sample 1 = -1"),
     (np.array([1.5, 2.0]), None, "is not an integer"),
-    (np.array([1, 2]), np.array([0, 40000]), "acc: stream 0 sample 1 = 40000"),
+    (np.array([1, 2]), np.array([0, 40000]), "acc: sample 1 = 40000"),
     (np.array([1, 2]), np.array([0]), "differs from adc shape"),
     (np.zeros((0,), dtype=int), None, "at least one sample"),
 ])
