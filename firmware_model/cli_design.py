@@ -90,25 +90,3 @@ def run(args: argparse.Namespace) -> int:
     else:
         print(format_report(report))
     return 0
-
-
-def main(argv: list[str] | None = None) -> int:
-    """Run ``design`` alone (``python -m firmware_model.cli_design [options]``), with the same one-line error
-    handling as ``fwemu``; returns the exit code."""
-    from firmware_model.errors import UserError
-
-    parser = argparse.ArgumentParser(prog="fwemu")
-    sub = parser.add_subparsers(dest="command")
-    register(sub)
-    args = parser.parse_args(["design", *(sys.argv[1:] if argv is None else argv)])
-    try:
-        return int(args.func(args) or 0)
-    except UserError as exc:
-        print(f"fwemu: error: {exc}", file=sys.stderr)
-        return 2
-    except BrokenPipeError:
-        return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
