@@ -57,6 +57,10 @@ _FAST_W = _MAPPED | _WRITABLE | _WRITTEN  # a write needs no bookkeeping
 _TOP = 1 << 24
 _PAD = 8  # bytes past $FFFFFF, never mapped (accesses running off the top are bus errors)
 _WRITTEN_TABLE = bytes((1 if b & _WRITTEN else 0) for b in range(256))
+_UNMAPPED_TABLE = bytes((0 if b & _MAPPED else 1) for b in range(256))  # flag byte -> 1 if unmapped
+_CODE_TABLE = bytes((1 if b & _CODE else 0) for b in range(256))  # flag byte -> 1 if it holds compiled code
+_HOST_PLAIN_TABLE = bytes((0 if b & _MAPPED and not b & _CODE else 1) for b in range(256))
+_ZEROS = {1: b"\0", 2: b"\0\0", 4: b"\0\0\0\0"}
 
 #: Return address pushed by :meth:`CPU.call`; odd, so it can never be the address of a real instruction.
 CALL_SENTINEL = 0xFFFFFF
@@ -1970,7 +1974,7 @@ class _BlockGen:
                 return 4, False
             a = self.addr(dst, 1, pc, "eb")
             self.emit(f"wb({a}, 0xFF if {ce} else 0)")
-            return base, False
+            return timing.cycles(ins), False
         if h in ("bcc", "bra", "bsr"):
             target = ops[0].value & 0xFFFFFF
             if target & 1:
@@ -2488,10 +2492,9 @@ class CPU:
         a = address & 0xFFFFFF
         if a + n > _TOP:
             raise self._host_fault(BusError, f"host access ${a:06X}+{n} runs past $FFFFFF")
-        fl = self._flags
-        for b in range(a, a + n):
-            if not fl[b] & _MAPPED:
-                raise self._host_fault(BusError, f"host {'write' if write else 'read'} of unmapped address ${b:06X}")
+        i = self._flags[a : a + n].translate(_UNMAPPED_TABLE).find(1)
+        if i != -1:
+            raise self._host_fault(BusError, f"host {'write' if write else 'read'} of unmapped address ${a + i:06X}")
         return a
 
     def read(self, address: int, size: int) -> int:
@@ -2509,14 +2512,21 @@ class CPU:
         written, unmapped ones raise BusError; not counted in :attr:`ram_written`; invalidates compiled code."""
         if size not in (1, 2, 4):
             raise MapError(f"write size must be 1, 2 or 4, not {size!r}")
+        if not isinstance(value, int):
+            raise MapError(f"host write value {value!r} is not an int")
         if size > 1 and address & 1:
             raise self._host_fault(AddressError, f"host write of {size} bytes at odd address ${address:06X}")
+        if isinstance(address, int) and 0 <= address and address + size <= _TOP:
+            # Fast path: mapped and holding no compiled code (one translate of the 1..4 flag bytes).
+            if self._flags[address : address + size].translate(_HOST_PLAIN_TABLE) == _ZEROS[size]:
+                self._mem[address : address + size] = (value & MASK[size]).to_bytes(size, "big")
+                return
         self.write_bytes(address, (value & MASK[size]).to_bytes(size, "big"))
 
     def read_bytes(self, address: int, n: int) -> bytes:
         """``n`` bytes from ``address`` (host access; every byte must be mapped)."""
         a = self._check_host(address, n, False)
-        return bytes(self._mem[a : a + n])
+        return self._mem[a : a + n]
 
     def write_bytes(self, address: int, data: bytes) -> None:
         """Copy ``data`` to ``address`` (host access; every byte must be mapped; ROM allowed)."""
@@ -2527,10 +2537,11 @@ class CPU:
             self._host_invalidate(a, len(data))
 
     def _host_invalidate(self, a: int, n: int) -> None:
-        fl = self._flags
-        for b in range(a, a + n):
-            if fl[b] & _CODE:
-                self._invalidate(b)
+        marks = self._flags[a : a + n].translate(_CODE_TABLE)
+        i = marks.find(1)
+        while i != -1:
+            self._invalidate(a + i)
+            i = marks.find(1, i + 1)
 
     # --------------------------------------------------------------------------------------------- programs
     def load(self, program: Program) -> None:
@@ -2549,7 +2560,15 @@ class CPU:
 
     def _where(self, pc: int) -> tuple[str, str | None]:
         info = self._decoded.get(pc)
-        text = _format(info[0]) if info else "?"
+        if info is not None:
+            text = _format(info[0])
+        else:  # not decoded yet (e.g. a limit reached before it): decode it now, without caching
+            try:
+                from isa.decoder import decode
+
+                text = "?" if pc & 1 else _format(decode(self._fetch_word, pc).instruction)
+            except Exception:  # noqa: BLE001 - unfetchable or illegal: no disassembly
+                text = "?"
         src = self.source_map.get(pc)
         where = f"{src.file}:{src.line}" if src is not None else None
         return text, where
