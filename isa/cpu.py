@@ -11,8 +11,20 @@ Model
   code came from a :class:`~isa.program.Program`; they never vector. State changes the faulting instruction made
   before the fault (e.g. a postincrement) are kept. ``TRAP #n`` stops :meth:`CPU.run` with the PC after the TRAP.
 * Speed: each instruction address is decoded once (:func:`isa.decoder.decode`) and compiled to a closure that
-  performs the instruction and returns ``next_pc | clocks << 32``. Writes to bytes that hold compiled code
-  invalidate the affected closures (self-modifying code works).
+  performs the instruction and returns ``next_pc | clocks << 32`` (used by :meth:`CPU.step`, by :meth:`CPU.run`
+  when ``profiling`` is on or ``block_compile`` is off, and for single instructions near a limit). :meth:`CPU.run`
+  otherwise runs *blocks*: the instructions from an address up to the first BRA/BSR/JMP/JSR/RTS (conditional
+  branches and DBcc leave the block only when taken; at most :data:`BLOCK_MAX`) are generated as the source of
+  ONE Python function (registers in locals, operands/addresses/clock constants as literals, CCR flags computed
+  only where a later instruction, a block exit or a possible fault can observe them), compiled once and cached by
+  start address. A block runs only when the remaining instruction and cycle budget covers its worst case and
+  ``until_pc`` is not inside it; otherwise the next instruction is single-stepped, so limits, ``until_pc`` and
+  counters are exactly those of the per-instruction path. A fault inside a block is unwound from the
+  traceback: the block's register locals are written back and the faulting instruction's PC, the instructions
+  and clocks before it are recovered, so registers, memory, counters and the fault are exactly those of the
+  per-instruction path (tests/test_isa_blocks.py checks both paths against each other and against
+  m68000-python). Writes to bytes that hold compiled code invalidate the affected closures and blocks, and a
+  running block that wrote to code leaves right after that instruction (self-modifying code works).
 
 Not modelled (documented simplifications): prefetch, the extra bus read of MOVEM memory-to-register, the
 read-before-write of CLR/Scc to memory, exception processing, user mode.
@@ -1630,7 +1642,7 @@ class _BlockGen:
 
     def exit(self, target: str | int, n: int, cycles: int) -> None:
         """Leave the block to ``target`` (int or expression) after ``n`` instructions and ``cycles`` clocks (+c)."""
-        self.items.append((self.ind, ("exit", target, n, cycles)))
+        self.items.append((self.ind, ("exit", target, n, cycles, frozenset(self.dirty))))
 
     def cycles(self, expr: str) -> None:
         self.dyn = True
@@ -2213,17 +2225,21 @@ def _block_source(cpu: CPU, entries: list[tuple[int, Instruction, str, int | Non
     uses_sr = any("sr" in t for t in text)
     sr_dirty = any("sr = " in t for t in text)
     first = 3 + len(g.used) + (1 if uses_sr else 0) + (1 if g.dyn else 0)
+    sr_so_far = False
     for ind, item in g.items:
         pad = "    " * (ind + 1)
         if isinstance(item, str):
             body.append(pad + item)
+            sr_so_far = sr_so_far or "sr = " in item
         elif item[0] == "mark":
             lines_of.append(first + len(body))
         else:
-            _, target, n, cycles = item
+            # Straight-line code: only registers assigned before this exit can differ from R.
+            _, target, n, cycles, assigned = item
             for r in dirty:
-                body.append(f"{pad}R[{r}] = {_RN[r]}")
-            if sr_dirty:
+                if r in assigned:
+                    body.append(f"{pad}R[{r}] = {_RN[r]}")
+            if sr_dirty and sr_so_far:
                 body.append(f"{pad}R[16] = sr")
             packed = n << 24 | cycles << 40
             if isinstance(target, int):
