@@ -4,12 +4,14 @@ Measured figures come from running the build on the emulated 68000 (:mod:`firmwa
 input streams; the static worst-case bound comes from the code itself (:func:`static_step_bound`) and every
 measurement must stay under it (checked here and in the tests).
 
-Static bound (clocks, 68000, zero wait states): every instruction reachable from ``step`` is charged its
-**maximum** clocks (:func:`isa.timing.cycle_range`) once, as if every path ran through every instruction; an
-instruction inside a loop is charged ``bound`` times, where ``bound`` is written on the loop's backward branch as
-``; @bound N`` (a missing annotation is an error: we do not guess loop counts); a ``BSR``/``JSR`` to a known
-address adds the callee's bound. This over-estimates (both arms of an ``if`` are charged) but can never
-under-estimate a loop-annotated program, which is what a budget gate needs.
+Static bound (clocks, 68000, zero wait states): the longest path through the control-flow graph of ``step``,
+each instruction charged its **maximum** clocks (:func:`isa.timing.cycle_range`: both outcomes of a branch, the
+largest shift count, the worst MULx/DIVx operand). A loop must carry its limit on its backward branch as
+``; @bound N`` = the most times its head instruction runs per call (a missing annotation is an error: we do not
+guess loop counts); the loop is charged ``N`` times its longest path from the head to any instruction of its
+body, inner loops first. A ``BSR``/``JSR`` to a known address adds the callee's bound. Sound for reducible code
+with annotated loops (which a budget gate needs); pessimistic where the worst case of two instructions cannot
+happen together.
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from firmware_model.build import RAM_START, STACK_TOP, FirmwareBuild
+from firmware_model.build import FirmwareBuild
 from firmware_model.errors import UserError
 from firmware_model.harness import run_firmware
 from firmware_model.inputs import EDGE_KINDS, Stream, edge_stream, synthetic_flight
@@ -115,10 +117,19 @@ def static_bound(program: Any, entry: int) -> StaticBound:
             work.append(nxt)
         # loops: backward branches; each needs an annotation
         loops: list[tuple[int, int, int]] = []
+        succ: dict[int, list[int]] = {}
         for pc, dec in reachable.items():
             h = _handler(dec.instruction.mnemonic)
-            if h in ("bra", "bcc", "dbcc", "jmp"):
-                target = _target(dec, pc, where)
+            nxt = pc + dec.length
+            if h == "rts":
+                succ[pc] = []
+            elif h in ("jmp", "bra"):
+                succ[pc] = [_target(dec, pc, where)]
+            elif h in ("bcc", "dbcc"):
+                succ[pc] = [_target(dec, pc, where), nxt]
+            else:
+                succ[pc] = [nxt]
+            for target in succ[pc]:
                 if target <= pc:
                     line = source_map.get(pc)
                     match = _BOUND_RE.search(line.text) if line else None
@@ -126,25 +137,99 @@ def static_bound(program: Any, entry: int) -> StaticBound:
                         raise UserError(f"static bound: loop at {where(pc)} (back to ${target:06X}) has no "
                                         f"'; @bound N' annotation giving its iteration limit")
                     loops.append((pc, target, int(match.group(1))))
-        total = 0
-        count = 0
+        cost: dict[Any, int] = {}
+        count = len(reachable)
         for pc, dec in reachable.items():
-            weight = 1
-            for branch, head, bound in loops:
-                if head <= pc <= branch:
-                    weight *= bound
-            total += weight * cycle_range(dec.instruction)[1]
-            count += 1
-            h = _handler(dec.instruction.mnemonic)
-            if h in ("bsr", "jsr"):
+            cost[pc] = cycle_range(dec.instruction)[1]
+            if _handler(dec.instruction.mnemonic) in ("bsr", "jsr"):
                 sub_total, sub_count, sub_loops = analyse(_target(dec, pc, where), depth + 1)
-                total += weight * sub_total
+                cost[pc] += sub_total
                 count += sub_count
                 loops.extend(sub_loops)
+        graph: dict[Any, set[Any]] = {pc: set(targets) for pc, targets in succ.items()}
+        node_of: dict[int, Any] = {pc: pc for pc in reachable}   # instruction -> node it was collapsed into
+        own = [loop for loop in loops if loop[0] in reachable]
+        for branch, head, bound in sorted(own, key=lambda loop: loop[0] - loop[1]):   # innermost first
+            h_node, b_node = node_of[head], node_of[branch]
+            body = {h_node} | (_reaching(graph, b_node, stop=h_node) & _reachable(graph, h_node))
+            inner = {n: {m for m in graph[n] if m in body and m != h_node} for n in body}
+            if any(m in body and m != h_node for n in graph if n not in body for m in graph[n]):
+                raise UserError(f"static bound: the loop at {where(branch)} is entered other than at its head "
+                                f"{where(head)}")
+            longest = _longest_from(inner, cost, h_node)
+            loop_node = ("loop", head, branch)
+            cost[loop_node] = bound * max(longest.values())
+            graph[loop_node] = {m for n in body for m in graph[n] if m not in body}
+            for n in graph:
+                if n not in body and graph[n] & body:
+                    graph[n] = (graph[n] - body) | {loop_node}
+            for n in body:
+                del graph[n]
+            for pc, n in node_of.items():
+                if n in body:
+                    node_of[pc] = loop_node
+        total = max(_longest_from(graph, cost, node_of[start]).values())
         return total, count, loops
 
     total, count, loops = analyse(entry, 0)
     return StaticBound(cycles=total, instructions=count, loops=tuple(sorted(set(loops))))
+
+
+def _reaching(graph: dict[Any, set[Any]], target: Any, stop: Any) -> set[Any]:
+    """Nodes from which ``target`` can be reached without passing through ``stop`` (``target`` included)."""
+    preds: dict[Any, set[Any]] = {}
+    for n, targets in graph.items():
+        for m in targets:
+            preds.setdefault(m, set()).add(n)
+    seen = {target}
+    work = [target]
+    while work:
+        for p in preds.get(work.pop(), ()):
+            if p not in seen and p != stop:
+                seen.add(p)
+                work.append(p)
+    return seen
+
+
+def _reachable(graph: dict[Any, set[Any]], start: Any) -> set[Any]:
+    """Nodes reachable from ``start`` (``start`` included)."""
+    seen = {start}
+    work = [start]
+    while work:
+        for m in graph[work.pop()]:
+            if m in graph and m not in seen:
+                seen.add(m)
+                work.append(m)
+    return seen
+
+
+def _longest_from(graph: dict[Any, set[Any]], cost: dict[Any, int], start: Any) -> dict[Any, int]:
+    """Longest path cost (sum of node costs, both ends included) from ``start`` to every node reachable from it in
+    the acyclic ``graph`` (successor sets; successors outside ``graph`` are ignored)."""
+    order: list[Any] = []
+    state: dict[Any, int] = {}
+    stack: list[tuple[Any, bool]] = [(start, False)]
+    while stack:   # iterative depth-first post-order -> reverse topological order
+        node, done = stack.pop()
+        if done:
+            state[node] = 2
+            order.append(node)
+            continue
+        if state.get(node):
+            if state[node] == 1:
+                raise UserError("static bound: a cycle without a '; @bound N' annotation remains")
+            continue
+        state[node] = 1
+        stack.append((node, True))
+        stack.extend((m, False) for m in graph[node] if m in graph and state.get(m) != 2)
+    best: dict[Any, int] = {start: cost[start]}
+    for node in reversed(order):
+        if node not in best:
+            continue
+        for m in graph[node]:
+            if m in graph and best[node] + cost[m] > best.get(m, -1):
+                best[m] = best[node] + cost[m]
+    return best
 
 
 def _target(dec: Any, pc: int, where: Any) -> int:
@@ -174,7 +259,6 @@ class Budget:
     config: dict[str, Any]
     source_sha256: str
     rom_bytes: int
-    code_bytes: int
     ram_variable_bytes: int
     stack_peak_bytes: int
     ram_written_bytes: int
@@ -238,13 +322,11 @@ def measure(build: FirmwareBuild, streams: list[Stream], clock_hz: float = DEFAU
         raise UserError(f"budget: {build.program_name} step took {worst[0]} clocks on {worst[1]} sample {worst[2]}, "
                         f"above the static bound {bound.cycles}: the static analysis is wrong")
     rate = 2.0 ** consts.K
-    code = sum(len(seg.data) for seg in build.program.segments  # type: ignore[attr-defined]
-               if not seg.bss and seg.origin < RAM_START)
     headroom = {name: {"max_abs": peak, "bits_used": max(peak, 1).bit_length() + 1,
                        "headroom_bits": 32 - (max(peak, 1).bit_length() + 1)} for name, peak in peak_abs.items()}
     return Budget(
         program=build.program_name, config={"k": consts.K, "rounding": ("floor", "half_up")[consts.ROUND]},
-        source_sha256=build.source_sha256, rom_bytes=build.rom_bytes, code_bytes=code,
+        source_sha256=build.source_sha256, rom_bytes=build.rom_bytes,
         ram_variable_bytes=build.ram_bytes, stack_peak_bytes=stack, ram_written_bytes=ram_written,
         cycles_min=int(cycles.min()), cycles_median=float(np.median(cycles)), cycles_max=worst[0],
         cycles_max_at={"stream": worst[1], "sample": worst[2]}, init_cycles=init_cycles,
@@ -273,7 +355,7 @@ def render_markdown(budgets: list[Budget]) -> str:
                   f"{b.cycles_max_at['sample']}; init {b.init_cycles} clocks",
                   f"- CPU load at {b.clock_hz / 1e6:g} MHz and {b.sample_rate_hz:g} samples/s: "
                   f"{100 * b.load_measured:.2f}% measured worst, {100 * b.load_static:.2f}% static bound",
-                  f"- ROM {b.rom_bytes} B (code+constants {b.code_bytes} B); RAM variables {b.ram_variable_bytes} B, "
+                  f"- ROM {b.rom_bytes} B (reset vectors, code and constants); RAM variables {b.ram_variable_bytes} B, "
                   f"stack peak {b.stack_peak_bytes} B, distinct RAM bytes written {b.ram_written_bytes}",
                   "- numeric headroom (largest |state| seen against int32):", "",
                   "| word | max abs | bits used (with sign) | headroom bits |", "|---|---|---|---|"]
@@ -340,4 +422,4 @@ def write_reports(budgets: list[Budget], out_dir: Path) -> list[Path]:
 
 
 __all__ = ["Budget", "StaticBound", "DEFAULT_CLOCK_HZ", "default_streams", "measure", "render_markdown",
-           "plot_cycles", "static_bound", "static_step_bound", "write_reports", "STACK_TOP"]
+           "plot_cycles", "static_bound", "static_step_bound", "write_reports"]

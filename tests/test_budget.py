@@ -37,10 +37,33 @@ def test_straight_line_bound_is_the_manual_sum() -> None:
     assert b.instructions == 5 and b.loops == ()
 
 
-def test_both_arms_of_a_branch_are_charged_at_their_maximum() -> None:
-    # BEQ.S: 10 taken / 8 not taken -> 10; TST.L Dn 4; NOT.L Dn 6; RTS 16 (two RTS reachable: both charged).
+def test_the_longer_arm_of_a_branch_is_the_bound() -> None:
+    # TST.L Dn 4; BEQ.S charged at its max 10 (taken 10 / not taken 8); paths: NOT.L Dn 6 + RTS 16 or RTS 16.
     b = _bound("sub: tst.l d0\n beq.s .z\n not.l d0\n rts\n.z: rts\n")
-    assert b.cycles == 4 + 10 + 6 + 16 + 16
+    assert b.cycles == 4 + 10 + max(6 + 16, 16)
+    # the longer arm on the taken side: MULU #$FFFF,D0 = 38 + 2*16 + 4 (immediate) = 74
+    b = _bound("sub: tst.l d0\n beq.s .z\n not.l d0\n rts\n.z: mulu #$ffff,d0\n rts\n")
+    assert b.cycles == 4 + 10 + max(6 + 16, 74 + 16)
+
+
+def test_loop_with_a_branch_inside_charges_its_longest_iteration() -> None:
+    # per iteration: BTST-free body: TST.W D1 4; BNE.S 10; either ADDQ.L #1,D2 8 or nothing; SUBQ.W #1,D0 4; BNE.S 10
+    b = _bound("sub: moveq #3,d0\n.l: tst.w d1\n bne.s .s\n addq.l #1,d2\n.s: subq.w #1,d0\n bne.s .l ; @bound 3\n"
+               " rts\n")
+    assert b.cycles == 4 + 3 * (4 + 10 + 8 + 4 + 10) + 16
+
+
+def test_nested_loops_multiply() -> None:
+    # inner: SUBQ.W #1,D1 4 + BNE.S 10, at most 4 head runs; outer body: MOVEQ 4 + inner + SUBQ.W #1,D0 4 + BNE.S 10
+    b = _bound("sub: moveq #2,d0\n.o: moveq #4,d1\n.i: subq.w #1,d1\n bne.s .i ; @bound 4\n subq.w #1,d0\n"
+               " bne.s .o ; @bound 2\n rts\n")
+    assert b.cycles == 4 + 2 * (4 + 4 * (4 + 10) + 4 + 10) + 16
+    assert len(b.loops) == 2
+
+
+def test_loop_entered_in_the_middle_is_refused() -> None:
+    with pytest.raises(UserError, match="entered other than at its head"):
+        _bound("sub: tst.l d0\n beq.s .m\n.l: addq.l #1,d1\n.m: subq.l #1,d0\n bne.s .l ; @bound 9\n rts\n")
 
 
 def test_annotated_loop_is_charged_bound_times() -> None:
