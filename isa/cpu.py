@@ -1554,6 +1554,8 @@ def _format(instr: Instruction) -> str:
 
 #: Most instructions in one compiled block.
 BLOCK_MAX = 48
+#: A BRA at most this many bytes forward does not end the block being decoded (it may become an internal skip).
+_BRA_WINDOW = 128
 _RN: tuple[str, ...] = tuple(f"d{i}" for i in range(8)) + tuple(f"a{i}" for i in range(8))
 _ALL_FLAGS = 0x1F
 _FLAGS_NZVC = 0x0F
@@ -1608,7 +1610,7 @@ def _may_fault(ins: Instruction, h: str) -> bool:
 class _BlockGen:
     """Generates the source of one block function. Registers live in locals ``d0..a7``, the status register in
     ``sr``, data-dependent clocks accumulate in ``c``; every exit writes the registers back and returns
-    ``next_pc | instructions << 24 | clocks << 40``."""
+    ``next_pc | instructions << 24 | clocks << 56``."""
 
     def __init__(self, cpu: CPU) -> None:
         self.cpu = cpu
@@ -2138,13 +2140,15 @@ class _BlockGen:
 class _BlockInfo:
     """What the run loop and the fault path need to know about one compiled block."""
 
-    __slots__ = ("start", "pcs", "lines", "prefix", "regs")
+    __slots__ = ("start", "pcs", "lines", "prefix", "ncount", "regs")
 
-    def __init__(self, start: int, pcs: list[int], lines: list[int], prefix: list[int], regs: list[int]) -> None:
+    def __init__(self, start: int, pcs: list[int], lines: list[int], prefix: list[int], ncount: list[int],
+                 regs: list[int]) -> None:
         self.start = start
         self.pcs = pcs  #: address of each instruction
         self.lines = lines  #: first source line of each instruction in the generated code
-        self.prefix = prefix  #: constant clocks of the instructions before each one (fall-through path)
+        self.prefix = prefix  #: constant clocks before each instruction on the path that reaches it (+ local c)
+        self.ncount = ncount  #: constant instruction count before each instruction on that path (+ local ni)
         self.regs = regs  #: register indices held in locals
 
 
@@ -2171,60 +2175,289 @@ def _addr_const(op: Operand) -> int:
     return op.value & 0xFFFFFF
 
 
-def _block_source(cpu: CPU, entries: list[tuple[int, Instruction, str, int | None, int]]
-                  ) -> tuple[str, dict[str, object], list[int], list[int], list[int], int]:
-    """Python source of the block function for ``entries`` ((pc, instruction, handler, cond, length) each).
-    Returns (source, constants, first line per instruction, prefix clocks per instruction, registers used,
-    number of entries compiled)."""
+_Entry = tuple[int, Instruction, str, "int | None", int]
+
+
+def _branch_target(ins: Instruction) -> int:
+    return ins.operands[-1].value & 0xFFFFFF
+
+
+def _plan(entries: list[_Entry]) -> tuple[dict[int, tuple[Any, ...]], list[bool]]:
+    """Control flow inside a block. Returns (role of each internal branch by entry index, reachable per entry).
+
+    Roles: ``("if", j)`` a Bcc forward to entry ``j`` of the same region (generated as an ``if``);
+    ``("ifelse", j, t)`` a Bcc forward to ``j`` where entry ``j-1`` is a BRA forward to ``t`` (``if``/``else``,
+    the BRA gets ``("join", t)``); ``("skip", j)`` a BRA forward to ``j`` (the entries between are dead);
+    ``("loop",)`` a Bcc/DBcc/BRA back to the block's first entry (``continue`` of the block's ``while`` loop).
+    Any other branch leaves the block when taken. Regions nest: a forward branch is internal only when its
+    target does not lie beyond the end of the region (``if`` body) it is in; otherwise it is an exit."""
     k = len(entries)
-    need = [0] * k
-    live = _ALL_FLAGS
-    for i in range(k - 1, -1, -1):
-        _, ins, h, cond, _ = entries[i]
-        uses, defs = _flag_effect(ins, h, cond)
-        after = live
-        if h in ("bcc", "dbcc") or _may_fault(ins, h):
-            after = _ALL_FLAGS
-        need[i] = after
-        live = (after & ~defs) | uses
-        if _may_fault(ins, h):
-            live = _ALL_FLAGS
+    start = entries[0][0]
+    last_pc, _, _, _, last_len = entries[-1]
+    at = {e[0]: i for i, e in enumerate(entries)}
+    at[(last_pc + last_len) & 0xFFFFFF] = k
+    role: dict[int, tuple[Any, ...]] = {}
+    reach = [False] * k
+
+    def plan(lo: int, hi: int) -> None:
+        i = lo
+        while i < hi:
+            _, ins, h, cond, _ = entries[i]
+            reach[i] = True
+            if h in ("bcc", "bra", "dbcc"):
+                tgt = _branch_target(ins)
+                j = at.get(tgt)
+                if tgt == start and not (h == "dbcc" and cond == 0):
+                    role[i] = ("loop",)
+                elif h == "bcc" and j is not None and i < j <= hi:
+                    if j - 1 > i and entries[j - 1][2] == "bra":
+                        t = at.get(_branch_target(entries[j - 1][1]))
+                        if t is not None and j < t <= hi:
+                            role[i] = ("ifelse", j, t)
+                            role[j - 1] = ("join", t)
+                            plan(i + 1, j - 1)
+                            reach[j - 1] = True
+                            plan(j, t)
+                            i = t
+                            continue
+                    role[i] = ("if", j)
+                    plan(i + 1, j)
+                    i = j
+                    continue
+                elif h == "bra" and j is not None and i < j <= hi:
+                    role[i] = ("skip", j)
+                    i = j
+                    continue
+            if h in _BLOCK_ENDS:
+                return
+            i += 1
+
+    plan(0, k)
+    return role, reach
+
+
+def _liveness(entries: list[_Entry], role: dict[int, tuple[Any, ...]], reach: list[bool]) -> list[int]:
+    """Flags live after each entry (CCR bit masks): what a later instruction on any path inside the block reads,
+    all flags at a block exit and around an instruction that may fault (a fault exposes SR)."""
+    k = len(entries)
+    need = [_ALL_FLAGS] * k
+    live0 = 0
+    while True:
+        live_in = [_ALL_FLAGS] * (k + 1)
+        for i in range(k - 1, -1, -1):
+            if not reach[i]:
+                continue
+            _, ins, h, cond, _ = entries[i]
+            r = role.get(i)
+            if r is None:
+                after = live_in[i + 1]
+                if h in _BLOCK_ENDS or h in ("bcc", "dbcc") or _may_fault(ins, h):
+                    after = _ALL_FLAGS
+            elif r[0] in ("if", "ifelse"):
+                after = live_in[i + 1] | live_in[r[1]]
+            elif r[0] in ("skip", "join"):
+                after = live_in[r[1]]
+            else:  # loop
+                after = live0 if h == "bra" else live0 | live_in[i + 1]
+            uses, defs = _flag_effect(ins, h, cond)
+            need[i] = after
+            live_in[i] = _ALL_FLAGS if _may_fault(ins, h) else (after & ~defs) | uses
+        if live_in[0] | live0 == live0:
+            return need
+        live0 |= live_in[0]
+
+
+def _block_source(cpu: CPU, entries: list[_Entry]
+                  ) -> tuple[str, dict[str, object], list[int], list[int], list[int], list[int], bool]:
+    """Python source of the block function for ``entries`` ((pc, instruction, handler, cond, length) each, back to
+    back in memory). Returns (source, constants, first generated line per entry, constant clocks and constant
+    instruction count before each entry on the path that reaches it, registers used, whether it loops)."""
+    k = len(entries)
+    start = entries[0][0]
+    role, reach = _plan(entries)
+    need = _liveness(entries, role, reach)
+    loops = any(r[0] == "loop" for r in role.values())
     g = _BlockGen(cpu)
-    prefix: list[int] = []
-    marks: list[int] = []
-    total = 0
-    ended = False
-    for i, (pc, ins, h, cond, length) in enumerate(entries):
-        nxt = (pc + length) & 0xFFFFFF
-        prefix.append(total)
+    g.ind = 2 if loops else 1
+    prefix = [0] * k
+    ncount = [0] * k
+    marks: dict[int, int] = {}
+    flow = bool(role)  # dynamic instruction count (local ni) needed
+
+    def mark(i: int, n: int, cy: int) -> None:
         g.items.append((0, ("mark", i)))
-        marks.append(len(g.items))
-        g.wrote = False  # type: ignore[attr-defined]
-        n_items = len(g.items)
-        cyc, ended = g.instruction(i, ins, h, cond, pc, nxt, need[i], total)
-        total += cyc
-        if _lowers_sp(ins, h) and h not in ("pea", "bsr", "jsr"):
-            g.emit(f"if {g.rg(15)} < MS[0]:")
-            g.emit(f"    MS[0] = {g.rg(15)}")
-        wrote = any(isinstance(t, str) and (t.startswith(("wb(", "ww(", "wl("))) for _, t in g.items[n_items:])
-        if wrote and not ended:
-            g.emit("if D[0]:")
+        marks[i] = len(g.items)
+        prefix[i] = cy
+        ncount[i] = n
+
+    def body_start() -> int:
+        return len(g.items)
+
+    def close_body(pos: int) -> None:
+        if not any(isinstance(t, str) for _, t in g.items[pos:]):
+            g.emit("pass")
+
+    def adjust(dn: int, dc: int) -> None:
+        pos = body_start()
+        if dn:
+            g.emit(f"ni += {dn}")
+        if dc:
+            g.emit(f"c += {dc}")
+        close_body(pos)
+
+    def loopback(n: int, cy: int) -> None:
+        g.emit(f"ni += {n}")
+        g.emit(f"c += {cy}")
+        g.emit("if ni <= ln and c < lc:")
+        g.emit("    continue")
+        g.exit(start, 0, 0)
+
+    def gen(lo: int, hi: int, n: int, cy: int) -> tuple[bool, int, int]:
+        """Emit entries lo..hi-1 reached with ``n`` instructions and ``cy`` constant clocks done; return (every
+        path has left the block, n, cy at ``hi``)."""
+        i = lo
+        while i < hi:
+            pc, ins, h, cond, length = entries[i]
+            nxt = (pc + length) & 0xFFFFFF
+            mark(i, n, cy)
+            r = role.get(i)
+            if r is None:
+                n_items = len(g.items)
+                cyc, ended = g.instruction(n, ins, h, cond, pc, nxt, need[i], cy)
+                cy += cyc
+                n += 1
+                if _lowers_sp(ins, h) and h not in ("pea", "bsr", "jsr"):
+                    g.emit(f"if {g.rg(15)} < MS[0]:")
+                    g.emit(f"    MS[0] = {g.rg(15)}")
+                wrote = any(isinstance(t, str) and t.startswith(("wb(", "ww(", "wl(")) for _, t in g.items[n_items:])
+                if wrote and not ended:
+                    g.emit("if D[0]:")
+                    g.ind += 1
+                    g.emit("D[0] = 0")
+                    g.exit(nxt, n, cy)
+                    g.ind -= 1
+                if ended:
+                    return True, n, cy
+                i += 1
+                continue
+            kind = r[0]
+            taken = timing.cycles(ins, taken=True)
+            if kind == "loop":
+                g.dyn = True
+                if h == "bra":
+                    loopback(n + 1, cy + taken)
+                    return True, n + 1, cy + taken
+                if h == "bcc":
+                    g.emit(f"if {_COND_EXPR[cond]}:")  # type: ignore[index]
+                    g.ind += 1
+                    loopback(n + 1, cy + taken)
+                    g.ind -= 1
+                    cy += timing.cycles(ins, taken=False)
+                else:  # dbcc
+                    ce = _COND_EXPR[cond]  # type: ignore[index]
+                    if ce != "False":
+                        g.emit(f"if {_COND_EXPR[cond ^ 1]}:")  # type: ignore[operator]
+                        g.ind += 1
+                    dn = g.wg(ins.operands[0].reg)
+                    g.emit(f"w = ({dn} - 1) & 0xFFFF")
+                    g.emit(f"{dn} = ({dn} & 0xFFFF0000) | w")
+                    g.emit("if w == 0xFFFF:")
+                    g.emit("    c += 2")
+                    g.emit("else:")
+                    g.ind += 1
+                    loopback(n + 1, cy + taken)
+                    g.ind -= 1
+                    if ce != "False":
+                        g.ind -= 1
+                    cy += 12
+                n += 1
+                i += 1
+                continue
+            if kind == "skip":
+                n += 1
+                cy += taken
+                i = r[1]
+                continue
+            not_taken = timing.cycles(ins, taken=False)
+            j = r[1]
+            g.dyn = True
+            if kind == "if" and j == i + 1:
+                g.emit(f"if {_COND_EXPR[cond]}:")  # type: ignore[index]
+                g.ind += 1
+                adjust(0, taken - not_taken)
+                g.ind -= 1
+                n += 1
+                cy += not_taken
+                i = j
+                continue
+            g.emit(f"if {_COND_EXPR[cond ^ 1]}:")  # type: ignore[operator]
             g.ind += 1
-            g.emit("D[0] = 0")
-            g.exit(nxt, i + 1, total)
+            pos = body_start()
+            if kind == "if":
+                e1, n1, c1 = gen(i + 1, j, n + 1, cy + not_taken)
+                close_body(pos)
+                g.ind -= 1
+                n2, c2 = n + 1, cy + taken
+                if e1:
+                    n, cy = n2, c2
+                else:
+                    if (n1, c1) != (n2, c2):
+                        g.emit("else:")
+                        g.ind += 1
+                        adjust(n2 - n1, c2 - c1)
+                        g.ind -= 1
+                    n, cy = n1, c1
+                i = j
+                continue
+            t = r[2]
+            e1, n1, c1 = gen(i + 1, j - 1, n + 1, cy + not_taken)
+            if not e1:
+                mark(j - 1, n1, c1)
+                n1 += 1
+                c1 += timing.cycles(entries[j - 1][1])
+            close_body(pos)
             g.ind -= 1
-        if ended:
-            break
+            g.emit("else:")
+            g.ind += 1
+            pos = body_start()
+            e2, n2, c2 = gen(j, t, n + 1, cy + taken)
+            if not e1 and not e2 and (n1, c1) != (n2, c2):
+                adjust(n2 - n1, c2 - c1)
+            close_body(pos)
+            g.ind -= 1
+            if e1 and e2:
+                return True, n, cy
+            n, cy = (n2, c2) if e1 else (n1, c1)
+            i = t
+        return False, n, cy
+
+    ended, n_end, c_end = gen(0, k, 0, 0)
     if not ended:
         last_pc, _, _, _, last_len = entries[-1]
-        g.exit((last_pc + last_len) & 0xFFFFFF, len(entries), total)
+        g.exit((last_pc + last_len) & 0xFFFFFF, n_end, c_end)
     body: list[str] = []
-    lines_of: list[int] = []
     dirty = sorted(g.dirty)
     text = [t for _, t in g.items if isinstance(t, str)]
     uses_sr = any("sr" in t for t in text)
     sr_dirty = any("sr = " in t for t in text)
-    first = 3 + len(g.used) + (1 if uses_sr else 0) + (1 if g.dyn else 0)
+    head = [f"def __make(R, MS, D, rb, rw, rl, wb, ww, wl{''.join(', ' + n for n in g.consts)}):",
+            "    def __block(bn, bc, until):"]
+    used = sorted(g.used)
+    head += [f"        {_RN[r]} = R[{r}]" for r in used]
+    if uses_sr:
+        head.append("        sr = R[16]")
+    if g.dyn:
+        head.append("        c = 0")
+    if flow or loops:
+        head.append("        ni = 0")
+    if loops:
+        head.append(f"        ln = (bn if bn < 0x40000000 else 0x40000000) - {k}")
+        head.append(f"        if until == {start}:")
+        head.append("            ln = -1")
+        head.append(f"        lc = bc - {_block_bound(entries)}")
+        head.append("        while True:")
+    first = len(head) + 1
+    line_at: dict[int, int] = {}
     sr_so_far = False
     for ind, item in g.items:
         pad = "    " * (ind + 1)
@@ -2232,34 +2465,37 @@ def _block_source(cpu: CPU, entries: list[tuple[int, Instruction, str, int | Non
             body.append(pad + item)
             sr_so_far = sr_so_far or "sr = " in item
         elif item[0] == "mark":
-            lines_of.append(first + len(body))
+            line_at[item[1]] = first + len(body)
         else:
-            # Straight-line code: only registers assigned before this exit can differ from R.
+            # Without a loop, code runs in text order: only registers assigned before this exit can differ from R.
             _, target, n, cycles, assigned = item
             for r in dirty:
-                if r in assigned:
+                if loops or r in assigned:
                     body.append(f"{pad}R[{r}] = {_RN[r]}")
-            if sr_dirty and sr_so_far:
+            if sr_dirty and (sr_so_far or loops):
                 body.append(f"{pad}R[16] = sr")
-            packed = n << 24 | cycles << 40
-            if isinstance(target, int):
-                expr = str(target | packed)
-            else:
-                expr = f"{target} | {packed}"
+            packed = n << 24 | cycles << 56
+            expr = str(target | packed) if isinstance(target, int) else f"{target} | {packed}"
             if g.dyn:
-                expr = f"({expr}) + (c << 40)"
+                expr += " + (c << 56)"
+            if flow or loops:
+                expr += " + (ni << 24)"
             body.append(f"{pad}return {expr}")
-    head = [f"def __make(R, MS, D, rb, rw, rl, wb, ww, wl{''.join(', ' + n for n in g.consts)}):",
-            "    def __block():"]
-    used = sorted(g.used)
-    head += [f"        {_RN[r]} = R[{r}]" for r in used]
-    if uses_sr:
-        head.append("        sr = R[16]")
-    if g.dyn:
-        head.append("        c = 0")
-    assert len(head) + 1 == first
+    lines: list[int] = []
+    nxt_line = 1 << 30
+    for i in range(k - 1, -1, -1):  # entries never generated (dead) share the next generated entry's line
+        nxt_line = line_at.get(i, nxt_line)
+        lines.append(nxt_line)
+    lines.reverse()
     src = "\n".join(head + body + ["    return __block", ""])
-    return src, g.consts, lines_of, prefix, used, len(prefix)
+    return src, g.consts, lines, prefix, ncount, used, loops
+
+
+def _block_bound(entries: list[_Entry]) -> int:
+    """Clocks that bound the start of any instruction of one pass through the block: the worst-case clocks of
+    every entry but the one with the smallest worst case (a pass never runs an entry twice)."""
+    worst = [timing.cycle_range(e[1])[1] for e in entries]
+    return sum(worst) - min(worst)
 
 
 # ------------------------------------------------------------------------------------------------------------------
@@ -2663,7 +2899,7 @@ class CPU:
             if not _blockable(ins, h):
                 break
             entries.append((pc, ins, h, cond, length))
-            if h in _BLOCK_ENDS:
+            if h in _BLOCK_ENDS and not (h == "bra" and 0 < _branch_target(ins) - pc <= _BRA_WINDOW):
                 break
             pc = (pc + length) & 0xFFFFFF
         if not entries:
@@ -2672,17 +2908,15 @@ class CPU:
                 self._blocks[start] = entry
                 self._block_members.setdefault(start, []).append(start)
             return entry
-        src, consts, lines, prefix, regs, k = _block_source(self, entries)
-        entries = entries[:k]
+        src, consts, lines, prefix, ncount, regs, _ = _block_source(self, entries)
         ns: dict[str, Any] = {}
         exec(compile(src, f"<block ${start:06X}>", "exec"), ns)  # noqa: S102 - our own generated source
         rd, wr = self._rd, self._wr
         fn = ns["__make"](self._R, self._min_sp, self._smc, rd[1], rd[2], rd[4], wr[1], wr[2], wr[4], *consts.values())
-        bound = sum(timing.cycle_range(ins)[1] for _, ins, _, _, _ in entries[:-1])
         last_pc, _, _, _, last_len = entries[-1]
-        entry = (fn, k, bound, last_pc + last_len)
+        entry = (fn, len(entries), _block_bound(entries), last_pc + last_len)
         self._blocks[start] = entry
-        self._block_code[fn.__code__] = _BlockInfo(start, [e[0] for e in entries], lines, prefix, regs)
+        self._block_code[fn.__code__] = _BlockInfo(start, [e[0] for e in entries], lines, prefix, ncount, regs)
         for e in entries:
             self._block_members.setdefault(e[0], []).append(start)
         return entry
@@ -2706,7 +2940,7 @@ class CPU:
             R[i] = loc[_RN[i]]
         if "sr" in loc:
             R[16] = loc["sr"]
-        return info.pcs[k], k, info.prefix[k] + loc.get("c", 0)
+        return info.pcs[k], info.ncount[k] + loc.get("ni", 0), info.prefix[k] + loc.get("c", 0)
 
     # ---------------------------------------------------------------------------------------------- execution
     def execute(self, instr: Instruction, length: int | None = None) -> int:
@@ -2794,11 +3028,13 @@ class CPU:
                     if e is None:
                         e = build(pc)
                     fn = e[0]
-                    if fn is not None and n + e[1] <= maxn and cyc + e[2] < maxc and not pc < until < e[3]:
-                        r = fn()
+                    bn = maxn - n
+                    bc = maxc - cyc
+                    if fn is not None and e[1] <= bn and e[2] < bc and not pc < until < e[3]:
+                        r = fn(bn, bc, until)
                         pc = r & 0xFFFFFF
-                        n += (r >> 24) & 0xFFFF
-                        cyc += r >> 40
+                        n += (r >> 24) & 0xFFFFFFFF
+                        cyc += r >> 56
                     else:
                         f = cache.get(pc) or compile_(pc)
                         r = f()
