@@ -222,8 +222,12 @@ def design_kalman(k: int, noise_model: str, ratio: float | None, *, with_accel: 
     if noise_model not in NOISE_MODELS:
         raise UserError(f"{where}: noise_model={noise_model!r}: must be one of {', '.join(NOISE_MODELS)}")
     dt = math.ldexp(1.0, -k)
+    norm = baro_sigma**2  # K is invariant under a common scaling of Q and R: solve with R_baro = 1
     if q is None:
-        q = baro_sigma**2 / ratio
+        q = norm / ratio
+        q_norm = 1.0 / ratio  # not q / norm: the design must depend on the ratio alone, to the last bit
+    else:
+        q_norm = q / norm
     F = transition(dt)
     Q = process_noise(noise_model, dt, q)
     H, R = measurement(with_accel, baro_sigma, accel_sigma_units)
@@ -231,11 +235,10 @@ def design_kalman(k: int, noise_model: str, ratio: float | None, *, with_accel: 
     T = np.array([1.0, dt, dt * dt])
     Sm = np.array([1.0, dt * dt]) if with_accel else np.array([1.0])
     Fs = transition(1.0)
-    Qs = Q * np.outer(T, T)
+    Qs = process_noise(noise_model, dt, q_norm) * np.outer(T, T)
     Hs = H / T[None, :] * Sm[:, None]
-    Rs = R * np.outer(Sm, Sm)
-    norm = baro_sigma**2  # K is invariant under a common scaling of Q and R
-    ss = steady_state(Fs, Hs, Qs / norm, Rs / norm, where)
+    Rs = R * np.outer(Sm, Sm) / norm  # the barometer entry is exactly 1
+    ss = steady_state(Fs, Hs, Qs, Rs, where)
     K = ss.K / T[:, None] * Sm[None, :]
     P_prior = ss.P_prior * norm / np.outer(T, T)
     P_post = ss.P_post * norm / np.outer(T, T)
