@@ -345,3 +345,259 @@ def test_firmware_blocks_equal_closures(program: str) -> None:
     assert results[0][1] > 300 * 10  # the firmware really ran
     prof = results[2][8]
     assert sum(v[0] for v in prof.values()) == results[2][1] and sum(v[1] for v in prof.values()) == results[2][2]
+
+
+# ------------------------------------------------------------------------------------- control flow inside blocks
+# Programs with forward branches that land inside the same block (compiled as if / if-else), BRA forward over
+# code, and loops back to the block's first instruction (compiled as a while loop inside the block function).
+COND_B = "bhi bls bcc bcs bne beq bvc bvs bpl bmi bge blt bgt ble".split()
+COND_DB = "dbra dbt dbhi dbls dbcc dbcs dbne dbeq dbvc dbvs dbpl dbmi dbge dblt dbgt dble".split()
+
+
+def flow_layout(items: list[object], origin: int) -> bytes:
+    """Encode ``items`` back to back from ``origin``. An item is an Instruction, or
+    ``("b", mnemonic, skip, short)``: Bcc/BRA forward to the item ``skip`` places after the next one (clamped to
+    the end of the code), ``("bb", mnemonic, back, short)``: Bcc/BRA backward to the item ``back`` places before
+    it, ``("db", mnemonic, back)``: DBcc D7 to the item ``back`` places before it. ``short`` asks for Bcc.S,
+    used when the displacement fits (the layout is first made with every branch .W; .S only shortens it)."""
+    def size(item: object, short_ok: list[bool], k: int) -> int:
+        if isinstance(item, Instruction):
+            return length(item)
+        return 2 if item[0] in ("b", "bb") and short_ok[k] else 4
+
+    def addresses(short_ok: list[bool]) -> list[int]:
+        out = [origin]
+        for k, item in enumerate(items):
+            out.append(out[-1] + size(item, short_ok, k))
+        return out
+
+    def target(k: int, item: tuple[object, ...]) -> int:
+        if item[0] == "b":
+            return min(k + 1 + item[2], len(items))  # type: ignore[operator]
+        return max(k - item[2], 0)  # type: ignore[operator]
+
+    wide = addresses([False] * len(items))
+    short_ok = [not isinstance(it, Instruction) and it[0] in ("b", "bb") and bool(it[3])
+                and -100 <= wide[target(k, it)] - (wide[k] + 2) <= 100
+                and target(k, it) != k + 1 for k, it in enumerate(items)]
+    addrs = addresses(short_ok)
+    out = b""
+    for k, item in enumerate(items):
+        if isinstance(item, Instruction):
+            out += encode(item, addrs[k])
+            continue
+        t = Operand(Mode.ABSL, value=addrs[target(k, item)])
+        if item[0] == "db":
+            out += encode(Instruction(item[1], Size.W, (Operand(Mode.DREG, 7), t)), addrs[k])
+        else:
+            out += encode(Instruction(item[1], Size.S if short_ok[k] else Size.W, (t,)), addrs[k])
+    return out
+
+
+def _flow_body(draw: st.DrawFn, ins: st.SearchStrategy[Instruction], depth: int = 0) -> list[object]:
+    """1..6 instructions mixed with forward Bcc/BRA over some of them and, now and then, an explicit
+    ``bcc L1; then...; bra L2; L1: else...; L2:`` (nested up to depth 2)."""
+    items: list[object] = []
+    for _ in range(draw(st.integers(1, 6))):
+        pick = draw(st.integers(0, 9))
+        if pick == 0:
+            items.append(("b", draw(st.sampled_from(COND_B + ["bra"])), draw(st.integers(0, 4)), draw(st.booleans())))
+        elif pick == 1 and depth < 2:
+            then = _flow_body(draw, ins, depth + 1)
+            other = _flow_body(draw, ins, depth + 1)
+            items.append(("b", draw(st.sampled_from(COND_B)), len(then) + 1, draw(st.booleans())))
+            items += then
+            items.append(("b", "bra", len(other) - 1, draw(st.booleans())))
+            items += other
+        else:
+            items.append(draw(ins))
+    return items
+
+
+@st.composite
+def flow_loops(draw: st.DrawFn) -> tuple[bytes, list[int], int, int]:
+    """A loop whose first instruction is the run's (so the block's) start: a body with forward branches closed by
+    DBcc D7 (D7 = 0..5), or by ``SUBQ.W #1,D7`` and a Bcc back that ends once D7 runs out (D7 = 1..5); the body
+    never touches D7, so every loop ends."""
+    body = _flow_body(draw, ALU)
+    for p, it in enumerate(body):  # forward branches stay inside the body (never skip the loop's counting)
+        if isinstance(it, tuple):
+            body[p] = (it[0], it[1], min(it[2], len(body) - p - 1), it[3])
+    d = _regs(draw)
+    if draw(st.booleans()):
+        body.append(("db", draw(st.sampled_from(COND_DB)), len(body)))
+        d[7] = draw(st.integers(0, 5))
+    else:
+        body.append(Instruction("subq", Size.W, (Operand(Mode.IMM, value=1), Operand(Mode.DREG, 7))))
+        body.append(("bb", draw(st.sampled_from(["bne", "bpl", "bcc", "bge", "bgt"])), len(body), draw(st.booleans())))
+        d[7] = draw(st.integers(1, 5))
+    if draw(st.integers(0, 3)) == 0:  # the loop head is not the first block's start (second block loops)
+        body = [Instruction("moveq", None, (Operand(Mode.IMM, value=d[7]), Operand(Mode.DREG, 7)))] + body
+    return flow_layout(body, oracles.CODE), d, draw(st.integers(0, 31)), draw(st.integers(0, 1 << 30))
+
+
+@settings(max_examples=examples(150), deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(flow_loops())
+def test_flow_loops_vs_m68000py(case: tuple[bytes, list[int], int, int]) -> None:
+    """Loops to the block start with if/else bodies: registers, CCR, PC, memory, clocks, instruction count (or
+    the fault kind, e.g. a DIVU by zero in the second iteration) equal to m68000-python's."""
+    _check_vs_ref(case, 1000)
+
+
+@st.composite
+def flow_straight(draw: st.DrawFn) -> tuple[bytes, list[int], int, int]:
+    """No loop: nested forward branches and if/else only (targets clamped to the end of the code)."""
+    body = _flow_body(draw, ALU) + _flow_body(draw, ALU)
+    return flow_layout(body, oracles.CODE), _regs(draw), draw(st.integers(0, 31)), draw(st.integers(0, 1 << 30))
+
+
+@settings(max_examples=examples(100), deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(flow_straight())
+def test_flow_forward_branches_vs_m68000py(case: tuple[bytes, list[int], int, int]) -> None:
+    _check_vs_ref(case, 200)
+
+
+#: Data instructions for the closures comparison: any data row and mode, absolute addresses that hit data, odd
+#: addresses (address errors), unmapped memory (bus errors) and the code itself (self-modifying code). No
+#: PC-relative operands: they are drawn for one address and the instructions land at others.
+FLOW_ANY = instructions(rows=ALU_ROWS + ["movea", "lea", "pea", "movem", "adda", "suba", "exg"],
+                        address=oracles.CODE, modes=frozenset(Mode) - {Mode.PCDISP, Mode.PCINDEX},
+                        absolute=st.sampled_from([0x6000, 0x6002, 0x6001, 0x7FFE, 0x30000, oracles.CODE,
+                                                  oracles.CODE + 2, oracles.CODE + 6, oracles.CODE + 10])
+                        ).filter(lambda i: not _touches_d7(i))
+
+
+@st.composite
+def flow_any(draw: st.DrawFn) -> list[object]:
+    """Any flow program: the loop back may be a DBcc, a Bcc (maybe never ending: the limits end it) or a BRA."""
+    body = _flow_body(draw, FLOW_ANY)
+    kind = draw(st.integers(0, 3))
+    if kind == 0:
+        body.append(("db", draw(st.sampled_from(COND_DB)), len(body)))
+    elif kind == 1:
+        body.append(("bb", draw(st.sampled_from(COND_B + ["bra"])), len(body), draw(st.booleans())))
+    elif kind == 2:
+        body.append(("bb", draw(st.sampled_from(COND_B)), draw(st.integers(0, len(body))), draw(st.booleans())))
+    return body
+
+
+@settings(max_examples=examples(250), deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(flow_any(), st.lists(st.sampled_from(EDGE) | st.integers(0, M32), min_size=8, max_size=8),
+       st.integers(0, 31), st.integers(0, 1 << 30), st.integers(1, 300), st.integers(1, 4000), st.integers(0, 60))
+def test_flow_blocks_equal_closures(items: list[object], d: list[int], ccr: int, seed: int, max_n: int, max_c: int,
+                                    until_k: int) -> None:
+    """Loops and forward branches over any data instructions (faults, self-modifying writes included), with a
+    random instruction limit, cycle limit and until_pc (at the start, inside the loop or nowhere): blocks and
+    per-instruction closures leave everything identical (result or fault, registers, memory, counters)."""
+    code = flow_layout(items, oracles.CODE)
+    rng = random.Random(seed)
+    image = bytes(oracles.base_image(seed, [(oracles.CODE, code)]))
+    a = [oracles.DATA_LO + 2 * rng.randrange(0, 0x800) for _ in range(7)] + [0x6F00 + 2 * rng.randrange(0, 64)]
+    d = list(d)
+    d[7] = d[7] & 0xFFFF0000 | rng.randrange(0, 12)
+    until = oracles.CODE + 2 * until_k if until_k < 30 and 2 * until_k < len(code) else None
+    kwargs = dict(max_instructions=max_n, max_cycles=max_c, until_pc=until, stop_at_limit=bool(seed & 1))
+    blocks, closures = _run_both(image, d, a, ccr, kwargs)
+    assert blocks == closures
+
+
+LOOP_SRC = """
+top:    add.l   d7,d0
+        bne.s   skip
+        addq.l  #1,d5
+skip:   cmpa.l  #$6010,a0
+        bcs.s   keep
+        movea.l a1,a0
+        bra.s   join
+keep:   move.w  d0,(a0)+
+join:   dbra    d7,top
+        trap    #0
+"""
+
+
+def test_loop_limits_and_until_pc_at_every_point() -> None:
+    """A loop with if/else in its body: every instruction limit, every cycle limit up to past the end, and
+    until_pc at every instruction (the loop head included): blocks and closures agree exactly."""
+    prog = isa.assemble(LOOP_SRC, origin=oracles.CODE)
+    image = bytes(oracles.base_image(0, [(oracles.CODE, prog.code)]))
+    d, a = [0, 0, 0, 0, 0, 0, 0, 9], [0x6000, 0x6000] + [0x6000] * 5 + [0x6F00]
+    full = _run_both(image, d, a, 0, {})[0]
+    assert full[0] == "ok" and full[1].reason == "trap" and full[1].instructions > 60
+    for n in range(1, full[1].instructions + 2):
+        blocks, closures = _run_both(image, d, a, 0, {"max_instructions": n, "stop_at_limit": True})
+        assert blocks == closures, n
+    for c in range(1, full[1].cycles + 20, 3):
+        blocks, closures = _run_both(image, d, a, 0, {"max_cycles": c, "stop_at_limit": bool(c & 1)})
+        assert blocks == closures, c
+    addrs = sorted({oracles.CODE + off for off in range(0, len(prog.code), 2)})
+    for u in addrs:
+        blocks, closures = _run_both(image, d, a, 0, {"until_pc": u})
+        assert blocks == closures, hex(u)
+
+
+def test_loop_runs_inside_one_block_call() -> None:
+    """Not vacuous: the loop above really runs as ONE call of the block function (a while loop inside it), and
+    a budget that ends mid-loop makes it leave at the loop head with exact counters."""
+    prog = isa.assemble(LOOP_SRC, origin=oracles.CODE)
+    cpu = oracles.make_cpu(isa)
+    cpu.write_bytes(oracles.CODE, prog.code)
+    cpu.d[7], cpu.a[0], cpu.a[1], cpu.a[7] = 500, 0x6000, 0x6000, 0x6F00
+    cpu.pc = oracles.CODE
+    fn, *rest = cpu._build_block(oracles.CODE)
+    calls = []
+
+    def counting(*args: int) -> int:
+        calls.append(args)
+        return fn(*args)
+
+    cpu._blocks[oracles.CODE] = (counting, *rest)
+    res = cpu.run()
+    assert res.reason == "trap" and len(calls) == 1 and res.instructions > 500 * 6
+    ref = oracles.make_cpu(isa)
+    ref.block_compile = False
+    ref.write_bytes(oracles.CODE, prog.code)
+    ref.d[7], ref.a[0], ref.a[1], ref.a[7] = 500, 0x6000, 0x6000, 0x6F00
+    ref.pc = oracles.CODE
+    assert ref.run() == res and tuple(ref.d) == tuple(cpu.d) and tuple(ref.a) == tuple(cpu.a) and ref.sr == cpu.sr
+
+
+def test_self_modifying_write_inside_loop() -> None:
+    """The loop rewrites its own ADDQ #1 into ADDQ #3 in the third iteration (a MOVE.W to the code in the loop
+    body): the block leaves after the write, is recompiled, and the rest of the loop adds 3 per iteration."""
+    src = """
+top:    cmpi.w  #2,d7
+        bne.s   same
+        move.w  #$5681,patch    ; addq.l #3,d1
+same:   nop
+patch:  addq.l  #1,d1
+        dbra    d7,top
+        trap    #0
+"""
+    prog = isa.assemble(src, origin=oracles.CODE)
+    image = bytes(oracles.base_image(0, [(oracles.CODE, prog.code)]))
+    blocks, closures = _run_both(image, [0] * 7 + [4], [0x6000] * 7 + [0x6F00], 0, {})
+    assert blocks == closures
+    assert blocks[0] == "ok" and blocks[1].reason == "trap"
+    d = blocks[2]
+    # D7 = 4, 3, 2 (rewritten here, before the ADDQ runs), 1, 0: adds 1 + 1 + 3 + 3 + 3
+    assert d[1] == 11, d
+
+
+def test_fault_in_second_iteration_of_loop() -> None:
+    """A loop that walks A0 by 3 bytes: the word read at an odd address in the second iteration faults; the
+    counters and registers left are exactly those after the first iteration plus the instructions before."""
+    src = """
+top:    addq.l  #1,d2
+        move.w  (a0),d0
+        addq.l  #3,a0
+        dbra    d7,top
+        trap    #0
+"""
+    prog = isa.assemble(src, filename="loop.s", origin=oracles.CODE)
+    image = bytes(oracles.base_image(0, [(oracles.CODE, prog.code)]))
+    blocks, closures = _run_both(image, [0] * 7 + [5], [0x6000] * 7 + [0x6F00], 0, {})
+    assert blocks == closures
+    assert blocks[0] == "AddressError" and blocks[2] == oracles.CODE + 2
+    d, a, pc, sr, n, cycles = blocks[4:10]
+    # iteration 1: ADDQ.L #1,Dn 8 + MOVE.W (An),Dn 8 + ADDQ.L #3,An 8 + DBRA taken 10; then ADDQ 8
+    assert d[2] == 2 and a[0] == 0x6003 and d[7] == 4 and n == 5 and cycles == 8 + 8 + 8 + 10 + 8
