@@ -2182,24 +2182,32 @@ def _branch_target(ins: Instruction) -> int:
     return ins.operands[-1].value & 0xFFFFFF
 
 
-def _plan(entries: list[_Entry]) -> tuple[dict[int, tuple[Any, ...]], list[bool]]:
-    """Control flow inside a block. Returns (role of each internal branch by entry index, reachable per entry).
+def _plan(entries: list[_Entry]) -> tuple[dict[int, tuple[Any, ...]], list[bool], int | None]:
+    """Control flow inside a block. Returns (role of each internal branch by entry index, reachable per entry,
+    index of the loop head or None).
 
     Roles: ``("if", j)`` a Bcc forward to entry ``j`` of the same region (generated as an ``if``);
     ``("ifelse", j, t)`` a Bcc forward to ``j`` where entry ``j-1`` is a BRA forward to ``t`` (``if``/``else``,
     the BRA gets ``("join", t)``); ``("skip", j)`` a BRA forward to ``j`` (the entries between are dead);
-    ``("loop",)`` a Bcc/DBcc/BRA back to the block's first entry (``continue`` of the block's ``while`` loop).
-    Any other branch leaves the block when taken. Regions nest: a forward branch is internal only when its
-    target does not lie beyond the end of the region (``if`` body) it is in; otherwise it is an exit."""
+    ``("loop",)`` a Bcc/DBcc/BRA back to the loop head (``continue`` of the ``while`` loop that holds the entries
+    from the head on; the entries before it run once). The head is the earliest entry a backward branch goes
+    to. Any other branch leaves the block when taken. Regions nest: a forward branch is internal only when its
+    target does not lie beyond the end of the region (``if`` body, the part before the head) it is in;
+    otherwise it is an exit."""
     k = len(entries)
-    start = entries[0][0]
     last_pc, _, _, _, last_len = entries[-1]
     at = {e[0]: i for i, e in enumerate(entries)}
     at[(last_pc + last_len) & 0xFFFFFF] = k
     role: dict[int, tuple[Any, ...]] = {}
     reach = [False] * k
+    heads = [at[t] for i, (_, ins, h, cond, _) in enumerate(entries)
+             if h in ("bcc", "bra", "dbcc") and not (h == "dbcc" and cond == 0)
+             and (t := _branch_target(ins)) in at and at[t] <= i]
+    head = min(heads) if heads else None
+    start = entries[head][0] if head is not None else -1
 
-    def plan(lo: int, hi: int) -> None:
+    def plan(lo: int, hi: int) -> bool:
+        """Plan entries lo..hi-1; True when every path through them leaves the block."""
         i = lo
         while i < hi:
             _, ins, h, cond, _ = entries[i]
@@ -2207,7 +2215,7 @@ def _plan(entries: list[_Entry]) -> tuple[dict[int, tuple[Any, ...]], list[bool]
             if h in ("bcc", "bra", "dbcc"):
                 tgt = _branch_target(ins)
                 j = at.get(tgt)
-                if tgt == start and not (h == "dbcc" and cond == 0):
+                if tgt == start and i >= head and not (h == "dbcc" and cond == 0):  # type: ignore[operator]
                     role[i] = ("loop",)
                 elif h == "bcc" and j is not None and i < j <= hi:
                     if j - 1 > i and entries[j - 1][2] == "bra":
@@ -2229,14 +2237,23 @@ def _plan(entries: list[_Entry]) -> tuple[dict[int, tuple[Any, ...]], list[bool]
                     i = j
                     continue
             if h in _BLOCK_ENDS:
-                return
+                return True
             i += 1
+        return False
 
-    plan(0, k)
-    return role, reach
+    if head is not None and plan(0, head):  # the loop head is never reached: no loop
+        role.clear()
+        reach = [False] * k
+        head, start = None, -1
+    if head is None:
+        plan(0, k)
+    else:
+        plan(head, k)
+    return role, reach, head
 
 
-def _liveness(entries: list[_Entry], role: dict[int, tuple[Any, ...]], reach: list[bool]) -> list[int]:
+def _liveness(entries: list[_Entry], role: dict[int, tuple[Any, ...]], reach: list[bool], head: int | None
+              ) -> list[int]:
     """Flags live after each entry (CCR bit masks): what a later instruction on any path inside the block reads,
     all flags at a block exit and around an instruction that may fault (a fault exposes SR)."""
     k = len(entries)
@@ -2262,9 +2279,9 @@ def _liveness(entries: list[_Entry], role: dict[int, tuple[Any, ...]], reach: li
             uses, defs = _flag_effect(ins, h, cond)
             need[i] = after
             live_in[i] = _ALL_FLAGS if _may_fault(ins, h) else (after & ~defs) | uses
-        if live_in[0] | live0 == live0:
+        if head is None or live_in[head] | live0 == live0:
             return need
-        live0 |= live_in[0]
+        live0 |= live_in[head]
 
 
 def _block_source(cpu: CPU, entries: list[_Entry]
@@ -2273,12 +2290,10 @@ def _block_source(cpu: CPU, entries: list[_Entry]
     back in memory). Returns (source, constants, first generated line per entry, constant clocks and constant
     instruction count before each entry on the path that reaches it, registers used, whether it loops)."""
     k = len(entries)
-    start = entries[0][0]
-    role, reach = _plan(entries)
-    need = _liveness(entries, role, reach)
-    loops = any(r[0] == "loop" for r in role.values())
+    role, reach, head = _plan(entries)
+    need = _liveness(entries, role, reach, head)
+    loops = head is not None
     g = _BlockGen(cpu)
-    g.ind = 2 if loops else 1
     prefix = [0] * k
     ncount = [0] * k
     marks: dict[int, int] = {}
@@ -2306,11 +2321,13 @@ def _block_source(cpu: CPU, entries: list[_Entry]
         close_body(pos)
 
     def loopback(n: int, cy: int) -> None:
-        g.emit(f"ni += {n}")
-        g.emit(f"c += {cy}")
+        if n != n_head:
+            g.emit(f"ni += {n - n_head}")
+        if cy != c_head:
+            g.emit(f"c += {cy - c_head}")
         g.emit("if ni <= ln and c < lc:")
         g.emit("    continue")
-        g.exit(start, 0, 0)
+        g.exit(head_pc, n_head, c_head)
 
     def gen(lo: int, hi: int, n: int, cy: int) -> tuple[bool, int, int]:
         """Emit entries lo..hi-1 reached with ``n`` instructions and ``cy`` constant clocks done; return (every
@@ -2431,7 +2448,14 @@ def _block_source(cpu: CPU, entries: list[_Entry]
             i = t
         return False, n, cy
 
-    ended, n_end, c_end = gen(0, k, 0, 0)
+    if head is None:
+        ended, n_end, c_end = gen(0, k, 0, 0)
+    else:
+        head_pc = entries[head][0]
+        _, n_head, c_head = gen(0, head, 0, 0)  # the entries before the loop head (never all leave: see _plan)
+        g.emit("while True:")
+        g.ind += 1
+        ended, n_end, c_end = gen(head, k, n_head, c_head)
     if not ended:
         last_pc, _, _, _, last_len = entries[-1]
         g.exit((last_pc + last_len) & 0xFFFFFF, n_end, c_end)
@@ -2440,23 +2464,22 @@ def _block_source(cpu: CPU, entries: list[_Entry]
     text = [t for _, t in g.items if isinstance(t, str)]
     uses_sr = any("sr" in t for t in text)
     sr_dirty = any("sr = " in t for t in text)
-    head = [f"def __make(R, MS, D, rb, rw, rl, wb, ww, wl{''.join(', ' + n for n in g.consts)}):",
+    lines_ = [f"def __make(R, MS, D, rb, rw, rl, wb, ww, wl{''.join(', ' + n for n in g.consts)}):",
             "    def __block(bn, bc, until):"]
     used = sorted(g.used)
-    head += [f"        {_RN[r]} = R[{r}]" for r in used]
+    lines_ += [f"        {_RN[r]} = R[{r}]" for r in used]
     if uses_sr:
-        head.append("        sr = R[16]")
+        lines_.append("        sr = R[16]")
     if g.dyn:
-        head.append("        c = 0")
+        lines_.append("        c = 0")
     if flow or loops:
-        head.append("        ni = 0")
-    if loops:
-        head.append(f"        ln = (bn if bn < 0x40000000 else 0x40000000) - {k}")
-        head.append(f"        if until == {start}:")
-        head.append("            ln = -1")
-        head.append(f"        lc = bc - {_block_bound(entries)}")
-        head.append("        while True:")
-    first = len(head) + 1
+        lines_.append("        ni = 0")
+    if loops:  # another pass from the head may start only if its worst case fits the budget (see CPU.run)
+        lines_.append(f"        ln = (bn if bn < 0x40000000 else 0x40000000) - {k - head + n_head}")
+        lines_.append(f"        if until == {head_pc}:")
+        lines_.append("            ln = -1")
+        lines_.append(f"        lc = bc - {_block_bound(entries[head:]) + c_head}")
+    first = len(lines_) + 1
     line_at: dict[int, int] = {}
     sr_so_far = False
     for ind, item in g.items:
@@ -2487,7 +2510,7 @@ def _block_source(cpu: CPU, entries: list[_Entry]
         nxt_line = line_at.get(i, nxt_line)
         lines.append(nxt_line)
     lines.reverse()
-    src = "\n".join(head + body + ["    return __block", ""])
+    src = "\n".join(lines_ + body + ["    return __block", ""])
     return src, g.consts, lines, prefix, ncount, used, loops
 
 
