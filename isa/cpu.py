@@ -38,6 +38,7 @@ of a run), ``ram_written`` (number of distinct bytes written by executed instruc
 from __future__ import annotations
 
 import mmap
+import struct
 from bisect import bisect_right
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -73,6 +74,10 @@ _UNMAPPED_TABLE = bytes((0 if b & _MAPPED else 1) for b in range(256))  # flag b
 _CODE_TABLE = bytes((1 if b & _CODE else 0) for b in range(256))  # flag byte -> 1 if it holds compiled code
 _HOST_PLAIN_TABLE = bytes((0 if b & _MAPPED and not b & _CODE else 1) for b in range(256))
 _ZEROS = {1: b"\0", 2: b"\0\0", 4: b"\0\0\0\0"}
+_LONG = struct.Struct(">L")
+#: flag byte -> 0 if a program write there needs nothing but the written mark (mapped, writable, not code)
+_FIRST_WRITE_TABLE = bytes((0 if b & (_MAPPED | _WRITABLE | _CODE) == _MAPPED | _WRITABLE else 1) for b in range(256))
+_FAST_BYTES = {n: bytes([_FAST_W]) * n for n in (1, 2, 4)}
 
 #: Return address pushed by :meth:`CPU.call`; odd, so it can never be the address of a real instruction.
 CALL_SENTINEL = 0xFFFFFF
@@ -2659,6 +2664,7 @@ class CPU:
         m = self._mem
         fl = self._flags
         slow_write = self._slow_write
+        unpack_l, pack_l = _LONG.unpack_from, _LONG.pack_into
 
         def fault(cls: type[CPUFault], what: str, a: int) -> _Fault:
             return _Fault(cls, f"{what} ${a & 0xFFFFFF:06X}")
@@ -2682,7 +2688,7 @@ class CPU:
                 raise fault(AddressError, "long read at odd address", a)
             a &= 0xFFFFFF
             if fl[a] & fl[a + 2] & 1:
-                return (m[a] << 24) | (m[a + 1] << 16) | (m[a + 2] << 8) | m[a + 3]
+                return unpack_l(m, a)[0]
             raise fault(BusError, "long read of unmapped address", a + (0 if fl[a] & 1 else 2))
 
         def wb(a: int, v: int) -> None:
@@ -2706,7 +2712,7 @@ class CPU:
             a &= 0xFFFFFF
             if fl[a] != 7 or fl[a + 1] != 7 or fl[a + 2] != 7 or fl[a + 3] != 7:
                 slow_write(a, 4)
-            m[a : a + 4] = (v & M32).to_bytes(4, "big")
+            pack_l(m, a, v & M32)
 
         self._rd = {1: rb, 2: rw, 4: rl}
         self._wr = {1: wb, 2: ww, 4: wl}
@@ -2714,6 +2720,9 @@ class CPU:
     def _slow_write(self, a: int, n: int) -> None:
         """A program write that needs bookkeeping: bus errors, first-write marking, code invalidation."""
         fl = self._flags
+        if fl[a : a + n].translate(_FIRST_WRITE_TABLE) == _ZEROS[n]:  # writable RAM, no code: mark written
+            fl[a : a + n] = _FAST_BYTES[n]
+            return
         for b in range(a, a + n):
             f = fl[b]
             if not f & _MAPPED:
@@ -2858,7 +2867,19 @@ class CPU:
         raise _Fault(BusError, f"instruction fetch from unmapped address ${a:06X}")
 
     def _compile(self, pc: int) -> Callable[[], int]:
-        """Decode the instruction at ``pc`` and cache its closure (faults are raised as _Fault)."""
+        """Decode the instruction at ``pc`` (unless a block build already did) and cache its closure (faults are
+        raised as _Fault)."""
+        info = self._decoded.get(pc)
+        if info is None:
+            info = self._decode_at(pc)
+        h, cond = self._meta[pc]
+        fn = self._build(info[0], pc, info[1], h, cond)
+        self._cache[pc] = fn
+        return fn
+
+    def _decode_at(self, pc: int) -> tuple[Instruction, int]:
+        """Decode the instruction at ``pc``, record it (``_decoded``, ``_meta``) and mark its bytes as code;
+        faults are raised as _Fault."""
         if pc & 1:
             raise _Fault(AddressError, f"instruction fetch at odd address ${pc:06X}")
         from isa.decoder import decode
@@ -2871,14 +2892,12 @@ class CPU:
             raise _Fault(type(exc), str(exc).split(" at PC=")[0]) from None
         except IsaError as exc:
             raise _Fault(IllegalInstruction, f"cannot decode: {exc}") from None
-        fn = self._build(dec.instruction, pc, dec.length, dec.row.handler, dec.cond)
-        self._cache[pc] = fn
-        self._decoded[pc] = (dec.instruction, dec.length)
+        info = self._decoded[pc] = (dec.instruction, dec.length)
         self._meta[pc] = (dec.row.handler, dec.cond)
         fl = self._flags
         for b in range(pc, pc + dec.length):
             fl[b] |= _CODE
-        return fn
+        return info
 
     def _build(self, instr: Instruction, pc: int, length: int, handler: str | None = None,
                cond: int | None = None) -> Callable[[], int]:
@@ -2908,13 +2927,13 @@ class CPU:
         instruction can take, so the run loop can keep ``max_cycles`` exact."""
         entries: list[tuple[int, Instruction, str, int | None, int]] = []
         pc = start
-        decoded, cache, meta = self._decoded, self._cache, self._meta
+        decoded, meta = self._decoded, self._meta
         while len(entries) < BLOCK_MAX:
             if pc & 1:
                 break
-            if pc not in cache or pc not in decoded:
+            if pc not in decoded:
                 try:
-                    self._compile(pc)
+                    self._decode_at(pc)
                 except _Fault:
                     break
             ins, length = decoded[pc]
