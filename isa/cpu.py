@@ -1558,7 +1558,7 @@ def _format(instr: Instruction) -> str:
 # into ONE generated Python function each. See the module docstring ("Speed") for the contract.
 
 #: Most instructions in one compiled block.
-BLOCK_MAX = 48
+BLOCK_MAX = 256
 #: A BRA at most this many bytes forward does not end the block being decoded (it may become an internal skip).
 _BRA_WINDOW = 128
 _RN: tuple[str, ...] = tuple(f"d{i}" for i in range(8)) + tuple(f"a{i}" for i in range(8))
@@ -1752,6 +1752,10 @@ class _BlockGen:
     def set_dreg(self, i: int, nb: int, v: str) -> None:
         r = self.wg(i)
         if nb == 4:
+            last = self.items[-1]
+            if v == "rm" and last[0] == self.ind and isinstance(last[1], str) and last[1].startswith("rm = "):
+                self.items[-1] = (self.ind, f"{r} = {last[1][5:]}")  # the result goes straight to the register
+                return
             self.emit(f"{r} = {v}")
         else:
             self.emit(f"{r} = ({r} & 0x{M32 ^ MASK[nb]:08X}) | {v}")
@@ -1934,6 +1938,18 @@ class _BlockGen:
             a, b = (self.wg(o.reg + (8 if o.mode is _M.AREG else 0)) for o in ops)
             self.emit(f"{a}, {b} = {b}, {a}")
             return base, False
+        if h in ("mulu", "muls") and ops[0].mode is _M.IMM:  # constant source: constant clocks
+            sv = ops[0].value & 0xFFFF
+            dn = self.wg(ops[1].reg)
+            if h == "muls":
+                self.emit(f"{dn} = ({_sx(sv, 2)} * ((({dn} & 0xFFFF) ^ 0x8000) - 0x8000)) & 0xFFFFFFFF")
+                x = sv << 1
+                extra = 2 * ((x ^ (x >> 1)) & 0xFFFF).bit_count()
+            else:
+                self.emit(f"{dn} = {sv} * ({dn} & 0xFFFF)")
+                extra = 2 * sv.bit_count()
+            self.logic_flags(dn, 4, need)
+            return 38 + timing.EA_TIME[ops[0].mode][0] + extra, False
         if h in ("mulu", "muls"):
             s = self.read(ops[0], 2, pc, "s", materialize=True)
             dn = self.wg(ops[1].reg)
