@@ -655,6 +655,10 @@ def cases(draw, row, size: Size | None, first_mode: Mode | None, odd: bool = Fal
         if op.mode is Mode.AINDEX:
             same = idx.is_areg and idx.num == op.reg
             if same and (True, op.reg) not in placed:
+                # EA = 2*An + d8 has the parity of d8: give d8 the parity of the target (odd or even as wanted)
+                if (t - op.value) % 2:
+                    op = Operand(op.mode, op.reg, op.value + (1 if op.value < 127 else -1), op.index)
+                    ops[i] = op
                 set_reg(True, op.reg, (t - op.value) // 2)
             elif (True, op.reg) not in placed:
                 set_reg(True, op.reg, t - op.value - ival)
