@@ -13,18 +13,26 @@ Model
 * Speed: each instruction address is decoded once (:func:`isa.decoder.decode`) and compiled to a closure that
   performs the instruction and returns ``next_pc | clocks << 32`` (used by :meth:`CPU.step`, by :meth:`CPU.run`
   when ``profiling`` is on or ``block_compile`` is off, and for single instructions near a limit). :meth:`CPU.run`
-  otherwise runs *blocks*: the instructions from an address up to the first BRA/BSR/JMP/JSR/RTS (conditional
-  branches and DBcc leave the block only when taken; at most :data:`BLOCK_MAX`) are generated as the source of
-  ONE Python function (registers in locals, operands/addresses/clock constants as literals, CCR flags computed
-  only where a later instruction, a block exit or a possible fault can observe them), compiled once and cached by
-  start address. A block runs only when the remaining instruction and cycle budget covers its worst case and
-  ``until_pc`` is not inside it; otherwise the next instruction is single-stepped, so limits, ``until_pc`` and
-  counters are exactly those of the per-instruction path. A fault inside a block is unwound from the
-  traceback: the block's register locals are written back and the faulting instruction's PC, the instructions
-  and clocks before it are recovered, so registers, memory, counters and the fault are exactly those of the
-  per-instruction path (tests/test_isa_blocks.py checks both paths against each other and against
-  m68000-python). Writes to bytes that hold compiled code invalidate the affected closures and blocks, and a
-  running block that wrote to code leaves right after that instruction (self-modifying code works).
+  otherwise runs *blocks*: the instructions from an address up to the first JMP/JSR/BSR/RTS or BRA (decoding goes
+  on past one while an earlier forward branch of the block still targets code beyond it; at most
+  :data:`BLOCK_MAX`) are generated as the source of ONE Python function (registers in locals, operands/addresses/
+  clock constants as literals, CCR flags computed only where a later instruction, a block exit or a possible
+  fault can observe them), compiled once and cached by start address. Control flow inside a block: a Bcc forward
+  to a later instruction of the same (nested) region becomes an ``if`` (with ``else`` when the skipped code ends
+  in a BRA forward: if/else), a BRA forward skips code, and a Bcc/DBcc/BRA back to the earliest instruction a
+  backward branch of the block reaches (the loop head) becomes the ``continue`` of a ``while`` loop around the
+  instructions from the head on; any other branch leaves the block. Constant clocks and instruction counts are
+  folded per path; the locals ``c`` (clocks) and ``ni`` (instructions) carry what differs between paths and
+  loop passes. A block starts only when the remaining instruction and cycle budget covers one pass (each
+  instruction at most once, worst-case clocks) and ``until_pc`` is not inside it; the loop goes round again only
+  while the budget still covers another pass from the head and ``until_pc`` is not the head; otherwise the block
+  returns and the run loop single-steps, so limits, ``until_pc`` and counters are exactly those of the
+  per-instruction path. A fault inside a block is unwound from the traceback: the block's register locals are
+  written back and the faulting instruction's PC, the instructions and clocks before it (path constants + ``ni``
+  / ``c``) are recovered, so registers, memory, counters and the fault are exactly those of the per-instruction
+  path (tests/test_isa_blocks.py checks both paths against each other and against m68000-python). Writes to
+  bytes that hold decoded code invalidate the affected closures and blocks, and a running block that wrote to
+  code leaves right after that instruction (self-modifying code works, also inside a loop).
 
 Not modelled (documented simplifications): prefetch, the extra bus read of MOVEM memory-to-register, the
 read-before-write of CLR/Scc to memory, exception processing, user mode.
@@ -1558,9 +1566,10 @@ def _format(instr: Instruction) -> str:
 # into ONE generated Python function each. See the module docstring ("Speed") for the contract.
 
 #: Most instructions in one compiled block.
-BLOCK_MAX = 256
-#: A BRA at most this many bytes forward does not end the block being decoded (it may become an internal skip).
-_BRA_WINDOW = 128
+BLOCK_MAX = 160
+#: Decoding goes on past a BRA/JMP/RTS/... while a branch of the block targets code at most this many bytes after
+#: the branch and beyond the transfer (that code may be reached inside the block).
+_FORWARD_WINDOW = 512
 _RN: tuple[str, ...] = tuple(f"d{i}" for i in range(8)) + tuple(f"a{i}" for i in range(8))
 _ALL_FLAGS = 0x1F
 _FLAGS_NZVC = 0x0F
@@ -2562,6 +2571,7 @@ class CPU:
         # instruction addresses each block covers; code object -> _BlockInfo (for faults inside a block).
         self._blocks: dict[int, tuple[Callable[[], int] | None, int, int, int]] = {}
         self._block_members: dict[int, list[int]] = {}
+        self._block_drops: dict[int, int] = {}  # block start -> times its block was dropped by a code write
         self._block_code: dict[Any, _BlockInfo] = {}
         self._smc = [0]  # set when a program write invalidates compiled code (a running block leaves early)
         #: Use compiled blocks in :meth:`run` (True) or the per-instruction closures only (False). Both give
@@ -2777,10 +2787,12 @@ class CPU:
         members = self._block_members.pop(start, None)
         if members:
             blocks = self._blocks
+            drops = self._block_drops
             for b in members:
                 e = blocks.pop(b, None)
                 if e is not None and e[0] is not None:
                     self._block_code.pop(e[0].__code__, None)
+                    drops[b] = drops.get(b, 0) + 1
             self._smc[0] = 1
 
     def _host_fault(self, cls: type[CPUFault], message: str) -> CPUFault:
@@ -2839,9 +2851,13 @@ class CPU:
     def _host_invalidate(self, a: int, n: int) -> None:
         marks = self._flags[a : a + n].translate(_CODE_TABLE)
         i = marks.find(1)
+        if i == -1:
+            return
+        drops = dict(self._block_drops)
         while i != -1:
             self._invalidate(a + i)
             i = marks.find(1, i + 1)
+        self._block_drops = drops  # only program writes count as self-modifying code
 
     # --------------------------------------------------------------------------------------------- programs
     def load(self, program: Program) -> None:
@@ -2936,15 +2952,19 @@ class CPU:
 
     def _build_block(self, start: int) -> tuple[Callable[[], int] | None, int, int, int]:
         """Compile (and cache) the block starting at ``start``: instructions up to the first unconditional
-        transfer (BRA, BSR, JMP, JSR, RTS), an instruction left to the per-instruction path (TRAP, ILLEGAL, an
-        odd constant branch target, an undecodable word) or :data:`BLOCK_MAX` instructions. Conditional branches
-        and DBcc inside the block leave it when taken. Returns the cache entry ``(function or None, most
-        instructions, clock bound, end address)``; the clock bound is the most clocks all but the last
-        instruction can take, so the run loop can keep ``max_cycles`` exact."""
+        transfer (BRA, BSR, JMP, JSR, RTS) that no earlier forward branch of the block (nor the BRA itself)
+        jumps past by at most :data:`_FORWARD_WINDOW` bytes, an instruction left to the per-instruction path
+        (TRAP, ILLEGAL, an odd constant branch target, an undecodable word) or :data:`BLOCK_MAX` instructions.
+        Control flow inside the block: see :func:`_plan`. Returns the cache entry ``(function or None, most
+        instructions in one pass, clock bound of one pass (:func:`_block_bound`), end address)``, so the run loop
+        can keep ``max_instructions``/``max_cycles`` exact."""
         entries: list[tuple[int, Instruction, str, int | None, int]] = []
         pc = start
         decoded, meta = self._decoded, self._meta
-        while len(entries) < BLOCK_MAX:
+        pending = -1  # furthest forward branch target so far (within the window)
+        # code that keeps rewriting itself: recompiling big blocks each time would cost more than it saves
+        most = BLOCK_MAX if self._block_drops.get(start, 0) < 2 else 0
+        while len(entries) < most:
             if pc & 1:
                 break
             if pc not in decoded:
@@ -2957,7 +2977,9 @@ class CPU:
             if not _blockable(ins, h):
                 break
             entries.append((pc, ins, h, cond, length))
-            if h in _BLOCK_ENDS and not (h == "bra" and 0 < _branch_target(ins) - pc <= _BRA_WINDOW):
+            if h in ("bcc", "bra", "dbcc") and 0 < _branch_target(ins) - pc <= _FORWARD_WINDOW:
+                pending = max(pending, _branch_target(ins))
+            if h in _BLOCK_ENDS and pending <= pc:
                 break
             pc = (pc + length) & 0xFFFFFF
         if not entries:
