@@ -2555,6 +2555,10 @@ def _block_bound(entries: list[_Entry]) -> int:
 class CPU:
     """An MC68000 (subset) with a 24-bit, region-mapped, big-endian address space. See the module docstring."""
 
+    #: Use compiled blocks in :meth:`run` (True) or the per-instruction closures only (False). Both give identical
+    #: results, counters and faults; blocks are faster. Set it on one CPU, or on the class for every CPU.
+    block_compile: bool = True
+
     def __init__(self, mapped: bool = True) -> None:
         """``mapped=True``: all 16 MiB are RAM. ``mapped=False``: nothing is mapped; call :meth:`map`."""
         # Anonymous mmaps: zero-filled lazily by the OS, so an unused 16 MiB space costs nothing to create.
@@ -2574,9 +2578,6 @@ class CPU:
         self._block_drops: dict[int, int] = {}  # block start -> times its block was dropped by a code write
         self._block_code: dict[Any, _BlockInfo] = {}
         self._smc = [0]  # set when a program write invalidates compiled code (a running block leaves early)
-        #: Use compiled blocks in :meth:`run` (True) or the per-instruction closures only (False). Both give
-        #: identical results, counters and faults; blocks are faster.
-        self.block_compile = True
         self.source_map: dict[int, Any] = {}
         self.d = RegisterView(self._R, 0)
         self.a = RegisterView(self._R, 8)
