@@ -1781,8 +1781,9 @@ class _BlockGen:
     # ---- one instruction
     def instruction(self, idx: int, ins: Instruction, h: str, cond: int | None, pc: int, nxt: int, need: int,
                     prefix: int) -> tuple[int, bool]:
-        """Emit instruction ``idx``; return (its clocks on the fall-through path, excluding ``c``, and whether the
-        block ends after it). ``prefix``: clocks of the instructions before it on the fall-through path."""
+        """Emit one instruction; return (its clocks on the fall-through path, excluding ``c``, and whether the
+        block ends after it). ``idx``/``prefix``: constant instruction count/clocks before it on the path the
+        generator is on (the locals ``ni``/``c`` hold the rest)."""
         ops = ins.operands
         nb = _nb(ins)
         M = MASK[nb]
