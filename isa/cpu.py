@@ -1272,7 +1272,9 @@ def h_bcc(ctx: _Ctx) -> Callable[[], int]:
 
 def h_dbcc(ctx: _Ctx) -> Callable[[], int]:
     """DBcc Dn,label: condition true -> fall through (12); else Dn.W -= 1, and branch (10) unless it became -1
-    (fall through, 14) (PRM 4-91, UM 8-8)."""
+    (fall through, 14) (PRM 4-91, UM 8-8). An odd target address-errors whenever the condition is false, also when
+    the count expires: the 68000 fetches the target word before it tests the count (the expired case's third
+    read cycle in UM 8-8, 14(3/0)); m68000-python, checked against hardware, does the same."""
     ins = ctx.instr
     dn, tgt = ins.operands
     i = dn.reg
@@ -1288,10 +1290,10 @@ def h_dbcc(ctx: _Ctx) -> Callable[[], int]:
         v = R[i]
         w = (v - 1) & 0xFFFF
         R[i] = (v & 0xFFFF0000) | w
-        if w == 0xFFFF:
-            return Ke
         if Kl & 1:
             raise _Fault(AddressError, f"branch to odd address ${Kl & 0xFFFFFF:06X}")
+        if w == 0xFFFF:
+            return Ke
         return Kl
 
     return dbcc

@@ -156,6 +156,19 @@ def test_odd_pc_and_odd_branch_target_are_address_errors() -> None:
     assert info.value.pc == ORG
 
 
+@pytest.mark.parametrize("count, block", [(0, False), (0, True), (5, False), (5, True)])
+def test_dbcc_to_an_odd_target_faults_even_when_the_count_expires(count: int, block: bool) -> None:
+    # DBRA D0 with displacement $8001 (odd): UM 8-8 gives the expired case 14(3/0), three reads, one of them the
+    # target word, so the 68000 address-errors whether or not the loop continues (m68000-python agrees).
+    cpu = CPU()
+    cpu.block_compile = block
+    cpu.write_bytes(0xC000, bytes.fromhex("51c880014e71"))
+    cpu.pc = 0xC000
+    cpu.d[0] = count
+    with pytest.raises(AddressError, match="odd"):
+        cpu.run(max_instructions=2)
+
+
 def test_illegal_and_undecodable_opcodes() -> None:
     cpu = load_mapped(" nop\n illegal\n")
     with pytest.raises(IllegalInstruction) as info:
