@@ -1775,10 +1775,14 @@ class _BlockGen:
         self.emit(f"{'wb ww _ wl'.split()[nb - 1]}({a}, {v})")
 
     def push(self, v: str) -> None:
+        """Push the long ``v`` (PEA, BSR, JSR) and lower ``min_sp`` at once: a later instruction of the same
+        block (an RTS after a PEA, say) may raise A7 again before the block exits."""
         sp = self.wg(15)
         self.emit(f"eb = ({sp} - 4) & 0xFFFFFFFF")
         self.emit(f"wl(eb, {v})")
         self.emit(f"{sp} = eb")
+        self.emit("if eb < MS[0]:")
+        self.emit("    MS[0] = eb")
 
     # ---- one instruction
     def instruction(self, idx: int, ins: Instruction, h: str, cond: int | None, pc: int, nxt: int, need: int,

@@ -603,3 +603,19 @@ top:    addq.l  #1,d2
     d, a, pc, sr, n, cycles = blocks[4:10]
     # iteration 1: ADDQ.L #1,Dn 8 + MOVE.W (An),Dn 8 + ADDQ.L #3,An 8 + DBRA taken 10; then ADDQ 8
     assert d[2] == 2 and a[0] == 0x6003 and d[7] == 4 and n == 5 and cycles == 8 + 8 + 8 + 10 + 8
+
+
+@pytest.mark.parametrize("block", [True, False])
+def test_min_sp_sees_a_push_that_the_same_block_pops(block: bool) -> None:
+    """PEA then RTS in one block: A7 dips by 4 and comes back before the block exits; min_sp must see the dip
+    (found by the thorough profile: the block path only looked at A7 after the block)."""
+    cpu = CPU()
+    cpu.block_compile = block
+    program = isa.assemble(" pea (a0)\n rts\nback: trap #0\n", origin=0x1000)
+    cpu.load(program)
+    cpu.a[0] = program.symbol("back").address  # the PEA pushes the address of `back`, the RTS returns there
+    cpu.a[7] = 0x8000
+    cpu.reset_counters()
+    result = cpu.run(max_instructions=10)
+    assert result.reason == "trap" and cpu.a[7] == 0x8000
+    assert cpu.min_sp == 0x8000 - 4
