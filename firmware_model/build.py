@@ -109,6 +109,13 @@ def _hash_sources(paths: list[Path]) -> tuple[tuple[tuple[str, str], ...], str]:
     return tuple(per_file), total.hexdigest()
 
 
+def source_sha256(program: str) -> str:
+    """SHA-256 over every assembly file of ``program`` (its top-level source and everything it INCLUDEs), as
+    :attr:`FirmwareBuild.source_sha256` reports it, without assembling. Raises :class:`UserError` for an unknown
+    program or a missing file."""
+    return _hash_sources(source_files(program))[1]
+
+
 @functools.lru_cache(maxsize=128)
 def _assemble_cached(program: str, equates: tuple[tuple[str, int], ...], stamp: tuple[tuple[str, int], ...]
                      ) -> tuple[object, tuple[tuple[str, str], ...], str]:

@@ -175,10 +175,6 @@ class CaseResult:
     wrap_word: str
 
 
-def _asm_source_path(program: str) -> Path:
-    return Path(__file__).resolve().parent / "asm" / f"{program}.s"
-
-
 def _sha256_file(path: Path) -> str | None:
     try:
         return hashlib.sha256(path.read_bytes()).hexdigest()
@@ -190,6 +186,7 @@ def compute_case(spec: CaseSpec, generator: str = "emulation") -> CaseResult:
     """Run one case. ``generator="emulation"``: the 68000 firmware on the emulated CPU, then the integer model on
     the same inputs; any differing word raises :class:`UserError` naming case, sample and word.
     ``generator="model"``: the integer model only (bootstrap; marked in the output)."""
+    from firmware_model.build import source_sha256
     from firmware_model.constants import build_constants
     from firmware_model.model import run_model
 
@@ -198,11 +195,9 @@ def compute_case(spec: CaseSpec, generator: str = "emulation") -> CaseResult:
     acc = np.asarray(stream.acc, dtype=np.int64)
     cycles: dict[str, Any] | None = None
     if generator == "emulation":
-        try:
-            from firmware_model.build import build_firmware
-            from firmware_model.harness import run_firmware
-        except ImportError as exc:  # pragma: no cover - only while the harness is being written
-            raise UserError(f"vectors: the 68000 harness is not available ({exc}); use --generator model") from None
+        from firmware_model.build import build_firmware
+        from firmware_model.harness import run_firmware
+
         build = build_firmware(cfg)
         consts = build.consts
         trace = run_firmware(build, adc, acc)
@@ -221,7 +216,7 @@ def compute_case(spec: CaseSpec, generator: str = "emulation") -> CaseResult:
         model = run_model(consts, adc, acc)
         trace = model
         label = GENERATOR_MODEL
-        source_sha = _sha256_file(_asm_source_path(cfg.program))
+        source_sha = source_sha256(cfg.program)  # the same hash the emulation path reports (includes too)
     else:
         raise UserError(f"vectors: unknown generator {generator!r} (emulation or model)")
     words = np.asarray(trace.words, dtype=np.int64)
