@@ -17,7 +17,7 @@ all: main
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q -e '.[test,plot]'
+	$(PY) -m pip install -q -e '.[test,plot,flights,fast]'
 	touch $(STAMP)
 
 venv: $(STAMP)

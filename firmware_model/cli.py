@@ -20,7 +20,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "isa.cli",
     "firmware_model.cli_design",
     "firmware_model.cli_compare",
-    "firmware_model.cli_run",
+    "firmware_model.cli_budget",
     "firmware_model.cli_vectors",
 )
 

@@ -1,0 +1,101 @@
+"""The flight record: one flight in SI units, whatever it came from (DESIGN.md §7).
+
+Every reader and simulator returns a :class:`FlightRecord`; sensor models, resampling, the reference apogee and the
+evaluation take one. Arrays are float64, one value per log row, on the record's own (possibly irregular) time axis;
+a quantity the source does not have is ``None``, never zeros. Missing single values inside a present column are NaN.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from firmware_model.errors import UserError
+
+
+@dataclass(frozen=True)
+class Truth:
+    """What really happened, where known (simulators): arrays on the record's time axis plus the true apogee.
+
+    ``altitude_m`` is geopotential altitude above the launch site (AGL, m), ``velocity_mps`` vertical velocity (m/s,
+    up positive), ``accel_mps2`` vertical kinematic acceleration (m/s^2, up positive; -g in free fall).
+    ``apogee_time_s`` / ``apogee_altitude_m``: time (on the record's axis) and altitude AGL of the true apogee.
+    """
+
+    altitude_m: np.ndarray | None = None
+    velocity_mps: np.ndarray | None = None
+    accel_mps2: np.ndarray | None = None
+    apogee_time_s: float | None = None
+    apogee_altitude_m: float | None = None
+
+
+@dataclass(frozen=True)
+class FlightRecord:
+    """One flight.
+
+    * ``name``: short identifier (file stem or simulator case name).
+    * ``time_s``: (n,) strictly increasing seconds; 0 is the log's own origin (AltosUI: boost), so it may start < 0.
+    * ``pressure_pa``: (n,) static pressure as the barometer saw it (Pa), NaN where a row has none.
+    * ``temperature_c``: (n,) or None.
+    * ``accel_mps2``: (n,) or None: **axial specific force** (what an accelerometer along the rocket's axis reads:
+      about +9.81 on the pad, about -0 in free fall after burnout with no drag), m/s^2.
+    * ``accel_counts``: (n,) raw accelerometer counts, or None; with ``accel_calibration`` =
+      ``{"counts_per_mps2": .., "offset_counts": ..}`` saying how counts map to specific force.
+    * ``ground_pressure_pa``: pressure at the launch site if the source states it (else estimated from the pad).
+    * ``truth``: a :class:`Truth` (simulators), or None (real logs).
+    * ``events``: the log's own flight-computer events, name -> time (s on the record's axis), e.g.
+      ``{"altos_apogee": 21.37}`` (AltosUI: the first row in state ``drogue``), ``{"altos_boost": 0.0}``.
+    * ``provenance``: JSON-ready dict: ``source`` (file path or simulator), ``format``, ``licence``, and any reader
+      notes (e.g. rate changes, repeated timestamps dropped, empty fields).
+    """
+
+    name: str
+    time_s: np.ndarray
+    pressure_pa: np.ndarray
+    accel_mps2: np.ndarray | None = None
+    temperature_c: np.ndarray | None = None
+    accel_counts: np.ndarray | None = None
+    accel_calibration: dict[str, float] | None = None
+    ground_pressure_pa: float | None = None
+    truth: Truth | None = None
+    events: dict[str, float] = field(default_factory=dict)
+    provenance: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        t = np.asarray(self.time_s, dtype=np.float64)
+        n = t.shape[0] if t.ndim == 1 else -1
+        where = self.provenance.get("source", self.name)
+        if t.ndim != 1 or n < 2:
+            raise UserError(f"{where}: a flight needs at least 2 samples, got {t.size}")
+        if not np.all(np.isfinite(t)):
+            raise UserError(f"{where}: time is not finite at row {int(np.argmin(np.isfinite(t)))}")
+        bad = np.nonzero(np.diff(t) <= 0)[0]
+        if bad.size:
+            raise UserError(f"{where}: time does not increase at row {int(bad[0]) + 1} ({t[bad[0]]} -> {t[bad[0] + 1]})")
+        for name in ("pressure_pa", "accel_mps2", "temperature_c", "accel_counts"):
+            arr = getattr(self, name)
+            if arr is not None and np.asarray(arr).shape != (n,):
+                raise UserError(f"{where}: {name} has shape {np.asarray(arr).shape}, time has ({n},)")
+
+    @property
+    def n(self) -> int:
+        """Number of rows."""
+        return int(np.asarray(self.time_s).shape[0])
+
+    @property
+    def has_accel(self) -> bool:
+        """True when the record has an accelerometer (specific force or counts)."""
+        return self.accel_mps2 is not None or self.accel_counts is not None
+
+    def specific_force_mps2(self) -> np.ndarray | None:
+        """Axial specific force (m/s^2): ``accel_mps2``, else counts through ``accel_calibration``, else None."""
+        if self.accel_mps2 is not None:
+            return np.asarray(self.accel_mps2, dtype=np.float64)
+        if self.accel_counts is None:
+            return None
+        cal = self.accel_calibration or {}
+        if "counts_per_mps2" not in cal:
+            raise UserError(f"{self.name}: accelerometer counts without a calibration (counts_per_mps2)")
+        return (np.asarray(self.accel_counts, dtype=np.float64) - cal.get("offset_counts", 0.0)) / cal["counts_per_mps2"]
