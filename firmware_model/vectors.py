@@ -1,4 +1,4 @@
-"""Golden vectors for microcontroller ports (DESIGN.md §8, docs/vectors.md).
+"""Golden vectors for microcontroller ports (docs/vectors.md).
 
 A *vector set* is a directory::
 
@@ -29,9 +29,9 @@ from typing import Any
 
 import numpy as np
 
-from firmware_model.config import PROGRAMS, ROUNDINGS, BuildConfig
+from firmware_model.config import PROGRAMS, ROUNDINGS, BuildConfig, load_config
 from firmware_model.errors import UserError
-from firmware_model.inputs import (EDGE_KINDS, Stream, edge_stream, flight_params_for, read_stream_csv,
+from firmware_model.inputs import (ACC_PROGRAMS, EDGE_KINDS, Stream, edge_stream, flight_params_for, read_stream_csv,
                                    synthetic_flight)
 from firmware_model.trace import EVENT_BITS, STATE_WORDS, word_names
 
@@ -713,9 +713,8 @@ def generate_user(program: str, input_csv: str | Path, out: str | Path, config: 
     if program not in PROGRAMS:
         raise UserError(f"vectors: unknown firmware {program!r}; known: {', '.join(PROGRAMS)}")
     _set_guard("user")(Path(out))
-    cfg = BuildConfig.from_file(config) if config else BuildConfig()
-    cfg = cfg.replace(program=program)
-    stream = read_stream_csv(input_csv, cfg.baro_bits, cfg.k)
+    cfg = load_config(config, {"program": program}, {"program": "--firmware"})
+    stream = read_stream_csv(input_csv, cfg.baro_bits, cfg.k, require_acc=program in ACC_PROGRAMS)
     spec = CaseSpec(case_name(program, cfg.rounding, cfg.k, cfg.baro_bits, stream.name), cfg, stream)
     results = generate([spec], generator, progress=False)
     files = render_set(results, "user")

@@ -249,7 +249,7 @@ def test_read_only_and_full_file_systems_are_one_line(tmpfs, tmp_path: Path) -> 
     ro = tmpfs("ro", "ro,size=1m")
     full = tmpfs("full", "size=16k")
     csv = tmp_path / "s.csv"
-    csv.write_text("adc\n" + "\n".join(str(30000 + i) for i in range(300)) + "\n")
+    csv.write_text("adc,acc\n" + "\n".join(f"{30000 + i},2048" for i in range(300)) + "\n")
     for out, why in ((ro / "b", "Read-only file system"), (full / "b", "No space left on device")):
         r = fwemu("budget", "--program", "recursive", "--k", "4", "--out", str(out))
         assert r.returncode == 2 and why in one_clean_line(r.stderr) and str(out) in r.stderr

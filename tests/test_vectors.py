@@ -313,7 +313,7 @@ def test_cli_check_and_user_set(tmp_path: Path, capsys: pytest.CaptureFixture[st
     assert _cli(["--check", str(VECTORS)]) == 0
     assert capsys.readouterr().out.strip().endswith(": OK")
     f = tmp_path / "s.csv"
-    f.write_text("adc\n" + "\n".join(str(30000 + i) for i in range(10)) + "\n")
+    f.write_text("adc,acc\n" + "\n".join(f"{30000 + i},2048" for i in range(10)) + "\n")
     out = tmp_path / "out"
     assert _cli(["--firmware", "recursive", "--input", str(f), "--out", str(out), "--generator", "model"]) == 0
     assert "wrote 1 case(s)" in capsys.readouterr().err
