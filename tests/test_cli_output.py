@@ -315,6 +315,12 @@ def test_interrupted_jobs_run_terminates_its_workers(tmp_path: Path) -> None:
     assert proc.returncode == 130, err
     assert one_clean_line(err) == f"fwemu: interrupted; previous outputs in {out} left intact"
     assert not out.exists() and temp_names(tmp_path) == []
-    time.sleep(0.5)
-    left = subprocess.run(["pgrep", "-g", str(proc.pid)], capture_output=True, text=True).stdout.split()
+    deadline = time.monotonic() + 20   # the workers get SIGTERM; multiprocessing's resource tracker follows
+    while True:
+        left = subprocess.run(["ps", "-o", "pid=,stat=,args=", "-g", str(proc.pid)], capture_output=True,
+                              text=True).stdout.splitlines()
+        left = [line for line in left if " Z" not in f" {line.split()[1]}"]   # zombies are already dead
+        if not left or time.monotonic() > deadline:
+            break
+        time.sleep(0.2)
     assert left == [], f"workers still running: {left}"
