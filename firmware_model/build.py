@@ -117,15 +117,16 @@ def source_sha256(program: str) -> str:
 
 
 @functools.lru_cache(maxsize=128)
-def _assemble_cached(program: str, equates: tuple[tuple[str, int], ...], stamp: tuple[tuple[str, int], ...]
-                     ) -> tuple[object, tuple[tuple[str, str], ...], str]:
-    """Assemble ``program`` with ``equates`` (``stamp`` = source mtimes, so edited sources are rebuilt)."""
+def _assemble_cached(program: str, equates: tuple[tuple[str, int], ...], stamp: tuple[tuple[str, int], ...],
+                     data: str = "") -> tuple[object, tuple[tuple[str, str], ...], str]:
+    """Assemble ``program`` with ``equates`` (``stamp`` = source mtimes, so edited sources are rebuilt) and the
+    build's ROM data text ``data`` (the altitude table, :meth:`FirmwareConstants.data_source`) appended."""
     import isa  # local: keep `import firmware_model.build` cheap
 
     paths = source_files(program)
     sources, digest = _hash_sources(paths)
     top = paths[0]
-    prog = isa.assemble(top.read_text(), filename=str(top), origin=ROM_START, include_paths=[str(ASM_DIR)],
+    prog = isa.assemble(top.read_text() + data, filename=str(top), origin=ROM_START, include_paths=[str(ASM_DIR)],
                         defines=dict(equates))
     return prog, sources, digest
 
@@ -152,7 +153,7 @@ def build_firmware(cfg_or_consts: Union[BuildConfig, FirmwareConstants]) -> Firm
     name = consts.program
     equates = tuple(sorted(consts.equates().items()))
     stamp = tuple((str(p), p.stat().st_mtime_ns) for p in source_files(name))
-    prog, sources, digest = _assemble_cached(name, equates, stamp)
+    prog, sources, digest = _assemble_cached(name, equates, stamp, consts.data_source())
     return _describe(name, consts, prog, sources, digest)
 
 

@@ -49,10 +49,11 @@ C_PROGRAM_ENUM: dict[str, str] = {"recursive": "FW_RECURSIVE", "kalman_baro": "F
                                   "kalman_accel": "FW_KALMAN_ACCEL",
                                   "recursive_seed_literal": "FW_RECURSIVE_SEED_LITERAL"}
 #: Gains in fw_consts order (vectors/c/fw.h).
-GAIN_NAMES: tuple[str, ...] = ("G11", "G21", "G31", "G12", "G22", "G32", "ACC_G")
+GAIN_NAMES: tuple[str, ...] = ("G11", "G21", "G31", "G12", "G22", "G32", "ACC_G", "G11T", "G21T", "G31T")
 #: Scalar constants in fw_consts order.
 SCALAR_CONSTANTS: tuple[str, ...] = ("K", "ROUND", "BARO_SIGN", "S", "THR", "V_LIFT", "V_GATE", "MACH_VLO",
-                                     "MACH_VHI", "MACH_E", "BARO_MIN", "BARO_MAX")
+                                     "MACH_VHI", "MACH_E", "BARO_MIN", "BARO_MAX", "ALT_SHIFT", "ALT_N", "CAL_P",
+                                     "E_GATE", "GATE_N", "APO_N")
 
 # ------------------------------------------------------------------------------------------- the case matrix
 #: k values (sample period 2^-k s) of the committed set.
@@ -76,11 +77,17 @@ Q_FORMATS: dict[str, dict[str, str]] = {
                   "VEL": "Q32.0 accelerometer counts x samples", "ACC0": "Q32.0 accelerometer counts",
                   "EVENTS": "uint16 event bits"},
     "recursive_seed_literal": {"EST": "Q24.8 barometer units (z = BARO_SIGN*adc)"},
-    "kalman_baro": {"X1": "Q24.8 barometer units", "X2": "Q24.8 units/s", "X3": "Q24.8 units/s^2",
-                    "EVENTS": "uint16 event bits", "APFRAC": "UQ0.16 fraction of a sample period"},
-    "kalman_accel": {"X1": "Q24.8 barometer units", "X2": "Q24.8 units/s", "X3": "Q24.8 units/s^2",
-                     "ACC0": "Q32.0 accelerometer counts", "EVENTS": "uint16 event bits",
-                     "APFRAC": "UQ0.16 fraction of a sample period"},
+    "kalman_baro": {"X1": "Q24.8 m (table altitude)", "X2": "Q24.8 m/s", "X3": "Q24.8 m/s^2",
+                    "EVENTS": "uint16 event bits", "APFRAC": "UQ0.16 fraction of a sample period",
+                    "GND": "Q24.8 m (pad average)", "SUMZ": "Q24.8 m (sum of pad altitudes)",
+                    "CAL": "uint16 pad samples", "REJ": "uint16 gated samples in a row",
+                    "NEG": "uint16 samples with X2 < 0 in a row"},
+    "kalman_accel": {"X1": "Q24.8 m (table altitude)", "X2": "Q24.8 m/s", "X3": "Q24.8 m/s^2",
+                     "ACC0": "Q32.0 accelerometer counts (pad average)", "EVENTS": "uint16 event bits",
+                     "APFRAC": "UQ0.16 fraction of a sample period", "GND": "Q24.8 m (pad average)",
+                     "SUMZ": "Q24.8 m (sum of pad altitudes)", "SUMA": "Q32.0 sum of pad accelerometer counts",
+                     "CAL": "uint16 pad samples", "REJ": "uint16 gated samples in a row",
+                     "NEG": "uint16 samples with X2 < 0 in a row"},
 }
 
 
@@ -310,6 +317,7 @@ def case_document(res: CaseResult) -> dict[str, Any]:
         "sample_period": {"k": cfg.k, "dt_s": cfg.dt},
         "constants": {name: int(getattr(consts, name)) for name in SCALAR_CONSTANTS},
         "gains": gains,
+        "alt_table": list(consts.ALT_TABLE),
         "q_formats": dict(Q_FORMATS[program]),
         "words": list(names),
         "word_bytes": {name: size for name, size in STATE_WORDS[program]},
@@ -383,6 +391,13 @@ def case_header(res: CaseResult) -> str:
             g = consts.gains[gname]
             out.append(f"#define FWV_{up}_{gname}_M ({int(g.m)}) /* {gname} = m / 2^s = {g.value!r} */")
             out.append(f"#define FWV_{up}_{gname}_S ({int(g.s)})")
+    if consts.ALT_TABLE:
+        tag = _alt_tag(consts)
+        out += [f"/* altitude table (Q24.8 m, node j at count j << {consts.ALT_SHIFT}); shared by every case with "
+                "the same table */", f"#ifndef FWV_{tag.upper()}_H", f"#define FWV_{tag.upper()}_H",
+                f"static const int32_t fwv_{tag}[{consts.ALT_N}] FWV_ROM = {{",
+                ",\n".join("    " + ", ".join(_c_i32(v) for v in consts.ALT_TABLE[i:i + 8])
+                           for i in range(0, consts.ALT_N, 8)), "};", "#endif"]
     out.append("/* column index of each state word in fwv_" + name + "_expected (and _init) */")
     for j, wname in enumerate(names):
         out.append(f"#define FWV_{up}_W_{wname} {j} /* {Q_FORMATS[cfg.program][wname]} */")
@@ -398,6 +413,12 @@ def case_header(res: CaseResult) -> str:
     out.append(",\n".join("    { " + ", ".join(_c_i32(v) for v in row) + " }" for row in res.words))
     out += ["};", "", f"#endif /* FWV_{up}_H */", ""]
     return "\n".join(out)
+
+
+def _alt_tag(consts: Any) -> str:
+    """C identifier of a build's altitude table: ``alt_`` + the first 12 hex digits of the nodes' SHA-256."""
+    digest = hashlib.sha256(",".join(str(v) for v in consts.ALT_TABLE).encode()).hexdigest()[:12]
+    return f"alt_{digest}"
 
 
 def cases_table_header(results: Sequence[CaseResult], guard: str) -> str:
@@ -417,7 +438,9 @@ def cases_table_header(results: Sequence[CaseResult], guard: str) -> str:
                  for g in GAIN_NAMES}
         consts = ("{" + ", ".join(scal[c] for c in ("K", "ROUND", "BARO_SIGN", "S", "THR", "V_LIFT", "V_GATE"))
                   + ", " + ", ".join(gains[g] for g in GAIN_NAMES) + ", "
-                  + ", ".join(scal[c] for c in ("MACH_VLO", "MACH_VHI", "MACH_E", "BARO_MIN", "BARO_MAX")) + "}")
+                  + ", ".join(scal[c] for c in ("MACH_VLO", "MACH_VHI", "MACH_E", "BARO_MIN", "BARO_MAX",
+                                                "ALT_SHIFT", "ALT_N", "CAL_P", "E_GATE", "GATE_N", "APO_N"))
+                  + ", " + (f"fwv_{_alt_tag(res.consts)}" if res.consts.ALT_TABLE else "0") + "}")
         rows.append(f'    {{"{name}", {C_PROGRAM_ENUM[program]}, {consts},\n'
                     f"     FWV_{up}_N_SAMPLES, FWV_{up}_N_WORDS, fwv_{name}_adc, fwv_{name}_acc, fwv_{name}_init,\n"
                     f"     &fwv_{name}_expected[0][0]}}")
@@ -444,7 +467,7 @@ def case_schema() -> dict[str, Any]:
                        "unsigned 16-bit.",
         "type": "object",
         "required": ["schema_version", "name", "generator", "tool", "firmware", "build_config", "rounding",
-                     "sample_period", "constants", "gains", "q_formats", "words", "word_bytes", "event_bits",
+                     "sample_period", "constants", "gains", "alt_table", "q_formats", "words", "word_bytes", "event_bits",
                      "events_first_sample", "input", "int32_wrap", "cycles_68000", "sequencing", "init", "adc",
                      "acc", "expected"],
         "additionalProperties": False,
@@ -466,8 +489,9 @@ def case_schema() -> dict[str, Any]:
             "constants": {"type": "object", "required": list(SCALAR_CONSTANTS),
                           "additionalProperties": {"type": "integer"}},
             "gains": {"type": "object", "additionalProperties": gain},
+            "alt_table": int_array,
             "q_formats": {"type": "object", "additionalProperties": {"type": "string"}},
-            "words": {"type": "array", "items": {"type": "string"}, "minItems": 1, "maxItems": 6},
+            "words": {"type": "array", "items": {"type": "string"}, "minItems": 1, "maxItems": 12},
             "word_bytes": {"type": "object", "additionalProperties": {"enum": [2, 4]}},
             "event_bits": {"type": "object", "additionalProperties": {"type": "integer"}},
             "events_first_sample": {"type": "object", "additionalProperties": {"type": "integer", "minimum": -1}},
