@@ -48,7 +48,8 @@ class BuildConfig:
         baro_pa_at_zero - baro_sign * baro_pa_per_count * c`` (Pa); ``None`` = TeleMetrum v1's MP3H6115A
         (3.3925 Pa/count at 16 bits, scaled by 2^(16-bits); 10,555.6 Pa at count 0).
       * ``alt_shift``: altitude-table segment width 2^alt_shift counts (``None`` = bits - 9: 513 nodes).
-      * ``cal_p``: pad calibration over 2^cal_p valid samples (0..8).
+      * ``cal_p``: pad calibration over 2^cal_p valid samples (0..8; ``None`` = min(8, max(0, k - 2)), a quarter
+        second of pad).
       * ``gate_sigmas``: innovation gate in steady-state innovation sigmas (0 = no gate); ``gate_hold_s``: how long
         (s) the gate may stay closed before it opens (GATE_N = max(1, round(gate_hold_s * 2^k))).
       * ``apogee_hold_s``: X2 < 0 this long (APO_N = max(1, round(apogee_hold_s * 2^k)) samples) declares apogee.
@@ -78,7 +79,7 @@ class BuildConfig:
     baro_pa_per_count: float | None = None
     baro_pa_at_zero: float | None = None
     alt_shift: int | None = None
-    cal_p: int = 5
+    cal_p: int | None = None
     gate_sigmas: float = 6.0
     gate_hold_s: float = 0.1
     apogee_hold_s: float = 0.06
@@ -133,8 +134,9 @@ class BuildConfig:
         if self.alt_shift is not None and (isinstance(self.alt_shift, bool) or not isinstance(self.alt_shift, int)
                                            or not 1 <= self.alt_shift <= min(15, self.baro_bits - 1)):
             raise bad("alt_shift", f"altitude-table segment shift must be 1..{min(15, self.baro_bits - 1)} or null")
-        if isinstance(self.cal_p, bool) or not isinstance(self.cal_p, int) or not 0 <= self.cal_p <= 8:
-            raise bad("cal_p", "pad calibration over 2^cal_p samples needs cal_p in 0..8")
+        if self.cal_p is not None and (isinstance(self.cal_p, bool) or not isinstance(self.cal_p, int)
+                                       or not 0 <= self.cal_p <= 8):
+            raise bad("cal_p", "pad calibration over 2^cal_p samples needs cal_p in 0..8 (or null)")
         for name in ("gate_sigmas", "gate_hold_s", "apogee_hold_s"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
@@ -170,6 +172,11 @@ class BuildConfig:
              else float(self.baro_pa_per_count))
         b = TELEMETRUM_PA_AT_ZERO if self.baro_pa_at_zero is None else float(self.baro_pa_at_zero)
         return a, b
+
+    @property
+    def cal_p_bits(self) -> int:
+        """The pad-calibration exponent with the default (a quarter second: min(8, max(0, k - 2))) filled in."""
+        return min(8, max(0, self.k - 2)) if self.cal_p is None else int(self.cal_p)
 
     @property
     def alt_shift_bits(self) -> int:

@@ -7,7 +7,7 @@ from :func:`build_constants`. Conversions (documented in docs/gain-design.md), a
 
 * Kalman velocities (``V_LIFT`` for Kalman programs, ``MACH_VLO``, ``MACH_VHI``): ``v_mps * 256`` (Q24.8 m/s: the
   Kalman programs run in metres since the altitude table); ``MACH_E = mach_innov_m * 256`` (Q24.8 m, unused).
-* Kalman field-ready constants: ``ALT_SHIFT``/``ALT_TABLE`` (:mod:`firmware_model.alt_table`), ``CAL_P = cal_p``,
+* Kalman field-ready constants: ``ALT_SHIFT``/``ALT_TABLE`` (:mod:`firmware_model.alt_table`), ``CAL_P = cal_p`` (default a quarter second),
   ``E_GATE = gate_sigmas * sqrt(S) * 256`` (S the steady-state innovation variance in m^2,
   :func:`firmware_model.design.innovation_sigma_m`; INT32_MAX when ``gate_sigmas`` = 0), ``GATE_N`` /
   ``APO_N`` = max(1, round(seconds * 2^k)).
@@ -205,7 +205,7 @@ def build_constants(cfg: BuildConfig) -> FirmwareConstants:
         table = table_for(a, b, cfg.baro_sign, cfg.baro_bits, cfg.alt_shift_bits)
         e_gate = INT32_MAX if cfg.gate_sigmas == 0 else _round_int(
             "E_GATE", cfg.gate_sigmas * innovation_sigma_m(cfg) * 256.0, where)
-        kalman = dict(ALT_SHIFT=table.shift, ALT_TABLE=table.nodes, CAL_P=cfg.cal_p, E_GATE=e_gate,
+        kalman = dict(ALT_SHIFT=table.shift, ALT_TABLE=table.nodes, CAL_P=cfg.cal_p_bits, E_GATE=e_gate,
                       GATE_N=min(32767, max(1, _round_int("GATE_N", cfg.gate_hold_s * 2.0**cfg.k, where))),
                       APO_N=min(32767, max(1, _round_int("APO_N", cfg.apogee_hold_s * 2.0**cfg.k, where))))
     return FirmwareConstants(

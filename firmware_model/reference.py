@@ -449,3 +449,121 @@ def kalman_error_bound(consts: "FirmwareConstants", e1_max: float, e2_max: float
             return B_new
         B = B_new
     raise UserError("kalman_error_bound: the fixed-point iteration did not converge (gain errors too large)")
+
+
+# ---------------------------------------------------------------------------------------------------- switched bound
+@dataclass
+class SwitchedBound:
+    """Per-sample bound of :func:`kalman_switched_bound`: ``bound`` (n, 3) word scale for X1, X2, X3 (during pad
+    calibration X1 = alt(adc0): the table rounding), ``e1_margin`` (n,) the bound on |e1_int - e1_mirror|
+    before the gate decision of each sample, ``decided`` the number of leading samples covered."""
+
+    bound: np.ndarray
+    e1_margin: np.ndarray
+    decided: int
+
+
+def kalman_switched_bound(consts: "FirmwareConstants", fm: FloatTrace, adc: np.ndarray,
+                          acc: np.ndarray | None = None) -> SwitchedBound:
+    """Bound on ``|X_int - X_mirror|`` (X1, X2, X3, word scale) for ONE stream, valid at every sample while the
+    integer run takes the same decisions as the mirror ``fm`` (barometer used or not: valid / gated; transonic
+    gains or not). Derivation (docs/numerics.md, "Switched bound"): with ``delta`` the state difference,
+
+        delta_{t+1} = A_t delta_t + w_t,   A_t = (I - K_t H_t) F,   |w_t| <= (I - K_t H_t)|u| + r_t
+
+    where ``H_t``/``K_t`` are the measurement rows and design gains applied at sample t (both rows; the
+    accelerometer row only when the barometer was not used; the transonic barometer gains when the mirror used
+    them), ``u`` the predict rounding, ``r_t`` the rounding of each gain multiply, the gain quantization times the
+    integer innovation (|e1_int| <= |e1_mirror| + margin), the table interpolation's rounding times the
+    barometer gains, and the accelerometer scale's rounding and quantization. Pad calibration leaves ``delta_0 =
+    (rho(CAL_P) + rho(ALT_SHIFT), 0, 0)`` (GND) and an ACC0 error of rho(CAL_P) counts. Then ``|delta_t| <=
+    sum_s |Phi(t, s+1)| |w_s| + |Phi(t, c0)| |delta_0|``, computed exactly by carrying every product ``Phi`` (no
+    geometric tail, no stability assumption)."""
+    if consts.program not in ("kalman_baro", "kalman_accel"):
+        raise UserError(f"kalman_switched_bound: {consts.program!r} is not a Kalman program")
+    mode = "half_up" if consts.ROUND else "floor"
+    rho = lambda s: rounding_error_bound(s, mode)  # noqa: E731
+    accel = consts.program == "kalman_accel"
+    adc = np.asarray(adc, dtype=np.float64)
+    acc = np.zeros_like(adc) if acc is None else np.asarray(acc, dtype=np.float64)
+    K = int(consts.K)
+    dt = 2.0 ** -K
+    F = np.array([[1.0, dt, dt * dt / 2], [0.0, 1.0, dt], [0.0, 0.0, 1.0]])
+    fg, qg = consts.float_gains, consts.gains
+    col = lambda names: np.array([fg[n] for n in names])  # noqa: E731
+    dcol = lambda names: np.array([abs(qg[n].value - fg[n]) for n in names])  # noqa: E731
+    rcol = lambda names: np.array([rho(qg[n].s) for n in names])  # noqa: E731
+    b1, b1t, b2 = ("G11", "G21", "G31"), ("G11T", "G21T", "G31T"), ("G12", "G22", "G32")
+    H1 = np.array([[1.0, 0.0, 0.0]])
+    H2 = np.array([[0.0, 0.0, 1.0]])
+    u = np.array([rho(K) + rho(2 * K + 1), rho(K), 0.0])
+    rho_alt = rho(int(consts.ALT_SHIFT))
+    names = fm.names
+    w = fm.words
+    init = fm.init_words
+    prev = np.vstack([init[None, :], w[:-1]])
+    ev = w[:, names.index("EVENTS")].astype(np.int64)
+    cal_prev = prev[:, names.index("CAL")]
+    ncal = 1 << int(consts.CAL_P)
+    n = len(adc)
+    bound = np.zeros((n, 3))
+    margin = np.zeros(n)
+    ok = (adc >= consts.BARO_MIN) & (adc <= consts.BARO_MAX)
+    if accel:
+        g_acc = qg["ACC_G"]
+        acc0_f = prev[:, names.index("ACC0")]
+        a_err_base = rho(g_acc.s) + abs(g_acc.value - fg["ACC_G"]) * np.abs(acc - acc0_f)
+    phis = np.zeros((0, 3, 3))
+    ws = np.zeros((0, 3))
+    B = np.zeros(3)
+    for t in range(n):
+        if cal_prev[t] < ncal:
+            if ok[t] and cal_prev[t] + 1 == ncal:       # calibration completes: the GND/ACC0 rounding
+                phis = np.eye(3)[None].copy()
+                ws = np.array([[rho(int(consts.CAL_P)) + rho_alt, 0.0, 0.0]])
+                B = ws[0].copy()
+            bound[t] = B if cal_prev[t] + 1 >= ncal and ok[t] else np.array([rho_alt, 0.0, 0.0])  # X1 = alt(adc0)
+            continue
+        x1p = prev[t, 0] + prev[t, 1] * dt + prev[t, 2] * dt * dt / 2
+        pred_b = np.abs(F) @ B + u
+        margin[t] = pred_b[0] + rho_alt
+        used = ok[t] and not (ev[t] & _BARO_REJECT)
+        trans = bool(ev[t] & _MACH)
+        r = np.zeros(3)
+        if used:
+            names1 = b1t if trans else b1
+            Hs = [H1]
+            Ks = [col(names1)]
+            e1_int = abs(_alt_mirror_e1(consts, adc[t], x1p)) + margin[t]
+            r += rcol(names1) + dcol(names1) * e1_int + np.abs(col(names1)) * rho_alt
+        else:
+            Hs, Ks = [], []
+        if accel:
+            Hs.append(H2)
+            Ks.append(col(b2))
+            e2_int = abs((acc[t] - acc0_f[t]) * fg["ACC_G"] - (prev[t, 2])) + pred_b[2] + a_err_base[t] \
+                + abs(fg["ACC_G"]) * rho(int(consts.CAL_P))
+            a_err = a_err_base[t] + abs(fg["ACC_G"]) * rho(int(consts.CAL_P))
+            r += rcol(b2) + dcol(b2) * e2_int + np.abs(col(b2)) * a_err
+        if Hs:
+            H = np.vstack(Hs)
+            Kt = np.stack(Ks, axis=1)
+            IKH = np.eye(3) - Kt @ H
+        else:
+            IKH = np.eye(3)
+        A = IKH @ F
+        wt = np.abs(IKH) @ u + r
+        phis = np.concatenate([A[None] @ phis, np.eye(3)[None]], axis=0) if len(phis) else np.eye(3)[None]
+        ws = np.concatenate([ws, wt[None]], axis=0) if len(ws) else wt[None]
+        B = np.einsum("sij,sj->i", np.abs(phis), ws)
+        # drop terms whose contribution has decayed below 1e-15 of the bound (they only shrink further)
+        keep = np.abs(phis).max(axis=(1, 2)) * ws.max(axis=1) > 1e-15 * max(B.max(), 1e-300)
+        keep[-1] = True
+        phis, ws = phis[keep], ws[keep]
+        bound[t] = B
+    return SwitchedBound(bound, margin, n)
+
+
+def _alt_mirror_e1(consts: "FirmwareConstants", adc: float, x1_pred: float) -> float:
+    """The mirror's barometer innovation alt_float(adc) - x1_pred (word scale)."""
+    return float(_alt_table_float(consts)(np.array([adc]))[0]) - x1_pred
