@@ -254,3 +254,34 @@ def reference_apogee(record: FlightRecord) -> ReferenceApogee:
                             "near its peak (early deployment?); treat this reference with care")
     return ReferenceApogee(time_s=nominal[0], altitude_m=nominal[1], uncertainty_s=max(spread, resolution),
                            source="baro_parabola", window_s=NOMINAL_WINDOW_S, notes=notes)
+
+
+# ------------------------------------------------------------------------------------------------ a table
+def reference_table(paths: list[str], format: str | None = None) -> str:  # noqa: A002
+    """The Markdown table of docs/flights.md for flight logs ``paths``: reference apogee, its uncertainty,
+    altitude, fitted curvature, spikes rejected, and AltOS's own apogee against it where the log has one.
+    ``python -m firmware_model.flights.reference LOG...`` prints it."""
+    from firmware_model.flights.readers import read_flight
+
+    out = ["| log | reference apogee (s) | ± (s) | altitude AGL (m) | curvature (m/s²) | spikes rejected "
+           "| AltOS apogee (s) | AltOS − reference (s) |", "|---|---|---|---|---|---|---|---|"]
+    for path in paths:
+        rec = read_flight(path, format=format)
+        ref = reference_apogee(rec)
+        altos = rec.events.get("altos_apogee")
+        warn = " ⚠" if "warning" in ref.notes else ""
+        curv = ref.notes.get("curvature_mps2")
+        out.append(f"| {rec.name} | {ref.time_s:.3f}{warn} | {ref.uncertainty_s:.3f} | {ref.altitude_m:.1f} | "
+                   + ("—" if curv is None else f"{curv:.1f}") + f" | {ref.notes.get('spikes_rejected', 0)} | "
+                   + ("— | — |" if altos is None else f"{altos:.2f} | {altos - ref.time_s:+.2f} |"))
+    return "\n".join(out)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    import sys
+
+    try:
+        print(reference_table(sys.argv[1:]))
+    except UserError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        raise SystemExit(2) from None
