@@ -187,7 +187,7 @@ def flights(mach: tuple[float, float] = (0.15, 0.8), motors: Sequence[str] = ("K
     whose simulated peak Mach exceeds ``mach[1]`` are rejected, so the default box is subsonic (peak Mach <= 0.8);
     widen ``mach`` (and ``motors``, e.g. add "M1670", "M6400") for transonic/supersonic flights. No pressure
     errors or sensor model: apply :mod:`firmware_model.flights.pressure_errors` and the sensor models on top.
-    About 5 ms per flight with the 'fast' extra (numba)."""
+    About 7 ms per 20 s flight with the 'fast' extra (numba; bench/bench_sim1dof.py), ~0.3 s without."""
     from hypothesis import assume
 
     from firmware_model.flights.sim1dof import Box, Launch, rocket_from_unit, simulate_1dof
