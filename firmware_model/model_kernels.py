@@ -15,7 +15,8 @@ Layout, chosen so that a program is easy to change or add:
   :class:`~firmware_model.constants.FirmwareConstants`. A new constant: a new index + a line in
   :func:`pack_constants`.
 * **Programs**: ``<program>_init(st, adc, acc, c)`` and ``<program>_step(st, adc, acc, c) -> wrap id`` for each
-  program, dispatched by :func:`_init` / :func:`_step` on the program number ``P_*``.
+  program, dispatched on the program number ``P_*`` by :func:`_init` and by one sample loop per program in
+  :func:`run_streams`.
 * **Wrap detection**: every ``.l`` value is computed exactly, then :func:`_note` records the first quantity of
   the sample whose exact value is outside int32 (its id, an index into :data:`WRAP_NAMES`) and :func:`_w32`
   wraps it; ``step`` returns that id (0: none) and the driver keeps the first sample with a nonzero id.
@@ -415,14 +416,10 @@ def _init(prog, st, adc, acc, c):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def _step(prog, st, adc, acc, c):  # type: ignore[no-untyped-def]
-    if prog == P_RECURSIVE:
-        return recursive_step(st, adc, acc, c)
-    if prog == P_SEED_LITERAL:
-        return seed_literal_step(st, adc, acc, c)
-    if prog == P_KALMAN_BARO:
-        return kalman_baro_step(st, adc, acc, c)
-    return kalman_accel_step(st, adc, acc, c)
+def _copy_out(st, cols, row):  # type: ignore[no-untyped-def]
+    """``row[j] = st[cols[j]]``: the output words of the state."""
+    for j in range(cols.shape[0]):
+        row[j] = st[cols[j]]
 
 
 @njit(cache=True, parallel=True)
@@ -433,20 +430,37 @@ def run_streams(prog, adc, acc, c, cols, state, init_out, out, first, word):  # 
     ``state`` (``(streams, N_STATE)``) is the work area. Streams run in parallel when compiled."""
     n_streams = adc.shape[0]
     n = adc.shape[1]
-    nw = cols.shape[0]
     for s in prange(n_streams):
         st = state[s]
         _init(prog, st, adc[s, 0], acc[s, 0], c)
-        for j in range(nw):
-            init_out[s, j] = st[cols[j]]
+        _copy_out(st, cols, init_out[s])
         f = -1
         wid = 0
-        for i in range(n):
-            w = _step(prog, st, adc[s, i], acc[s, i], c)
-            if w != 0 and f < 0:
-                f = i
-                wid = w
-            for j in range(nw):
-                out[s, i, j] = st[cols[j]]
+        # One sample loop per program (a dispatch inside the loop cost ~30 %; passing the step function as an
+        # argument would stop numba from caching the driver).
+        if prog == P_KALMAN_ACCEL:
+            for i in range(n):
+                w = kalman_accel_step(st, adc[s, i], acc[s, i], c)
+                if w != 0 and f < 0:
+                    f, wid = i, w
+                _copy_out(st, cols, out[s, i])
+        elif prog == P_KALMAN_BARO:
+            for i in range(n):
+                w = kalman_baro_step(st, adc[s, i], acc[s, i], c)
+                if w != 0 and f < 0:
+                    f, wid = i, w
+                _copy_out(st, cols, out[s, i])
+        elif prog == P_RECURSIVE:
+            for i in range(n):
+                w = recursive_step(st, adc[s, i], acc[s, i], c)
+                if w != 0 and f < 0:
+                    f, wid = i, w
+                _copy_out(st, cols, out[s, i])
+        else:
+            for i in range(n):
+                w = seed_literal_step(st, adc[s, i], acc[s, i], c)
+                if w != 0 and f < 0:
+                    f, wid = i, w
+                _copy_out(st, cols, out[s, i])
         first[s] = f
         word[s] = wid
