@@ -178,6 +178,11 @@ def _prepare(rockets: list[Rocket], launches: list[Launch]) -> _Batch:
     for i, r in enumerate(rockets):
         thrust[:, i] = r.motor.thrust_at(tj)
         mass[:, i] = dry[i] + r.motor.propellant_at(tj)
+    weak = np.nonzero(np.max(thrust - mass * G0, axis=0) <= 0.0)[0]
+    if weak.size:
+        r = rockets[int(weak[0])]
+        raise UserError(f"1-DOF: rocket {r.name}: thrust never exceeds weight (peak {r.motor.thrust_n.max():.0f} N, "
+                        f"lift-off mass {r.liftoff_mass_kg:.2f} kg): it would never leave the pad")
     _, rho_tab, c_tab = _atmosphere_tables()
     return _Batch(h=h, m_per=m_per, max_steps=int(ceil(max_time / h)),
                   site=np.array([l.site_altitude_m for l in launches], dtype=np.float64),
