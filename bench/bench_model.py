@@ -25,6 +25,7 @@ import datetime
 import json
 import os
 import platform
+import resource
 import subprocess
 import sys
 import tempfile
@@ -95,10 +96,13 @@ def startup(programs: tuple[str, ...]) -> dict[str, dict]:
         env = {**os.environ, "NUMBA_CACHE_DIR": cache, "PYTHONPATH": str(ROOT)}
         for label in ("cold", "warm"):
             t = time.perf_counter()
+            r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
             res = subprocess.run([sys.executable, "-c", _STARTUP, *programs], env=env, capture_output=True,
                                  text=True, check=True)
             wall = time.perf_counter() - t
-            out[label] = {**json.loads(res.stdout.strip().splitlines()[-1]), "process": wall}
+            r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+            cpu = (r1.ru_utime + r1.ru_stime) - (r0.ru_utime + r0.ru_stime)
+            out[label] = {**json.loads(res.stdout.strip().splitlines()[-1]), "process": wall, "cpu": cpu}
     return out
 
 
@@ -185,7 +189,7 @@ def main(argv: list[str] | None = None) -> int:
             s = st[label]
             calls = ", ".join(f"{p} {v:.2f} s" for p, v in s["first_call"].items())
             print(f"start-up {label:4s}: import kernels {s['import_kernels']:.2f} s; first run_model: {calls}; "
-                  f"whole process {s['process']:.2f} s")
+                  f"whole process {s['process']:.2f} s wall, {s['cpu']:.2f} s CPU")
     print(f"{'program':24s} {'numba 1 stream':>14s} {'numpy 1 stream':>14s} {'ratio':>7s} "
           f"{'numba ' + str(args.streams) + ' str':>14s} {'numpy ' + str(args.streams) + ' str':>14s} {'ratio':>7s} "
           f"{'python 1 str':>12s} identical")
