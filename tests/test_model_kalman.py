@@ -39,14 +39,18 @@ def _check_bound(consts, adc, acc, int_consts=None) -> np.ndarray:
     sb = kalman_switched_bound(consts, fm, adc, acc)
     di = tr.column("EVENTS") & DECISION_BITS
     df = fm.column("EVENTS").astype(np.int64) & DECISION_BITS
-    diff = np.flatnonzero((di != df) | (tr.column("CAL") != fm.column("CAL")))
+    rej_i, rej_f = tr.column("REJ"), fm.column("REJ").astype(np.int64)
+    diff = np.flatnonzero((di != df) | (tr.column("CAL") != fm.column("CAL")) | (rej_i != rej_f))
     n = int(diff[0]) if diff.size else len(adc)
     if diff.size:
         i = n
-        assert (di[i] ^ df[i]) & ~EVENT_BITS["BARO_REJECT"] == 0 or _transonic_ambiguous(consts, tr, fm, sb, i), i
-        if (di[i] ^ df[i]) & EVENT_BITS["BARO_REJECT"]:
+        gate = bool((di[i] ^ df[i]) & EVENT_BITS["BARO_REJECT"]) or rej_i[i] != rej_f[i]
+        if (di[i] ^ df[i]) & EVENT_BITS["MACH_LOCKOUT"]:
+            assert _transonic_ambiguous(consts, tr, fm, sb, i), i
+        if gate:   # one run inside the gate, the other outside: only where the mirror's e1 is within the margin
             e1 = _mirror_e1(consts, fm, adc, i)
             assert abs(abs(e1) - consts.E_GATE) <= sb.e1_margin[i] + 1e-6, (i, e1, consts.E_GATE, sb.e1_margin[i])
+        assert (di[i] ^ df[i]) & ~(EVENT_BITS["BARO_REJECT"] | EVENT_BITS["MACH_LOCKOUT"]) == 0, i
     d = np.abs(tr.words[:n, :3] - fm.words[:n, :3])
     assert np.all(d <= sb.bound[:n] * (1 + 1e-9) + 1e-6), (np.argwhere(d > sb.bound[:n] + 1e-6)[:3], d.max(0))
     return (d / np.maximum(sb.bound[:n], 1e-300)).max(axis=0) if n else np.zeros(3)
