@@ -7,10 +7,13 @@ PY := $(VENV)/bin/python
 FWEMU := $(VENV)/bin/fwemu
 STAMP := $(VENV)/.installed
 # Debian packages the tests use: GNU as for the encoding oracle; cross toolchains + simulators for the MCU runs.
+# The ARM ones go in without recommends (the recommended libstdc++ for arm-none-eabi is 1.5 GB).
 APT_TOOLS := binutils-m68k-linux-gnu gcc-avr avr-libc simavr
 APT_PROBE := m68k-linux-gnu-as avr-gcc simavr
+APT_ARM := gcc-arm-none-eabi libnewlib-arm-none-eabi qemu-system-arm
+APT_ARM_PROBE := arm-none-eabi-gcc qemu-system-arm
 
-.PHONY: all venv tools test test-thorough vectors budget main bench clean
+.PHONY: all venv tools test test-mcu test-thorough vectors budget main bench clean
 
 all: main
 
@@ -32,8 +35,23 @@ tools:
 	      || echo "warning: apt-get install failed; tests needing$$missing will skip"; \
 	  else echo "note:$$missing not installed (not root): tests needing it will skip"; fi; \
 	fi
+	@missing=""; for t in $(APT_ARM_PROBE); do command -v $$t >/dev/null 2>&1 || missing="$$missing $$t"; done; \
+	if [ -n "$$missing" ]; then \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
+	    echo "installing Debian tools ($(APT_ARM)) for:$$missing"; \
+	    (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends \
+	      $(APT_ARM) >/dev/null) || echo "warning: apt-get install failed; tests needing$$missing will skip"; \
+	  else echo "note:$$missing not installed (not root): tests needing it will skip"; fi; \
+	fi
 
-test: $(STAMP) tools
+# The golden vectors on Cortex-M0/M3/M4 (qemu-system-arm) at -Os and -O2: one closing line per core and level.
+# (The same runs are also tests in tests/test_c_port_mcu.py; this prints their summary lines in the log.)
+test-mcu: tools
+	@if command -v arm-none-eabi-gcc >/dev/null 2>&1 && command -v qemu-system-arm >/dev/null 2>&1; then \
+	  $(MAKE) -s -C vectors/c cortex-m BUILD=$(abspath build/mcu); \
+	else echo "test-mcu: arm-none-eabi-gcc / qemu-system-arm not installed: Cortex-M runs skipped"; fi
+
+test: $(STAMP) tools test-mcu
 	$(PY) -m pytest -q -n 2 -p no:cacheprovider
 
 test-thorough: $(STAMP) tools

@@ -18,9 +18,7 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import re
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -394,12 +392,13 @@ def plot_cycles(budgets: list[Budget], path: Path) -> bool:
 
 def write_reports(budgets: list[Budget], out_dir: Path) -> list[Path]:
     """Write ``budget.md``, ``budget.json``, ``cycles.csv`` and (when matplotlib is there) ``cycles.png`` into
-    ``out_dir`` atomically: everything is written to a temporary sibling directory first, then moved into place, so
-    an error leaves no half-written report. Returns the files written."""
+    ``out_dir`` through :func:`firmware_model.output.staged_folder`: everything goes to a stage folder first and is
+    moved into place under the folder lock only when complete, so an error or interrupt leaves the previous report
+    and no temporary file. Other files in ``out_dir`` are kept. Returns the files written."""
+    from firmware_model import output
+
     out_dir = Path(out_dir)
-    out_dir.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=".budget-", dir=out_dir.parent))
-    try:
+    with output.staged_folder(out_dir) as tmp:
         (tmp / "budget.md").write_text(render_markdown(budgets))
         (tmp / "budget.json").write_text(json.dumps([b.to_json() for b in budgets], indent=2, sort_keys=True) + "\n")
         rows = ["program,k,rounding,stream,sample,cycles"]
@@ -409,16 +408,8 @@ def write_reports(budgets: list[Budget], out_dir: Path) -> list[Path]:
                          for i, c in enumerate(cyc)]
         (tmp / "cycles.csv").write_text("\n".join(rows) + "\n")
         plot_cycles(budgets, tmp / "cycles.png")
-        out_dir.mkdir(exist_ok=True)
-        written = []
-        for item in sorted(tmp.iterdir()):
-            os.replace(item, out_dir / item.name)
-            written.append(out_dir / item.name)
-        return written
-    finally:
-        for item in tmp.glob("*"):
-            item.unlink()
-        tmp.rmdir()
+        names = sorted(p.name for p in tmp.iterdir())
+    return [out_dir / name for name in names]
 
 
 __all__ = ["Budget", "StaticBound", "DEFAULT_CLOCK_HZ", "default_streams", "measure", "render_markdown",

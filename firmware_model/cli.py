@@ -12,8 +12,10 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 from collections.abc import Sequence
+from typing import Any
 
 #: Modules that contribute subcommands, in help order.
 COMMAND_MODULES: tuple[str, ...] = (
@@ -36,20 +38,117 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+class _StdoutError(OSError):
+    """Writing standard output failed (full disk, ``> /dev/full``, I/O error)."""
+
+
+class _GuardedStdout:
+    """A proxy of ``sys.stdout`` whose write/flush failures are :class:`_StdoutError` (told apart from the
+    failures of output files, which carry a file name)."""
+
+    def __init__(self, stream: object) -> None:
+        self._stream = stream
+
+    def write(self, text: str) -> int:
+        try:
+            return self._stream.write(text)  # type: ignore[attr-defined]
+        except BrokenPipeError:
+            raise
+        except OSError as exc:
+            raise _StdoutError(exc.errno, exc.strerror or str(exc)) from None
+
+    def flush(self) -> None:
+        try:
+            self._stream.flush()  # type: ignore[attr-defined]
+        except BrokenPipeError:
+            raise
+        except OSError as exc:
+            raise _StdoutError(exc.errno, exc.strerror or str(exc)) from None
+
+    def __getattr__(self, name: str) -> object:
+        return getattr(self._stream, name)
+
+
+def _silence_stdout() -> None:
+    """Point the stdout file descriptor at /dev/null so the interpreter's final flush cannot fail again."""
+    try:
+        fd = sys.stdout.fileno()
+    except (AttributeError, OSError, ValueError):
+        return
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, fd)
+        os.close(devnull)
+    except OSError:
+        pass
+
+
+def _say(line: str) -> None:
+    try:
+        print(line, file=sys.stderr, flush=True)
+    except (OSError, ValueError):
+        pass
+
+
+def _os_error_line(exc: OSError) -> str:
+    """One line for an OSError the user can act on (read-only, not a folder, disk full, no permission)."""
+    why = exc.strerror or str(exc)
+    if exc.filename is not None:
+        return f"fwemu: error: {exc.filename}: {why}"
+    return f"fwemu: error: {why}"
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run ``fwemu`` with ``argv`` (default: ``sys.argv[1:]``) and return the process exit code."""
+    """Run ``fwemu`` with ``argv`` (default: ``sys.argv[1:]``) and return the process exit code.
+
+    Exit codes: 0 success, 1 a check failed (e.g. ``vectors --check``), 2 a user error (bad input, bad value,
+    an output that cannot be written, a full standard output; one line on stderr, never a traceback),
+    130/143 interrupted by SIGINT/SIGTERM (one line; previous outputs left intact, no temporary files)."""
+    from firmware_model import output
     from firmware_model.errors import UserError  # local: keep start-up light
     from isa.errors import IsaError
 
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    output.reset_run_state()
+    real_stdout = sys.stdout
+    sys.stdout = _GuardedStdout(real_stdout)  # type: ignore[assignment]
     try:
-        return int(args.func(args) or 0)
-    except (UserError, IsaError) as exc:
-        print(f"fwemu: error: {exc}", file=sys.stderr)
+        with output.interruptible():
+            return _run(argv, output, (UserError, IsaError))
+    finally:
+        sys.stdout = real_stdout
+
+
+def _run(argv: Sequence[str] | None, output: Any, user_errors: tuple[type[BaseException], ...]) -> int:
+    try:
+        try:
+            parser = build_parser()
+            args = parser.parse_args(argv)
+            code = int(args.func(args) or 0)
+        except SystemExit as exc:  # argparse: --help, usage errors
+            code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
+            if not isinstance(exc.code, (int, type(None))):
+                _say(str(exc.code))
+        sys.stdout.flush()  # a full stdout (`> /dev/full`) fails here at the latest
+        return code
+    except user_errors as exc:
+        _say(f"fwemu: error: {exc}")
         return 2
-    except BrokenPipeError:
+    except BrokenPipeError:  # `fwemu ... | head`: the reader is gone; not an error
+        _silence_stdout()
         return 0
+    except _StdoutError as exc:
+        _silence_stdout()
+        _say(f"fwemu: error: cannot write to standard output: {exc.strerror}")
+        return 2
+    except output.Interrupted as exc:
+        _say(output.interrupted_message(exc))
+        return int(exc.exit_code)
+    except KeyboardInterrupt:
+        _say(output.interrupted_message())
+        return 130
+    except OSError as exc:
+        _say(_os_error_line(exc))
+        return 2
 
 
 if __name__ == "__main__":

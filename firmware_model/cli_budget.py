@@ -6,6 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from firmware_model.cli_args import nonnegative_int, positive_float
 from firmware_model.config import BuildConfig
 from firmware_model.errors import UserError
 
@@ -25,17 +26,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
                    help=f"program to budget (repeatable; default: {', '.join(DEFAULT_PROGRAMS)})")
     p.add_argument("--k", type=int, help="sample period 2^-k s (overrides the config)")
     p.add_argument("--rounding", choices=("floor", "half_up"), help="rounding of right shifts (overrides config)")
-    p.add_argument("--clock-mhz", type=float, default=8.0, help="CPU clock for the load figures (default 8)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the synthetic flight (default 0)")
+    p.add_argument("--clock-mhz", type=positive_float, default=8.0, help="CPU clock for the load figures (default 8)")
+    p.add_argument("--seed", type=nonnegative_int, default=0, help="seed of the synthetic flight (default 0)")
     p.add_argument("--out", type=Path, default=Path("out/budget"), help="output directory (default out/budget)")
     p.set_defaults(func=run_budget)
 
 
 def run_budget(args: argparse.Namespace) -> int:
     """Budget every requested build, print the Markdown report and write the files. Returns the exit code."""
-    from firmware_model import budget
+    from firmware_model import budget, output
     from firmware_model.build import build_firmware
 
+    output.declare_output(args.out)
     base = BuildConfig.from_file(args.config) if args.config else BuildConfig()
     programs = args.program or ([base.program] if args.config else list(DEFAULT_PROGRAMS))
     changes = {key: value for key, value in (("k", args.k), ("rounding", args.rounding)) if value is not None}

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from firmware_model.cli_args import nonnegative_int
 from firmware_model.config import PROGRAMS, ROUNDINGS, BuildConfig
 from firmware_model.inputs import flight_params_for, read_stream_csv, synthetic_flight
 
@@ -31,7 +32,7 @@ def register(subparsers: Any) -> None:
     p.add_argument("--rounding", choices=ROUNDINGS, default="floor")
     src = p.add_mutually_exclusive_group()
     src.add_argument("--input", type=Path, help="CSV with an 'adc' column and optionally an 'acc' column")
-    src.add_argument("--synthetic", type=int, metavar="SEED", help="a synthetic flight from this seed (default 0)")
+    src.add_argument("--synthetic", type=nonnegative_int, metavar="SEED", help="a synthetic flight from this seed (default 0)")
     src.add_argument("--bias-table", action="store_true",
                      help="print the floor-vs-half_up Kalman velocity bias table for k = 5..8 and exit")
     p.set_defaults(func=run)

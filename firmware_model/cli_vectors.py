@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from firmware_model.cli_args import positive_int
 from firmware_model.config import PROGRAMS
 from firmware_model.errors import UserError
 
@@ -29,13 +30,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--generator", choices=("emulation", "model"), default="emulation",
                    help="emulation: 68000 firmware on the emulated CPU, cross-checked against the integer model "
                         "(default); model: the integer model only (marked as such in every file)")
-    p.add_argument("--jobs", type=int, default=1, metavar="N", help="worker processes for --all (default 1)")
+    p.add_argument("--jobs", type=positive_int, default=1, metavar="N",
+                   help="worker processes for --all (default 1; output byte-identical to --jobs 1)")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``fwemu vectors``; returns the exit code."""
-    from firmware_model import vectors
+    from firmware_model import output, vectors
 
     if args.check:
         problems = vectors.check_set(args.check)
@@ -45,8 +47,7 @@ def run(args: argparse.Namespace) -> int:
         return 1 if problems else 0
     if not args.out:
         raise UserError("vectors: --out DIR is required")
-    if args.jobs < 1:
-        raise UserError(f"vectors: --jobs={args.jobs} must be >= 1")
+    output.declare_output(args.out)
     if args.all:
         if args.input or args.config:
             raise UserError("vectors: --input/--config go with --firmware, not --all (the committed matrix is fixed)")

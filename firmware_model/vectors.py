@@ -21,10 +21,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import os
-import shutil
 import sys
-import tempfile
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -544,22 +541,30 @@ def _sha256_bytes(data: bytes) -> str:
 
 
 class _Progress:
-    """A one-line progress bar on stderr, drawn only when stderr is a terminal."""
+    """A one-line progress bar on stderr, drawn only when stderr is a terminal; counts ``unit`` (samples)."""
 
-    def __init__(self, total: int, label: str, enabled: bool | None = None) -> None:
+    def __init__(self, total: int, label: str, enabled: bool | None = None, unit: str = "samples") -> None:
         self.total = max(total, 1)
         self.label = label
+        self.unit = unit
         self.enabled = sys.stderr.isatty() if enabled is None else enabled
         self.done = 0
+        self._last = -1.0
 
-    def step(self, what: str) -> None:
-        self.done += 1
+    def step(self, what: str, amount: int = 1) -> None:
+        self.done += amount
         if not self.enabled:
             return
+        import time
+
+        now = time.monotonic()
+        if now - self._last < 0.1 and self.done < self.total:
+            return
+        self._last = now
         width = 30
-        fill = int(width * self.done / self.total)
-        sys.stderr.write(f"\r{self.label} [{'#' * fill}{'.' * (width - fill)}] {self.done}/{self.total} "
-                         f"{what[:40]:<40}")
+        fill = int(width * min(self.done, self.total) / self.total)
+        sys.stderr.write(f"\r{self.label} [{'#' * fill}{'.' * (width - fill)}] {self.done:,}/{self.total:,} "
+                         f"{self.unit} {what[:40]:<40}")
         sys.stderr.flush()
 
     def close(self) -> None:
@@ -590,64 +595,67 @@ def render_set(results: Sequence[CaseResult], kind: str, avr: Sequence[str] = ()
 
 
 def write_set(files: dict[str, bytes], out: str | Path, kind: str) -> None:
-    """Write a rendered set into ``out`` atomically per part: everything goes to a temporary directory inside
-    ``out`` first; then ``cases/`` is swapped in with a rename and each other file replaced with ``os.replace``,
-    the manifest last. On any error before the swap nothing in ``out`` changes. A user set (kind ``user``) refuses to
-    overwrite a directory holding the committed set (manifest kind ``all``)."""
-    out = Path(out)
-    old_manifest = out / "manifest.json"
-    if kind != "all" and old_manifest.exists():
+    """Write a rendered set into ``out`` through :func:`firmware_model.output.staged_folder`: every file goes to a
+    stage folder beside ``out`` first; then, under the folder lock and with SIGINT/SIGTERM deferred, ``cases/`` is
+    swapped in as a whole and each other file replaced with ``os.replace``, the manifest last. On any error or
+    interrupt before the commit nothing in ``out`` changes and no temporary name remains. A user set (kind
+    ``user``) refuses to overwrite a directory holding the committed set (manifest kind ``all``)."""
+    from firmware_model import output
+
+    with output.staged_folder(out, owned=("cases",), guard=_set_guard(kind), last=("manifest.json",)) as stage:
+        for rel, data in files.items():
+            path = stage / rel
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_bytes(data)
+
+
+def _set_guard(kind: str) -> Any:
+    """The commit guard of :func:`write_set`: a non-``all`` set never replaces the committed set."""
+
+    def guard(out: Path) -> None:
+        old_manifest = out / "manifest.json"
+        if kind == "all" or not old_manifest.exists():
+            return
         try:
             old_kind = json.loads(old_manifest.read_text()).get("kind")
-        except (OSError, ValueError):
+        except (OSError, ValueError, AttributeError):
             old_kind = None
         if old_kind == "all":
             raise UserError(f"vectors: {out} holds the committed vector set; choose another --out for a user set")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(prefix=".fwemu-vectors-", dir=out))
-    except OSError as exc:
-        raise UserError(f"vectors: cannot create output directory {out}: {exc}") from None
-    try:
-        for rel, data in files.items():
-            path = tmp / rel
-            path.parent.mkdir(parents=True, exist_ok=True)
-            path.write_bytes(data)
-        # swap cases/
-        (out / "c").mkdir(exist_ok=True)
-        old = out / f".old-cases-{os.getpid()}"
-        if (out / "cases").exists():
-            os.replace(out / "cases", old)
-        os.replace(tmp / "cases", out / "cases")
-        for rel in sorted(files):
-            if rel.startswith("cases/") or rel == "manifest.json":
-                continue
-            os.replace(tmp / rel, out / rel)
-        os.replace(tmp / "manifest.json", out / "manifest.json")
-        shutil.rmtree(old, ignore_errors=True)
-    except OSError as exc:
-        raise UserError(f"vectors: writing {out} failed: {exc}") from None
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
+
+    return guard
+
+
+def _compute_job(job: tuple[CaseSpec, str]) -> CaseResult:
+    return compute_case(*job)
 
 
 def generate(specs: Sequence[CaseSpec], generator: str = "emulation", progress: bool | None = None,
              jobs: int = 1) -> list[CaseResult]:
-    """Run every case (in order); ``jobs`` > 1 runs them in that many worker processes (same results)."""
-    bar = _Progress(len(specs), "vectors", progress)
+    """Run every case (in order); ``jobs`` > 1 runs them in that many worker processes. The results come back in
+    the order of ``specs`` whatever the workers' timing, so the files written are byte-identical to ``jobs=1``.
+    An error or interrupt terminates the workers at once."""
+    bar = _Progress(sum(len(s.stream) for s in specs), "vectors", progress, unit="samples")
     results: list[CaseResult] = []
     try:
-        if jobs > 1:
-            from concurrent.futures import ProcessPoolExecutor
+        if jobs > 1 and len(specs) > 1:
+            import multiprocessing
 
-            with ProcessPoolExecutor(max_workers=jobs) as pool:
-                for res in pool.map(compute_case, specs, [generator] * len(specs), chunksize=4):
+            from firmware_model.output import worker_init
+
+            pool = multiprocessing.get_context().Pool(min(jobs, len(specs)), initializer=worker_init)
+            try:
+                for res in pool.imap(_compute_job, [(spec, generator) for spec in specs], chunksize=2):
                     results.append(res)
-                    bar.step(res.spec.name)
+                    bar.step(res.spec.name, len(res.spec.stream))
+                pool.close()
+            finally:
+                pool.terminate()
+                pool.join()
         else:
             for spec in specs:
                 results.append(compute_case(spec, generator))
-                bar.step(spec.name)
+                bar.step(spec.name, len(spec.stream))
     finally:
         bar.close()
     return results
@@ -704,6 +712,7 @@ def generate_user(program: str, input_csv: str | Path, out: str | Path, config: 
     :class:`BuildConfig`) and ``program`` (overrides the config's program)."""
     if program not in PROGRAMS:
         raise UserError(f"vectors: unknown firmware {program!r}; known: {', '.join(PROGRAMS)}")
+    _set_guard("user")(Path(out))
     cfg = BuildConfig.from_file(config) if config else BuildConfig()
     cfg = cfg.replace(program=program)
     stream = read_stream_csv(input_csv, cfg.baro_bits, cfg.k)

@@ -21,7 +21,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import isa
-from isa.cpu import _COND, _COND_EXPR, CPU
+from isa.blocks import _COND_EXPR
+from isa.cpu import CPU
+from isa.semantics import _COND
 from isa.encoder import encode, length
 from isa.errors import CPUFault
 from isa.operands import Instruction, Mode, Operand, Size

@@ -1,0 +1,1076 @@
+"""The block compiler: a run of decoded instructions becomes the source of ONE generated Python function.
+
+Contract with :mod:`isa.cpu` (which decodes, caches and runs blocks):
+
+* Input: ``entries``, a list of ``(pc, instruction, handler name, condition or None, length)`` back to back in
+  memory, each accepted by :func:`_blockable`. :func:`compile_block` returns ``(make, info)``: ``make(R, MS, D,
+  rb, rw, rl, wb, ww, wl)`` binds the block to one CPU (``R`` its 17-register list, ``MS`` its one-element
+  ``min_sp`` list, ``D`` its one-element "compiled code was written" flag, ``rb..wl`` its memory accessors from
+  :class:`isa.memory.Memory`) and returns ``block(bn, bc, until) -> next_pc | instructions << 24 | clocks << 56``
+  where ``bn``/``bc`` are the instruction/clock budget left and ``until`` the ``until_pc`` (-1: none). ``info``
+  (:class:`_BlockInfo`) maps each line of the generated code back to its instruction, so that a fault inside the
+  block can be unwound exactly (:meth:`isa.cpu.CPU._unwind_block`). The generated source depends only on the
+  entries, so ``make`` may be shared by every CPU that holds the same code at the same address.
+* Semantics: registers live in locals (``d0..a7``, ``sr``), operands, addresses and clock constants are literals,
+  CCR flags are computed only where a later instruction, a block exit or a possible fault can observe them
+  (:func:`_liveness`). Control flow inside a block (:func:`_plan`): a Bcc forward inside the same region becomes
+  an ``if`` (``if``/``else`` when the skipped code ends in a BRA forward), a BRA forward skips code, a branch back
+  to the loop head becomes the ``continue`` of a ``while`` loop bounded by the remaining budget and ``until``;
+  any other branch leaves the block. Clocks and instruction counts are folded per path (locals ``c``/``ni`` hold
+  what differs). A memory write that hits compiled code sets ``D[0]`` (in the memory accessor); the block then
+  leaves right after that instruction. Instructions the block compiler does not take (TRAP, ILLEGAL, constant
+  odd branch targets) end the block; the CPU runs them through :mod:`isa.closures`.
+* The run loop starts a block only when ``bn >= info's most instructions`` and ``bc >`` the clock bound of one
+  pass (:func:`_block_bound`) and ``until`` is not inside it: that keeps limits exact.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from isa import timing
+from isa.errors import AddressError, DivideByZero
+from isa.operands import Instruction, Operand, Size
+from isa.semantics import (BITS, CALL_SENTINEL, CF, M32, MASK, NF, SIGN, VF, XF, ZF, _M, _MEMORY_MODES, _Fault,
+                           _inc, _k_addx, _k_shift, _k_subx, _lowers_sp, _nb, _nz, _pc_target, _sx)
+
+__all__ = ["BLOCK_MAX", "block_entries", "compile_block"]
+
+
+#: Most instructions in one compiled block.
+BLOCK_MAX = 160
+#: Decoding goes on past a BRA/JMP/RTS/... while a branch of the block targets code at most this many bytes after
+#: the branch and beyond the transfer (that code may be reached inside the block).
+_FORWARD_WINDOW = 512
+_RN: tuple[str, ...] = tuple(f"d{i}" for i in range(8)) + tuple(f"a{i}" for i in range(8))
+_ALL_FLAGS = 0x1F
+_FLAGS_NZVC = 0x0F
+#: Flags each condition code reads (PRM table 3-19), for the block compiler's flag liveness.
+_COND_USES: tuple[int, ...] = (0, 0, CF | ZF, CF | ZF, CF, CF, ZF, ZF, VF, VF, NF, NF, NF | VF, NF | VF,
+                               NF | ZF | VF, NF | ZF | VF)  # fmt: skip
+#: Inline Python expression (over the local ``sr``) that is true when condition ``cc`` holds.
+_COND_EXPR: tuple[str, ...] = (
+    "True", "False", "not sr & 5", "sr & 5", "not sr & 1", "sr & 1", "not sr & 4", "sr & 4",
+    "not sr & 2", "sr & 2", "not sr & 8", "sr & 8", "not (sr ^ sr >> 2) & 2", "(sr ^ sr >> 2) & 2",
+    "not (sr & 4 | (sr ^ sr >> 2) & 2)", "sr & 4 | (sr ^ sr >> 2) & 2",
+)  # fmt: skip
+_SHIFT_NAMES = frozenset("asl asr lsl lsr rol ror roxl roxr".split())
+_NO_FLAGS = frozenset("movea adda suba lea pea exg movem nop bra bsr jmp jsr rts".split())
+_NZVC_DEFS = frozenset("move moveq and andi or ori eor eori not tst clr ext swap muls mulu divs divu cmp cmpi "
+                       "cmpa".split())
+
+
+class _Unblockable(Exception):
+    """Internal: this instruction is left to the per-instruction path (the block ends before it)."""
+
+
+def _flag_effect(ins: Instruction, h: str, cond: int | None) -> tuple[int, int]:
+    """(flags read, flags always written) of one instruction, as CCR bit masks."""
+    ops = ins.operands
+    if h in ("bcc", "scc", "dbcc"):
+        return _COND_USES[cond if cond is not None else 0], 0
+    if h in _NO_FLAGS or (h in ("addq", "subq") and ops[1].mode is _M.AREG):
+        return 0, 0
+    if h in _NZVC_DEFS:
+        return 0, _FLAGS_NZVC
+    if h in ("add", "addi", "addq", "sub", "subi", "subq", "neg"):
+        return 0, _ALL_FLAGS
+    if h in ("addx", "subx", "negx"):
+        return XF | ZF, XF | NF | VF | CF
+    if h in _SHIFT_NAMES:
+        by_reg = len(ops) == 2 and ops[0].mode is _M.DREG
+        uses = XF if h in ("roxl", "roxr") else 0
+        if h in ("rol", "ror") or by_reg:
+            return uses, _FLAGS_NZVC  # a register count of 0 leaves X (and ROXL/ROXR copy it to C)
+        return uses, _ALL_FLAGS
+    raise KeyError(h)  # pragma: no cover - every handler is listed above
+
+
+def _may_fault(ins: Instruction, h: str) -> bool:
+    """True when the instruction can raise a CPU fault (memory access, divide, pushes/pops, computed jumps)."""
+    if h in ("divs", "divu", "jmp", "jsr", "rts", "bsr", "pea", "movem"):
+        return True
+    return any(op.mode in _MEMORY_MODES for op in ins.operands)
+
+
+class _BlockGen:
+    """Generates the source of one block function. Registers live in locals ``d0..a7``, the status register in
+    ``sr``, data-dependent clocks accumulate in ``c``; every exit writes the registers back and returns
+    ``next_pc | instructions << 24 | clocks << 56``."""
+
+    def __init__(self) -> None:
+        self.items: list[tuple[int, object]] = []  # (indent, line str | ("exit", ...) | ("mark", i))
+        self.ind = 1
+        self.used: set[int] = set()
+        self.dirty: set[int] = set()
+        self.consts: dict[str, object] = {}
+        self.dyn = False
+
+    # ---- emission helpers
+    def emit(self, line: str) -> None:
+        self.items.append((self.ind, line))
+
+    def const(self, obj: object, hint: str) -> str:
+        for k, v in self.consts.items():
+            if v is obj:
+                return k
+        name = f"{hint}_{len(self.consts)}"
+        self.consts[name] = obj
+        return name
+
+    def rg(self, i: int) -> str:
+        self.used.add(i)
+        return _RN[i]
+
+    def wg(self, i: int) -> str:
+        self.used.add(i)
+        self.dirty.add(i)
+        return _RN[i]
+
+    def exit(self, target: str | int, n: int, cycles: int) -> None:
+        """Leave the block to ``target`` (int or expression) after ``n`` instructions and ``cycles`` clocks (+c)."""
+        self.items.append((self.ind, ("exit", target, n, cycles, frozenset(self.dirty))))
+
+    def cycles(self, expr: str) -> None:
+        self.dyn = True
+        self.emit(f"c += {expr}")
+
+    # ---- operands
+    def index_expr(self, op: Operand) -> str:
+        ix = op.index
+        assert ix is not None
+        x = self.rg(ix.num + (8 if ix.is_areg else 0))
+        return x if ix.long else f"((({x} & 0xFFFF) ^ 0x8000) - 0x8000)"
+
+    def addr(self, op: Operand, nb: int, pc: int, tmp: str) -> str:
+        """Emit the address calculation of a memory operand (with its (An)+/-(An) side effect, in the order the
+        per-instruction closures use); return an expression for the (unmasked) address."""
+        m = op.mode
+        if m is _M.AIND:
+            return self.rg(8 + op.reg)
+        if m is _M.APOSTINC:
+            an = self.wg(8 + op.reg)
+            self.emit(f"{tmp} = {an}")
+            self.emit(f"{an} = ({tmp} + {_inc(op, nb)}) & 0xFFFFFFFF")
+            return tmp
+        if m is _M.APREDEC:
+            an = self.wg(8 + op.reg)
+            self.emit(f"{an} = ({an} - {_inc(op, nb)}) & 0xFFFFFFFF")
+            self.emit(f"{tmp} = {an}")
+            return tmp
+        if m is _M.ADISP:
+            return f"({self.rg(8 + op.reg)} + {op.value})"
+        if m is _M.AINDEX:
+            return f"({self.rg(8 + op.reg)} + {op.value} + {self.index_expr(op)})"
+        if m is _M.ABSW:
+            return str(((op.value & 0xFFFF) ^ 0x8000) - 0x8000 & M32)
+        if m is _M.ABSL:
+            return str(op.value & M32)
+        if m is _M.PCDISP:
+            return str(_pc_target(pc, op.value))
+        if m is _M.PCINDEX:
+            return f"({_pc_target(pc, op.value)} + {self.index_expr(op)})"
+        raise _Unblockable(m)
+
+    def addr_tmp(self, op: Operand, nb: int, pc: int, tmp: str) -> str:
+        """Like :meth:`addr` but the address is held in local ``tmp`` (used twice: read-modify-write)."""
+        e = self.addr(op, nb, pc, tmp)
+        if e != tmp:
+            self.emit(f"{tmp} = {e}")
+        return tmp
+
+    def read(self, op: Operand, nb: int, pc: int, tmp: str, materialize: bool = False) -> str:
+        """Emit what reading a source operand needs; return an expression of its unsigned ``nb``-byte value."""
+        M = MASK[nb]
+        m = op.mode
+        if m is _M.DREG or m is _M.AREG:
+            r = self.rg(op.reg + (8 if m is _M.AREG else 0))
+            e = r if nb == 4 else f"({r} & {M})"
+            if materialize:
+                self.emit(f"{tmp} = {e}")
+                return tmp
+            return e
+        if m is _M.IMM:
+            if materialize:
+                self.emit(f"{tmp} = {op.value & M}")
+                return tmp
+            return str(op.value & M)
+        a = self.addr(op, nb, pc, "ea")
+        self.emit(f"{tmp} = {'rb rw _ rl'.split()[nb - 1]}({a})")
+        return tmp
+
+    # ---- flag fragments
+    def nz(self, v: str, nb: int) -> str:
+        return f"(8 if {v} & {SIGN[nb]} else (0 if {v} else 4))"
+
+    def logic_flags(self, v: str, nb: int, need: int) -> None:
+        if need & _FLAGS_NZVC:
+            self.emit(f"sr = (sr & 0xFF10) | {self.nz(v, nb)}")
+
+    def arith_flags(self, kind: str, nb: int, s: str, d: str, need: int) -> None:
+        """ADD/SUB/CMP flags from ``r`` (unmasked result) and ``rm`` (masked); only the bits in ``need``."""
+        M, S = MASK[nb], SIGN[nb]
+        keep = 0xFF1F
+        parts = []
+        if need & (CF | (XF if kind != "cmp" else 0)):
+            bits = 1 if kind == "cmp" else 0x11
+            test = f"r > {M}" if kind == "add" else "r < 0"
+            parts.append(f"({bits} if {test} else 0)")
+            keep &= ~bits
+        if need & (NF | ZF):
+            parts.append(self.nz("rm", nb))
+            keep &= ~(NF | ZF)
+        if need & VF:
+            v = f"({s} ^ rm) & ({d} ^ rm)" if kind == "add" else f"({s} ^ {d}) & ({d} ^ rm)"
+            parts.append(f"(2 if {v} & {S} else 0)")
+            keep &= ~VF
+        if kind == "cmp":
+            keep |= XF
+        if parts:
+            self.emit(f"sr = (sr & 0x{keep:04X}) | " + " | ".join(parts))
+
+    def set_dreg(self, i: int, nb: int, v: str) -> None:
+        r = self.wg(i)
+        if nb == 4:
+            last = self.items[-1]
+            if v == "rm" and last[0] == self.ind and isinstance(last[1], str) and last[1].startswith("rm = "):
+                self.items[-1] = (self.ind, f"{r} = {last[1][5:]}")  # the result goes straight to the register
+                return
+            self.emit(f"{r} = {v}")
+        else:
+            self.emit(f"{r} = ({r} & 0x{M32 ^ MASK[nb]:08X}) | {v}")
+
+    def write(self, nb: int, a: str, v: str) -> None:
+        self.emit(f"{'wb ww _ wl'.split()[nb - 1]}({a}, {v})")
+
+    def push(self, v: str) -> None:
+        """Push the long ``v`` (PEA, BSR, JSR) and lower ``min_sp`` at once: a later instruction of the same
+        block (an RTS after a PEA, say) may raise A7 again before the block exits."""
+        sp = self.wg(15)
+        self.emit(f"eb = ({sp} - 4) & 0xFFFFFFFF")
+        self.emit(f"wl(eb, {v})")
+        self.emit(f"{sp} = eb")
+        self.emit("if eb < MS[0]:")
+        self.emit("    MS[0] = eb")
+
+    # ---- one instruction
+    def instruction(self, idx: int, ins: Instruction, h: str, cond: int | None, pc: int, nxt: int, need: int,
+                    prefix: int) -> tuple[int, bool]:
+        """Emit one instruction; return (its clocks on the fall-through path, excluding ``c``, and whether the
+        block ends after it). ``idx``/``prefix``: constant instruction count/clocks before it on the path the
+        generator is on (the locals ``ni``/``c`` hold the rest)."""
+        ops = ins.operands
+        nb = _nb(ins)
+        M = MASK[nb]
+        base = timing.cycles(ins) if h not in ("bcc", "dbcc", "scc", "mulu", "muls", "divu", "divs") \
+            and not (h in _SHIFT_NAMES and len(ops) == 2 and ops[0].mode is _M.DREG) else 0
+        n_done = idx + 1
+        if h == "moveq":
+            v = _sx(ops[0].value & 0xFF, 1) & M32
+            self.emit(f"{self.wg(ops[1].reg)} = {v}")
+            if need & _FLAGS_NZVC:
+                self.emit(f"sr = (sr & 0xFF10) | {_nz(v, 4)}")
+            return base, False
+        if h == "move":
+            src, dst = ops
+            if dst.mode is _M.DREG:
+                v = self.read(src, nb, pc, "v", materialize=nb != 4 or src.mode not in (_M.DREG, _M.AREG))
+                self.set_dreg(dst.reg, nb, v)
+                self.logic_flags(self.rg(dst.reg) if nb == 4 else v, nb, need)
+                return base, False
+            v = self.read(src, nb, pc, "v", materialize=True)
+            a = self.addr(dst, nb, pc, "eb")
+            self.logic_flags(v, nb, need)
+            self.write(nb, a, v)
+            return base, False
+        if h == "movea":
+            v = self.read(ops[0], nb, pc, "v")
+            an = self.wg(8 + ops[1].reg)
+            self.emit(f"{an} = {v}" if nb == 4 else f"{an} = (({v} ^ 0x8000) - 0x8000) & 0xFFFFFFFF")
+            return base, False
+        if h in ("add", "addi", "sub", "subi", "cmp", "cmpi", "and", "andi", "or", "ori", "eor", "eori",
+                 "addq", "subq"):
+            kind = h[:-1] if h.endswith(("i", "q")) else h
+            src, dst = ops
+            if h in ("addq", "subq"):
+                k = src.value
+                if dst.mode is _M.AREG:
+                    an = self.wg(8 + dst.reg)
+                    self.emit(f"{an} = ({an} {'+' if kind == 'add' else '-'} {k}) & 0xFFFFFFFF")
+                    return base, False
+                s = str(k & M)
+            else:
+                s = self.read(src, nb, pc, "s", materialize=dst.mode is not _M.DREG)
+            if dst.mode is _M.DREG:
+                dn = self.rg(dst.reg)
+                d = dn if nb == 4 else "x"
+                if nb != 4:
+                    self.emit(f"x = {dn} & {M}")
+            else:
+                a = self.addr_tmp(dst, nb, pc, "eb")
+                d = "x"
+                self.emit(f"x = {'rb rw _ rl'.split()[nb - 1]}({a})")
+            if kind in ("add", "sub", "cmp"):
+                expr = f"{s} + {d}" if kind == "add" else f"{d} - {s}"
+                if need & (_ALL_FLAGS if kind != "cmp" else _FLAGS_NZVC):
+                    self.emit(f"r = {expr}")
+                    self.emit(f"rm = r & {M}")
+                    self.arith_flags(kind, nb, s, d, need)
+                elif kind == "cmp":
+                    return base, False
+                else:
+                    self.emit(f"rm = ({expr}) & {M}")
+            else:
+                op = {"and": "&", "or": "|", "eor": "^"}[kind]
+                self.emit(f"rm = {s} {op} {d}")
+                self.logic_flags("rm", nb, need)
+            if kind == "cmp":
+                return base, False
+            if dst.mode is _M.DREG:
+                self.set_dreg(dst.reg, nb, "rm")
+            else:
+                self.write(nb, "eb", "rm")
+            return base, False
+        if h in ("adda", "suba"):
+            v = self.read(ops[0], nb, pc, "v")
+            an = self.wg(8 + ops[1].reg)
+            sign = "+" if h == "adda" else "-"
+            if nb == 2:
+                v = f"((({v}) ^ 0x8000) - 0x8000)"
+            self.emit(f"{an} = ({an} {sign} {v}) & 0xFFFFFFFF")
+            return base, False
+        if h == "cmpa":
+            v = self.read(ops[0], nb, pc, "v")
+            if nb == 2:
+                self.emit(f"s = ((({v}) ^ 0x8000) - 0x8000) & 0xFFFFFFFF")
+                v = "s"
+            an = self.rg(8 + ops[1].reg)
+            if need & _FLAGS_NZVC:
+                self.emit(f"r = {an} - {v}")
+                self.emit("rm = r & 0xFFFFFFFF")
+                self.arith_flags("cmp", 4, v, an, need)
+            return base, False
+        if h == "lea":
+            a = self.addr(ops[0], 4, pc, "ea")
+            self.emit(f"{self.wg(8 + ops[1].reg)} = {a} & 0xFFFFFFFF")
+            return base, False
+        if h == "pea":
+            a = self.addr(ops[0], 4, pc, "ea")
+            self.emit(f"v = {a} & 0xFFFFFFFF")
+            self.push("v")
+            return base, False
+        if h in ("clr", "not", "neg", "negx", "tst"):
+            dst = ops[0]
+            if dst.mode is _M.DREG:
+                dn = self.rg(dst.reg)
+                self.emit(f"x = {dn}" if nb == 4 else f"x = {dn} & {M}")
+            else:
+                a = self.addr_tmp(dst, nb, pc, "eb")
+                self.emit(f"x = {'rb rw _ rl'.split()[nb - 1]}({a})")
+            if h == "clr":
+                self.emit("rm = 0")
+                if need & _FLAGS_NZVC:
+                    self.emit("sr = (sr & 0xFF10) | 4")
+            elif h == "not":
+                self.emit(f"rm = x ^ {M}")
+                self.logic_flags("rm", nb, need)
+            elif h == "tst":
+                self.logic_flags("x", nb, need)
+                return base, False
+            elif h == "neg":
+                self.emit("r = -x")
+                self.emit(f"rm = r & {M}")
+                self.arith_flags("sub", nb, "x", "0", need)
+            else:
+                k = self.const(_k_subx(nb), f"negx{nb}")
+                self.emit(f"rm, sr = {k}(x, 0, sr)")
+            if dst.mode is _M.DREG:
+                self.set_dreg(dst.reg, nb, "rm")
+            else:
+                self.write(nb, "eb", "rm")
+            return base, False
+        if h in ("addx", "subx"):
+            s_op, d_op = ops
+            k = self.const((_k_subx if h == "subx" else _k_addx)(nb), f"{h}{nb}")
+            if s_op.mode is _M.DREG:
+                s = self.read(s_op, nb, pc, "s")
+                dn = self.rg(d_op.reg)
+                self.emit(f"rm, sr = {k}({s}, {dn if nb == 4 else f'{dn} & {M}'}, sr)")
+                self.set_dreg(d_op.reg, nb, "rm")
+                return base, False
+            sa = self.addr(s_op, nb, pc, "ea")
+            self.emit(f"s = {'rb rw _ rl'.split()[nb - 1]}({sa})")
+            da = self.addr_tmp(d_op, nb, pc, "eb")
+            self.emit(f"rm, sr = {k}(s, {'rb rw _ rl'.split()[nb - 1]}({da}), sr)")
+            self.write(nb, "eb", "rm")
+            return base, False
+        if h == "ext":
+            dn = self.wg(ops[0].reg)
+            if ins.size is Size.W:
+                self.emit(f"v = ((({dn} & 0xFF) ^ 0x80) - 0x80) & 0xFFFF")
+                self.emit(f"{dn} = ({dn} & 0xFFFF0000) | v")
+                self.logic_flags("v", 2, need)
+            else:
+                self.emit(f"{dn} = ((({dn} & 0xFFFF) ^ 0x8000) - 0x8000) & 0xFFFFFFFF")
+                self.logic_flags(dn, 4, need)
+            return base, False
+        if h == "swap":
+            dn = self.wg(ops[0].reg)
+            self.emit(f"{dn} = (({dn} << 16) | ({dn} >> 16)) & 0xFFFFFFFF")
+            self.logic_flags(dn, 4, need)
+            return base, False
+        if h == "exg":
+            a, b = (self.wg(o.reg + (8 if o.mode is _M.AREG else 0)) for o in ops)
+            self.emit(f"{a}, {b} = {b}, {a}")
+            return base, False
+        if h in ("mulu", "muls") and ops[0].mode is _M.IMM:  # constant source: constant clocks
+            sv = ops[0].value & 0xFFFF
+            dn = self.wg(ops[1].reg)
+            if h == "muls":
+                self.emit(f"{dn} = ({_sx(sv, 2)} * ((({dn} & 0xFFFF) ^ 0x8000) - 0x8000)) & 0xFFFFFFFF")
+                x = sv << 1
+                extra = 2 * ((x ^ (x >> 1)) & 0xFFFF).bit_count()
+            else:
+                self.emit(f"{dn} = {sv} * ({dn} & 0xFFFF)")
+                extra = 2 * sv.bit_count()
+            self.logic_flags(dn, 4, need)
+            return 38 + timing.EA_TIME[ops[0].mode][0] + extra, False
+        if h in ("mulu", "muls"):
+            s = self.read(ops[0], 2, pc, "s", materialize=True)
+            dn = self.wg(ops[1].reg)
+            if h == "muls":
+                self.emit(f"{dn} = ((({s} ^ 0x8000) - 0x8000) * ((({dn} & 0xFFFF) ^ 0x8000) - 0x8000)) "
+                          "& 0xFFFFFFFF")
+            else:
+                self.emit(f"{dn} = {s} * ({dn} & 0xFFFF)")
+            self.logic_flags(dn, 4, need)
+            if h == "muls":
+                self.emit(f"x = {s} << 1")
+                self.cycles("2 * ((x ^ (x >> 1)) & 0xFFFF).bit_count()")
+            else:
+                self.cycles(f"2 * {s}.bit_count()")
+            return 38 + timing.EA_TIME[ops[0].mode][0], False
+        if h in ("divu", "divs"):
+            s = self.read(ops[0], 2, pc, "s", materialize=True)
+            dn = self.wg(ops[1].reg)
+            name = "DIVS" if h == "divs" else "DIVU"
+            fault = self.const(_Fault, "Fault")
+            dz = self.const(DivideByZero, "DivideByZero")
+            self.emit(f"if {s} == 0:")
+            self.emit(f"    raise {fault}({dz}, f\"{name} by zero (dividend ${{{dn}:08X}})\")")
+            self.emit(f"d = {dn}")
+            if h == "divs":
+                self.emit("sd = (d ^ 0x80000000) - 0x80000000")
+                self.emit(f"ss = ({s} ^ 0x8000) - 0x8000")
+                self.emit("q = abs(sd) // abs(ss)")
+                self.emit("if (sd < 0) != (ss < 0):")
+                self.emit("    q = -q")
+                self.emit("rem = sd - q * ss")
+                self.emit("if -0x8000 <= q <= 0x7FFF:")
+            else:
+                self.emit(f"q, rem = divmod(d, {s})")
+                self.emit("if q <= 0xFFFF:")
+            self.emit("    q &= 0xFFFF")
+            self.emit(f"    {dn} = ((rem & 0xFFFF) << 16) | q")
+            self.emit(f"    sr = (sr & 0xFF10) | {self.nz('q', 2)}")
+            self.emit("else:")
+            self.emit(f"    sr = (sr & 0xFF10) | {NF | VF}")
+            tc = self.const(timing.divs_cycles if h == "divs" else timing.divu_cycles, "divc")
+            self.cycles(f"{tc}(d, {s})")
+            return timing.EA_TIME[ops[0].mode][0], False
+        if h in _SHIFT_NAMES:
+            return self.shift(ins, h, nb, pc, need, base), False
+        if h == "scc":
+            dst = ops[0]
+            ce = _COND_EXPR[cond]  # type: ignore[index]
+            if dst.mode is _M.DREG:
+                dn = self.wg(dst.reg)
+                self.emit(f"if {ce}:")
+                self.emit(f"    {dn} |= 0xFF")
+                self.emit("    c += 2")
+                self.emit("else:")
+                self.emit(f"    {dn} &= 0xFFFFFF00")
+                self.dyn = True
+                return 4, False
+            a = self.addr(dst, 1, pc, "eb")
+            self.emit(f"wb({a}, 0xFF if {ce} else 0)")
+            return timing.cycles(ins), False
+        if h in ("bcc", "bra", "bsr"):
+            target = ops[0].value & 0xFFFFFF
+            if target & 1:
+                raise _Unblockable("odd branch target")
+            if h == "bsr":
+                self.push(str(nxt & 0xFFFFFF))
+                self.exit(target, n_done, prefix + base)
+                return base, True
+            if h == "bra":
+                self.exit(target, n_done, prefix + base)
+                return base, True
+            self.emit(f"if {_COND_EXPR[cond]}:")  # type: ignore[index]
+            self.ind += 1
+            self.exit(target, n_done, prefix + timing.cycles(ins, taken=True))
+            self.ind -= 1
+            return timing.cycles(ins, taken=False), False
+        if h == "dbcc":
+            dn_op, tgt = ops
+            target = tgt.value & 0xFFFFFF
+            if target & 1:
+                raise _Unblockable("odd branch target")
+            ce = _COND_EXPR[cond]  # type: ignore[index]
+            if ce == "True":
+                return 12, False
+            if ce != "False":
+                self.emit(f"if not ({ce}):")
+                self.ind += 1
+            dn = self.wg(dn_op.reg)
+            self.emit(f"w = ({dn} - 1) & 0xFFFF")
+            self.emit(f"{dn} = ({dn} & 0xFFFF0000) | w")
+            self.emit("if w == 0xFFFF:")
+            self.emit("    c += 2")
+            self.dyn = True
+            self.emit("else:")
+            self.ind += 1
+            self.exit(target, n_done, prefix + timing.cycles(ins, taken=True))
+            self.ind -= 1
+            if ce != "False":
+                self.ind -= 1
+            return 12, False
+        if h in ("jmp", "jsr"):
+            a = self.addr(ops[0], 4, pc, "ea")
+            fault = self.const(_Fault, "Fault")
+            ae = self.const(AddressError, "AddressError")
+            self.emit(f"t = {a} & 0xFFFFFF")
+            self.emit("if t & 1:")
+            self.emit(f"    raise {fault}({ae}, f\"jump to odd address ${{t:06X}}\")")
+            if h == "jsr":
+                self.push(str(nxt & 0xFFFFFF))
+            self.exit("t", n_done, prefix + base)
+            return base, True
+        if h == "rts":
+            sp = self.wg(15)
+            fault = self.const(_Fault, "Fault")
+            ae = self.const(AddressError, "AddressError")
+            self.emit(f"v = rl({sp})")
+            self.emit(f"{sp} = ({sp} + 4) & 0xFFFFFFFF")
+            self.emit(f"if v & 1 and (v & 0xFFFFFF) != {CALL_SENTINEL}:")
+            self.emit(f"    raise {fault}({ae}, f\"return to odd address ${{v & 0xFFFFFF:06X}}\")")
+            self.exit("(v & 0xFFFFFF)", n_done, prefix + base)
+            return base, True
+        if h == "movem":
+            self.movem(ins, nb, pc)
+            return base, False
+        if h == "nop":
+            return base, False
+        raise _Unblockable(h)  # trap, illegal: the per-instruction path handles them
+
+    def shift(self, ins: Instruction, h: str, nb: int, pc: int, need: int, base: int) -> int:
+        ops = ins.operands
+        M, S, W = MASK[nb], SIGN[nb], BITS[nb]
+        if len(ops) == 1:  # memory word by 1
+            k = self.const(_k_shift(h, 2), f"{h}2")
+            a = self.addr_tmp(ops[0], 2, pc, "eb")
+            self.emit(f"rm, sr = {k}(rw({a}), 1, sr)")
+            self.write(2, "eb", "rm")
+            return base
+        cnt, dst = ops
+        dn = self.rg(dst.reg)
+        x = dn if nb == 4 else "x"
+        if nb != 4:
+            self.emit(f"x = {dn} & {M}")
+        if cnt.mode is _M.IMM and h in ("lsl", "lsr", "asr"):
+            n = cnt.value
+            if h == "lsl":
+                self.emit(f"rm = ({x} << {n}) & {M}" if n else f"rm = {x}")
+                cexpr = f"{x} >> {W - n} & 1"
+            elif h == "lsr":
+                self.emit(f"rm = {x} >> {n}")
+                cexpr = f"{x} >> {n - 1} & 1"
+            else:
+                self.emit(f"sx = ({x} ^ {S}) - {S}")
+                self.emit(f"rm = (sx >> {n}) & {M}")
+                cexpr = f"sx >> {n - 1} & 1"
+            if need & _ALL_FLAGS:
+                self.emit(f"sr = (sr & 0xFF00) | (0x11 if {cexpr} else 0) | {self.nz('rm', nb)}")
+            self.set_dreg(dst.reg, nb, "rm")
+            return base
+        k = self.const(_k_shift(h, nb), f"{h}{nb}")
+        if cnt.mode is _M.IMM:
+            self.emit(f"rm, sr = {k}({x}, {cnt.value}, sr)")
+            self.set_dreg(dst.reg, nb, "rm")
+            return base
+        self.emit(f"n = {self.rg(cnt.reg)} & 63")
+        self.emit(f"rm, sr = {k}({x}, n, sr)")
+        self.set_dreg(dst.reg, nb, "rm")
+        self.cycles("n + n")
+        return 8 if nb == 4 else 6
+
+    def movem(self, ins: Instruction, nb: int, pc: int) -> None:
+        M = MASK[nb]
+        rd = "rb rw _ rl".split()[nb - 1]
+        if ins.operands[0].mode is _M.REGLIST:
+            mask, ea = ins.operands[0].value, ins.operands[1]
+            regs = [i for i in range(16) if mask >> i & 1]
+            if ea.mode is _M.APREDEC:
+                an = 8 + ea.reg
+                self.emit(f"ea = {self.rg(an)}")
+                for i in regs[::-1]:
+                    self.emit(f"ea = (ea - {nb}) & 0xFFFFFFFF")
+                    r = self.rg(i)
+                    self.write(nb, "ea", r if nb == 4 else f"{r} & {M}")
+                self.emit(f"{self.wg(an)} = ea")
+                return
+            self.addr_tmp(ea, nb, pc, "ea")
+            for j, i in enumerate(regs):
+                r = self.rg(i)
+                self.write(nb, f"ea + {j * nb}" if j else "ea", r if nb == 4 else f"{r} & {M}")
+            return
+        ea, mask = ins.operands[0], ins.operands[1].value
+        regs = [i for i in range(16) if mask >> i & 1]
+        post = ea.mode is _M.APOSTINC
+        an = 8 + ea.reg
+        if post:
+            self.emit(f"ea = {self.rg(an)}")
+        else:
+            self.addr_tmp(ea, nb, pc, "ea")
+        for j, i in enumerate(regs):
+            a = f"ea + {j * nb}" if j else "ea"
+            r = self.wg(i)
+            if nb == 4:
+                self.emit(f"{r} = {rd}({a})")
+            else:
+                self.emit(f"{r} = (({rd}({a}) ^ 0x8000) - 0x8000) & 0xFFFFFFFF")
+        if post:
+            self.emit(f"{self.wg(an)} = (ea + {len(regs) * nb}) & 0xFFFFFFFF")
+
+
+class _BlockInfo:
+    """What the run loop and the fault path need to know about one compiled block."""
+
+    __slots__ = ("start", "pcs", "lines", "prefix", "ncount", "regs", "n", "bound", "end")
+
+    def __init__(self, start: int, pcs: list[int], lines: list[int], prefix: list[int], ncount: list[int],
+                 regs: list[int], bound: int, end: int) -> None:
+        self.start = start
+        self.n = len(pcs)  #: most instructions in one pass
+        self.bound = bound  #: clock bound of one pass (_block_bound)
+        self.end = end  #: address after the last instruction
+        self.pcs = pcs  #: address of each instruction
+        self.lines = lines  #: first source line of each instruction in the generated code
+        self.prefix = prefix  #: constant clocks before each instruction on the path that reaches it (+ local c)
+        self.ncount = ncount  #: constant instruction count before each instruction on that path (+ local ni)
+        self.regs = regs  #: register indices held in locals
+
+
+_BLOCK_ENDS = frozenset("bra bsr jmp jsr rts trap illegal".split())
+
+
+def _blockable(ins: Instruction, h: str) -> bool:
+    """False for instructions the block compiler leaves to the per-instruction path: TRAP and ILLEGAL (they stop
+    the run or fault), and branches/jumps to a constant odd target (their fault message is the closure's)."""
+    if h in ("trap", "illegal"):
+        return False
+    if h in ("bcc", "bra", "bsr"):
+        return not ins.operands[0].value & 1
+    if h == "dbcc":
+        return not ins.operands[1].value & 1
+    if h == "jmp" and ins.operands[0].mode in (_M.ABSW, _M.ABSL, _M.PCDISP):
+        return not _addr_const(ins.operands[0]) & 1
+    return True
+
+
+def _addr_const(op: Operand) -> int:
+    if op.mode is _M.ABSW:
+        return ((op.value & 0xFFFF) ^ 0x8000) - 0x8000 & 0xFFFFFF
+    return op.value & 0xFFFFFF
+
+
+_Entry = tuple[int, Instruction, str, "int | None", int]
+
+
+def _branch_target(ins: Instruction) -> int:
+    return ins.operands[-1].value & 0xFFFFFF
+
+
+def _plan(entries: list[_Entry]) -> tuple[dict[int, tuple[Any, ...]], list[bool], int | None]:
+    """Control flow inside a block. Returns (role of each internal branch by entry index, reachable per entry,
+    index of the loop head or None).
+
+    Roles: ``("if", j)`` a Bcc forward to entry ``j`` of the same region (generated as an ``if``);
+    ``("ifelse", j, t)`` a Bcc forward to ``j`` where entry ``j-1`` is a BRA forward to ``t`` (``if``/``else``,
+    the BRA gets ``("join", t)``); ``("skip", j)`` a BRA forward to ``j`` (the entries between are dead);
+    ``("loop",)`` a Bcc/DBcc/BRA back to the loop head (``continue`` of the ``while`` loop that holds the entries
+    from the head on; the entries before it run once). The head is the earliest entry a backward branch goes
+    to. Any other branch leaves the block when taken. Regions nest: a forward branch is internal only when its
+    target does not lie beyond the end of the region (``if`` body, the part before the head) it is in;
+    otherwise it is an exit."""
+    k = len(entries)
+    last_pc, _, _, _, last_len = entries[-1]
+    at = {e[0]: i for i, e in enumerate(entries)}
+    at[(last_pc + last_len) & 0xFFFFFF] = k
+    role: dict[int, tuple[Any, ...]] = {}
+    reach = [False] * k
+    heads = [at[t] for i, (_, ins, h, cond, _) in enumerate(entries)
+             if h in ("bcc", "bra", "dbcc") and not (h == "dbcc" and cond == 0)
+             and (t := _branch_target(ins)) in at and at[t] <= i]
+    head = min(heads) if heads else None
+    start = entries[head][0] if head is not None else -1
+
+    def plan(lo: int, hi: int) -> bool:
+        """Plan entries lo..hi-1; True when every path through them leaves the block."""
+        i = lo
+        while i < hi:
+            _, ins, h, cond, _ = entries[i]
+            reach[i] = True
+            if h in ("bcc", "bra", "dbcc"):
+                tgt = _branch_target(ins)
+                j = at.get(tgt)
+                if tgt == start and i >= head and not (h == "dbcc" and cond == 0):  # type: ignore[operator]
+                    role[i] = ("loop",)
+                elif h == "bcc" and j is not None and i < j <= hi:
+                    if j - 1 > i and entries[j - 1][2] == "bra":
+                        t = at.get(_branch_target(entries[j - 1][1]))
+                        if t is not None and j < t <= hi:
+                            role[i] = ("ifelse", j, t)
+                            role[j - 1] = ("join", t)
+                            plan(i + 1, j - 1)
+                            reach[j - 1] = True
+                            plan(j, t)
+                            i = t
+                            continue
+                    role[i] = ("if", j)
+                    plan(i + 1, j)
+                    i = j
+                    continue
+                elif h == "bra" and j is not None and i < j <= hi:
+                    role[i] = ("skip", j)
+                    i = j
+                    continue
+            if h in _BLOCK_ENDS:
+                return True
+            i += 1
+        return False
+
+    if head is not None and plan(0, head):  # the loop head is never reached: no loop
+        role.clear()
+        reach = [False] * k
+        head, start = None, -1
+    if head is None:
+        plan(0, k)
+    else:
+        plan(head, k)
+    return role, reach, head
+
+
+def _liveness(entries: list[_Entry], role: dict[int, tuple[Any, ...]], reach: list[bool], head: int | None
+              ) -> list[int]:
+    """Flags live after each entry (CCR bit masks): what a later instruction on any path inside the block reads,
+    all flags at a block exit and around an instruction that may fault (a fault exposes SR)."""
+    k = len(entries)
+    need = [_ALL_FLAGS] * k
+    live0 = 0
+    while True:
+        live_in = [_ALL_FLAGS] * (k + 1)
+        for i in range(k - 1, -1, -1):
+            if not reach[i]:
+                continue
+            _, ins, h, cond, _ = entries[i]
+            r = role.get(i)
+            if r is None:
+                after = live_in[i + 1]
+                if h in _BLOCK_ENDS or h in ("bcc", "dbcc") or _may_fault(ins, h):
+                    after = _ALL_FLAGS
+            elif r[0] in ("if", "ifelse"):
+                after = live_in[i + 1] | live_in[r[1]]
+            elif r[0] in ("skip", "join"):
+                after = live_in[r[1]]
+            else:  # loop
+                after = live0 if h == "bra" else live0 | live_in[i + 1]
+            uses, defs = _flag_effect(ins, h, cond)
+            need[i] = after
+            live_in[i] = _ALL_FLAGS if _may_fault(ins, h) else (after & ~defs) | uses
+        if head is None or live_in[head] | live0 == live0:
+            return need
+        live0 |= live_in[head]
+
+
+def _block_source(entries: list[_Entry]
+                  ) -> tuple[str, dict[str, object], list[int], list[int], list[int], list[int], bool]:
+    """Python source of the block function for ``entries`` ((pc, instruction, handler, cond, length) each, back to
+    back in memory). Returns (source, constants, first generated line per entry, constant clocks and constant
+    instruction count before each entry on the path that reaches it, registers used, whether it loops)."""
+    k = len(entries)
+    role, reach, head = _plan(entries)
+    need = _liveness(entries, role, reach, head)
+    loops = head is not None
+    g = _BlockGen()
+    prefix = [0] * k
+    ncount = [0] * k
+    marks: dict[int, int] = {}
+    flow = bool(role)  # dynamic instruction count (local ni) needed
+
+    def mark(i: int, n: int, cy: int) -> None:
+        g.items.append((0, ("mark", i)))
+        marks[i] = len(g.items)
+        prefix[i] = cy
+        ncount[i] = n
+
+    def body_start() -> int:
+        return len(g.items)
+
+    def close_body(pos: int) -> None:
+        if not any(isinstance(t, str) for _, t in g.items[pos:]):
+            g.emit("pass")
+
+    def adjust(dn: int, dc: int) -> None:
+        pos = body_start()
+        if dn:
+            g.emit(f"ni += {dn}")
+        if dc:
+            g.emit(f"c += {dc}")
+        close_body(pos)
+
+    def loopback(n: int, cy: int) -> None:
+        if n != n_head:
+            g.emit(f"ni += {n - n_head}")
+        if cy != c_head:
+            g.emit(f"c += {cy - c_head}")
+        g.emit("if ni <= ln and c < lc:")
+        g.emit("    continue")
+        g.exit(head_pc, n_head, c_head)
+
+    def gen(lo: int, hi: int, n: int, cy: int) -> tuple[bool, int, int]:
+        """Emit entries lo..hi-1 reached with ``n`` instructions and ``cy`` constant clocks done; return (every
+        path has left the block, n, cy at ``hi``)."""
+        i = lo
+        while i < hi:
+            pc, ins, h, cond, length = entries[i]
+            nxt = (pc + length) & 0xFFFFFF
+            mark(i, n, cy)
+            r = role.get(i)
+            if r is None:
+                n_items = len(g.items)
+                cyc, ended = g.instruction(n, ins, h, cond, pc, nxt, need[i], cy)
+                cy += cyc
+                n += 1
+                if _lowers_sp(ins, h) and h not in ("pea", "bsr", "jsr"):
+                    g.emit(f"if {g.rg(15)} < MS[0]:")
+                    g.emit(f"    MS[0] = {g.rg(15)}")
+                wrote = any(isinstance(t, str) and t.startswith(("wb(", "ww(", "wl(")) for _, t in g.items[n_items:])
+                if wrote and not ended:
+                    g.emit("if D[0]:")
+                    g.ind += 1
+                    g.emit("D[0] = 0")
+                    g.exit(nxt, n, cy)
+                    g.ind -= 1
+                if ended:
+                    return True, n, cy
+                i += 1
+                continue
+            kind = r[0]
+            taken = timing.cycles(ins, taken=True)
+            if kind == "loop":
+                g.dyn = True
+                if h == "bra":
+                    loopback(n + 1, cy + taken)
+                    return True, n + 1, cy + taken
+                if h == "bcc":
+                    g.emit(f"if {_COND_EXPR[cond]}:")  # type: ignore[index]
+                    g.ind += 1
+                    loopback(n + 1, cy + taken)
+                    g.ind -= 1
+                    cy += timing.cycles(ins, taken=False)
+                else:  # dbcc
+                    ce = _COND_EXPR[cond]  # type: ignore[index]
+                    if ce != "False":
+                        g.emit(f"if {_COND_EXPR[cond ^ 1]}:")  # type: ignore[operator]
+                        g.ind += 1
+                    dn = g.wg(ins.operands[0].reg)
+                    g.emit(f"w = ({dn} - 1) & 0xFFFF")
+                    g.emit(f"{dn} = ({dn} & 0xFFFF0000) | w")
+                    g.emit("if w == 0xFFFF:")
+                    g.emit("    c += 2")
+                    g.emit("else:")
+                    g.ind += 1
+                    loopback(n + 1, cy + taken)
+                    g.ind -= 1
+                    if ce != "False":
+                        g.ind -= 1
+                    cy += 12
+                n += 1
+                i += 1
+                continue
+            if kind == "skip":
+                n += 1
+                cy += taken
+                i = r[1]
+                continue
+            not_taken = timing.cycles(ins, taken=False)
+            j = r[1]
+            g.dyn = True
+            if kind == "if" and j == i + 1:
+                g.emit(f"if {_COND_EXPR[cond]}:")  # type: ignore[index]
+                g.ind += 1
+                adjust(0, taken - not_taken)
+                g.ind -= 1
+                n += 1
+                cy += not_taken
+                i = j
+                continue
+            g.emit(f"if {_COND_EXPR[cond ^ 1]}:")  # type: ignore[operator]
+            g.ind += 1
+            pos = body_start()
+            if kind == "if":
+                e1, n1, c1 = gen(i + 1, j, n + 1, cy + not_taken)
+                close_body(pos)
+                g.ind -= 1
+                n2, c2 = n + 1, cy + taken
+                if e1:
+                    n, cy = n2, c2
+                else:
+                    if (n1, c1) != (n2, c2):
+                        g.emit("else:")
+                        g.ind += 1
+                        adjust(n2 - n1, c2 - c1)
+                        g.ind -= 1
+                    n, cy = n1, c1
+                i = j
+                continue
+            t = r[2]
+            e1, n1, c1 = gen(i + 1, j - 1, n + 1, cy + not_taken)
+            if not e1:
+                mark(j - 1, n1, c1)
+                n1 += 1
+                c1 += timing.cycles(entries[j - 1][1])
+            close_body(pos)
+            g.ind -= 1
+            g.emit("else:")
+            g.ind += 1
+            pos = body_start()
+            e2, n2, c2 = gen(j, t, n + 1, cy + taken)
+            if not e1 and not e2 and (n1, c1) != (n2, c2):
+                adjust(n2 - n1, c2 - c1)
+            close_body(pos)
+            g.ind -= 1
+            if e1 and e2:
+                return True, n, cy
+            n, cy = (n2, c2) if e1 else (n1, c1)
+            i = t
+        return False, n, cy
+
+    if head is None:
+        ended, n_end, c_end = gen(0, k, 0, 0)
+    else:
+        head_pc = entries[head][0]
+        _, n_head, c_head = gen(0, head, 0, 0)  # the entries before the loop head (never all leave: see _plan)
+        g.emit("while True:")
+        g.ind += 1
+        ended, n_end, c_end = gen(head, k, n_head, c_head)
+    if not ended:
+        last_pc, _, _, _, last_len = entries[-1]
+        g.exit((last_pc + last_len) & 0xFFFFFF, n_end, c_end)
+    body: list[str] = []
+    dirty = sorted(g.dirty)
+    text = [t for _, t in g.items if isinstance(t, str)]
+    uses_sr = any("sr" in t for t in text)
+    sr_dirty = any("sr = " in t for t in text)
+    lines_ = [f"def __make(R, MS, D, rb, rw, rl, wb, ww, wl{''.join(', ' + n for n in g.consts)}):",
+            "    def __block(bn, bc, until):"]
+    used = sorted(g.used)
+    lines_ += [f"        {_RN[r]} = R[{r}]" for r in used]
+    if uses_sr:
+        lines_.append("        sr = R[16]")
+    if g.dyn:
+        lines_.append("        c = 0")
+    if flow or loops:
+        lines_.append("        ni = 0")
+    if loops:  # another pass from the head may start only if its worst case fits the budget (see CPU.run)
+        lines_.append(f"        ln = (bn if bn < 0x40000000 else 0x40000000) - {k - head + n_head}")
+        lines_.append(f"        if until == {head_pc}:")
+        lines_.append("            ln = -1")
+        lines_.append(f"        lc = bc - {_block_bound(entries[head:]) + c_head}")
+    first = len(lines_) + 1
+    line_at: dict[int, int] = {}
+    sr_so_far = False
+    for ind, item in g.items:
+        pad = "    " * (ind + 1)
+        if isinstance(item, str):
+            body.append(pad + item)
+            sr_so_far = sr_so_far or "sr = " in item
+        elif item[0] == "mark":
+            line_at[item[1]] = first + len(body)
+        else:
+            # Without a loop, code runs in text order: only registers assigned before this exit can differ from R.
+            _, target, n, cycles, assigned = item
+            for r in dirty:
+                if loops or r in assigned:
+                    body.append(f"{pad}R[{r}] = {_RN[r]}")
+            if sr_dirty and (sr_so_far or loops):
+                body.append(f"{pad}R[16] = sr")
+            packed = n << 24 | cycles << 56
+            expr = str(target | packed) if isinstance(target, int) else f"{target} | {packed}"
+            if g.dyn:
+                expr += " + (c << 56)"
+            if flow or loops:
+                expr += " + (ni << 24)"
+            body.append(f"{pad}return {expr}")
+    lines: list[int] = []
+    nxt_line = 1 << 30
+    for i in range(k - 1, -1, -1):  # entries never generated (dead) share the next generated entry's line
+        nxt_line = line_at.get(i, nxt_line)
+        lines.append(nxt_line)
+    lines.reverse()
+    src = "\n".join(lines_ + body + ["    return __block", ""])
+    return src, g.consts, lines, prefix, ncount, used, loops
+
+
+def _block_bound(entries: list[_Entry]) -> int:
+    """Clocks that bound the start of any instruction of one pass through the block: the worst-case clocks of
+    every entry but the one with the smallest worst case (a pass never runs an entry twice)."""
+    worst = [timing.cycle_range(e[1])[1] for e in entries]
+    return sum(worst) - min(worst)
+
+
+def compile_block(entries: list[_Entry]) -> tuple[Any, _BlockInfo]:
+    """Generate and compile the block of ``entries`` (see the module docstring); returns ``(make, info)``."""
+    start = entries[0][0]
+    src, consts, lines, prefix, ncount, regs, _ = _block_source(entries)
+    ns: dict[str, Any] = {}
+    exec(compile(src, f"<block ${start:06X}>", "exec"), ns)  # noqa: S102 - our own generated source
+    make = ns["__make"]
+    values = tuple(consts.values())
+    last_pc, _, _, _, last_len = entries[-1]
+    info = _BlockInfo(start, [e[0] for e in entries], lines, prefix, ncount, regs, _block_bound(entries),
+                      last_pc + last_len)
+
+    def bind(R: list[int], MS: list[int], D: list[int], rb: Any, rw: Any, rl: Any, wb: Any, ww: Any, wl: Any) -> Any:
+        return make(R, MS, D, rb, rw, rl, wb, ww, wl, *values)
+
+    return bind, info
+
+
+def block_entries(start: int, most: int,
+                  decoded_at: Any) -> list[_Entry]:
+    """The extent of the block at ``start``: instructions up to the first unconditional transfer (BRA, BSR, JMP,
+    JSR, RTS) that no earlier forward branch of the block (nor the BRA itself) jumps past by at most
+    :data:`_FORWARD_WINDOW` bytes, an instruction left to the per-instruction path (TRAP, ILLEGAL, an odd constant
+    branch target, an undecodable or unfetchable word) or ``most`` instructions. ``decoded_at(pc)`` returns
+    ``(instruction, length, handler, condition)`` or None."""
+    entries: list[_Entry] = []
+    pc = start
+    pending = -1  # furthest forward branch target so far (within the window)
+    while len(entries) < most:
+        if pc & 1:
+            break
+        d = decoded_at(pc)
+        if d is None:
+            break
+        ins, length, h, cond = d
+        if not _blockable(ins, h):
+            break
+        entries.append((pc, ins, h, cond, length))
+        if h in ("bcc", "bra", "dbcc") and 0 < _branch_target(ins) - pc <= _FORWARD_WINDOW:
+            pending = max(pending, _branch_target(ins))
+        if h in _BLOCK_ENDS and pending <= pc:
+            break
+        pc = (pc + length) & 0xFFFFFF
+    return entries
