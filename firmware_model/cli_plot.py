@@ -57,18 +57,18 @@ def run_plot(args: argparse.Namespace) -> int:
 
         from firmware_model.cli_run import resolve_firmware
         from firmware_model.constants import build_constants
-        from firmware_model.flights.evaluate import FlightSpec, flight_inputs, load_record, reference_for
+        from firmware_model.flights.evaluate import (FlightSpec, altitude_of_counts, flight_inputs, load_record,
+                                                     reference_for, sensor_config)
         from firmware_model.flights.runcsv import from_trace
         from firmware_model.model import run_model
 
         method = resolve_firmware(args.firmware)
         record = load_record(args.run, args.format)
         inputs = flight_inputs(record, FlightSpec(args.run, k=args.k, format=args.format))
-        cfg = method.config(args.k, inputs.config_overrides())
+        cfg = method.config(args.k, sensor_config(inputs))
         acc = None if inputs.acc is None else np.asarray(inputs.acc)
         trace = run_model(build_constants(cfg), np.asarray(inputs.adc), acc)
-        alt = getattr(inputs, "altitude_of_counts", None)
-        table = from_trace(trace, cfg, inputs.time_s, inputs.adc, acc, alt if callable(alt) else None)
+        table = from_trace(trace, cfg, inputs.time_s, inputs.adc, acc, altitude_of_counts(inputs))
         if ref is None:
             ref = reference_for(record).time_s
         altos = record.events.get("altos_apogee") if record.events else None

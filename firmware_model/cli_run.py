@@ -105,7 +105,8 @@ def run_run(args: argparse.Namespace) -> int:
     """Run one flight through one build; write the CSV and print the summary."""
     from firmware_model.build import build_firmware
     from firmware_model.constants import build_constants
-    from firmware_model.flights.evaluate import FlightSpec, flight_inputs, load_record, reference_for
+    from firmware_model.flights.evaluate import (FlightSpec, altitude_of_counts, flight_inputs, load_record,
+                                                 reference_for, sensor_config)
     from firmware_model.flights.runcsv import from_trace
 
     method = resolve_firmware(args.firmware)
@@ -117,7 +118,7 @@ def run_run(args: argparse.Namespace) -> int:
     inputs = flight_inputs(record, spec)
     fields.pop("k", None)
     fields.pop("program", None)
-    cfg = method.config(k, inputs.config_overrides(), **fields)
+    cfg = method.config(k, sensor_config(inputs), **fields)
     adc = np.asarray(inputs.adc)
     acc = None if inputs.acc is None else np.asarray(inputs.acc)
     time_s = np.asarray(inputs.time_s, dtype=np.float64)
@@ -134,8 +135,7 @@ def run_run(args: argparse.Namespace) -> int:
         trace = run_firmware(build_firmware(cfg), adc, acc, progress=_Progress(f"{cfg.program} on the 68000", show))
         engine = "emulated 68000"
     elapsed = time.monotonic() - t0
-    altitude_of_counts = getattr(inputs, "altitude_of_counts", None)
-    table = from_trace(trace, cfg, time_s, adc, acc, altitude_of_counts if callable(altitude_of_counts) else None)
+    table = from_trace(trace, cfg, time_s, adc, acc, altitude_of_counts(inputs))
     if args.out is not None:
         from firmware_model.output import write_file
 

@@ -1,17 +1,17 @@
 """The evaluation set behind the README's apogee table, and how command-line FLIGHT arguments become
 :class:`~firmware_model.flights.evaluate.FlightSpec` rows (docs/evaluation.md, "The evaluation set").
 
-* ``set:eval`` (:func:`evaluation_set`): every simulated scenario (:func:`flights.scenarios.scenario_names`) at the
-  default sensing (16-bit MPX4115-class ADC, noisy, k = 7), then variations over a fixed subset of scenarios
-  (8/10/12/16-bit ADCs, TeleMetrum v1, noise-free and noisy, k = 4..8), then every shared real log at k = 7
-  (their own sensor, no added noise: they carry real noise).
+* ``set:eval`` (:func:`evaluation_set`): every simulated scenario (:func:`flights.scenarios.scenario_names`) with
+  each of the sensings its catalogue tags suggest (:func:`scenario_variants`: 8/10/12/16-bit MPX4115-class ADCs,
+  the MS5607-like pascal sensor, noise-free and noisy, k = 4..8), then every shared real log at k = 7 (the
+  TeleMetrum v1 transfer function, no added noise: the logs carry real noise).
 * ``set:sim`` the simulated part, ``set:logs`` the logs, ``set:quick`` a few short flights (tests, smoke runs).
 
 **Pascal sensor**: the MS5607-like digital barometer reports pascals in a 32-bit word; today's firmware reads a
-16-bit barometer word (``BuildConfig.baro_bits`` 8..16), so the set cannot include it yet. :func:`pascal_supported`
-is the hook: when the field-ready firmware of issue 9 accepts a pascal input (a ``BuildConfig`` that takes the
-sensor's ``config_overrides()`` for ``ms5607``), the pascal rows of :data:`PASCAL_VARIANTS` join the set
-automatically; until then :func:`evaluation_set` lists them in ``skipped`` with the reason.
+16-bit barometer word (``BuildConfig.baro_bits`` 8..16), so the set cannot run it yet. :func:`pascal_supported`
+is the hook: when the field-ready firmware of issue 9 gives BuildConfig a ``baro_kind`` field (what
+``FirmwareInputs.config_overrides()`` passes for a pascal sensor), the pascal rows join the set automatically;
+until then :func:`evaluation_set` lists them in ``skipped`` with the reason, and the table says so.
 """
 
 from __future__ import annotations
@@ -34,24 +34,14 @@ SHARED_LOGS: tuple[str, ...] = (
     "cats/hedy-baro.csv",
 )
 
-#: Default sensing of the simulated rows: (barometer preset, accelerometer preset, noisy, k).
+#: Default sensing of a ``sim:NAME`` argument: (barometer preset, accelerometer preset, noisy, k).
 DEFAULT_SIM: tuple[str, str, bool, int] = ("mpx4115_16bit", "default", True, 7)
 
-#: Variations (barometer preset, accelerometer preset, noisy, k), applied to :data:`VARIED_SCENARIOS` picks.
-VARIANTS: tuple[tuple[str, str, bool, int], ...] = (
-    ("mpx4115_16bit", "default", False, 7),
-    ("mpx4115_12bit", "default", True, 7),
-    ("mpx4115_10bit", "default", True, 6),
-    ("mpx4115_8bit", "default", True, 5),
-    ("mpx4115_8bit", "default", False, 4),
-    ("telemetrum_v1", "mma2202_12bit", True, 8),
-    ("mpx4115_16bit", "adxl375", True, 4),
-    ("mpx4115_12bit", "default", False, 8),
-)
-PASCAL_VARIANTS: tuple[tuple[str, str, bool, int], ...] = (
-    ("ms5607", "default", True, 7),
-    ("ms5607", "default", False, 6),
-)
+#: Scenario tag -> sensor preset (:data:`firmware_model.flights.sensors.BARO_PRESETS`).
+BARO_TAGS: dict[str, str] = {"analog-8": "mpx4115_8bit", "analog-10": "mpx4115_10bit",
+                             "analog-12": "mpx4115_12bit", "analog-16": "mpx4115_16bit", "ms5607": "ms5607",
+                             "telemetrum": "telemetrum_v1"}
+NOISE_TAGS: dict[str, bool] = {"none": False, "noisy": True}
 
 
 def shared_dir() -> Path | None:
@@ -77,15 +67,13 @@ def log_label(path: Path) -> str:
 
 
 def pascal_supported() -> bool:
-    """True when the firmware can take a pascal barometer (issue 9's field-ready inputs): a BuildConfig accepts a
-    32-bit barometer word."""
+    """True when the firmware can take a pascal barometer (issue 9's field-ready inputs): BuildConfig has a
+    ``baro_kind`` field (what :meth:`FirmwareInputs.config_overrides` passes for a pascal sensor)."""
+    import dataclasses
+
     from firmware_model.config import BuildConfig
 
-    try:
-        BuildConfig(baro_bits=32)
-    except (UserError, TypeError):
-        return False
-    return True
+    return "baro_kind" in {f.name for f in dataclasses.fields(BuildConfig)}
 
 
 def _scenario_names() -> list[str]:
@@ -94,32 +82,46 @@ def _scenario_names() -> list[str]:
     return list(scenario_names())
 
 
-def _spec(name: str, variant: tuple[str, str, bool, int], seed: int, label: str | None = None) -> FlightSpec:
-    baro, accel, noisy, k = variant
-    return FlightSpec(f"sim:{name}", k=k, baro=baro, accel=accel, noise=noisy, seed=seed,
-                      label=label or name)
+def scenario_variants(name: str) -> list[tuple[str, str, bool, int]]:
+    """The sensings of scenario ``name`` from its catalogue tags (``baro``, ``noise``, ``k`` lists), zipped with
+    cycling (row i takes the i-th entry of each list, modulo its length) so every listed value appears once:
+    ``max(len)`` rows, not the product."""
+    from firmware_model.flights.scenarios import get_scenario
+
+    tags = get_scenario(name).tags or {}
+    baros = [BARO_TAGS.get(b, b) for b in tags.get("baro", ["analog-16"])] or ["mpx4115_16bit"]
+    noises = [NOISE_TAGS.get(n, True) for n in tags.get("noise", ["noisy"])] or [True]
+    ks = [int(k) for k in tags.get("k", [7])] or [7]
+    rows = max(len(baros), len(noises), len(ks))
+    return [(baros[i % len(baros)], "default", noises[i % len(noises)], ks[i % len(ks)]) for i in range(rows)]
+
+
+def _row_label(name: str, variant: tuple[str, str, bool, int]) -> str:
+    baro, _, noisy, k = variant
+    short = baro.replace("mpx4115_", "").replace("bit", "-bit")
+    return f"{name} [{short}, {'noisy' if noisy else 'clean'}, k{k}]"
 
 
 def simulated_set(names: Sequence[str] | None = None, with_variants: bool = True) -> tuple[list[FlightSpec],
                                                                                           list[str]]:
-    """Simulated rows and the rows skipped (with reasons)."""
+    """Simulated rows (every scenario x its tagged sensings; ``with_variants=False``: the first only) and the rows
+    skipped with the reason (pascal sensors until :func:`pascal_supported`)."""
     names = list(names) if names is not None else _scenario_names()
-    specs = [_spec(n, DEFAULT_SIM, seed=i) for i, n in enumerate(names)]
+    specs: list[FlightSpec] = []
     skipped: list[str] = []
-    if with_variants and names:
-        variants = list(VARIANTS)
-        pascal = list(PASCAL_VARIANTS)
-        if pascal_supported():
-            variants += pascal
-        else:
-            skipped += [f"{n}: {v[0]} (pascal sensor): today's firmware reads a 16-bit barometer word; needs the "
-                        f"field-ready firmware of issue 9" for n, v in zip(names[::3], pascal)]
-        # spread the variations over the scenarios: every third scenario, cycling through the variants
-        picks = names[::max(1, len(names) // len(variants))] if len(names) >= len(variants) else names
-        for j, variant in enumerate(variants):
-            n = picks[j % len(picks)]
-            b, _, noisy, k = variant
-            specs.append(_spec(n, variant, seed=1000 + j, label=f"{n} [{b}, {'noisy' if noisy else 'clean'}, k{k}]"))
+    pascal_ok = pascal_supported()
+    for i, n in enumerate(names):
+        variants = scenario_variants(n)
+        if not with_variants:
+            adc = [v for v in variants if v[0] != "ms5607"] or [DEFAULT_SIM]
+            variants = adc[:1]
+        for j, v in enumerate(variants):
+            if v[0] == "ms5607" and not pascal_ok:
+                skipped.append(f"{_row_label(n, v)}: the pascal sensor needs the field-ready firmware of issue 9 "
+                               f"(today's firmware reads a 16-bit barometer word)")
+                continue
+            specs.append(FlightSpec(f"sim:{n}", k=v[3], baro=v[0], accel=v[1], noise=v[2], seed=100 * i + j,
+                                    label=_row_label(n, v)))
     return specs, skipped
 
 
@@ -134,13 +136,14 @@ def evaluation_set() -> tuple[list[FlightSpec], list[str]]:
     return sim + logs_set(), skipped
 
 
-#: ``set:quick``: short flights for tests and smoke runs.
-QUICK_SCENARIOS: int = 3
+#: ``set:quick``: a few short flights (tests, smoke runs).
+QUICK_SCENARIOS: tuple[str, ...] = ("sub-k400-300m", "sub-k400-900m", "trans-m1670-m105")
 
 
 def quick_set() -> list[FlightSpec]:
-    names = _scenario_names()[:QUICK_SCENARIOS]
-    return [_spec(n, DEFAULT_SIM, seed=i) for i, n in enumerate(names)]
+    names = [n for n in QUICK_SCENARIOS if n in _scenario_names()] or _scenario_names()[:3]
+    return [FlightSpec(f"sim:{n}", k=6, baro="mpx4115_16bit", accel="default", noise=True, seed=i, label=n)
+            for i, n in enumerate(names)]
 
 
 def named_set(name: str) -> list[FlightSpec]:
@@ -199,6 +202,6 @@ def _label(name: str, k: int, ks: Sequence[int]) -> str:
     return name if len(ks) == 1 else f"{name} k{k}"
 
 
-__all__ = ["SHARED_LOGS", "DEFAULT_SIM", "VARIANTS", "PASCAL_VARIANTS", "shared_dir", "shared_logs",
-           "pascal_supported", "simulated_set", "logs_set", "evaluation_set", "quick_set", "named_set",
+__all__ = ["SHARED_LOGS", "DEFAULT_SIM", "BARO_TAGS", "NOISE_TAGS", "shared_dir", "shared_logs",
+           "pascal_supported", "scenario_variants", "simulated_set", "logs_set", "evaluation_set", "quick_set", "named_set",
            "resolve_flights"]

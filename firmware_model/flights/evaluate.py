@@ -235,6 +235,43 @@ def sensors_for(spec: FlightSpec) -> tuple[Any, Any]:
     return baro, accel
 
 
+def sensor_config(inputs: Any) -> dict[str, Any]:
+    """BuildConfig fields of a flight's sensing: ``inputs.config_overrides()`` (ADC width, sign, counts per metre,
+    accelerometer scale) plus the noise the Kalman design assumes, **measured on the pad part of the stream** (the
+    samples before ``inputs.liftoff_s``, as a designer measures a sensor on the bench): ``baro_sigma`` = standard
+    deviation of the barometer words, at least 0.5 count (quantization); ``accel_sigma`` likewise for the
+    accelerometer, at least 1 count. Barometer-only gains depend on R/q alone, so this matters only for
+    kalman_accel (the weight of the barometer against the accelerometer)."""
+    out = dict(inputs.config_overrides())
+    t = np.asarray(inputs.time_s, dtype=np.float64)
+    lift = getattr(inputs, "liftoff_s", None)
+    pad = t < (lift if lift is not None else t[0] + 1.0) - 0.05
+    if pad.sum() >= 8:
+        out["baro_sigma"] = max(0.5, float(np.std(np.asarray(inputs.adc)[pad])))
+        if getattr(inputs, "has_accel", True) and inputs.acc is not None:
+            out["accel_sigma"] = max(1.0, float(np.std(np.asarray(inputs.acc)[pad])))
+    return out
+
+
+def altitude_of_counts(inputs: Any) -> Any:
+    """ADC value -> metres above the pad through the sensor's inverse transfer function and the standard atmosphere
+    (None when the inputs carry no sensor model)."""
+    baro = getattr(inputs, "baro", None)
+    ground = getattr(inputs, "ground_pressure_pa", None)
+    if baro is None or ground is None or not hasattr(baro, "pressure_of_counts"):
+        return None
+    from firmware_model.atmosphere import altitude_m
+
+    h0 = float(altitude_m(ground))
+    lo, hi = float(baro.p_min_pa), float(baro.p_max_pa)
+
+    def alt(counts: Any) -> np.ndarray:
+        p = np.clip(baro.pressure_of_counts(counts), lo * 0.5, hi * 1.5)
+        return np.asarray(altitude_m(p), dtype=np.float64) - h0
+
+    return alt
+
+
 def flight_inputs(record: FlightRecord, spec: FlightSpec) -> Any:
     """The firmware inputs of ``record`` under ``spec`` (:func:`flights.inputs.firmware_inputs`)."""
     from firmware_model.flights.inputs import firmware_inputs
@@ -308,7 +345,7 @@ def evaluate_flight(spec: FlightSpec, methods: Sequence[Method] | None = None,
 def evaluate_inputs(record: FlightRecord, inputs: Any, spec: FlightSpec, methods: Sequence[Method],
                     overrides: dict[str, Any] | None = None) -> FlightResult:
     """:func:`evaluate_flight` on inputs already made (``inputs``: adc, acc, time_s, config_overrides())."""
-    sensor = inputs.config_overrides()
+    sensor = sensor_config(inputs)
     adc = np.asarray(inputs.adc)
     acc = None if getattr(inputs, "acc", None) is None else np.asarray(inputs.acc)
     time_s = np.asarray(inputs.time_s, dtype=np.float64)

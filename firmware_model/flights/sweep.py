@@ -13,6 +13,7 @@ in input order). Rendering: Markdown, CSV and JSON here, the PNGs in :mod:`firmw
 from __future__ import annotations
 
 import csv
+import dataclasses
 import io
 import json
 from dataclasses import dataclass, field
@@ -21,8 +22,8 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from firmware_model.errors import UserError
-from firmware_model.flights.evaluate import (METHODS, FlightSpec, Method, flight_inputs, load_record, methods_named,
-                                             reference_for, run_method)
+from firmware_model.flights.evaluate import (METHODS, FlightSpec, flight_inputs, load_record, methods_named,
+                                             reference_for, run_method, sensor_config)
 
 #: Default R/q grid: 10^1 .. 10^8, four points a decade (seed 000 Figure 10 spans about 10^1 .. 10^8).
 DEFAULT_RATIOS: tuple[float, ...] = tuple(float(10 ** (e / 4)) for e in range(4, 33))
@@ -57,7 +58,7 @@ def _ratio_job(job: tuple[FlightSpec, str, tuple[float, ...], tuple[tuple[str, A
     record = load_record(spec.source, spec.format)
     ref = reference_for(record)
     inputs = flight_inputs(record, spec)
-    sensor = inputs.config_overrides()
+    sensor = sensor_config(inputs)
     time_s = np.asarray(inputs.time_s, dtype=np.float64)
     errs: list[float | None] = []
     why: list[str] = []
@@ -84,7 +85,7 @@ def _k_job(job: tuple[FlightSpec, tuple[str, ...], tuple[int, ...], tuple[tuple[
     per: dict[str, list[float | None]] = {m.name: [] for m in methods}
     why: list[str] = []
     for k in ks:
-        sk = FlightSpec(**{**spec.__dict__, "k": k})
+        sk = dataclasses.replace(spec, k=k)
         try:
             inputs = flight_inputs(record, sk)
         except UserError as exc:
@@ -92,7 +93,7 @@ def _k_job(job: tuple[FlightSpec, tuple[str, ...], tuple[int, ...], tuple[tuple[
                 per[m.name].append(None)
             why.append(str(exc))
             continue
-        sensor = inputs.config_overrides()
+        sensor = sensor_config(inputs)
         time_s = np.asarray(inputs.time_s, dtype=np.float64)
         notes = []
         for m in methods:
