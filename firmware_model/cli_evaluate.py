@@ -7,6 +7,8 @@ import shlex
 import sys
 from pathlib import Path
 
+from firmware_model.cli_args import positive_int
+
 
 def add_flight_arguments(p: argparse.ArgumentParser) -> None:
     """FLIGHTS and the options that choose/sense them (shared by evaluate and sweep)."""
@@ -22,7 +24,8 @@ def add_flight_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-noise", action="store_true", help="noise-free sensors for FLIGHT arguments")
     p.add_argument("--format", help="reader override for FLIGHT files")
     p.add_argument("--rounding", choices=("floor", "half_up"), help="rounding of every build (default floor)")
-    p.add_argument("--jobs", "-j", type=int, default=1, metavar="N", help="worker processes (default 1)")
+    p.add_argument("--jobs", "-j", type=positive_int, default=1, metavar="N",
+                   help="worker processes (default 1; output identical for any N)")
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]

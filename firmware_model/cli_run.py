@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from firmware_model.cli_args import nonnegative_int
 from firmware_model.errors import UserError
 
 
@@ -36,7 +37,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     p.add_argument("--baro", metavar="PRESET", help="barometer sensor preset (default: the record's own sensor)")
     p.add_argument("--accel", metavar="PRESET", help="accelerometer preset (default: the record's own sensor)")
     p.add_argument("--no-noise", action="store_true", help="noise-free sensors")
-    p.add_argument("--seed", type=int, default=0, help="sensor-noise seed (default 0)")
+    p.add_argument("--seed", type=nonnegative_int, default=0, help="sensor-noise seed (default 0)")
     p.add_argument("--resample", choices=("linear", "hold"), default="linear", help="resampling (default linear)")
     p.add_argument("--model", action="store_true", help="run the integer model instead of the emulated CPU")
     p.add_argument("--out", type=Path, metavar="FILE.csv", help="per-sample CSV (default: print the summary only)")

@@ -110,18 +110,9 @@ def _k_job(job: tuple[FlightSpec, tuple[str, ...], tuple[int, ...], tuple[tuple[
 
 
 def _map(fn: Callable[[Any], Any], jobs_list: list[Any], jobs: int) -> list[Any]:
-    if not isinstance(jobs, int) or jobs < 1:
-        raise UserError(f"--jobs {jobs!r}: must be a positive integer")
-    if jobs == 1 or len(jobs_list) <= 1:
-        return [fn(j) for j in jobs_list]
-    from concurrent.futures import ProcessPoolExecutor
+    from firmware_model.flights.evaluate import ordered_map
 
-    try:
-        from firmware_model.output import worker_init
-    except ImportError:  # pragma: no cover - before the output module landed
-        worker_init = None
-    with ProcessPoolExecutor(max_workers=jobs, initializer=worker_init) as pool:
-        return list(pool.map(fn, jobs_list))
+    return ordered_map(fn, jobs_list, jobs)
 
 
 def ratio_sweep(specs: Sequence[FlightSpec], ratios: Sequence[float] = DEFAULT_RATIOS, method: str = "kalman_baro",
