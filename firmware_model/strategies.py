@@ -24,7 +24,7 @@ from hypothesis import strategies as st
 
 from firmware_model.config import PROGRAMS, ROUNDINGS, BuildConfig
 
-__all__ = ["build_configs", "adc_streams", "accel_streams", "edge_streams", "flight_like_streams"]
+__all__ = ["build_configs", "adc_streams", "accel_streams", "edge_streams", "flight_like_streams", "flights"]
 
 
 def build_configs(programs: Sequence[str] = PROGRAMS, k: Iterable[int] = range(4, 9),
@@ -172,5 +172,39 @@ def flight_like_streams(cfg: BuildConfig | None = None, max_len: int = 400, nois
         adc = np.clip(np.round(centre + counts + rng.normal(0.0, noise_counts, n)), 0, full).astype(np.int64)
         acc = np.clip(np.round(spec * cfg.accel_counts_per_mps2 + rng.normal(0.0, 1.0, n)), -32768, 32767)
         return adc, acc.astype(np.int64)
+
+    return _flight()
+
+
+def flights(mach: tuple[float, float] = (0.15, 0.8), motors: Sequence[str] = ("K400C", "K828FJ"),
+            site_altitude_m: tuple[float, float] = (0.0, 1500.0), pad_s: tuple[float, float] = (0.5, 2.0),
+            descent_s: float = 5.0, record_hz: float = 200.0, internal_hz: float = 1000.0):
+    """Simulated flights (:class:`firmware_model.flights.FlightRecord` with truth) from the 1-DOF model
+    (:mod:`firmware_model.flights.sim1dof`) over a parameter box: a shipped motor (``motors``) scaled in thrust
+    (0.3..1) and time (0.7..1.5), dry mass between the bounds that keep thrust/weight >= 4 and the drag-free
+    burnout speed inside ``mach`` x 340 m/s, diameter 54..160 mm, Cd x 0.8..1.3, drogue CdA 0.2..0.8 m^2, launch
+    site ``site_altitude_m``, ``pad_s`` on the pad, ``descent_s`` after apogee, recorded at ``record_hz``. Flights
+    whose simulated peak Mach exceeds ``mach[1]`` are rejected, so the default box is subsonic (peak Mach <= 0.8);
+    widen ``mach`` (and ``motors``, e.g. add "M1670", "M6400") for transonic/supersonic flights. No pressure
+    errors or sensor model: apply :mod:`firmware_model.flights.pressure_errors` and the sensor models on top.
+    About 5 ms per flight with the 'fast' extra (numba)."""
+    from hypothesis import assume
+
+    from firmware_model.flights.sim1dof import Box, Launch, rocket_from_unit, simulate_1dof
+
+    box = Box(motors=tuple(motors), mach=tuple(mach), site_altitude_m=tuple(site_altitude_m))
+    unit = st.floats(0.0, 1.0, exclude_max=True, allow_nan=False)
+
+    @st.composite
+    def _flight(draw: st.DrawFn):
+        u = [draw(unit) for _ in range(8)]
+        rocket = rocket_from_unit(u, box, name="hypothesis")
+        assume(rocket is not None)
+        site = box.site_altitude_m[0] + (box.site_altitude_m[1] - box.site_altitude_m[0]) * u[7]
+        pad = draw(st.floats(pad_s[0], pad_s[1], allow_nan=False))
+        rec = simulate_1dof(rocket, Launch(site_altitude_m=site, pad_s=pad, descent_s=descent_s,
+                                           record_hz=record_hz, internal_hz=internal_hz))[0]
+        assume(rec.provenance["summary"]["max_mach"] <= mach[1])
+        return rec
 
     return _flight()

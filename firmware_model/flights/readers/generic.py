@@ -1,0 +1,172 @@
+"""The generic flight CSV: one header row of unit-named columns, then one row per sample.
+
+Columns (names are case-sensitive; other columns are ignored):
+
+* ``time_s`` (required): s, strictly increasing.
+* barometer, exactly one of: ``pressure_pa``; ``pressure_hpa`` (x100); ``altitude_m``: standard-atmosphere
+  (geopotential, MSL) altitude, converted to pressure with :func:`firmware_model.atmosphere.pressure_pa` (an AGL
+  log then flies as if launched from sea level).
+* accelerometer, optional, at most one of: ``accel_mps2`` (axial specific force, +9.81 on the pad) or ``accel_g``
+  (the same in g, x g0).
+* ``temperature_c`` optional.
+* truth, optional: ``true_altitude_m`` (AGL), ``true_velocity_mps``, ``true_accel_mps2``.
+
+Lines starting with ``#`` before the header are comments; ``# key: value`` (or ``key = value``) comments are kept in
+the provenance, and these keys mean something: ``name``, ``licence``, ``source``, ``ground_pressure_pa``,
+``true_apogee_time_s``, ``true_apogee_altitude_m`` (the exact truth, e.g. from a simulator; without them the truth
+apogee is where ``true_velocity_mps`` crosses zero, else the highest ``true_altitude_m`` sample). Fields are comma
+separated. An empty field is a missing value (NaN in the record) except in ``time_s``; text that is not a finite
+number is an error naming file, line and column.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+
+from firmware_model.atmosphere import G0, pressure_pa
+from firmware_model.flights.readers._common import check_time, fail, licence_of, parse_float, read_text
+from firmware_model.flights.record import FlightRecord, Truth
+
+BARO_COLUMNS: tuple[str, ...] = ("pressure_pa", "pressure_hpa", "altitude_m")
+ACCEL_COLUMNS: tuple[str, ...] = ("accel_mps2", "accel_g")
+TRUTH_COLUMNS: tuple[str, ...] = ("true_altitude_m", "true_velocity_mps", "true_accel_mps2")
+OPTIONAL: tuple[str, ...] = ("temperature_c",)
+_META = re.compile(r"^#\s*([A-Za-z_][A-Za-z0-9_]*)\s*[:=]\s*(.*?)\s*$")
+
+
+def looks_like(text: str) -> bool:
+    """True when the first non-comment line is a header with ``time_s``."""
+    for line in text.splitlines():
+        if not line.strip() or line.startswith("#"):
+            continue
+        return "time_s" in [c.strip() for c in line.split(",")]
+    return False
+
+
+def truth_apogee(t: np.ndarray, h: np.ndarray | None, v: np.ndarray | None) -> tuple[float | None, float | None]:
+    """Truth apogee from truth arrays: the first downward zero crossing of velocity after its maximum (linear
+    interpolation), altitude interpolated there; else the highest altitude sample."""
+    if v is not None and np.all(np.isfinite(v)):
+        start = int(np.argmax(v))
+        down = np.nonzero((v[start:-1] > 0) & (v[start + 1:] <= 0))[0]
+        if down.size:
+            i = start + int(down[0])
+            f = v[i] / (v[i] - v[i + 1])
+            ta = float(t[i] + f * (t[i + 1] - t[i]))
+            ha = float(np.interp(ta, t, h)) if h is not None else None
+            return ta, ha
+    if h is not None and np.any(np.isfinite(h)):
+        i = int(np.nanargmax(h))
+        return float(t[i]), float(h[i])
+    return None, None
+
+
+def read(path: Path) -> FlightRecord:
+    """Read a generic flight CSV into a :class:`FlightRecord`."""
+    text = read_text(path)
+    lines = text.splitlines()
+    meta: dict[str, str] = {}
+    header: list[str] | None = None
+    header_line = 0
+    rows: list[tuple[int, list[str]]] = []
+    for number, line in enumerate(lines, start=1):
+        if not line.strip():
+            continue
+        if header is None:
+            if line.startswith("#"):
+                m = _META.match(line)
+                if m:
+                    meta[m.group(1)] = m.group(2)
+                continue
+            header, header_line = [c.strip() for c in line.split(",")], number
+            continue
+        if line.startswith("#"):
+            continue
+        rows.append((number, line.split(",")))
+    if header is None:
+        raise fail(path, len(lines), "no header row")
+    dup = sorted({c for c in header if header.count(c) > 1 and c})
+    if dup:
+        raise fail(path, header_line, f"column(s) named twice: {', '.join(dup)}")
+    if "time_s" not in header:
+        raise fail(path, header_line, "missing column time_s")
+    baro = [c for c in BARO_COLUMNS if c in header]
+    if len(baro) != 1:
+        raise fail(path, header_line, "need exactly one barometer column of " + ", ".join(BARO_COLUMNS)
+                   + (f" (found {', '.join(baro)})" if baro else ""))
+    accel = [c for c in ACCEL_COLUMNS if c in header]
+    if len(accel) > 1:
+        raise fail(path, header_line, f"at most one accelerometer column of {', '.join(ACCEL_COLUMNS)}")
+    if not rows:
+        raise fail(path, header_line, "no data rows")
+    used = ["time_s", baro[0], *accel, *[c for c in TRUTH_COLUMNS + OPTIONAL if c in header]]
+    idx = {c: header.index(c) for c in used}
+    values = {c: np.empty(len(rows)) for c in used}
+    for i, (num, fields) in enumerate(rows):
+        if len(fields) != len(header):
+            raise fail(path, num, f"{len(fields)} fields, the header has {len(header)}")
+        for c in used:
+            values[c][i] = parse_float(path, num, c, fields[idx[c]], allow_empty=c != "time_s")
+    line_of = [num for num, _ in rows]
+    check_time(path, line_of, values["time_s"], drop_repeats=False)
+    for c in used:
+        if c != "time_s" and not np.any(np.isfinite(values[c])):
+            raise fail(path, header_line, f"column {c} has no values")
+
+    raw = values[baro[0]]
+    if baro[0] == "pressure_pa":
+        p = raw
+    elif baro[0] == "pressure_hpa":
+        p = raw * 100.0
+    else:
+        p = np.asarray(pressure_pa(raw), dtype=np.float64)
+    bad = np.nonzero(~(p > 0) & np.isfinite(p))[0]
+    if bad.size:
+        raise fail(path, line_of[int(bad[0])], f"{baro[0]}: {raw[bad[0]]!r} gives a pressure <= 0 Pa")
+    acc = None
+    if accel:
+        acc = values[accel[0]] * (G0 if accel[0] == "accel_g" else 1.0)
+
+    t = values["time_s"]
+    truth = None
+    if any(c in header for c in TRUTH_COLUMNS) or "true_apogee_time_s" in meta:
+        h = values.get("true_altitude_m")
+        v = values.get("true_velocity_mps")
+        ta, ha = truth_apogee(t, h, v)
+        for key in ("true_apogee_time_s", "true_apogee_altitude_m"):
+            if key in meta:
+                try:
+                    val = float(meta[key])
+                except ValueError:
+                    raise fail(path, 1, f"comment {key}: cannot parse {meta[key]!r}") from None
+                if key == "true_apogee_time_s":
+                    ta = val
+                else:
+                    ha = val
+        truth = Truth(altitude_m=h, velocity_mps=v, accel_mps2=values.get("true_accel_mps2"),
+                      apogee_time_s=ta, apogee_altitude_m=ha)
+    ground = None
+    if "ground_pressure_pa" in meta:
+        try:
+            ground = float(meta["ground_pressure_pa"])
+        except ValueError:
+            raise fail(path, 1, f"comment ground_pressure_pa: cannot parse {meta['ground_pressure_pa']!r}") from None
+        if not (math.isfinite(ground) and ground > 0):
+            raise fail(path, 1, f"comment ground_pressure_pa: {ground!r} is not a positive pressure")
+    licence, origin = licence_of(path)
+    missing = {c: int(np.sum(~np.isfinite(values[c]))) for c in used if c != "time_s"}
+    notes = [f"{c}: {m} empty fields (NaN)" for c, m in missing.items() if m]
+    if baro[0] == "altitude_m":
+        notes.append("pressure from altitude_m through the standard atmosphere")
+    provenance = {
+        "source": meta.get("source", str(path)), "file": str(path), "format": "generic",
+        "licence": meta.get("licence", licence), "origin": origin, "rows": len(rows),
+        "columns": used, "meta": meta, "notes": notes,
+    }
+    return FlightRecord(name=meta.get("name", path.stem), time_s=t, pressure_pa=p, accel_mps2=acc,
+                        temperature_c=values.get("temperature_c"), ground_pressure_pa=ground, truth=truth,
+                        provenance=provenance)

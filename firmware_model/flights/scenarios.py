@@ -1,0 +1,305 @@
+"""The catalogue of named simulated flights for evaluation (docs/flights-sim.md, "Scenarios").
+
+Each :class:`Scenario` is physics only (a rocket, a launch, the simulator, and the static-pressure error effects of
+:mod:`.pressure_errors`); sensor models (ADC bits, noise) and k are applied later by the evaluation, which may use
+the suggested ``tags``. ``simulate_scenario(name)`` is deterministic (same name, same bytes), cached in the
+process, and RocketPy scenarios are also cached on disk (``$FWEMU_CACHE`` or ``~/.cache/fwemu/flights``), keyed
+by a hash of the scenario definition, the simulator sources and the motor/drag data files.
+
+Classes by peak Mach: ``subsonic`` < 0.9, ``transonic`` 0.9..1.2, ``supersonic`` 1.3..2.0 (checked by the tests).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import tempfile
+from dataclasses import dataclass, field
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from firmware_model.errors import UserError
+from firmware_model.flights.motors import DATA_DIR, load_motor
+from firmware_model.flights.pressure_errors import pressure_spikes, transonic_pressure_error
+from firmware_model.flights.record import FlightRecord, Truth
+from firmware_model.flights.sim1dof import Launch, Rocket, mach_of, simulate_1dof
+
+#: Mach-class bounds (peak Mach) asserted by the tests.
+MACH_CLASSES: dict[str, tuple[float, float]] = {"subsonic": (0.0, 0.9), "transonic": (0.9, 1.2),
+                                                "supersonic": (1.3, 2.0)}
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A named simulated flight. ``rocket``: :class:`Rocket` fields (``motor`` by name); ``launch``:
+    :class:`Launch` fields; ``simulator``: "1dof" or "rocketpy" (then ``rocketpy`` holds wind/rail settings for
+    :func:`firmware_model.flights.rocketpy_sim.simulate_rocketpy`); ``transonic``/``spikes``: keyword arguments
+    of the pressure-error functions, or None; ``mach_class``: the peak-Mach class it is meant to be in;
+    ``tags``: suggested sensor and k settings for the evaluation."""
+
+    name: str
+    description: str
+    mach_class: str
+    rocket: dict[str, Any]
+    launch: dict[str, Any] = field(default_factory=dict)
+    simulator: str = "1dof"
+    rocketpy: dict[str, Any] = field(default_factory=dict)
+    transonic: dict[str, Any] | None = None
+    spikes: dict[str, Any] | None = None
+    tags: dict[str, Any] = field(default_factory=dict)
+
+    def build_rocket(self) -> Rocket:
+        kw = dict(self.rocket)
+        motor = load_motor(kw.pop("motor"))
+        scale = kw.pop("motor_scale", None)
+        if scale:
+            motor = motor.scaled(*scale)
+        return Rocket(name=self.name, motor=motor, **kw)
+
+    def build_launch(self) -> Launch:
+        return Launch(**{"record_hz": 1000.0, **self.launch})
+
+    def definition(self) -> dict[str, Any]:
+        """JSON-ready definition (what the cache key hashes)."""
+        return {"name": self.name, "mach_class": self.mach_class, "rocket": self.rocket, "launch": self.launch,
+                "simulator": self.simulator, "rocketpy": self.rocketpy, "transonic": self.transonic,
+                "spikes": self.spikes}
+
+
+def _s(name, description, mach_class, rocket, tags, **kw) -> Scenario:
+    return Scenario(name=name, description=description, mach_class=mach_class, rocket=rocket, tags=tags, **kw)
+
+
+_TS = {}  # default transonic effect: the seed-002 step with the module's default magnitude
+_SPIKES = {"count": 4, "magnitude_pa": 1500.0, "seed": 7}
+
+_CATALOGUE: tuple[Scenario, ...] = (
+    # --- subsonic -------------------------------------------------------------------------------------------
+    _s("sub-k400-300m", "heavy K400C rocket, ~300 m, slow coast", "subsonic",
+       {"motor": "K400C", "dry_mass_kg": 14.0, "diameter_m": 0.10},
+       {"baro": ["analog-16", "ms5607"], "noise": ["none", "noisy"], "k": [6, 8]}),
+    _s("sub-k400-900m", "K400C sport rocket, ~900 m", "subsonic",
+       {"motor": "K400C", "dry_mass_kg": 8.0, "diameter_m": 0.10},
+       {"baro": ["analog-10", "analog-12"], "noise": ["noisy"], "k": [5, 6]}),
+    _s("sub-k400-1900m", "light K400C rocket, ~1.9 km, Mach 0.7", "subsonic",
+       {"motor": "K400C", "dry_mass_kg": 4.0, "diameter_m": 0.10},
+       {"baro": ["analog-8", "analog-16"], "noise": ["none", "noisy"], "k": [4, 6]}),
+    _s("sub-k828-600m-highsite", "heavy K828FJ rocket from a 1,200 m high desert site", "subsonic",
+       {"motor": "K828FJ", "dry_mass_kg": 16.0, "diameter_m": 0.10}, {"baro": ["analog-10", "ms5607"],
+                                                                      "noise": ["noisy"], "k": [6, 7]},
+       launch={"site_altitude_m": 1200.0}),
+    _s("sub-k828-1400m", "K828FJ minimum-diameter-ish rocket, ~1.4 km", "subsonic",
+       {"motor": "K828FJ", "dry_mass_kg": 10.0, "diameter_m": 0.08},
+       {"baro": ["analog-12"], "noise": ["none", "noisy"], "k": [5, 8]}),
+    _s("sub-l1350-1900m-delay", "heavy L1350 rocket, drogue opens 1 s after apogee", "subsonic",
+       {"motor": "L1350", "dry_mass_kg": 18.0, "diameter_m": 0.10},
+       {"baro": ["analog-16"], "noise": ["noisy"], "k": [6]}, launch={"drogue_delay_s": 1.0}),
+    _s("sub-m1670-3200m", "M1670 rocket to ~3.3 km at Mach 0.78", "subsonic",
+       {"motor": "M1670", "dry_mass_kg": 18.0, "diameter_m": 0.10},
+       {"baro": ["analog-10", "analog-16", "ms5607"], "noise": ["noisy"], "k": [6, 7]}),
+    _s("sub-k400-900m-spikes", "sub-k400-900m with four +-1500 Pa single-sample pressure spikes", "subsonic",
+       {"motor": "K400C", "dry_mass_kg": 8.0, "diameter_m": 0.10},
+       {"baro": ["analog-12", "ms5607"], "noise": ["noisy"], "k": [6]}, spikes=_SPIKES),
+    _s("sub-scaled-k400-1300m", "a half-thrust, 1.6x-longer synthetic motor (K400C shape), slow boost", "subsonic",
+       {"motor": "K400C", "motor_scale": (0.5, 1.6), "dry_mass_kg": 5.0, "diameter_m": 0.08},
+       {"baro": ["analog-8", "analog-10"], "noise": ["none"], "k": [4, 5]}),
+    # --- transonic ------------------------------------------------------------------------------------------
+    _s("trans-l1350-m094", "L1350 rocket peaking at Mach ~0.94: near-sonic, no step", "transonic",
+       {"motor": "L1350", "dry_mass_kg": 10.0, "diameter_m": 0.13},
+       {"baro": ["analog-10", "analog-16"], "noise": ["noisy"], "k": [6]}),
+    _s("trans-m1670-m105", "M1670 rocket through Mach 1.05 with the seed-002 transonic pressure step", "transonic",
+       {"motor": "M1670", "dry_mass_kg": 12.0, "diameter_m": 0.127},
+       {"baro": ["analog-10", "analog-16", "ms5607"], "noise": ["none", "noisy"], "k": [5, 6, 7]}, transonic=_TS),
+    _s("trans-m1670-m105-clean", "trans-m1670-m105 without the pressure step (the pair isolates the effect)",
+       "transonic", {"motor": "M1670", "dry_mass_kg": 12.0, "diameter_m": 0.127},
+       {"baro": ["analog-16"], "noise": ["noisy"], "k": [6]}),
+    _s("trans-k828-m118", "light K828FJ rocket at Mach ~1.18 with the transonic step", "transonic",
+       {"motor": "K828FJ", "dry_mass_kg": 3.0, "diameter_m": 0.10},
+       {"baro": ["analog-12"], "noise": ["noisy"], "k": [6, 8]}, transonic=_TS),
+    _s("trans-m6400-m109", "short-burn M6400 rocket at Mach ~1.1 with a ramped 100 m step", "transonic",
+       {"motor": "M6400", "dry_mass_kg": 20.0, "diameter_m": 0.10},
+       {"baro": ["analog-16", "ms5607"], "noise": ["noisy"], "k": [6]},
+       transonic={"altitude_step_m": 100.0, "shape": "ramp", "width_mach": 0.06}),
+    _s("trans-l1350-m098-spikes", "L1350 rocket at Mach ~0.98 with single-sample pressure spikes", "transonic",
+       {"motor": "L1350", "dry_mass_kg": 10.0, "diameter_m": 0.10},
+       {"baro": ["analog-10"], "noise": ["noisy"], "k": [5, 6]}, spikes={**_SPIKES, "seed": 11}),
+    # --- supersonic -----------------------------------------------------------------------------------------
+    _s("sup-l1350-m137", "light L1350 rocket at Mach ~1.37 with the transonic step", "supersonic",
+       {"motor": "L1350", "dry_mass_kg": 6.0, "diameter_m": 0.10},
+       {"baro": ["analog-10", "analog-16"], "noise": ["noisy"], "k": [6, 7]}, transonic=_TS),
+    _s("sup-m1670-m145", "M1670 rocket at Mach ~1.45 with the transonic step, 4.9 km", "supersonic",
+       {"motor": "M1670", "dry_mass_kg": 8.0, "diameter_m": 0.10},
+       {"baro": ["analog-12", "ms5607"], "noise": ["none", "noisy"], "k": [5, 6]}, transonic=_TS),
+    _s("sup-m6400-m167", "M6400 rocket at Mach ~1.67 with a 120 m step", "supersonic",
+       {"motor": "M6400", "dry_mass_kg": 12.0, "diameter_m": 0.10},
+       {"baro": ["analog-16"], "noise": ["noisy"], "k": [6, 8]}, transonic={"altitude_step_m": 120.0}),
+    _s("sup-m6400-m167-clean", "sup-m6400-m167 without the pressure step", "supersonic",
+       {"motor": "M6400", "dry_mass_kg": 12.0, "diameter_m": 0.10},
+       {"baro": ["analog-16", "ms5607"], "noise": ["noisy"], "k": [6]}),
+    _s("sup-m2245-m170-8700m", "M2245 in 80 mm to ~8.7 km at Mach ~1.7 with the transonic step", "supersonic",
+       {"motor": "M2245", "dry_mass_kg": 12.0, "diameter_m": 0.08},
+       {"baro": ["analog-16", "ms5607"], "noise": ["noisy"], "k": [6, 7]}, transonic=_TS),
+    _s("sup-m2245-m19-9400m", "M2245 in 80 mm to ~9.4 km at Mach ~1.9 with hysteresis (on 1.0, off 0.95)",
+       "supersonic", {"motor": "M2245", "dry_mass_kg": 10.0, "diameter_m": 0.08},
+       {"baro": ["analog-16", "ms5607"], "noise": ["none", "noisy"], "k": [5, 6]},
+       transonic={"mach_on": 1.0, "mach_off": 0.95}),
+    _s("sup-m2245-m19-9400m-spikes", "sup-m2245-m19-9400m (no step) with single-sample spikes near apogee",
+       "supersonic", {"motor": "M2245", "dry_mass_kg": 10.0, "diameter_m": 0.08},
+       {"baro": ["ms5607"], "noise": ["noisy"], "k": [6]},
+       spikes={"count": 3, "magnitude_pa": 800.0, "seed": 3, "window_s": (35.0, 45.0)}),
+)
+
+_BY_NAME: dict[str, Scenario] = {s.name: s for s in _CATALOGUE}
+assert len(_BY_NAME) == len(_CATALOGUE), "duplicate scenario names"
+
+
+def scenario_names() -> list[str]:
+    """Names of every scenario, in catalogue order."""
+    return [s.name for s in _CATALOGUE]
+
+
+def get_scenario(name: str) -> Scenario:
+    """The :class:`Scenario` called ``name``."""
+    try:
+        return _BY_NAME[name]
+    except KeyError:
+        raise UserError(f"unknown scenario {name!r}; known: {', '.join(scenario_names())}") from None
+
+
+def scenario_catalogue() -> dict[str, dict[str, Any]]:
+    """name -> {description, mach_class, simulator, transonic, spikes, tags}: the catalogue as data."""
+    return {s.name: {"description": s.description, "mach_class": s.mach_class, "simulator": s.simulator,
+                     "transonic": s.transonic is not None, "spikes": s.spikes is not None, "tags": s.tags}
+            for s in _CATALOGUE}
+
+
+def _apply_effects(s: Scenario, rec: FlightRecord, mach: np.ndarray) -> FlightRecord:
+    if s.transonic is not None:
+        rec = transonic_pressure_error(rec, mach=mach, **s.transonic)
+    if s.spikes is not None:
+        rec = pressure_spikes(rec, **s.spikes)
+    prov = dict(rec.provenance)
+    prov["scenario"] = s.name
+    prov["description"] = s.description
+    prov["mach_class"] = s.mach_class
+    return FlightRecord(**{**rec.__dict__, "provenance": prov})
+
+
+def cache_dir() -> Path:
+    """Where RocketPy scenario results are cached."""
+    env = os.environ.get("FWEMU_CACHE")
+    return Path(env) if env else Path.home() / ".cache" / "fwemu" / "flights"
+
+
+def cache_key(s: Scenario) -> str:
+    """Content hash of a scenario: its definition, the simulator sources and the data files."""
+    h = hashlib.sha256(json.dumps(s.definition(), sort_keys=True, default=str).encode())
+    here = Path(__file__).resolve().parent
+    for src in ("sim1dof.py", "rocketpy_sim.py", "pressure_errors.py", "motors.py", "scenarios.py"):
+        p = here / src
+        if p.exists():
+            h.update(p.read_bytes())
+    for p in sorted(DATA_DIR.iterdir()):
+        if p.is_file():
+            h.update(p.name.encode())
+            h.update(p.read_bytes())
+    return h.hexdigest()[:24]
+
+
+_ARRAYS = ("time_s", "pressure_pa", "accel_mps2")
+_TRUTH = ("altitude_m", "velocity_mps", "accel_mps2")
+
+
+def save_record(rec: FlightRecord, mach: np.ndarray, path: Path) -> None:
+    """Write a simulated record (+ its Mach series) to ``path`` (.npz) atomically."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    arrays = {k: np.asarray(getattr(rec, k)) for k in _ARRAYS}
+    arrays.update({f"truth_{k}": np.asarray(getattr(rec.truth, k)) for k in _TRUTH})
+    arrays["mach"] = np.asarray(mach)
+    meta = {"name": rec.name, "ground_pressure_pa": rec.ground_pressure_pa, "events": rec.events,
+            "provenance": rec.provenance, "apogee_time_s": rec.truth.apogee_time_s,
+            "apogee_altitude_m": rec.truth.apogee_altitude_m}
+    arrays["meta"] = np.frombuffer(json.dumps(meta, sort_keys=True).encode(), dtype=np.uint8)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name + ".", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            np.savez(f, **arrays)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def load_record(path: Path) -> tuple[FlightRecord, np.ndarray]:
+    """Read what :func:`save_record` wrote."""
+    with np.load(path) as z:
+        meta = json.loads(bytes(z["meta"]).decode())
+        truth = Truth(**{k: z[f"truth_{k}"].copy() for k in _TRUTH}, apogee_time_s=meta["apogee_time_s"],
+                      apogee_altitude_m=meta["apogee_altitude_m"])
+        rec = FlightRecord(name=meta["name"], time_s=z["time_s"].copy(), pressure_pa=z["pressure_pa"].copy(),
+                           accel_mps2=z["accel_mps2"].copy(), ground_pressure_pa=meta["ground_pressure_pa"],
+                           truth=truth, events=meta["events"], provenance=meta["provenance"])
+        return rec, z["mach"].copy()
+
+
+def _simulate_physics(s: Scenario) -> tuple[FlightRecord, np.ndarray]:
+    if s.simulator == "1dof":
+        rec = simulate_1dof(s.build_rocket(), s.build_launch(), names=[s.name])[0]
+        return rec, mach_of(rec)
+    if s.simulator == "rocketpy":
+        from firmware_model.flights.rocketpy_sim import simulate_rocketpy_with_mach
+        path = cache_dir() / f"{s.name}-{cache_key(s)}.npz"
+        if path.exists():
+            try:
+                return load_record(path)
+            except Exception:  # a damaged cache entry is recomputed
+                pass
+        rec, mach = simulate_rocketpy_with_mach(s.build_rocket(), s.build_launch(), name=s.name, **s.rocketpy)
+        try:
+            save_record(rec, mach, path)
+        except OSError:
+            pass  # a read-only cache is not an error
+        return rec, mach
+    raise UserError(f"scenario {s.name}: unknown simulator {s.simulator!r}")
+
+
+@lru_cache(maxsize=None)
+def _simulate_cached(name: str) -> tuple[FlightRecord, np.ndarray]:
+    s = get_scenario(name)
+    rec, mach = _simulate_physics(s)
+    return _apply_effects(s, rec, mach), mach
+
+
+def simulate_scenario(name: str) -> FlightRecord:
+    """The scenario's flight record (physics + pressure effects; no sensor model). Deterministic and cached:
+    treat the returned arrays as read-only."""
+    return _simulate_cached(name)[0]
+
+
+def scenario_mach(name: str) -> np.ndarray:
+    """The scenario's Mach number per record sample (airspeed Mach)."""
+    return _simulate_cached(name)[1]
+
+
+def scenario_table() -> str:
+    """The catalogue as a Markdown table: simulator, class, peak Mach, apogee altitude and time, effects."""
+    lines = ["| scenario | simulator | class | peak Mach | apogee (m AGL) | apogee time (s) | pressure effects |",
+             "|---|---|---|---|---|---|---|"]
+    for n in scenario_names():
+        s = get_scenario(n)
+        r = simulate_scenario(n)
+        summ = r.provenance["summary"]
+        eff = ", ".join(e["effect"].replace("_pressure_error", "").replace("pressure_", "")
+                        for e in r.provenance.get("effects", [])) or "-"
+        lines.append(f"| {n} | {s.simulator} | {s.mach_class} | {summ['max_mach']:.2f} | "
+                     f"{r.truth.apogee_altitude_m:.0f} | {r.truth.apogee_time_s:.2f} | {eff} |")
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":
+    print(scenario_table())

@@ -1,0 +1,112 @@
+"""Reference apogee: truth when the record has it; otherwise the robust parabola of docs/flights.md, checked on
+synthetic ballistic flights with known vertex (noise, quantization, spikes, a 100 -> 10 Hz rate change) and on the
+shared logs (the two computers of the same prometheus flight must agree)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from firmware_model.atmosphere import G0, altitude_m, pressure_pa
+from firmware_model.flights.inputs import DEFAULT_PAD_S, firmware_inputs
+from firmware_model.flights.record import FlightRecord, Truth
+from firmware_model.flights.reference import liftoff_time, reference_apogee
+from firmware_model.flights.sensors import BaroSensor
+from profiles import examples
+
+SHARED = Path(os.environ.get("FWEMU_SHARED_FLIGHTS") or Path(__file__).resolve().parents[1].parent / "shared" / "flights")
+needs_shared = pytest.mark.skipif(not SHARED.is_dir(), reason="../shared/flights is absent")
+
+
+def _ballistic(ta: float, v0: float, pad_alt: float, noise_m: float, quant_pa: float, spikes: int, seed: int,
+               rate_change: bool) -> tuple[FlightRecord, float, float]:
+    """Pad 1 s, boost at 60 m/s^2 for tb s, then vacuum-ballistic coast; apogee time ta after liftoff."""
+    rng = np.random.default_rng(seed)
+    tb = (ta * G0) / (60.0 + G0)                                         # v(tb) = 60 tb = g (ta - tb)
+    t = np.arange(-1.0, ta, 0.01)
+    t = np.concatenate([t, np.arange(t[-1] + 0.1, ta + 6.0, 0.1) if rate_change else np.arange(t[-1] + 0.01, ta + 6.0, 0.01)])
+    hb = 0.5 * 60.0 * tb * tb
+    h = np.where(t < 0, 0.0, np.where(t < tb, 0.5 * 60.0 * t * t, hb + 60.0 * tb * (t - tb) - 0.5 * G0 * (t - tb) ** 2))
+    ha = float(hb + (60.0 * tb) ** 2 / (2 * G0))
+    hn = h + rng.normal(0, noise_m, t.size)
+    p = np.asarray(pressure_pa(pad_alt + hn))
+    if quant_pa:
+        p = np.round(p / quant_pa) * quant_pa
+    where = rng.choice(np.nonzero(np.abs(t - ta) < 1.5)[0], size=spikes, replace=False)
+    p[where] -= rng.choice([-1, 1], spikes) * rng.uniform(300, 3000, spikes)   # single-sample pressure spikes
+    f = np.where((t >= 0) & (t < tb), 60.0 + G0, np.where(t < 0, G0, 0.0))
+    rec = FlightRecord(name="ballistic", time_s=t, pressure_pa=p, accel_mps2=f, provenance={"source": "test"})
+    return rec, ta, ha
+
+
+@settings(max_examples=examples(25))
+@given(ta=st.floats(6, 30), pad_alt=st.floats(0, 2000), noise=st.floats(0, 2.0), quant=st.sampled_from([0, 1, 13.57]),
+       spikes=st.integers(0, 3), seed=st.integers(0, 10_000), rate_change=st.booleans())
+def test_parabola_finds_the_vertex(ta, pad_alt, noise, quant, spikes, seed, rate_change) -> None:
+    rec, t_true, h_true = _ballistic(ta, 0, pad_alt, noise, quant, spikes, seed, rate_change)
+    ref = reference_apogee(rec)
+    assert ref.source == "baro_parabola" and ref.window_s == 1.5
+    # stated tolerance: 0.15 s + the reference's own uncertainty, for noise up to 2 m rms and 13.6 Pa steps
+    assert abs(ref.time_s - t_true) <= 0.15 + ref.uncertainty_s, ref
+    assert ref.uncertainty_s < 0.5
+    assert abs(ref.altitude_m - h_true) < 3.0 + 3 * noise
+    assert ref.notes["spikes_rejected"] >= spikes
+    assert abs(liftoff_time(rec)) <= 0.011
+
+
+def test_truth_wins() -> None:
+    t = np.linspace(0, 10, 101)
+    tr = Truth(altitude_m=t * (10 - t), apogee_time_s=5.0, apogee_altitude_m=25.0)
+    rec = FlightRecord(name="x", time_s=t, pressure_pa=np.asarray(pressure_pa(t * (10 - t))), truth=tr)
+    ref = reference_apogee(rec)
+    assert (ref.time_s, ref.altitude_m, ref.uncertainty_s, ref.source) == (5.0, 25.0, 0.0, "truth")
+
+
+def test_firmware_inputs_pad_and_overrides() -> None:
+    rec, _, _ = _ballistic(10.0, 0, 1400.0, 0.0, 0, 0, 1, True)
+    fi = firmware_inputs(rec, 6, baro=BaroSensor.preset("mpx4115_12bit"))
+    assert fi.time_s[0] == pytest.approx(liftoff_time(rec) - DEFAULT_PAD_S, abs=2.0 ** -6)
+    assert np.all(np.diff(fi.time_s) == 2.0 ** -6)
+    assert fi.report.before_log == int(np.sum(fi.time_s < rec.time_s[0]))
+    pad = fi.adc[fi.time_s < -0.2]
+    assert np.all(pad == pad[0]) and np.all(fi.acc[fi.time_s < -0.2] == 2048)
+    ov = fi.config_overrides()
+    from firmware_model.config import BuildConfig
+
+    cfg = BuildConfig(**ov)                         # consistent: a valid build
+    assert cfg.baro_bits == 12 and cfg.baro_sign == -1 and cfg.k == 6
+    # counts per metre at the pad, against a finite difference of the sensor through the atmosphere
+    h0 = float(altitude_m(fi.ground_pressure_pa))
+    fd = float(fi.baro.ideal_counts(pressure_pa(h0 - 1.0)) - fi.baro.ideal_counts(pressure_pa(h0 + 1.0))) / 2.0
+    assert ov["units_per_metre"] == pytest.approx(fd, rel=1e-3)
+    again = firmware_inputs(rec, 6, baro=BaroSensor.preset("mpx4115_12bit", noise_counts=1.0), seed=3)
+    same = firmware_inputs(rec, 6, baro=BaroSensor.preset("mpx4115_12bit", noise_counts=1.0), seed=3)
+    np.testing.assert_array_equal(again.adc, same.adc)
+    assert not np.array_equal(again.adc, fi.adc)
+
+
+@needs_shared
+def test_prometheus_two_computers_agree() -> None:
+    from firmware_model.flights.readers import read_flight
+
+    a = reference_apogee(read_flight(SHARED / "altosui" / "prometheus-2022-06-24-telemetrum.csv"))
+    b = reference_apogee(read_flight(SHARED / "altosui" / "prometheus-2022-06-24-telemega.csv"))
+    assert abs(a.time_s - b.time_s) <= a.uncertainty_s + b.uncertainty_s
+    assert abs(a.altitude_m - b.altitude_m) < 10.0
+
+
+@needs_shared
+@pytest.mark.parametrize("path", ["altosui/2012-04-07-serial-882-flight-001.csv",
+                                  "altosui/2012-10-20-serial-068-flight-004.csv",
+                                  "altosui/prometheus-2022-06-24-telemetrum.csv",
+                                  "altosui/prometheus-2022-06-24-telemega.csv", "cats/hedy-baro.csv"])
+def test_shared_logs_have_a_reference(path: str) -> None:
+    from firmware_model.flights.readers import read_flight
+
+    ref = reference_apogee(read_flight(SHARED / path))
+    assert ref.source == "baro_parabola" and 0 < ref.uncertainty_s < 0.5
