@@ -158,7 +158,7 @@ def summary(table: Any, record: Any, inputs: Any, cfg: Any, engine: str, elapsed
 
     def at(name: str) -> str:
         t = marks.get(name)
-        return "never" if t is None else f"{t:.3f} s"
+        return "never" if t is None else f"{t:.6f} s"
 
     lines.append(f"liftoff: {at('LIFTOFF')}")
     burn = burnout_time(record, marks.get("LIFTOFF"))
@@ -169,7 +169,7 @@ def summary(table: Any, record: Any, inputs: Any, cfg: Any, engine: str, elapsed
         lines.append("apogee: never declared")
     else:
         i = int(np.searchsorted(table.time_s, apo))
-        lines.append(f"apogee: {apo:.3f} s at filtered altitude {table.filtered_altitude_m[i]:.1f} m "
+        lines.append(f"apogee: {apo:.6f} s at filtered altitude {table.filtered_altitude_m[i]:.1f} m "
                      f"(raw {table.raw_altitude_m[i]:.1f} m)")
     if marks.get("APOGEE_PREDICTED") is not None:
         lines.append(f"apogee predicted at sample {marks['APOGEE_PREDICTED']:.3f} s (APFRAC)")

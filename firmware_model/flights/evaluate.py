@@ -323,13 +323,15 @@ def _report_text(report: Any) -> str:
 
 
 def _sensor_text(inputs: Any, spec: FlightSpec) -> str:
-    ov = inputs.config_overrides()
-    bits = ov.get("baro_bits")
-    parts = [spec.baro or f"{bits}-bit" if bits else (spec.baro or "default")]
-    if spec.accel:
-        parts.append(spec.accel)
-    parts.append("noisy" if spec.noise else "noise-free")
-    return " ".join(str(p) for p in parts)
+    """``<barometer preset> / <accelerometer preset>, noisy|clean|log noise``."""
+    baro = getattr(getattr(inputs, "baro", None), "name", None) or spec.baro or "default"
+    accel = getattr(getattr(inputs, "accel", None), "name", None) or spec.accel or "default"
+    baro = baro.replace("mpx4115_", "").replace("bit", "-bit")
+    if spec.source.startswith("sim:"):
+        noise = "noisy" if spec.noise else "clean"
+    else:
+        noise = "log noise" + (" + added" if spec.noise and (spec.baro or spec.accel) else "")
+    return f"{baro}/{accel}, {noise}"
 
 
 def evaluate_flight(spec: FlightSpec, methods: Sequence[Method] | None = None,

@@ -26,13 +26,14 @@ def _num(x: float, digits: int = 12) -> str:
     return f"{x:.{digits}g}"
 
 
-def generic_csv(record: FlightRecord, *, truth: bool = True) -> str:
-    """The generic-CSV text of ``record`` (truth columns when the record has them and ``truth``)."""
+def generic_csv(record: FlightRecord, *, truth: bool = True, temperature: bool = True) -> str:
+    """The generic-CSV text of ``record`` (truth columns when the record has them and ``truth``; temperature when
+    it has one and ``temperature``)."""
     cols: list[tuple[str, Any]] = [("time_s", record.time_s), ("pressure_pa", record.pressure_pa)]
     force = record.specific_force_mps2()
     if force is not None:
         cols.append(("accel_mps2", force))
-    if record.temperature_c is not None:
+    if temperature and record.temperature_c is not None:
         cols.append(("temperature_c", record.temperature_c))
     tr = record.truth if truth else None
     if tr is not None:
