@@ -67,6 +67,7 @@ main: vectors budget
 
 bench: $(STAMP)
 	$(PY) bench/bench_cpu.py
+	$(PY) bench/bench_model.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info out

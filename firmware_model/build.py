@@ -15,7 +15,11 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import os
+import pickle
 import re
+import sys
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from types import MappingProxyType
@@ -116,17 +120,99 @@ def source_sha256(program: str) -> str:
     return _hash_sources(source_files(program))[1]
 
 
+#: Bumped when the cached form changes.
+_CACHE_FORMAT = 1
+
+
+def cache_dir() -> Path | None:
+    """Where assembled builds are cached on disk: ``$FWEMU_CACHE_DIR`` if set (empty or ``off``: no disk cache),
+    else ``$XDG_CACHE_HOME/fwemu`` or ``~/.cache/fwemu``."""
+    env = os.environ.get("FWEMU_CACHE_DIR")
+    if env is not None:
+        return None if env.strip() in ("", "off", "0") else Path(env)
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "fwemu"
+
+
+@functools.lru_cache(maxsize=1)
+def _assembler_digest() -> str:
+    """SHA-256 over the source of the ``isa`` package (assembler, encoder, table, timing, ...): a cached build
+    made by another version of the assembler is never used."""
+    import isa  # local: keep `import firmware_model.build` cheap
+
+    h = hashlib.sha256()
+    for path in sorted(Path(isa.__file__).resolve().parent.glob("*.py")):
+        h.update(path.name.encode() + b"\0" + path.read_bytes() + b"\0")
+    return h.hexdigest()
+
+
+def build_key(program: str, equates: tuple[tuple[str, int], ...], digest: str) -> str:
+    """The content key of one build: program, equates, source digest, where the sources are (the listing and the
+    source map name the files), the assembler's digest, the cache format and the Python version."""
+    text = repr((_CACHE_FORMAT, sys.version_info[:2], program, equates, digest, str(ASM_DIR), _assembler_digest()))
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def _load_cached(path: Path) -> object | None:
+    import isa.program
+
+    try:
+        with open(path, "rb") as fh:
+            prog = pickle.load(fh)  # noqa: S301 - our own cache file, content-keyed, in the user's cache dir
+    except FileNotFoundError:
+        return None
+    except Exception:  # noqa: BLE001 - a truncated or foreign file: rebuild (and overwrite it)
+        return None
+    return prog if isinstance(prog, isa.program.Program) else None
+
+
+def _store_cached(path: Path, prog: object) -> None:
+    """Write ``prog`` to ``path`` atomically (temp file in the same folder, then os.replace): concurrent writers
+    of the same key write the same bytes, readers never see a partial file. Failures (read-only disk, ...) only
+    cost the cache."""
+    tmp = None
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True, mode=0o700)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=".pickle")
+        with os.fdopen(fd, "wb") as fh:
+            pickle.dump(prog, fh, protocol=pickle.HIGHEST_PROTOCOL)
+        os.replace(tmp, path)
+        tmp = None
+    except OSError:
+        pass
+    finally:
+        if tmp is not None:
+            try:
+                os.unlink(tmp)
+            except OSError:
+                pass
+
+
+#: Counters of the build cache: ``assembled`` (assembler runs), ``disk_hits``.
+cache_stats: dict[str, int] = {"assembled": 0, "disk_hits": 0}
+
+
 @functools.lru_cache(maxsize=128)
 def _assemble_cached(program: str, equates: tuple[tuple[str, int], ...], stamp: tuple[tuple[str, int], ...]
                      ) -> tuple[object, tuple[tuple[str, str], ...], str]:
-    """Assemble ``program`` with ``equates`` (``stamp`` = source mtimes, so edited sources are rebuilt)."""
+    """Assemble ``program`` with ``equates`` (``stamp`` = source mtimes, so edited sources are rebuilt in this
+    process), or load the same build from the disk cache (keyed by content: :func:`build_key`)."""
     import isa  # local: keep `import firmware_model.build` cheap
 
     paths = source_files(program)
     sources, digest = _hash_sources(paths)
+    folder = cache_dir()
+    path = folder / "builds" / f"{build_key(program, equates, digest)}.pickle" if folder is not None else None
+    prog = _load_cached(path) if path is not None else None
+    if prog is not None:
+        cache_stats["disk_hits"] += 1
+        return prog, sources, digest
     top = paths[0]
     prog = isa.assemble(top.read_text(), filename=str(top), origin=ROM_START, include_paths=[str(ASM_DIR)],
                         defines=dict(equates))
+    cache_stats["assembled"] += 1
+    if path is not None:
+        _store_cached(path, prog)
     return prog, sources, digest
 
 
@@ -141,7 +227,8 @@ def build_firmware(cfg_or_consts: Union[BuildConfig, FirmwareConstants]) -> Firm
     """Assemble the firmware program of ``cfg_or_consts`` (a :class:`BuildConfig`, whose constants are derived with
     :func:`firmware_model.constants.build_constants`, or ready :class:`FirmwareConstants`).
 
-    Builds are cached on (program, equates, source file mtimes). Raises :class:`UserError` for a bad config or
+    Builds are cached in this process on (program, equates, source file mtimes) and on disk by content
+    (:func:`cache_dir`, :func:`build_key`: program, equates, the sources, the assembler's own source). Raises :class:`UserError` for a bad config or
     constants, :class:`isa.errors.AssemblyError` if the sources do not assemble (naming file and line)."""
     if isinstance(cfg_or_consts, BuildConfig):
         consts = build_constants(cfg_or_consts)
@@ -204,6 +291,7 @@ def clear_cache() -> None:
     _assemble_cached.cache_clear()
 
 
-__all__ = ["ASM_DIR", "SOURCES", "FirmwareBuild", "build_firmware", "source_files", "clear_cache",
+__all__ = ["ASM_DIR", "SOURCES", "FirmwareBuild", "build_firmware", "source_files", "clear_cache", "cache_dir",
+           "build_key",
            "ROM_START", "ROM_SIZE", "RAM_START", "RAM_SIZE", "STACK_TOP", "IO_START", "IO_SIZE", "BARO_ADC",
            "ACCEL_ADC"]

@@ -29,6 +29,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     p.add_argument("--clock-mhz", type=positive_float, default=8.0, help="CPU clock for the load figures (default 8)")
     p.add_argument("--seed", type=nonnegative_int, default=0, help="seed of the synthetic flight (default 0)")
     p.add_argument("--out", type=Path, default=Path("out/budget"), help="output directory (default out/budget)")
+    p.add_argument("--mcu", action="store_true",
+                   help="also run the C99 port on the same inputs on an ATmega2560 (simavr: cycles) and Cortex-M0/M3/M4 "
+                        "(qemu-system-arm: instructions); writes mcu.md and mcu.json (targets whose tools are "
+                        "missing are reported as skipped)")
     p.set_defaults(func=run_budget)
 
 
@@ -42,6 +46,7 @@ def run_budget(args: argparse.Namespace) -> int:
     programs = args.program or ([base.program] if args.config else list(DEFAULT_PROGRAMS))
     changes = {key: value for key, value in (("k", args.k), ("rounding", args.rounding)) if value is not None}
     results = []
+    builds = []
     show = sys.stderr.isatty()
     for i, name in enumerate(programs, 1):
         cfg = base.replace(program=name, **changes)
@@ -50,11 +55,20 @@ def run_budget(args: argparse.Namespace) -> int:
         build = build_firmware(cfg)
         streams = budget.default_streams(cfg.k, cfg.baro_bits, seed=args.seed)
         results.append(budget.measure(build, streams, clock_hz=args.clock_mhz * 1e6))
+        builds.append((cfg, streams))
     if show:
         print(file=sys.stderr)
     if not results:
         raise UserError("budget: nothing to do")
+    mcu = None
+    if args.mcu:
+        from firmware_model import mcu_budget
+
+        mcu = mcu_budget.measure(builds, progress=show)
     written = budget.write_reports(results, args.out)
     print(budget.render_markdown(results), end="")
+    if mcu is not None:
+        written += mcu_budget.write_reports(mcu, args.out, results)
+        print(mcu_budget.render_markdown(mcu, results), end="")
     print("wrote " + ", ".join(str(p) for p in written))
     return 0

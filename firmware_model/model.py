@@ -1,44 +1,43 @@
-"""Bit-exact integer model of the four firmware programs (docs/firmware-spec.md §5-§7), vectorised over streams.
+"""Bit-exact integer model of the four firmware programs (docs/firmware-spec.md §5-§7), parallel over streams.
 
-:func:`run_model` loops over samples and vectorises over streams with numpy ``int64`` and explicit ``wrap32``
-(:mod:`firmware_model.fixed`), so one call can run thousands of streams of the same length at once. Every right
-shift is ``rs(., ., mode)`` with the build's rounding, every gain multiply is ``mulg`` (exact 48-bit product, one
-rounding shift, wrap to 32 bits), every ``.l`` assignment is ``wrap32`` of the exact integer.
+:func:`run_model` validates the inputs and runs the kernels of :mod:`firmware_model.model_kernels`: one Python
+source, compiled with numba (``@njit``, streams in parallel with ``prange``) when numba is importable, and the
+same source run as plain Python on exact ints where it is not, or with ``FWEMU_NO_NUMBA=1`` (or
+``engine="python"``). Every right shift is ``rs(., ., mode)`` with the build's rounding, every gain multiply is
+``mulg`` (exact 48-bit product, one rounding shift, wrap to 32 bits), every ``.l`` assignment is ``wrap32`` of the
+exact integer. The earlier numpy implementation (vectorised over streams, a Python loop over samples) is kept as
+:mod:`firmware_model.model_numpy`, an independent cross-check and the benchmark's baseline.
 
 Units: state words are Q24.8 (value = word / 256) in barometer "units" (``z = BARO_SIGN * adc``), Q24.8 units/s
 and Q24.8 units/s^2 for the Kalman X1/X2/X3; the recursive ``VEL`` is in accelerometer counts x samples (Q32.0).
 
-Wrap-around: the model also computes every ``.l`` value exactly (unbounded in principle, int64 here) and compares
-it with the wrapped value, so a run reports whether, where (sample index) and in which word a 68000 ``.l``
-operation would have overflowed (:class:`ModelTrace` ``first_wrap`` / ``wrap_word``). Inside the documented input
-range no wrap happens (docs/numerics.md, "Wrap-around"); outside it, it is detected and reported, never hidden.
+Wrap-around: the model also computes every ``.l`` value exactly (int64 values that provably never overflow, see
+:mod:`firmware_model.model_kernels`) and compares it with the int32 range, so a run reports whether, where
+(sample index) and in which word a 68000 ``.l`` operation would have overflowed (:class:`ModelTrace`
+``first_wrap`` / ``wrap_word``). Inside the documented input range no wrap happens (docs/numerics.md,
+"Wrap-around"); outside it, it is detected and reported, never hidden.
 """
 
 from __future__ import annotations
 
+import importlib.util
+import os
 from dataclasses import dataclass
+from pathlib import Path
+from types import ModuleType
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from firmware_model.errors import UserError
 from firmware_model.inputs import as_input_streams
-from firmware_model.fixed import rs, wrap32, wrapped
-from firmware_model.trace import EVENT_BITS, LATCHED_EVENTS, STATE_WORDS, Trace, word_names
+from firmware_model.trace import STATE_WORDS, Trace, word_names
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
-    from firmware_model.constants import FirmwareConstants, QGain
+    from firmware_model.constants import FirmwareConstants
 
 #: The rounding mode of ``ROUND`` = 0 / 1 (docs/firmware-spec.md §3).
 ROUND_MODES: tuple[str, str] = ("floor", "half_up")
-
-_LIFTOFF = EVENT_BITS["LIFTOFF"]
-_ARMED = EVENT_BITS["ARMED"]
-_APOGEE = EVENT_BITS["APOGEE"]
-_MACH = EVENT_BITS["MACH_LOCKOUT"]
-_BARO_INVALID = EVENT_BITS["BARO_INVALID"]
-_PREDICTED = EVENT_BITS["APOGEE_PREDICTED"]
-_GATE_HIGH = EVENT_BITS["GATE_HIGH"]
 
 
 @dataclass
@@ -68,35 +67,59 @@ def rounding_mode(consts: "FirmwareConstants") -> str:
     return ROUND_MODES[consts.ROUND]
 
 
-class _WrapTracker:
-    """Records, per stream, the first sample and quantity at which an exact value left the int32 range."""
-
-    def __init__(self, n_streams: int) -> None:
-        self.first = np.full(n_streams, -1, dtype=np.int64)
-        self.word = np.full(n_streams, "", dtype=object)
-
-    def w32(self, exact: np.ndarray, sample: int, name: str) -> np.ndarray:
-        """``wrap32(exact)``, noting streams for which the wrap changed the value."""
-        hit = wrapped(exact)
-        if hit.any():
-            new = hit & (self.first < 0)
-            self.first[new] = sample
-            self.word[new] = name
-            return wrap32(exact)
-        return exact
-
-    def mulg(self, e: np.ndarray, g: "QGain", mode: str, sample: int, name: str) -> np.ndarray:
-        """``mulg(e, g, mode)`` (docs/firmware-spec.md §1) = ``wrap32(rs(e*m, s, mode))``, noting wraps."""
-        return self.w32(rs(e * np.int64(g.m), g.s, mode), sample, name)
+def _kernels_for(engine: str) -> ModuleType:
+    if engine == "auto":
+        return compiled_kernels()
+    if engine == "python":
+        return pure_kernels()
+    if engine == "numba":
+        k = compiled_kernels()
+        if not k.COMPILED:
+            why = "FWEMU_NO_NUMBA is set" if os.environ.get("FWEMU_NO_NUMBA", "").strip() not in ("", "0") \
+                else "numba is not importable"
+            raise UserError(f"run_model: engine='numba' but {why}")
+        return k
+    raise UserError(f"run_model: engine={engine!r}: must be auto, numba or python")
 
 
-def run_model(consts: "FirmwareConstants", adc: np.ndarray, acc: np.ndarray | None = None) -> ModelTrace:
+def compiled_kernels() -> ModuleType:
+    """:mod:`firmware_model.model_kernels` as imported (numba-compiled unless numba is missing or
+    ``FWEMU_NO_NUMBA=1``; its ``COMPILED`` says which)."""
+    from firmware_model import model_kernels
+
+    return model_kernels
+
+
+_PURE: ModuleType | None = None
+
+
+def pure_kernels() -> ModuleType:
+    """A plain-Python copy of :mod:`firmware_model.model_kernels` (the same source file executed with
+    ``FORCE_PURE``), whatever numba's availability: the debugging path, and the oracle that the compiled int64
+    code is exact (it computes with Python ints)."""
+    global _PURE
+    if _PURE is None:
+        path = Path(__file__).with_name("model_kernels.py")
+        spec = importlib.util.spec_from_file_location("firmware_model._model_kernels_pure", path)
+        assert spec is not None and spec.loader is not None
+        mod = importlib.util.module_from_spec(spec)
+        mod.FORCE_PURE = True  # type: ignore[attr-defined]
+        spec.loader.exec_module(mod)
+        _PURE = mod
+    return _PURE
+
+
+def run_model(consts: "FirmwareConstants", adc: np.ndarray, acc: np.ndarray | None = None, *,
+              engine: str = "auto") -> ModelTrace:
     """Run the integer model of ``consts.program`` over one or many input streams, bit-exact per
     docs/firmware-spec.md §5-§7.
 
     * ``adc``: barometer ADC counts (unsigned 16-bit register, 0..65535), shape ``(n,)`` or ``(streams, n)``.
     * ``acc``: accelerometer counts (signed 16-bit register, -32768..32767), same shape, or ``None`` (all zero;
       only ``recursive`` and ``kalman_accel`` read it).
+    * ``engine``: ``auto`` (the numba kernels when numba is importable and ``FWEMU_NO_NUMBA`` is not set, else
+      the same source in Python), ``numba`` (refuse to run uncompiled) or ``python`` (the kernels' source as
+      plain Python on exact ints: slow, for debugging). All give the same words and wrap report.
 
     Sequencing as the harness: sample 0 is seen by ``init`` and by the first ``step``. Returns a
     :class:`ModelTrace` whose ``words`` (int64; ``.l`` words signed int32, ``.w`` words unsigned 16-bit) are in
@@ -107,161 +130,59 @@ def run_model(consts: "FirmwareConstants", adc: np.ndarray, acc: np.ndarray | No
     program = consts.program
     if program not in STATE_WORDS:
         raise UserError(f"build constants: unknown program {program!r}; known: {', '.join(STATE_WORDS)}")
-    mode = rounding_mode(consts)
+    rounding_mode(consts)
     one_stream = np.ndim(adc) == 1
-    adc2, acc2 = as_input_streams(adc, acc)
+    adc2, acc2 = _input_streams(adc, acc)
     if consts.BARO_SIGN not in (1, -1):
         raise UserError(f"build constants: BARO_SIGN={consts.BARO_SIGN!r} must be +1 or -1")
-    runner = {"recursive": _run_recursive, "recursive_seed_literal": _run_seed_literal,
-              "kalman_baro": _run_kalman, "kalman_accel": _run_kalman}[program]
-    tracker = _WrapTracker(adc2.shape[0])
-    init_words, words = runner(consts, mode, adc2, acc2, tracker)
+    kern = _kernels_for(engine)
     names = word_names(program)
+    init_words, words, first, word_ids = _run_kernels(kern, consts, adc2, acc2)
+    wrap_names = np.array(kern.WRAP_NAMES, dtype=object)[word_ids]
     if one_stream:
-        return ModelTrace(program, names, words[0], init_words[0], first_wrap=int(tracker.first[0]),
-                          wrap_word=str(tracker.word[0]))
-    return ModelTrace(program, names, words, init_words, first_wrap=tracker.first, wrap_word=tracker.word)
+        return ModelTrace(program, names, words[0], init_words[0], first_wrap=int(first[0]),
+                          wrap_word=str(wrap_names[0]))
+    return ModelTrace(program, names, words, init_words, first_wrap=first, wrap_word=wrap_names)
 
 
-# ---------------------------------------------------------------------------------------------------- recursive
-def _run_recursive(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np.ndarray,
-                   tr: _WrapTracker) -> tuple[np.ndarray, np.ndarray]:
-    """docs/firmware-spec.md §5 (EST, EXT, VEL, ACC0, EVENTS)."""
+def _input_streams(adc: Any, acc: Any) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`firmware_model.inputs.as_input_streams` (which names the bad sample), with a fast path for the
+    common case of integer arrays already in range: a min/max scan and no copy, instead of a copy and a mask."""
+    a = adc if isinstance(adc, np.ndarray) else None
+    b = acc if acc is None or isinstance(acc, np.ndarray) else None
+    if (a is not None and a.dtype.kind in "iu" and a.ndim in (1, 2) and a.shape[-1] >= 1
+            and (acc is None or (b is not None and b.dtype.kind in "iu" and b.shape == a.shape))):
+        ok = int(a.min()) >= 0 and int(a.max()) <= 0xFFFF
+        if ok and b is not None:
+            ok = int(b.min()) >= -0x8000 and int(b.max()) <= 0x7FFF
+        if ok:
+            a2 = np.atleast_2d(a.astype(np.int64, copy=False))
+            b2 = np.zeros_like(a2) if b is None else np.atleast_2d(b.astype(np.int64, copy=False))
+            return a2, b2
+    return as_input_streams(adc, acc)
+
+
+def _run_kernels(kern: ModuleType, consts: "FirmwareConstants", adc: np.ndarray,
+                 acc: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Allocate and call ``kern.run_streams``: (init_words, words, first_wrap, wrap ids), int64 arrays.
+    Compiled kernels get int64 arrays; plain-Python ones object arrays (exact Python ints), converted back at the
+    end (every output word is a wrapped int32 or a 16-bit word, so the conversion is exact)."""
     n_streams, n = adc.shape
-    S = int(consts.S)
-    z = adc * np.int64(consts.BARO_SIGN)
-    zin = z << np.int64(8 - S)                      # exact: |z| < 2^16, so |z << 7| < 2^23
-    est = z[:, 0] << np.int64(8)
-    ext = est.copy()
-    vel = np.zeros(n_streams, dtype=np.int64)
-    acc0 = acc[:, 0].copy()
-    ev = np.zeros(n_streams, dtype=np.int64)
-    init = np.stack([est, ext, vel, acc0, ev], axis=-1)
-    out = np.empty((n_streams, n, 5), dtype=np.int64)
-    v_lift, v_gate, thr = np.int64(consts.V_LIFT), np.int64(consts.V_GATE), np.int64(consts.THR)
-    for i in range(n):
-        vel = tr.w32(vel + (acc[:, i] - acc0), i, "VEL")
-        ev = np.where(((ev & _LIFTOFF) == 0) & (vel > v_lift), ev | _LIFTOFF, ev)
-        # 3a. armed once VEL is back below the gate, on a sample after the one that set GATE_HIGH (3b runs after)
-        ev = np.where(((ev & _GATE_HIGH) != 0) & ((ev & _ARMED) == 0) & (vel < v_gate), ev | _ARMED, ev)
-        # 3b. the accelerometer velocity has exceeded the gate since liftoff
-        ev = np.where(((ev & _LIFTOFF) != 0) & (vel > v_gate), ev | _GATE_HIGH, ev)
-        est = tr.w32(est + zin[:, i] - rs(est, S, mode), i, "EST")
-        up = est > ext
-        ext = np.where(up, est, ext)
-        fire = ~up & ((ev & _ARMED) != 0) & ((ev & _APOGEE) == 0) & (ext - est >= thr)
-        ev = np.where(fire, ev | _APOGEE, ev)
-        out[:, i, 0] = est
-        out[:, i, 1] = ext
-        out[:, i, 2] = vel
-        out[:, i, 3] = acc0
-        out[:, i, 4] = ev
-    return init, out
-
-
-def _run_seed_literal(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np.ndarray,
-                      tr: _WrapTracker) -> tuple[np.ndarray, np.ndarray]:
-    """Seed 000's pseudo-listing as written (step 4 with the subtraction backwards, no flight logic)."""
-    n_streams, n = adc.shape
-    S = int(consts.S)
-    z = adc * np.int64(consts.BARO_SIGN)
-    zin = z << np.int64(8 - S)
-    est = z[:, 0] << np.int64(8)
-    init = est[:, None].copy()
-    out = np.empty((n_streams, n, 1), dtype=np.int64)
-    for i in range(n):
-        est = tr.w32(est + rs(est, S, mode) - zin[:, i], i, "EST")
-        out[:, i, 0] = est
-    return init, out
-
-
-# ---------------------------------------------------------------------------------------------------- Kalman
-def _run_kalman(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np.ndarray,
-                tr: _WrapTracker) -> tuple[np.ndarray, np.ndarray]:
-    """docs/firmware-spec.md §6 (kalman_baro: X1 X2 X3 EVENTS APFRAC; kalman_accel: X1 X2 X3 ACC0 EVENTS APFRAC)."""
-    accel = consts.program == "kalman_accel"
-    n_streams, n = adc.shape
-    K = int(consts.K)
-    g = consts.gains
-    g1 = [g["G11"], g["G21"], g["G31"]]
-    g2 = [g["G12"], g["G22"], g["G32"]] if accel else None
-    acc_g = g["ACC_G"] if accel else None
-    z8 = (adc * np.int64(consts.BARO_SIGN)) << np.int64(8)
-    baro_ok_all = (adc >= consts.BARO_MIN) & (adc <= consts.BARO_MAX)
-    x1 = z8[:, 0].copy()
-    x2 = np.zeros(n_streams, dtype=np.int64)
-    x3 = np.zeros(n_streams, dtype=np.int64)
-    acc0 = acc[:, 0].copy()
-    ev = np.zeros(n_streams, dtype=np.int64)
-    apfrac = np.zeros(n_streams, dtype=np.int64)
-    zero = np.zeros(n_streams, dtype=np.int64)
-    cols = [x1, x2, x3] + ([acc0] if accel else []) + [ev, apfrac]
-    init = np.stack(cols, axis=-1)
-    out = np.empty((n_streams, n, len(cols)), dtype=np.int64)
-    v_lift = np.int64(consts.V_LIFT)
-    vlo, vhi, me = np.int64(consts.MACH_VLO), np.int64(consts.MACH_VHI), np.int64(consts.MACH_E)
-    for i in range(n):
-        # 1. predict
-        t1 = rs(x2, K, mode) + rs(x3, 2 * K + 1, mode)
-        t2 = rs(x3, K, mode)
-        x1 = tr.w32(x1 + t1, i, "X1")
-        x2 = tr.w32(x2 + t2, i, "X2")
-        ev = ev & LATCHED_EVENTS
-        # 2. barometer range
-        baro_ok = baro_ok_all[:, i]
-        ev = np.where(baro_ok, ev, ev | _BARO_INVALID)
-        # 3. innovation
-        e1 = tr.w32(z8[:, i] - x1, i, "e1")
-        # 4. Mach lockout: kalman_accel only (kalman_baro has no other measurement to run on meanwhile)
-        if accel:
-            lift = (ev & _LIFTOFF) != 0
-            lockout = baro_ok & lift & (x2 > vlo) & (x2 < vhi) & ((e1 > me) | (e1 < -me))
-            ev = np.where(lockout, ev | _MACH, ev)
-        else:
-            lockout = np.zeros(n_streams, dtype=bool)
-        # 5. accelerometer innovation
-        if accel:
-            a = tr.mulg(acc[:, i] - acc0, acc_g, mode, i, "mulg(acc,ACC_G)")
-            e2 = tr.w32(a - x3, i, "e2")
-        # 6. correct
-        use1 = baro_ok & ~lockout
-        xs = [x1, x2, x3]
-        for j in range(3):
-            c1 = np.where(use1, tr.mulg(e1, g1[j], mode, i, f"mulg(e1,G{j + 1}1)"), zero)
-            c = xs[j] + c1
-            if accel:
-                c = c + tr.mulg(e2, g2[j], mode, i, f"mulg(e2,G{j + 1}2)")
-            xs[j] = tr.w32(c, i, f"X{j + 1}")
-        x1, x2, x3 = xs
-        # 7. lockout: altitude := measurement
-        x1 = np.where(lockout, z8[:, i], x1)
-        # 8. liftoff
-        ev = np.where(((ev & _LIFTOFF) == 0) & (x2 > v_lift), ev | _LIFTOFF, ev)
-        # 9. apogee
-        lift = (ev & _LIFTOFF) != 0
-        ev = np.where(lift & ((ev & _APOGEE) == 0) & ~lockout & (x2 < 0), ev | _APOGEE, ev)
-        # 10. low-rate apogee prediction
-        cand = lift & ((ev & (_APOGEE | _PREDICTED)) == 0) & (x2 > 0)
-        if cand.any():
-            d = -rs(x3, K, mode)
-            hit = cand & (x2 < d)
-            if hit.any():
-                dd = np.where(hit, d, 1)
-                v = np.where(hit, x2, 0)
-                while True:
-                    big = dd >= 32768
-                    if not big.any():
-                        break
-                    dd = np.where(big, dd >> 1, dd)
-                    v = np.where(big, v >> 1, v)
-                frac = np.minimum(65535, (v << np.int64(16)) // dd)
-                apfrac = np.where(hit, frac, apfrac)
-                ev = np.where(hit, ev | _PREDICTED, ev)
-        out[:, i, 0] = x1
-        out[:, i, 1] = x2
-        out[:, i, 2] = x3
-        if accel:
-            out[:, i, 3] = acc0
-        out[:, i, -2] = ev
-        out[:, i, -1] = apfrac
-    return init, out
+    cols = np.array(kern.OUT_COLS[consts.program], dtype=np.int64)
+    prog = kern.PROGRAMS.index(consts.program)
+    first = np.empty(n_streams, dtype=np.int64)
+    word = np.empty(n_streams, dtype=np.int64)
+    if kern.COMPILED:
+        dt: type = np.int64
+        adc_k, acc_k = np.ascontiguousarray(adc, dtype=np.int64), np.ascontiguousarray(acc, dtype=np.int64)
+    else:
+        dt = object
+        adc_k, acc_k = adc.astype(object), acc.astype(object)
+    c = kern.pack_constants(consts, dtype=dt)
+    state = np.zeros((n_streams, kern.N_STATE), dtype=dt)
+    init_out = np.empty((n_streams, len(cols)), dtype=dt)
+    out = np.empty((n_streams, n, len(cols)), dtype=dt)
+    kern.run_streams(prog, adc_k, acc_k, c, cols, state, init_out, out, first, word)
+    if not kern.COMPILED:
+        init_out, out = init_out.astype(np.int64), out.astype(np.int64)
+    return init_out, out, first, word

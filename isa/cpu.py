@@ -58,10 +58,13 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
+from isa import codecache
 from isa.blocks import _RN, BLOCK_MAX, _BlockInfo, block_entries, compile_block
 from isa.closures import HANDLERS, build_closure
 from isa.errors import AddressError, BusError, CPUFault, IllegalInstruction, IsaError, LimitExceeded
 from isa.memory import _CODE, _TOP, MapError, Memory, Region
+
+_SET_CODE_TABLE = bytes(b | _CODE for b in range(256))
 from isa.operands import Instruction
 from isa.program import Program
 from isa.semantics import CALL_SENTINEL, M32, _Fault, _format, _Stop
@@ -140,6 +143,7 @@ class CPU:
         self._mem = self.memory.mem
         self._flags = self.memory.flags
         self._rd, self._wr = self.memory.rd, self.memory.wr
+        self._mkey = codecache.map_key(())
         self._R: list[int] = [0] * 17  # D0-D7, A0-A7, SR
         self._R[16] = 0x2700
         self._pc = 0
@@ -209,6 +213,7 @@ class CPU:
         ``writable=False`` makes a ROM: programs writing it get a :class:`~isa.errors.BusError` (the host may still
         write it through :meth:`write`/:meth:`load`)."""
         self.memory.map(start, size, name, writable)
+        self._mkey = codecache.map_key(self.memory.regions)
 
     @property
     def regions(self) -> tuple[Region, ...]:
@@ -341,6 +346,15 @@ class CPU:
         faults are raised as _Fault."""
         if pc & 1:
             raise _Fault(AddressError, f"instruction fetch at odd address ${pc:06X}")
+        hit = codecache.lookup_decoded(self._mem, self._flags, pc)
+        if hit is not None:
+            ins, length, h, cond = hit
+            info = self._decoded[pc] = (ins, length)
+            self._meta[pc] = (h, cond)
+            fl = self._flags
+            for b in range(pc, pc + length):
+                fl[b] |= _CODE
+            return info
         from isa.decoder import decode
 
         try:
@@ -353,6 +367,7 @@ class CPU:
             raise _Fault(IllegalInstruction, f"cannot decode: {exc}") from None
         info = self._decoded[pc] = (dec.instruction, dec.length)
         self._meta[pc] = (dec.row.handler, dec.cond)
+        codecache.store_decoded(self._mem, pc, (dec.instruction, dec.length, dec.row.handler, dec.cond))
         fl = self._flags
         for b in range(pc, pc + dec.length):
             fl[b] |= _CODE
@@ -368,6 +383,10 @@ class CPU:
         end address)``, so the run loop can keep ``max_instructions``/``max_cycles`` exact."""
         # code that keeps rewriting itself: recompiling big blocks each time would cost more than it saves
         most = BLOCK_MAX if self._block_drops.get(start, 0) < 2 else 0
+        if most == BLOCK_MAX and not start & 1:
+            hit = codecache.lookup_block(self._mem, start, self._mkey)
+            if hit is not None:
+                return self._adopt_block(start, *hit)
         entries = block_entries(start, most, self._decoded_at)
         if not entries:
             entry: tuple[Callable[[], int] | None, int, int, int] = (None, 0, 0, 0)
@@ -376,6 +395,24 @@ class CPU:
                 self._block_members.setdefault(start, []).append(start)
             return entry
         bind, info = compile_block(entries)
+        if most == BLOCK_MAX:
+            codecache.store_block(self._mem, start, self._mkey, info.end, entries, bind, info)
+        return self._bind_block(start, entries, bind, info)
+
+    def _adopt_block(self, start: int, end: int, code: bytes, entries: list[Any], bind: Any, info: _BlockInfo
+                     ) -> tuple[Callable[[], int] | None, int, int, int]:
+        """Take over a block another CPU compiled from the same bytes (:mod:`isa.codecache`): record its
+        instructions as decoded here and mark its bytes as code, as decoding them would have."""
+        decoded, meta = self._decoded, self._meta
+        for pc, ins, h, cond, length in entries:
+            decoded[pc] = (ins, length)
+            meta[pc] = (h, cond)
+        fl = self._flags
+        fl[start:end] = fl[start:end].translate(_SET_CODE_TABLE)
+        return self._bind_block(start, entries, bind, info)
+
+    def _bind_block(self, start: int, entries: list[Any], bind: Any, info: _BlockInfo
+                    ) -> tuple[Callable[[], int] | None, int, int, int]:
         rd, wr = self._rd, self._wr
         fn = bind(self._R, self._min_sp, self._smc, rd[1], rd[2], rd[4], wr[1], wr[2], wr[4])
         entry = (fn, info.n, info.bound, info.end)

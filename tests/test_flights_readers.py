@@ -281,3 +281,50 @@ def test_rdas_bad_line(tmp_path: Path) -> None:
     (tmp_path / "r.txt").write_text("\n".join(lines))
     with pytest.raises(UserError, match=r"r\.txt:13: time does not increase"):
         read_flight(tmp_path / "r.txt", format="rdas")
+
+
+# ------------------------------------------------------------------------------------------------ writer
+finite = st.floats(-1e6, 1e6, allow_nan=False, allow_infinity=False)
+
+
+@settings(max_examples=examples(40))
+@given(data=st.data(), n=st.integers(2, 40), with_acc=st.booleans(), with_truth=st.booleans(),
+       gaps=st.booleans())
+def test_generic_round_trip_bit_exact(data: st.DataObject, n: int, with_acc: bool, with_truth: bool,
+                                      gaps: bool) -> None:
+    from firmware_model.flights.readers import write_generic
+    from firmware_model.flights.record import FlightRecord, Truth
+
+    steps = np.array(data.draw(st.lists(st.floats(1e-6, 10.0), min_size=n - 1, max_size=n - 1)))
+    t = np.concatenate([[data.draw(st.floats(-100, 100))], np.zeros(n - 1)])
+    t[1:] = t[0] + np.cumsum(steps)
+    if not np.all(np.diff(t) > 0):
+        return
+    p = np.array(data.draw(st.lists(st.floats(1.0, 2e5), min_size=n, max_size=n)))
+    if gaps:
+        p[data.draw(st.integers(1, n - 1))] = np.nan
+    acc = np.array(data.draw(st.lists(finite, min_size=n, max_size=n))) if with_acc else None
+    truth = None
+    if with_truth:
+        truth = Truth(altitude_m=np.array(data.draw(st.lists(finite, min_size=n, max_size=n))),
+                      apogee_time_s=float(t[n // 2]), apogee_altitude_m=123.456789012345)
+    rec = FlightRecord(name="rt case", time_s=t, pressure_pa=p, accel_mps2=acc, truth=truth,
+                       ground_pressure_pa=98765.4321, provenance={"licence": "MIT", "source": "x"})
+    with tempfile.TemporaryDirectory() as d:
+        path = write_generic(rec, Path(d) / "rt.csv")
+        assert sorted(os.listdir(d)) == ["rt.csv"]                       # no temporary left behind
+        back = read_flight(path)
+    np.testing.assert_array_equal(back.time_s, t)
+    np.testing.assert_array_equal(back.pressure_pa, p)                  # NaN where NaN
+    if with_acc:
+        np.testing.assert_array_equal(back.accel_mps2, acc)
+    else:
+        assert back.accel_mps2 is None
+    assert back.name == "rt case" and back.ground_pressure_pa == 98765.4321
+    assert back.provenance["licence"] == "MIT"
+    if with_truth:
+        np.testing.assert_array_equal(back.truth.altitude_m, truth.altitude_m)
+        assert back.truth.apogee_time_s == truth.apogee_time_s
+        assert back.truth.apogee_altitude_m == truth.apogee_altitude_m
+    else:
+        assert back.truth is None

@@ -297,3 +297,62 @@ def test_flights_strategy_subsonic_with_truth(rec):
     assert 0.0 < rec.truth.apogee_time_s < t[-1]
     assert np.all(rec.accel_mps2[t < 0] == G)
     assert rec.ground_pressure_pa == pytest.approx(rec.pressure_pa[0])
+
+
+# --------------------------------------------------------------------------------------------------- RocketPy
+
+def test_rocketpy_missing_is_a_user_error(monkeypatch):
+    import sys
+
+    from firmware_model.flights import rocketpy_sim
+    monkeypatch.setitem(sys.modules, "rocketpy", None)
+    with pytest.raises(UserError, match="install the flights extra"):
+        rocketpy_sim.simulate_rocketpy(s1.Rocket("x", 8.0, 0.1, mo.load_motor("K400C")))
+
+
+def test_rocketpy_cross_check_and_record():
+    """Vertical, no wind, same rocket in both simulators. Measured (docs/flights-sim.md): K828FJ subsonic
+    +0.006 % apogee, +5.8 ms, +0.008 % burnout velocity; M1670 transonic -0.048 %, +11.9 ms, -0.014 %.
+    Asserted bounds for both: 0.1 %, 25 ms, 0.05 %."""
+    pytest.importorskip("rocketpy")
+    from firmware_model.flights import crosscheck
+    name = "K828FJ subsonic"
+    c = crosscheck.compare(name, crosscheck.CROSS_CHECK_ROCKETS[name])
+    assert abs(c.apogee_rel) < 1e-3, c.line()
+    assert abs(c.apogee_dt) < 0.025, c.line()
+    assert abs(c.burnout_rel) < 5e-4, c.line()
+    rec = c.rpy
+    t = rec.time_s
+    assert np.allclose(np.diff(t), 1e-3, atol=1e-12) and np.all(rec.accel_mps2[t < 0] == pytest.approx(G))
+    coast = (t > 3.0) & (t < rec.truth.apogee_time_s)
+    fast = coast & (rec.truth.velocity_mps > 30.0)
+    assert np.all(rec.accel_mps2[fast] < 0)            # drag decelerates: the accelerometer reads negative
+    assert np.all(rec.accel_mps2[coast] < 0.01)        # (near apogee RocketPy's frame terms give ~+2e-3 m/s^2)
+    # the pressure is the standard atmosphere at the truth (geopotential) altitude
+    site = atm.altitude_m(rec.ground_pressure_pa)
+    assert np.allclose(atm.altitude_m(rec.pressure_pa), site + rec.truth.altitude_m, atol=1e-6)
+    assert abs(rec.truth.apogee_altitude_m - rec.truth.altitude_m.max()) < 0.05
+    # same inputs, same bytes
+    again = crosscheck.compare(name, crosscheck.CROSS_CHECK_ROCKETS[name]).rpy
+    assert _digest(again) == _digest(rec)
+
+
+def _slow() -> bool:
+    import os
+
+    from tests import profiles
+    return profiles.PROFILE == "thorough" or os.environ.get("FWEMU_SLOW") == "1"
+
+
+@pytest.mark.parametrize("name", [n for n in sc.scenario_names() if sc.get_scenario(n).simulator == "rocketpy"])
+def test_rocketpy_scenario_is_in_its_class(name):
+    pytest.importorskip("rocketpy")
+    if not _slow():
+        pytest.skip("RocketPy scenarios take seconds each: run with HYPOTHESIS_PROFILE=thorough or FWEMU_SLOW=1")
+    s = sc.get_scenario(name)
+    rec = sc.simulate_scenario(name)
+    lo, hi = sc.MACH_CLASSES[s.mach_class]
+    assert lo <= rec.provenance["summary"]["max_mach"] <= hi
+    assert 250.0 <= rec.truth.apogee_altitude_m <= 10_500.0
+    kinds = [e["effect"] for e in rec.provenance.get("effects", [])]
+    assert ("transonic_pressure_error" in kinds) == (s.transonic is not None)

@@ -41,7 +41,8 @@ class FirmwareInputs:
     * ``k``, ``report`` (:class:`ResampleReport`), ``baro``, ``accel`` (the sensors), ``seed``;
     * ``liftoff_s``, ``ground_pressure_pa``: what the stream was built around;
     * ``truth``: the record's truth arrays resampled onto the grid (``altitude_m``, ``velocity_mps``,
-      ``accel_mps2``; None where absent), for plots and evaluation.
+      ``accel_mps2``; None where absent), for plots and evaluation;
+    * ``clipped``: samples at a sensor's output limits (``baro``, ``accel``), also noted in the report.
     """
 
     adc: np.ndarray
@@ -58,6 +59,7 @@ class FirmwareInputs:
     pressure_pa: np.ndarray = field(repr=False, default=None)          # resampled, noise-free
     specific_force_mps2: np.ndarray | None = field(repr=False, default=None)
     truth: dict[str, np.ndarray | None] = field(default_factory=dict, repr=False)
+    clipped: dict[str, int] = field(default_factory=dict)       # samples at a sensor's limits, per sensor
 
     @property
     def n(self) -> int:
@@ -136,15 +138,23 @@ def firmware_inputs(record: FlightRecord, k: int, baro: BaroSensor | None = None
                             + (f", specific force {pads['accel_mps2']:.3f} m/s^2)" if f is not None else ")"))
     rng = np.random.default_rng(seed)
     adc = baro.counts(out["pressure_pa"], rng)
+    clipped = {"baro": int(np.sum((adc <= (0 if baro.kind == "adc" else np.ceil(baro.p_min_pa)))
+                                  | (adc >= baro.full_scale)))}
     if f is not None:
         acc = accel.counts(out["accel_mps2"], rng)
+        lo, hi = accel.count_limits
+        clipped["accel"] = int(np.sum((acc <= lo) | (acc >= hi)))
     else:
         acc = np.zeros_like(adc)
         report.notes.append("record without accelerometer: acc = 0 on every sample")
+    for name, count in clipped.items():
+        if count:
+            report.notes.append(f"{count} {name} samples at the sensor's limits (clipped)")
     return FirmwareInputs(adc=adc, acc=acc, time_s=g, k=int(k), report=report, baro=baro, accel=accel, seed=seed,
                           has_accel=f is not None, liftoff_s=lift, ground_pressure_pa=ground_pressure(record),
                           pressure_pa=out["pressure_pa"], specific_force_mps2=out["accel_mps2"],
-                          truth={n: out[f"true_{n}"] for n in ("altitude_m", "velocity_mps", "accel_mps2")})
+                          truth={n: out[f"true_{n}"] for n in ("altitude_m", "velocity_mps", "accel_mps2")},
+                          clipped=clipped)
 
 
 __all__ = ["DEFAULT_PAD_S", "FirmwareInputs", "firmware_inputs", "G0"]

@@ -7,9 +7,10 @@
   ``"baro_parabola"``. Altitude: standard-atmosphere altitude of each pressure minus that of the ground pressure
   (``record.ground_pressure_pa``, else the median pad pressure, :func:`ground_pressure`).
 
-  1. Isolated spikes: a sample is a spike when it differs from the median of its 7-sample neighbourhood by more than
-     max(6 x the robust noise (1.4826 x MAD of those differences over the flight), 3 m); spikes are never used.
-  2. The peak: the highest sample of the 7-sample running median (spikes removed).
+  1. Isolated spikes: within 3.75 s of the highest point of the 7-sample running median, a sample is a spike when it
+     differs from the median of its 7-sample neighbourhood by more than max(6 sigma, 3 m), sigma from
+     :func:`noise_scale`; spikes are never used.
+  2. The peak: the highest point of the 7-sample running median of the samples left.
   3. Fit: ``h = c0 + c1 (t - tp) + c2 (t - tp)^2`` by least squares over the samples with |t - tp| <= w, each
      sample weighted by the time it represents (half the sum of its two intervals: a 100 samples/s ascent and a
      10 samples/s descent count by duration, not by rows), iterated: residuals beyond 3 x their robust scale
@@ -210,7 +211,12 @@ def reference_apogee(record: FlightRecord) -> ReferenceApogee:
         raise UserError(f"{where}: too few barometer samples ({t.size}) for a reference apogee")
     pad = t < liftoff_time(record)
     noise = noise_scale(h, pad)
-    spike = spikes(h, noise)
+    # the peak of the running median (robust to up to 3 consecutive outliers), then spikes near it only: far
+    # from the peak a fast, irregularly sampled descent differs from its running median without being a spike
+    tp0 = float(t[int(np.argmax(_running_median(h, MEDIAN_HALF)))])
+    region = np.abs(t - tp0) <= max(WINDOWS_S) + max(abs(s) for s in SHIFTS_S) + 1.0
+    spike = np.zeros(t.shape, dtype=bool)
+    spike[region] = spikes(h[region], noise)
     t_c, h_c = t[~spike], h[~spike]
     smooth = _running_median(h_c, MEDIAN_HALF)
     ip = int(np.argmax(smooth))

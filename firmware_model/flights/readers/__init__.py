@@ -17,6 +17,7 @@ from pathlib import Path
 from firmware_model.errors import UserError
 from firmware_model.flights.readers import altosui, cats, generic, rdas
 from firmware_model.flights.readers._common import read_text
+from firmware_model.flights.readers.generic import write_generic
 from firmware_model.flights.record import FlightRecord
 
 #: Known formats, in detection order.
@@ -45,4 +46,4 @@ def read_flight(path: str | Path, format: str | None = None) -> FlightRecord:  #
     return _MODULES[format].read(path)
 
 
-__all__ = ["FORMATS", "detect_format", "read_flight"]
+__all__ = ["FORMATS", "detect_format", "read_flight", "write_generic"]

@@ -170,3 +170,56 @@ def read(path: Path) -> FlightRecord:
     return FlightRecord(name=meta.get("name", path.stem), time_s=t, pressure_pa=p, accel_mps2=acc,
                         temperature_c=values.get("temperature_c"), ground_pressure_pa=ground, truth=truth,
                         provenance=provenance)
+
+
+def _fmt(x: float) -> str:
+    return "" if not np.isfinite(x) else repr(float(x))
+
+
+def write_generic(record: FlightRecord, path: str | Path) -> Path:
+    """Write ``record`` as a generic flight CSV that :func:`read` reads back to the same arrays, bit for bit
+    (shortest round-trip float repr; NaN as an empty field). Columns: ``time_s``, ``pressure_pa``, then
+    ``accel_mps2`` (the specific force, also for a record holding counts), ``temperature_c`` and the truth columns
+    where present; ``# key: value`` comments carry name, licence, source, ground pressure and the truth apogee.
+    Written to a temporary file in the same folder and renamed, so an interrupted write leaves no partial file."""
+    import os
+    import tempfile
+
+    path = Path(path)
+    cols: list[tuple[str, np.ndarray]] = [("time_s", np.asarray(record.time_s, dtype=np.float64)),
+                                          ("pressure_pa", np.asarray(record.pressure_pa, dtype=np.float64))]
+    f = record.specific_force_mps2()
+    if f is not None:
+        cols.append(("accel_mps2", f))
+    if record.temperature_c is not None:
+        cols.append(("temperature_c", np.asarray(record.temperature_c, dtype=np.float64)))
+    tr = record.truth
+    meta = {"name": record.name, "licence": record.provenance.get("licence", "unknown"),
+            "source": record.provenance.get("source", record.name)}
+    if record.ground_pressure_pa is not None:
+        meta["ground_pressure_pa"] = repr(float(record.ground_pressure_pa))
+    if tr is not None:
+        for name, col in (("altitude_m", "true_altitude_m"), ("velocity_mps", "true_velocity_mps"),
+                          ("accel_mps2", "true_accel_mps2")):
+            arr = getattr(tr, name)
+            if arr is not None:
+                cols.append((col, np.asarray(arr, dtype=np.float64)))
+        if tr.apogee_time_s is not None:
+            meta["true_apogee_time_s"] = repr(float(tr.apogee_time_s))
+        if tr.apogee_altitude_m is not None:
+            meta["true_apogee_altitude_m"] = repr(float(tr.apogee_altitude_m))
+    lines = [f"# {k}: {' '.join(str(v).split())}" for k, v in meta.items()]
+    lines.append(",".join(name for name, _ in cols))
+    arrays = [a for _, a in cols]
+    for i in range(record.n):
+        lines.append(",".join(_fmt(a[i]) for a in arrays))
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", newline="\n") as fh:
+            fh.write("\n".join(lines) + "\n")
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return path

@@ -1,0 +1,452 @@
+"""The integer model's kernels: one Python source, compiled with numba when it is importable, run as plain Python
+(exact Python ints) when it is not or when ``FWEMU_NO_NUMBA=1``.
+
+docs/firmware-spec.md §5-§7 bit for bit. :func:`firmware_model.model.run_model` packs the build constants
+(:func:`pack_constants`), allocates the arrays and calls :func:`run_streams`, which runs every stream (in
+parallel with ``prange`` when compiled) through the program's ``*_init`` once and its ``*_step`` per sample.
+
+Layout, chosen so that a program is easy to change or add:
+
+* **State**: a small 1-D integer array per stream, indices ``X1`` ... below (the Kalman programs share one
+  layout; ``OUT_COLS[program]`` says which state entries are the output words, in
+  :data:`firmware_model.trace.STATE_WORDS` order). Extra internal state goes after the output words
+  (raise ``N_STATE``).
+* **Constants**: one 1-D integer array, indices ``C_*`` below, filled by :func:`pack_constants` from a
+  :class:`~firmware_model.constants.FirmwareConstants`. A new constant: a new index + a line in
+  :func:`pack_constants`.
+* **Programs**: ``<program>_init(st, adc, acc, c)`` and ``<program>_step(st, adc, acc, c) -> wrap id`` for each
+  program, dispatched by :func:`_init` / :func:`_step` on the program number ``P_*``.
+* **Wrap detection**: every ``.l`` value is computed exactly, then :func:`_note` records the first quantity of
+  the sample whose exact value is outside int32 (its id, an index into :data:`WRAP_NAMES`) and :func:`_w32`
+  wraps it; ``step`` returns that id (0: none) and the driver keeps the first sample with a nonzero id.
+
+Exactness. Compiled, every integer is an ``int64``; uncompiled, :func:`firmware_model.model.run_model` passes
+object arrays, so every value is an exact Python ``int``. The int64 arithmetic is exact because no intermediate
+leaves int64: state words and constants are int32, inputs 16-bit, so sums of a few int32 values stay below 2^34,
+the gain products ``e * m`` (``e`` a wrapped int32 or ``acc - ACC0`` with ``|.| <= 65535``, ``|m| <= 2^15``) below
+2^46, and ``v << 16`` in the apogee prediction below 2^31 (``0 < v < d < 2^15`` there). Hence the exact values
+used for wrap detection are the int64 values themselves. tests/test_model_kernels.py checks this by running the
+compiled and the Python-int steps from states and constants at the int32 extremes. numba's ``>>`` on a signed
+int64 is an arithmetic shift (LLVM ``ashr``), i.e. floor like Python's; shifts are clamped to 63 (a shift of an
+int64 by 63 already gives the floor, 0 or -1; numba/LLVM shifts by >= 64 are undefined) - never reached by the
+spec's shifts (``2K + 1 <= 21``, gain shifts <= 47).
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+# ------------------------------------------------------------------------------------------- compiled or not
+#: Set to True on the module object before executing it (firmware_model.model.pure_kernels) for a Python copy.
+FORCE_PURE: bool = bool(globals().get("FORCE_PURE", False))
+
+
+def _load_numba():  # type: ignore[no-untyped-def]
+    if FORCE_PURE or os.environ.get("FWEMU_NO_NUMBA", "").strip() not in ("", "0"):
+        return None
+    try:
+        import numba
+    except ImportError:
+        return None
+    return numba
+
+
+_numba = _load_numba()
+#: True when the functions below are numba-compiled (dispatchers), False when they are plain Python.
+COMPILED: bool = _numba is not None
+
+if _numba is not None:
+    njit = _numba.njit
+    prange = _numba.prange
+else:
+    def njit(*args, **kwargs):  # type: ignore[no-redef]
+        """No numba: the decorated function stays plain Python."""
+        if args and callable(args[0]):
+            return args[0]
+        return lambda f: f
+
+    prange = range
+
+# ------------------------------------------------------------------------------------------- numbering
+#: Program numbers (the driver's dispatch), in the order of :data:`PROGRAMS`.
+P_RECURSIVE = 0
+P_SEED_LITERAL = 1
+P_KALMAN_BARO = 2
+P_KALMAN_ACCEL = 3
+PROGRAMS: tuple[str, ...] = ("recursive", "recursive_seed_literal", "kalman_baro", "kalman_accel")
+
+#: State indices. Recursive (and the seed listing, which uses EST only):
+EST = 0
+EXT = 1
+VEL = 2
+ACC0_R = 3
+EVENTS_R = 4
+#: Kalman (both programs; kalman_baro leaves ACC0 at 0 and does not output it):
+X1 = 0
+X2 = 1
+X3 = 2
+ACC0 = 3
+EVENTS = 4
+APFRAC = 5
+#: Length of the per-stream state array (the largest program's).
+N_STATE = 6
+
+#: State entries output per program, in firmware_model.trace.STATE_WORDS order.
+OUT_COLS: dict[str, tuple[int, ...]] = {
+    "recursive": (EST, EXT, VEL, ACC0_R, EVENTS_R),
+    "recursive_seed_literal": (EST,),
+    "kalman_baro": (X1, X2, X3, EVENTS, APFRAC),
+    "kalman_accel": (X1, X2, X3, ACC0, EVENTS, APFRAC),
+}
+
+#: Constant indices (docs/firmware-spec.md §3); gains as (mantissa, shift) pairs.
+C_K = 0
+C_ROUND = 1
+C_BARO_SIGN = 2
+C_S = 3
+C_THR = 4
+C_V_LIFT = 5
+C_V_GATE = 6
+C_MACH_VLO = 7
+C_MACH_VHI = 8
+C_MACH_E = 9
+C_BARO_MIN = 10
+C_BARO_MAX = 11
+C_G11_M = 12
+C_G11_S = 13
+C_G21_M = 14
+C_G21_S = 15
+C_G31_M = 16
+C_G31_S = 17
+C_G12_M = 18
+C_G12_S = 19
+C_G22_M = 20
+C_G22_S = 21
+C_G32_M = 22
+C_G32_S = 23
+C_ACC_G_M = 24
+C_ACC_G_S = 25
+N_CONST = 26
+_SCALARS = ("K", "ROUND", "BARO_SIGN", "S", "THR", "V_LIFT", "V_GATE", "MACH_VLO", "MACH_VHI", "MACH_E",
+            "BARO_MIN", "BARO_MAX")
+_GAINS = ("G11", "G21", "G31", "G12", "G22", "G32", "ACC_G")
+
+#: Wrap ids returned by the steps: the name of the quantity (as firmware_model.model.ModelTrace.wrap_word).
+WRAP_NAMES: tuple[str, ...] = ("", "EST", "VEL", "X1", "X2", "X3", "e1", "e2", "mulg(acc,ACC_G)",
+                               "mulg(e1,G11)", "mulg(e1,G21)", "mulg(e1,G31)",
+                               "mulg(e2,G12)", "mulg(e2,G22)", "mulg(e2,G32)")
+W_NONE = 0
+W_EST = 1
+W_VEL = 2
+W_X1 = 3
+W_X2 = 4
+W_X3 = 5
+W_E1 = 6
+W_E2 = 7
+W_ACC = 8
+W_E1G11 = 9
+W_E1G21 = 10
+W_E1G31 = 11
+W_E2G12 = 12
+W_E2G22 = 13
+W_E2G32 = 14
+
+#: Event bits (docs/firmware-spec.md §4; equal to firmware_model.trace.EVENT_BITS, checked by a test).
+LIFTOFF = 1
+ARMED = 2
+APOGEE = 4
+MACH_LOCKOUT = 8
+BARO_INVALID = 16
+APOGEE_PREDICTED = 32
+GATE_HIGH = 64
+LATCHED = LIFTOFF | ARMED | APOGEE | APOGEE_PREDICTED | GATE_HIGH
+
+INT32_MIN = -2147483648
+INT32_MAX = 2147483647
+
+
+def pack_constants(consts, dtype=np.int64) -> np.ndarray:  # type: ignore[no-untyped-def]
+    """The constants array of a :class:`~firmware_model.constants.FirmwareConstants` (indices ``C_*``); gains a
+    program does not have are (0, 0). ``dtype=object`` gives Python ints (the uncompiled path)."""
+    values = [int(getattr(consts, name)) for name in _SCALARS]
+    for name in _GAINS:
+        g = consts.gains.get(name)
+        values += [0, 0] if g is None else [int(g.m), int(g.s)]
+    return np.array(values, dtype=dtype)
+
+
+# ------------------------------------------------------------------------------------------- fixed point
+@njit(cache=True)
+def rs(x, s, rnd):  # type: ignore[no-untyped-def]
+    """Rounding right shift (docs/firmware-spec.md §1): floor (``rnd == 0``) or half_up (``rnd == 1``),
+    computed as ``(x >> s) + bit(s-1) of x`` (no intermediate value beyond x)."""
+    if s <= 0:
+        return x
+    q = x >> min(s, 63)
+    if rnd != 0:
+        q += (x >> min(s - 1, 63)) & 1
+    return q
+
+
+@njit(cache=True)
+def _w32(x):  # type: ignore[no-untyped-def]
+    """wrap32: the exact integer reduced to signed 32-bit two's complement."""
+    return ((x + 2147483648) & 4294967295) - 2147483648
+
+
+@njit(cache=True)
+def _note(w, x, wid):  # type: ignore[no-untyped-def]
+    """``wid`` if no wrap was noted yet in this sample (``w == 0``) and the exact ``x`` is outside int32."""
+    if w == 0 and (x < INT32_MIN or x > INT32_MAX):
+        return wid
+    return w
+
+
+# ------------------------------------------------------------------------------------------- recursive (§5)
+@njit(cache=True)
+def recursive_init(st, adc, acc, c):  # type: ignore[no-untyped-def]
+    """EST = EXT = z << 8; VEL = 0; ACC0 = acc; EVENTS = 0."""
+    z = adc * c[C_BARO_SIGN]
+    st[EST] = z << 8
+    st[EXT] = z << 8
+    st[VEL] = 0
+    st[ACC0_R] = acc
+    st[EVENTS_R] = 0
+
+
+@njit(cache=True)
+def recursive_step(st, adc, acc, c):  # type: ignore[no-untyped-def]
+    """docs/firmware-spec.md §5 steps 1-5; returns the first wrap id of the sample (0: none)."""
+    rnd = c[C_ROUND]
+    S = c[C_S]
+    w = W_NONE
+    z = adc * c[C_BARO_SIGN]
+    # 1. accelerometer velocity
+    vel = st[VEL] + (acc - st[ACC0_R])
+    w = _note(w, vel, W_VEL)
+    vel = _w32(vel)
+    ev = st[EVENTS_R]
+    # 2. liftoff
+    if (ev & LIFTOFF) == 0 and vel > c[C_V_LIFT]:
+        ev |= LIFTOFF
+    # 3a. armed once VEL is back below the gate, on a sample after the one that set GATE_HIGH (3b runs after)
+    if (ev & GATE_HIGH) != 0 and (ev & ARMED) == 0 and vel < c[C_V_GATE]:
+        ev |= ARMED
+    # 3b. the accelerometer velocity has exceeded the gate since liftoff
+    if (ev & LIFTOFF) != 0 and vel > c[C_V_GATE]:
+        ev |= GATE_HIGH
+    # 4. the filter
+    est = st[EST]
+    est = est + (z << (8 - S)) - rs(est, S, rnd)
+    w = _note(w, est, W_EST)
+    est = _w32(est)
+    # 5. extreme and apogee
+    ext = st[EXT]
+    if est > ext:
+        ext = est
+    elif (ev & ARMED) != 0 and (ev & APOGEE) == 0 and ext - est >= c[C_THR]:
+        ev |= APOGEE
+    st[EST] = est
+    st[EXT] = ext
+    st[VEL] = vel
+    st[EVENTS_R] = ev
+    return w
+
+
+@njit(cache=True)
+def seed_literal_init(st, adc, acc, c):  # type: ignore[no-untyped-def]
+    """EST = z << 8."""
+    st[EST] = (adc * c[C_BARO_SIGN]) << 8
+
+
+@njit(cache=True)
+def seed_literal_step(st, adc, acc, c):  # type: ignore[no-untyped-def]
+    """Seed 000's listing as written: EST += rs(EST, S) - (z << (8 - S)); no flight logic."""
+    S = c[C_S]
+    est = st[EST]
+    est = est + rs(est, S, c[C_ROUND]) - ((adc * c[C_BARO_SIGN]) << (8 - S))
+    w = _note(W_NONE, est, W_EST)
+    st[EST] = _w32(est)
+    return w
+
+
+# ------------------------------------------------------------------------------------------- Kalman (§6)
+@njit(cache=True)
+def kalman_init(st, adc, acc, c):  # type: ignore[no-untyped-def]
+    """X1 = z << 8; X2 = X3 = 0; ACC0 = acc (used by kalman_accel only); EVENTS = APFRAC = 0."""
+    st[X1] = (adc * c[C_BARO_SIGN]) << 8
+    st[X2] = 0
+    st[X3] = 0
+    st[ACC0] = acc
+    st[EVENTS] = 0
+    st[APFRAC] = 0
+
+
+@njit(cache=True)
+def kalman_step(st, adc, acc, c, accel):  # type: ignore[no-untyped-def]
+    """docs/firmware-spec.md §6 steps 1-10 (``accel``: kalman_accel, else kalman_baro); returns the first wrap id.
+
+    Wrap bookkeeping as the numpy model had it: every gain product is checked, also one whose correction is not
+    applied (barometer invalid or lockout), in the order X1, X2 (predict), e1, mulg(acc), e2, then per state i
+    mulg(e1, Gi1), mulg(e2, Gi2), Xi."""
+    rnd = c[C_ROUND]
+    K = c[C_K]
+    w = W_NONE
+    z8 = (adc * c[C_BARO_SIGN]) << 8
+    x1 = st[X1]
+    x2 = st[X2]
+    x3 = st[X3]
+    # 1. predict
+    t1 = rs(x2, K, rnd) + rs(x3, 2 * K + 1, rnd)
+    t2 = rs(x3, K, rnd)
+    x1 = x1 + t1
+    w = _note(w, x1, W_X1)
+    x1 = _w32(x1)
+    x2 = x2 + t2
+    w = _note(w, x2, W_X2)
+    x2 = _w32(x2)
+    ev = st[EVENTS] & LATCHED
+    # 2. barometer range
+    baro_ok = c[C_BARO_MIN] <= adc and adc <= c[C_BARO_MAX]
+    if not baro_ok:
+        ev |= BARO_INVALID
+    # 3. innovation
+    e1 = z8 - x1
+    w = _note(w, e1, W_E1)
+    e1 = _w32(e1)
+    # 4. Mach lockout (kalman_accel only)
+    lockout = False
+    if accel:
+        me = c[C_MACH_E]
+        lockout = (baro_ok and (ev & LIFTOFF) != 0 and c[C_MACH_VLO] < x2 and x2 < c[C_MACH_VHI]
+                   and (e1 > me or e1 < -me))
+        if lockout:
+            ev |= MACH_LOCKOUT
+    # 5. accelerometer innovation
+    e2 = 0
+    if accel:
+        a = rs((acc - st[ACC0]) * c[C_ACC_G_M], c[C_ACC_G_S], rnd)
+        w = _note(w, a, W_ACC)
+        a = _w32(a)
+        e2 = a - x3
+        w = _note(w, e2, W_E2)
+        e2 = _w32(e2)
+    # 6. correct
+    use1 = baro_ok and not lockout
+    c11 = rs(e1 * c[C_G11_M], c[C_G11_S], rnd)
+    w = _note(w, c11, W_E1G11)
+    c1 = _w32(c11) if use1 else 0
+    if accel:
+        c12 = rs(e2 * c[C_G12_M], c[C_G12_S], rnd)
+        w = _note(w, c12, W_E2G12)
+        c1 += _w32(c12)
+    x1 = x1 + c1
+    w = _note(w, x1, W_X1)
+    x1 = _w32(x1)
+    c21 = rs(e1 * c[C_G21_M], c[C_G21_S], rnd)
+    w = _note(w, c21, W_E1G21)
+    c2 = _w32(c21) if use1 else 0
+    if accel:
+        c22 = rs(e2 * c[C_G22_M], c[C_G22_S], rnd)
+        w = _note(w, c22, W_E2G22)
+        c2 += _w32(c22)
+    x2 = x2 + c2
+    w = _note(w, x2, W_X2)
+    x2 = _w32(x2)
+    c31 = rs(e1 * c[C_G31_M], c[C_G31_S], rnd)
+    w = _note(w, c31, W_E1G31)
+    c3 = _w32(c31) if use1 else 0
+    if accel:
+        c32 = rs(e2 * c[C_G32_M], c[C_G32_S], rnd)
+        w = _note(w, c32, W_E2G32)
+        c3 += _w32(c32)
+    x3 = x3 + c3
+    w = _note(w, x3, W_X3)
+    x3 = _w32(x3)
+    # 7. lockout: altitude := measurement
+    if lockout:
+        x1 = z8
+    # 8. liftoff
+    if (ev & LIFTOFF) == 0 and x2 > c[C_V_LIFT]:
+        ev |= LIFTOFF
+    # 9. apogee
+    if (ev & LIFTOFF) != 0 and (ev & APOGEE) == 0 and not lockout and x2 < 0:
+        ev |= APOGEE
+    # 10. low-rate apogee prediction
+    if (ev & LIFTOFF) != 0 and (ev & (APOGEE | APOGEE_PREDICTED)) == 0 and x2 > 0:
+        d = -rs(x3, K, rnd)
+        if x2 < d:
+            v = x2
+            while d >= 32768:
+                d = d >> 1
+                v = v >> 1
+            st[APFRAC] = min(65535, (v << 16) // d)
+            ev |= APOGEE_PREDICTED
+    st[X1] = x1
+    st[X2] = x2
+    st[X3] = x3
+    st[EVENTS] = ev
+    return w
+
+
+@njit(cache=True)
+def kalman_baro_step(st, adc, acc, c):  # type: ignore[no-untyped-def]
+    """kalman_baro: :func:`kalman_step` without the accelerometer and the lockout."""
+    return kalman_step(st, adc, acc, c, False)
+
+
+@njit(cache=True)
+def kalman_accel_step(st, adc, acc, c):  # type: ignore[no-untyped-def]
+    """kalman_accel: :func:`kalman_step` with the accelerometer innovation and the Mach lockout."""
+    return kalman_step(st, adc, acc, c, True)
+
+
+# ------------------------------------------------------------------------------------------- driver
+@njit(cache=True)
+def _init(prog, st, adc, acc, c):  # type: ignore[no-untyped-def]
+    if prog == P_RECURSIVE:
+        recursive_init(st, adc, acc, c)
+    elif prog == P_SEED_LITERAL:
+        seed_literal_init(st, adc, acc, c)
+    else:
+        kalman_init(st, adc, acc, c)
+
+
+@njit(cache=True)
+def _step(prog, st, adc, acc, c):  # type: ignore[no-untyped-def]
+    if prog == P_RECURSIVE:
+        return recursive_step(st, adc, acc, c)
+    if prog == P_SEED_LITERAL:
+        return seed_literal_step(st, adc, acc, c)
+    if prog == P_KALMAN_BARO:
+        return kalman_baro_step(st, adc, acc, c)
+    return kalman_accel_step(st, adc, acc, c)
+
+
+@njit(cache=True, parallel=True)
+def run_streams(prog, adc, acc, c, cols, state, init_out, out, first, word):  # type: ignore[no-untyped-def]
+    """Run every stream ``s`` of ``adc``/``acc`` (shape ``(streams, n)``) through program ``prog``: ``init`` on
+    sample 0, then ``step`` on samples 0..n-1. Writes ``init_out[s, j]`` and ``out[s, i, j]`` (the state entries
+    ``cols[j]``), ``first[s]`` (first sample with a wrap, or -1) and ``word[s]`` (its wrap id, or 0);
+    ``state`` (``(streams, N_STATE)``) is the work area. Streams run in parallel when compiled."""
+    n_streams = adc.shape[0]
+    n = adc.shape[1]
+    nw = cols.shape[0]
+    for s in prange(n_streams):
+        st = state[s]
+        _init(prog, st, adc[s, 0], acc[s, 0], c)
+        for j in range(nw):
+            init_out[s, j] = st[cols[j]]
+        f = -1
+        wid = 0
+        for i in range(n):
+            w = _step(prog, st, adc[s, i], acc[s, i], c)
+            if w != 0 and f < 0:
+                f = i
+                wid = w
+            for j in range(nw):
+                out[s, i, j] = st[cols[j]]
+        first[s] = f
+        word[s] = wid

@@ -1,0 +1,234 @@
+"""The numpy integer model (vectorised over streams, one Python loop over samples): the implementation that
+:mod:`firmware_model.model` used before the numba kernels (:mod:`firmware_model.model_kernels`), kept as an
+independent second implementation of docs/firmware-spec.md §5-§7 for the cross-check test
+(tests/test_model_kernels.py: same words, same first wrap and wrap word) and as the baseline of
+bench/bench_model.py. Not used by any command.
+
+It computes every ``.l`` value exactly in numpy ``int64`` and ``wrap32``s it (:mod:`firmware_model.fixed`). It is
+written differently from the kernels (whole-array ``np.where`` per step, a wrap tracker object), so a slip in one
+is unlikely to be repeated in the other. **A change to the firmware algorithms must be made here too** (or this
+module retired together with its cross-check), as for the 68000 assembly and the C port.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from firmware_model.errors import UserError
+from firmware_model.fixed import rs, wrap32, wrapped
+from firmware_model.inputs import as_input_streams
+from firmware_model.model import ModelTrace, rounding_mode
+from firmware_model.trace import EVENT_BITS, LATCHED_EVENTS, STATE_WORDS, word_names
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    from firmware_model.constants import FirmwareConstants, QGain
+
+_LIFTOFF = EVENT_BITS["LIFTOFF"]
+_ARMED = EVENT_BITS["ARMED"]
+_APOGEE = EVENT_BITS["APOGEE"]
+_MACH = EVENT_BITS["MACH_LOCKOUT"]
+_BARO_INVALID = EVENT_BITS["BARO_INVALID"]
+_PREDICTED = EVENT_BITS["APOGEE_PREDICTED"]
+_GATE_HIGH = EVENT_BITS["GATE_HIGH"]
+
+
+class _WrapTracker:
+    """Records, per stream, the first sample and quantity at which an exact value left the int32 range."""
+
+    def __init__(self, n_streams: int) -> None:
+        self.first = np.full(n_streams, -1, dtype=np.int64)
+        self.word = np.full(n_streams, "", dtype=object)
+
+    def w32(self, exact: np.ndarray, sample: int, name: str) -> np.ndarray:
+        """``wrap32(exact)``, noting streams for which the wrap changed the value."""
+        hit = wrapped(exact)
+        if hit.any():
+            new = hit & (self.first < 0)
+            self.first[new] = sample
+            self.word[new] = name
+            return wrap32(exact)
+        return exact
+
+    def mulg(self, e: np.ndarray, g: "QGain", mode: str, sample: int, name: str) -> np.ndarray:
+        """``mulg(e, g, mode)`` (docs/firmware-spec.md §1) = ``wrap32(rs(e*m, s, mode))``, noting wraps."""
+        return self.w32(rs(e * np.int64(g.m), g.s, mode), sample, name)
+
+
+def run_model_numpy(consts: "FirmwareConstants", adc: np.ndarray, acc: np.ndarray | None = None) -> ModelTrace:
+    """The numpy implementation of :func:`firmware_model.model.run_model` (same arguments, same result): run the
+    integer model of ``consts.program`` over one or many input streams, bit-exact per
+    docs/firmware-spec.md §5-§7.
+
+    * ``adc``: barometer ADC counts (unsigned 16-bit register, 0..65535), shape ``(n,)`` or ``(streams, n)``.
+    * ``acc``: accelerometer counts (signed 16-bit register, -32768..32767), same shape, or ``None`` (all zero;
+      only ``recursive`` and ``kalman_accel`` read it).
+
+    Sequencing as the harness: sample 0 is seen by ``init`` and by the first ``step``. Returns a
+    :class:`ModelTrace` whose ``words`` (int64; ``.l`` words signed int32, ``.w`` words unsigned 16-bit) are in
+    the order of :data:`firmware_model.trace.STATE_WORDS`, shape ``(n, n_words)`` for 1-D input or ``(streams, n,
+    n_words)`` for 2-D input; ``init_words`` likewise without the sample axis. Raises :class:`UserError` for
+    inputs that the 16-bit input registers cannot hold or a bad program / rounding constant.
+    """
+    program = consts.program
+    if program not in STATE_WORDS:
+        raise UserError(f"build constants: unknown program {program!r}; known: {', '.join(STATE_WORDS)}")
+    mode = rounding_mode(consts)
+    one_stream = np.ndim(adc) == 1
+    adc2, acc2 = as_input_streams(adc, acc)
+    if consts.BARO_SIGN not in (1, -1):
+        raise UserError(f"build constants: BARO_SIGN={consts.BARO_SIGN!r} must be +1 or -1")
+    runner = {"recursive": _run_recursive, "recursive_seed_literal": _run_seed_literal,
+              "kalman_baro": _run_kalman, "kalman_accel": _run_kalman}[program]
+    tracker = _WrapTracker(adc2.shape[0])
+    init_words, words = runner(consts, mode, adc2, acc2, tracker)
+    names = word_names(program)
+    if one_stream:
+        return ModelTrace(program, names, words[0], init_words[0], first_wrap=int(tracker.first[0]),
+                          wrap_word=str(tracker.word[0]))
+    return ModelTrace(program, names, words, init_words, first_wrap=tracker.first, wrap_word=tracker.word)
+
+
+# ---------------------------------------------------------------------------------------------------- recursive
+def _run_recursive(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np.ndarray,
+                   tr: _WrapTracker) -> tuple[np.ndarray, np.ndarray]:
+    """docs/firmware-spec.md §5 (EST, EXT, VEL, ACC0, EVENTS)."""
+    n_streams, n = adc.shape
+    S = int(consts.S)
+    z = adc * np.int64(consts.BARO_SIGN)
+    zin = z << np.int64(8 - S)                      # exact: |z| < 2^16, so |z << 7| < 2^23
+    est = z[:, 0] << np.int64(8)
+    ext = est.copy()
+    vel = np.zeros(n_streams, dtype=np.int64)
+    acc0 = acc[:, 0].copy()
+    ev = np.zeros(n_streams, dtype=np.int64)
+    init = np.stack([est, ext, vel, acc0, ev], axis=-1)
+    out = np.empty((n_streams, n, 5), dtype=np.int64)
+    v_lift, v_gate, thr = np.int64(consts.V_LIFT), np.int64(consts.V_GATE), np.int64(consts.THR)
+    for i in range(n):
+        vel = tr.w32(vel + (acc[:, i] - acc0), i, "VEL")
+        ev = np.where(((ev & _LIFTOFF) == 0) & (vel > v_lift), ev | _LIFTOFF, ev)
+        # 3a. armed once VEL is back below the gate, on a sample after the one that set GATE_HIGH (3b runs after)
+        ev = np.where(((ev & _GATE_HIGH) != 0) & ((ev & _ARMED) == 0) & (vel < v_gate), ev | _ARMED, ev)
+        # 3b. the accelerometer velocity has exceeded the gate since liftoff
+        ev = np.where(((ev & _LIFTOFF) != 0) & (vel > v_gate), ev | _GATE_HIGH, ev)
+        est = tr.w32(est + zin[:, i] - rs(est, S, mode), i, "EST")
+        up = est > ext
+        ext = np.where(up, est, ext)
+        fire = ~up & ((ev & _ARMED) != 0) & ((ev & _APOGEE) == 0) & (ext - est >= thr)
+        ev = np.where(fire, ev | _APOGEE, ev)
+        out[:, i, 0] = est
+        out[:, i, 1] = ext
+        out[:, i, 2] = vel
+        out[:, i, 3] = acc0
+        out[:, i, 4] = ev
+    return init, out
+
+
+def _run_seed_literal(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np.ndarray,
+                      tr: _WrapTracker) -> tuple[np.ndarray, np.ndarray]:
+    """Seed 000's pseudo-listing as written (step 4 with the subtraction backwards, no flight logic)."""
+    n_streams, n = adc.shape
+    S = int(consts.S)
+    z = adc * np.int64(consts.BARO_SIGN)
+    zin = z << np.int64(8 - S)
+    est = z[:, 0] << np.int64(8)
+    init = est[:, None].copy()
+    out = np.empty((n_streams, n, 1), dtype=np.int64)
+    for i in range(n):
+        est = tr.w32(est + rs(est, S, mode) - zin[:, i], i, "EST")
+        out[:, i, 0] = est
+    return init, out
+
+
+# ---------------------------------------------------------------------------------------------------- Kalman
+def _run_kalman(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np.ndarray,
+                tr: _WrapTracker) -> tuple[np.ndarray, np.ndarray]:
+    """docs/firmware-spec.md §6 (kalman_baro: X1 X2 X3 EVENTS APFRAC; kalman_accel: X1 X2 X3 ACC0 EVENTS APFRAC)."""
+    accel = consts.program == "kalman_accel"
+    n_streams, n = adc.shape
+    K = int(consts.K)
+    g = consts.gains
+    g1 = [g["G11"], g["G21"], g["G31"]]
+    g2 = [g["G12"], g["G22"], g["G32"]] if accel else None
+    acc_g = g["ACC_G"] if accel else None
+    z8 = (adc * np.int64(consts.BARO_SIGN)) << np.int64(8)
+    baro_ok_all = (adc >= consts.BARO_MIN) & (adc <= consts.BARO_MAX)
+    x1 = z8[:, 0].copy()
+    x2 = np.zeros(n_streams, dtype=np.int64)
+    x3 = np.zeros(n_streams, dtype=np.int64)
+    acc0 = acc[:, 0].copy()
+    ev = np.zeros(n_streams, dtype=np.int64)
+    apfrac = np.zeros(n_streams, dtype=np.int64)
+    zero = np.zeros(n_streams, dtype=np.int64)
+    cols = [x1, x2, x3] + ([acc0] if accel else []) + [ev, apfrac]
+    init = np.stack(cols, axis=-1)
+    out = np.empty((n_streams, n, len(cols)), dtype=np.int64)
+    v_lift = np.int64(consts.V_LIFT)
+    vlo, vhi, me = np.int64(consts.MACH_VLO), np.int64(consts.MACH_VHI), np.int64(consts.MACH_E)
+    for i in range(n):
+        # 1. predict
+        t1 = rs(x2, K, mode) + rs(x3, 2 * K + 1, mode)
+        t2 = rs(x3, K, mode)
+        x1 = tr.w32(x1 + t1, i, "X1")
+        x2 = tr.w32(x2 + t2, i, "X2")
+        ev = ev & LATCHED_EVENTS
+        # 2. barometer range
+        baro_ok = baro_ok_all[:, i]
+        ev = np.where(baro_ok, ev, ev | _BARO_INVALID)
+        # 3. innovation
+        e1 = tr.w32(z8[:, i] - x1, i, "e1")
+        # 4. Mach lockout: kalman_accel only (kalman_baro has no other measurement to run on meanwhile)
+        if accel:
+            lift = (ev & _LIFTOFF) != 0
+            lockout = baro_ok & lift & (x2 > vlo) & (x2 < vhi) & ((e1 > me) | (e1 < -me))
+            ev = np.where(lockout, ev | _MACH, ev)
+        else:
+            lockout = np.zeros(n_streams, dtype=bool)
+        # 5. accelerometer innovation
+        if accel:
+            a = tr.mulg(acc[:, i] - acc0, acc_g, mode, i, "mulg(acc,ACC_G)")
+            e2 = tr.w32(a - x3, i, "e2")
+        # 6. correct
+        use1 = baro_ok & ~lockout
+        xs = [x1, x2, x3]
+        for j in range(3):
+            c1 = np.where(use1, tr.mulg(e1, g1[j], mode, i, f"mulg(e1,G{j + 1}1)"), zero)
+            c = xs[j] + c1
+            if accel:
+                c = c + tr.mulg(e2, g2[j], mode, i, f"mulg(e2,G{j + 1}2)")
+            xs[j] = tr.w32(c, i, f"X{j + 1}")
+        x1, x2, x3 = xs
+        # 7. lockout: altitude := measurement
+        x1 = np.where(lockout, z8[:, i], x1)
+        # 8. liftoff
+        ev = np.where(((ev & _LIFTOFF) == 0) & (x2 > v_lift), ev | _LIFTOFF, ev)
+        # 9. apogee
+        lift = (ev & _LIFTOFF) != 0
+        ev = np.where(lift & ((ev & _APOGEE) == 0) & ~lockout & (x2 < 0), ev | _APOGEE, ev)
+        # 10. low-rate apogee prediction
+        cand = lift & ((ev & (_APOGEE | _PREDICTED)) == 0) & (x2 > 0)
+        if cand.any():
+            d = -rs(x3, K, mode)
+            hit = cand & (x2 < d)
+            if hit.any():
+                dd = np.where(hit, d, 1)
+                v = np.where(hit, x2, 0)
+                while True:
+                    big = dd >= 32768
+                    if not big.any():
+                        break
+                    dd = np.where(big, dd >> 1, dd)
+                    v = np.where(big, v >> 1, v)
+                frac = np.minimum(65535, (v << np.int64(16)) // dd)
+                apfrac = np.where(hit, frac, apfrac)
+                ev = np.where(hit, ev | _PREDICTED, ev)
+        out[:, i, 0] = x1
+        out[:, i, 1] = x2
+        out[:, i, 2] = x3
+        if accel:
+            out[:, i, 3] = acc0
+        out[:, i, -2] = ev
+        out[:, i, -1] = apfrac
+    return init, out

@@ -1,0 +1,261 @@
+"""The integer model's kernels (firmware_model.model_kernels): numba-compiled == the same source as plain Python on
+exact ints == the earlier numpy model (firmware_model.model_numpy), every word of every sample, the first wrap and
+its word included.
+
+* The Python-int path is the oracle for the int64 arithmetic of the compiled code: the same source, but every
+  value an unbounded Python int, so an int64 overflow, a shift or a division that rounded differently in numba
+  would show as a difference. The single steps are compared from states and constants at the int32 extremes
+  (where the products and sums are largest), not only on realistic streams.
+* The numpy model is an independent second implementation (whole-array np.where per sample, a wrap tracker);
+  the emulated 68000 is the ground truth for the words (tests/test_firmware_cpu_vs_model.py), but it reports no
+  wrap-around, so first_wrap / wrap_word are cross-checked here, on designs that do wrap.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from firmware_model import strategies as fst
+from firmware_model.config import PROGRAMS, BuildConfig
+from firmware_model.constants import QGain, build_constants
+from firmware_model.errors import UserError
+from firmware_model.fixed import rs as rs_exact
+from firmware_model.inputs import synthetic_flight
+from firmware_model.model import compiled_kernels, pure_kernels, run_model
+from firmware_model.model_numpy import run_model_numpy
+from firmware_model.trace import EVENT_BITS, LATCHED_EVENTS, STATE_WORDS
+from profiles import examples
+
+KC = compiled_kernels()
+KP = pure_kernels()
+needs_numba = pytest.mark.skipif(not KC.COMPILED, reason="numba not importable (or FWEMU_NO_NUMBA set)")
+ROOT = Path(__file__).resolve().parents[1]
+
+INT32_EDGES = (-(2 ** 31), -(2 ** 31) + 1, -(2 ** 30), -32769, -1, 0, 1, 32768, 2 ** 30, 2 ** 31 - 2, 2 ** 31 - 1)
+
+
+def _same_trace(a, b, where: str) -> None:
+    assert a.names == b.names, where
+    assert np.array_equal(a.init_words, b.init_words), where
+    if not np.array_equal(a.words, b.words):
+        bad = tuple(np.argwhere(a.words != b.words)[0])
+        pytest.fail(f"{where}: first difference at {bad} ({a.names[bad[-1]]}): {a.words[bad]} != {b.words[bad]}")
+    assert np.array_equal(np.asarray(a.first_wrap), np.asarray(b.first_wrap)), (where, a.first_wrap, b.first_wrap)
+    assert np.array_equal(np.asarray(a.wrap_word, dtype=object), np.asarray(b.wrap_word, dtype=object)), \
+        (where, a.wrap_word, b.wrap_word)
+
+
+# ---------------------------------------------------------------------------------------------------- layout
+def test_kernel_numbering_matches_the_trace_contract():
+    assert set(KC.PROGRAMS) == set(PROGRAMS) == set(STATE_WORDS) and len(KC.PROGRAMS) == len(PROGRAMS)
+    for program, cols in KC.OUT_COLS.items():
+        assert len(cols) == len(STATE_WORDS[program]) and max(cols) < KC.N_STATE
+    for name, bit in EVENT_BITS.items():
+        assert getattr(KC, name) == bit
+    assert KC.LATCHED == LATCHED_EVENTS
+    assert len(KC.WRAP_NAMES) == 15 and len(set(KC.WRAP_NAMES)) == 15 and KC.WRAP_NAMES[0] == ""
+    assert KP.COMPILED is False
+
+
+# ---------------------------------------------------------------------------------------------------- shifts
+@needs_numba
+def test_numba_right_shift_floors_like_python():
+    """numba's >> on a signed int64 is arithmetic (floor), and the kernels' rs equals fixed.rs on Python ints in
+    both roundings, for negative and positive values around every power of two up to 2^47 and shifts 0..47."""
+    vals = []
+    for p in range(48):
+        for v in (1 << p, (1 << p) + 1, (1 << p) - 1, 3 << max(p - 1, 0)):
+            vals += [v, -v]
+    vals += [-(2 ** 47) + 1, 2 ** 47 - 1, -(2 ** 46) * 3 // 2]
+    for s in range(48):
+        for rnd, mode in ((0, "floor"), (1, "half_up")):
+            for x in vals:
+                assert KC.rs(np.int64(x), np.int64(s), np.int64(rnd)) == rs_exact(x, s, mode), (x, s, mode)
+
+
+# ---------------------------------------------------------------------------------------------------- one step, extremes
+@st.composite
+def _extreme_case(draw):
+    """(program, constants, state, adc, acc) with values drawn from the int32 / register extremes."""
+    edge32 = st.one_of(st.sampled_from(INT32_EDGES), st.integers(-(2 ** 31), 2 ** 31 - 1))
+    program = draw(st.sampled_from(PROGRAMS))
+    c = [0] * KC.N_CONST
+    c[KC.C_K] = draw(st.sampled_from((0, 1, 4, 7, 10)))
+    c[KC.C_ROUND] = draw(st.sampled_from((0, 1)))
+    c[KC.C_BARO_SIGN] = draw(st.sampled_from((1, -1)))
+    c[KC.C_S] = draw(st.integers(1, 8))
+    for i in (KC.C_THR, KC.C_V_LIFT, KC.C_V_GATE, KC.C_MACH_VLO, KC.C_MACH_VHI):
+        c[i] = draw(edge32)
+    c[KC.C_MACH_E] = draw(st.one_of(st.sampled_from((0, 1, 2 ** 31 - 1)), st.integers(0, 2 ** 31 - 1)))
+    lo = draw(st.sampled_from((0, 1, 30000, 65535)))
+    c[KC.C_BARO_MIN], c[KC.C_BARO_MAX] = lo, draw(st.sampled_from((lo, 65535)))
+    for i in range(KC.C_G11_M, KC.N_CONST, 2):
+        c[i] = draw(st.one_of(st.sampled_from((-32768, -32767, -1, 0, 1, 32767)), st.integers(-32768, 32767)))
+        c[i + 1] = draw(st.one_of(st.sampled_from((0, 1, 15, 16, 31, 47)), st.integers(0, 47)))
+    state = [draw(edge32) for _ in range(KC.N_STATE)]
+    if program == "recursive":
+        state[KC.ACC0_R] = draw(st.integers(-32768, 32767))
+        state[KC.EVENTS_R] = draw(st.integers(0, 127))
+    else:
+        state[KC.ACC0] = draw(st.integers(-32768, 32767))
+        state[KC.EVENTS] = draw(st.integers(0, 127))
+        state[KC.APFRAC] = draw(st.integers(0, 65535))
+    adc = draw(st.one_of(st.sampled_from((0, 1, 65534, 65535)), st.integers(0, 65535)))
+    acc = draw(st.one_of(st.sampled_from((-32768, -32767, 0, 32767)), st.integers(-32768, 32767)))
+    return program, c, state, adc, acc
+
+
+_STEPS = {"recursive": "recursive_step", "recursive_seed_literal": "seed_literal_step",
+          "kalman_baro": "kalman_baro_step", "kalman_accel": "kalman_accel_step"}
+
+
+@needs_numba
+@settings(max_examples=examples(400))
+@given(case=_extreme_case())
+def test_compiled_step_equals_python_int_step_at_int32_extremes(case):
+    """One step from a state anywhere in int32 (e.g. X1 = -2^31, X3 = 2^31 - 1), any 16-bit input and constants
+    at their limits (gain mantissas -32768 / 32767, shifts 0 / 47, K = 0 / 10): the compiled int64 step and the
+    Python-int step give the same new state and the same wrap id, so no int64 intermediate overflowed."""
+    program, c, state, adc, acc = case
+    st64 = np.array(state, dtype=np.int64)
+    stpy = np.array(state, dtype=object)
+    w64 = getattr(KC, _STEPS[program])(st64, np.int64(adc), np.int64(acc), np.array(c, dtype=np.int64))
+    wpy = getattr(KP, _STEPS[program])(stpy, adc, acc, np.array(c, dtype=object))
+    assert int(w64) == wpy, (program, KC.WRAP_NAMES[int(w64)], KC.WRAP_NAMES[wpy])
+    assert st64.tolist() == [int(v) for v in stpy], program
+    assert all(-(2 ** 31) <= int(v) < 2 ** 31 for v in stpy)
+
+
+def test_wrap_ids_are_reached_at_the_extremes():
+    """The extremes really wrap (the step test is not vacuous): X1 = 2^31 - 1 with X2 > 0 wraps X1 in the predict;
+    a gain 32767 / 2^0 on e1 = -2^31 wraps mulg(e1,G11); EST = -2^31 wraps EST; VEL = 2^31 - 1 wraps VEL."""
+    c = np.zeros(KP.N_CONST, dtype=object)
+    c[KP.C_BARO_SIGN], c[KP.C_BARO_MAX], c[KP.C_S] = 1, 65535, 5
+    st = np.array([2 ** 31 - 1, 1 << 10, 0, 0, 0, 0], dtype=object)
+    assert KP.WRAP_NAMES[KP.kalman_baro_step(st, 0, 0, c)] == "X1"
+    c[KP.C_G11_M] = 32767
+    st = np.array([2 ** 31 - 1, 0, 0, 0, 0, 0], dtype=object)
+    assert KP.WRAP_NAMES[KP.kalman_baro_step(st, 0, 0, c)] == "mulg(e1,G11)"
+    st = np.array([-(2 ** 31), 0, 0, 0, 0, 0], dtype=object)
+    assert KP.WRAP_NAMES[KP.seed_literal_step(st, 65535, 0, c)] == "EST"
+    st = np.array([0, 0, 2 ** 31 - 1, -5, 0, 0], dtype=object)
+    assert KP.WRAP_NAMES[KP.recursive_step(st, 0, 0, c)] == "VEL"
+
+
+# ---------------------------------------------------------------------------------------------------- whole runs
+def _hot(program: str, seed: int, rounding: str = "floor", k: int = 6):
+    """Constants of ``program`` with every gain replaced by a random large one (mantissa up to 2^15, shift 0..18:
+    gains up to 2^15): outside any design, so the state runs all over int32 and wraps in many places."""
+    consts = build_constants(BuildConfig(program=program, k=k, rounding=rounding))
+    rng = np.random.default_rng(seed)
+    gains = {name: QGain(int(rng.integers(-32768, 32768)), int(rng.integers(0, 19)), 0.0) for name in consts.gains}
+    return dataclasses.replace(consts, gains=gains)
+
+
+WRAPPING = [  # outside the tuning range: the state runs all over int32 and wraps (first_wrap >= 0)
+    ("kalman_baro k10 ratio 1e-3", lambda: build_constants(
+        BuildConfig(program="kalman_baro", k=10, ratio=1e-3, noise_model="accel_only"))),
+    ("kalman_baro hot floor", lambda: _hot("kalman_baro", 1)),
+    ("kalman_baro hot half_up k0", lambda: _hot("kalman_baro", 2, "half_up", 0)),
+    ("kalman_accel hot floor", lambda: _hot("kalman_accel", 3)),
+    ("kalman_accel hot half_up", lambda: _hot("kalman_accel", 4, "half_up", 10)),
+    ("kalman_accel hot floor k0", lambda: _hot("kalman_accel", 5, "floor", 0)),
+    ("recursive_seed_literal S1", lambda: build_constants(
+        BuildConfig(program="recursive_seed_literal", shift=1, rounding="half_up"))),
+]
+
+
+def _wrapping_streams(n_streams: int, n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    adc = np.where(rng.random((n_streams, n)) < 0.5, 0, 65535)
+    adc[:, :5] = rng.integers(0, 65536, (n_streams, 1))
+    acc = rng.choice(np.array([-32768, 32767, 0]), (n_streams, n))
+    return adc, acc
+
+
+@pytest.mark.parametrize("name,make", WRAPPING, ids=[w[0] for w in WRAPPING])
+def test_wrapping_designs_numba_python_numpy_agree(name, make):
+    """Full-scale random steps on designs that wrap: the three engines agree on every word, on the first wrap
+    sample and on the wrap word, per stream; and the wraps happen (at least 2 of 8 streams wrap, naming a word)."""
+    consts = make()
+    adc, acc = _wrapping_streams(8, 120, len(name))
+    fast = run_model(consts, adc, acc)
+    _same_trace(fast, run_model_numpy(consts, adc, acc), f"{name} numba/numpy")
+    _same_trace(fast, run_model(consts, adc, acc, engine="python"), f"{name} numba/python")
+    assert (fast.first_wrap >= 0).sum() >= 2 and all(w for w in fast.wrap_word[fast.first_wrap >= 0])
+    j = int(np.argmax(fast.first_wrap >= 0))
+    one = run_model(consts, adc[j], acc[j])
+    assert one.first_wrap == fast.first_wrap[j] and one.wrap_word == fast.wrap_word[j]
+    assert isinstance(one.first_wrap, int) and isinstance(one.wrap_word, str)
+    WRAP_WORDS_SEEN.update(fast.wrap_word[fast.first_wrap >= 0].tolist())
+
+
+WRAP_WORDS_SEEN: set[str] = set()
+
+
+def test_wrapping_designs_reach_many_wrap_words():
+    """Over the designs above (run first, same module), the first wraps name several different quantities, so
+    the order of the wrap checks is compared, not only one word. Runs them itself when run alone."""
+    if not WRAP_WORDS_SEEN:
+        for name, make in WRAPPING:
+            test_wrapping_designs_numba_python_numpy_agree(name, make)
+    assert len(WRAP_WORDS_SEEN) >= 4, WRAP_WORDS_SEEN
+
+
+@settings(max_examples=examples(25))
+@given(cfg=fst.build_configs(k=range(0, 11)), data=st.data())
+def test_kernels_equal_numpy_model_many_streams(cfg, data):
+    """Random designs (every program, k = 0..10, both roundings, every noise model and tuning ratio), 1..4
+    streams of random / edge / flight-shaped inputs in one call: numba == numpy model on everything."""
+    n = data.draw(st.integers(1, 150), label="n")
+    n_streams = data.draw(st.integers(1, 4), label="streams")
+    adc = np.stack([data.draw(st.one_of(fst.adc_streams(min_len=n, max_len=n), fst.edge_streams(length=n)))
+                    for _ in range(n_streams)])
+    acc = np.stack([data.draw(fst.accel_streams(min_len=n, max_len=n)) for _ in range(n_streams)])
+    consts = build_constants(cfg)
+    _same_trace(run_model(consts, adc, acc), run_model_numpy(consts, adc, acc), str(cfg))
+
+
+@pytest.mark.parametrize("program", PROGRAMS)
+@pytest.mark.parametrize("rounding", ["floor", "half_up"])
+def test_python_path_equals_compiled_on_a_short_flight(program, rounding):
+    """The uncompiled path (the kernels' source as Python on exact ints) on 400 samples of a synthetic flight
+    plus two random streams: the same words and wrap report as the compiled kernels and the numpy model."""
+    consts = build_constants(BuildConfig(program=program, k=6, rounding=rounding))
+    s = synthetic_flight(6, seed=3)
+    rng = np.random.default_rng(9)
+    adc = np.stack([s.adc[:400], rng.integers(0, 65536, 400), rng.integers(30000, 30010, 400)])
+    acc = np.stack([s.acc[:400], rng.integers(-32768, 32768, 400), rng.integers(-10, 10, 400)])
+    py = run_model(consts, adc, acc, engine="python")
+    _same_trace(run_model(consts, adc, acc), py, f"{program} {rounding} auto/python")
+    _same_trace(run_model_numpy(consts, adc, acc), py, f"{program} {rounding} numpy/python")
+
+
+def test_engine_argument_and_env_switch():
+    """engine= names its choices; FWEMU_NO_NUMBA=1 makes the kernels plain Python (a fresh process) and
+    engine='numba' then refuses with a one-line UserError."""
+    consts = build_constants(BuildConfig(program="kalman_accel"))
+    with pytest.raises(UserError, match="engine='fast'"):
+        run_model(consts, np.array([1, 2]), engine="fast")
+    code = ("import numpy as np\n"
+            "from firmware_model.model import compiled_kernels, run_model\n"
+            "from firmware_model.constants import build_constants\nfrom firmware_model.config import BuildConfig\n"
+            "from firmware_model.errors import UserError\n"
+            "c = build_constants(BuildConfig(program='kalman_accel'))\n"
+            "print(compiled_kernels().COMPILED, run_model(c, np.full(5, 30000)).words[-1].tolist())\n"
+            "try:\n    run_model(c, np.full(5, 30000), engine='numba')\nexcept UserError as e:\n    print(e)\n")
+    env = {**os.environ, "FWEMU_NO_NUMBA": "1", "PYTHONPATH": str(ROOT)}
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True).stdout
+    lines = out.splitlines()
+    want = run_model(consts, np.full(5, 30000)).words[-1].tolist()
+    assert lines[0] == f"False {want}"
+    assert lines[1] == "run_model: engine='numba' but FWEMU_NO_NUMBA is set"
