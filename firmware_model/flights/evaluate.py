@@ -378,7 +378,8 @@ def ordered_map(fn: Callable[[Any], Any], items: Sequence[Any], jobs: int = 1,
                 on_result: Callable[[int, Any], None] | None = None) -> list[Any]:
     """``[fn(x) for x in items]``, in ``jobs`` worker processes when ``jobs`` > 1 (``fn`` and the items must pickle).
     Results come back in the order of ``items`` whatever the workers' timing; an error or an interrupt terminates
-    the workers at once (as ``fwemu vectors --jobs``). Workers ignore SIGINT (:func:`output.worker_init`)."""
+    the workers at once (as ``fwemu vectors --jobs``). Workers ignore SIGINT (:func:`output.worker_init`) and are
+    spawned, not forked (fork after numba's thread pool ran deadlocks)."""
     if not isinstance(jobs, int) or isinstance(jobs, bool) or jobs < 1:
         raise UserError(f"--jobs {jobs!r}: must be a positive integer")
     out: list[Any] = []
@@ -392,7 +393,9 @@ def ordered_map(fn: Callable[[Any], Any], items: Sequence[Any], jobs: int = 1,
 
     from firmware_model.output import worker_init
 
-    pool = multiprocessing.get_context().Pool(min(jobs, len(items)), initializer=worker_init)
+    # "spawn", not "fork": the numba model runs its kernels on a thread pool (prange), and a child forked from a
+    # parent whose thread pool has run deadlocks in its first parallel kernel (seen: workers asleep on a futex).
+    pool = multiprocessing.get_context("spawn").Pool(min(jobs, len(items)), initializer=worker_init)
     try:
         for i, res in enumerate(pool.imap(fn, items)):
             out.append(res)
