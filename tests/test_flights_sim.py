@@ -157,9 +157,9 @@ def test_step_size_error_is_below_a_centimetre():
 
 
 def test_engines_agree_and_runs_are_deterministic():
-    rockets = [s1.Rocket("a", 8.0, 0.1, mo.load_motor("K400C")),
-               s1.Rocket("b", 3.0, 0.1, mo.load_motor("K828FJ"), drogue_cd_area_m2=0.3)]
-    launch = s1.Launch(record_hz=100.0, internal_hz=500.0, descent_s=2.0)
+    rockets = [s1.Rocket("a", 14.0, 0.1, mo.load_motor("K400C")),
+               s1.Rocket("b", 3.0, 0.1, mo.load_motor("K828FJ").scaled(0.5, 1.0), drogue_cd_area_m2=0.3)]
+    launch = s1.Launch(record_hz=50.0, internal_hz=250.0, descent_s=2.0)
     ref = [_digest(r) for r in s1.simulate_1dof(rockets, launch, engine="numpy")]
     assert ref == [_digest(r) for r in s1.simulate_1dof(rockets, launch, engine="numpy")]
     assert ref == [_digest(r) for r in s1.simulate_1dof(rockets, launch, engine="python")]
@@ -187,6 +187,8 @@ def test_bad_parameters_are_user_errors():
         s1.simulate_1dof(s1.Rocket("x", 5.0, 0.1, m), s1.Launch(site_altitude_m=9000.0))
     with pytest.raises(UserError, match="not finished"):
         s1.simulate_1dof(s1.Rocket("x", 5.0, 0.1, m), s1.Launch(max_time_s=3.0), engine="numpy")
+    with pytest.raises(UserError, match="thrust never exceeds weight"):
+        s1.simulate_1dof(s1.Rocket("x", 60.0, 0.1, m))
     with pytest.raises(UserError, match="unknown motor"):
         mo.load_motor("Z9")
 
@@ -297,3 +299,86 @@ def test_flights_strategy_subsonic_with_truth(rec):
     assert 0.0 < rec.truth.apogee_time_s < t[-1]
     assert np.all(rec.accel_mps2[t < 0] == G)
     assert rec.ground_pressure_pa == pytest.approx(rec.pressure_pa[0])
+
+
+# --------------------------------------------------------------------------------------------------- RocketPy
+
+def test_rocketpy_missing_is_a_user_error(monkeypatch):
+    import sys
+
+    from firmware_model.flights import rocketpy_sim
+    monkeypatch.setitem(sys.modules, "rocketpy", None)
+    with pytest.raises(UserError, match="install the flights extra"):
+        rocketpy_sim.simulate_rocketpy(s1.Rocket("x", 8.0, 0.1, mo.load_motor("K400C")))
+
+
+def test_rocketpy_cross_check_and_record():
+    """Vertical, no wind, same rocket in both simulators. Measured (docs/flights-sim.md): K828FJ subsonic
+    +0.006 % apogee, +5.8 ms, +0.008 % burnout velocity; M1670 transonic -0.048 %, +11.9 ms, -0.014 %.
+    Asserted bounds for both: 0.1 %, 25 ms, 0.05 %."""
+    pytest.importorskip("rocketpy")
+    from firmware_model.flights import crosscheck
+    name = "K828FJ subsonic"
+    c = crosscheck.compare(name, crosscheck.CROSS_CHECK_ROCKETS[name])
+    assert abs(c.apogee_rel) < 1e-3, c.line()
+    assert abs(c.apogee_dt) < 0.025, c.line()
+    assert abs(c.burnout_rel) < 5e-4, c.line()
+    rec = c.rpy
+    t = rec.time_s
+    assert np.allclose(np.diff(t), 1e-3, atol=1e-12) and np.all(rec.accel_mps2[t < 0] == pytest.approx(G))
+    coast = (t > 3.0) & (t < rec.truth.apogee_time_s)
+    fast = coast & (rec.truth.velocity_mps > 30.0)
+    assert np.all(rec.accel_mps2[fast] < 0)            # drag decelerates: the accelerometer reads negative
+    assert np.all(rec.accel_mps2[coast] < 0.01)        # (near apogee RocketPy's frame terms give ~+2e-3 m/s^2)
+    # the pressure is the standard atmosphere at the truth (geopotential) altitude
+    site = atm.altitude_m(rec.ground_pressure_pa)
+    assert np.allclose(atm.altitude_m(rec.pressure_pa), site + rec.truth.altitude_m, atol=1e-6)
+    assert abs(rec.truth.apogee_altitude_m - rec.truth.altitude_m.max()) < 0.05
+    # same inputs, same bytes
+    again = crosscheck.compare(name, crosscheck.CROSS_CHECK_ROCKETS[name]).rpy
+    assert _digest(again) == _digest(rec)
+
+
+def _slow() -> bool:
+    import os
+
+    from tests import profiles
+    return profiles.PROFILE == "thorough" or os.environ.get("FWEMU_SLOW") == "1"
+
+
+@pytest.mark.parametrize("name", [n for n in sc.scenario_names() if sc.get_scenario(n).simulator == "rocketpy"])
+def test_rocketpy_scenario_is_in_its_class(name):
+    pytest.importorskip("rocketpy")
+    if not _slow():
+        pytest.skip("RocketPy scenarios take seconds each: run with HYPOTHESIS_PROFILE=thorough or FWEMU_SLOW=1")
+    s = sc.get_scenario(name)
+    rec = sc.simulate_scenario(name)
+    lo, hi = sc.MACH_CLASSES[s.mach_class]
+    assert lo <= rec.provenance["summary"]["max_mach"] <= hi
+    assert 250.0 <= rec.truth.apogee_altitude_m <= 10_500.0
+    kinds = [e["effect"] for e in rec.provenance.get("effects", [])]
+    assert ("transonic_pressure_error" in kinds) == (s.transonic is not None)
+
+
+def test_same_bytes_in_a_fresh_process():
+    """Determinism does not depend on process state (numba compiled or cached, import order, earlier runs)."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    code = ("from tests.test_flights_sim import _digest; from firmware_model.flights import sim1dof as s1; "
+            "print(' '.join(_digest(r) for r in s1.random_flights(3, 9, launch=s1.Launch(record_hz=50.0))))")
+    env = dict(os.environ, PYTHONPATH=str(root))
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, cwd=root,
+                         check=True).stdout.split()
+    here = [_digest(r) for r in s1.random_flights(3, 9, launch=s1.Launch(record_hz=50.0))]
+    assert out == here
+
+
+@settings(max_examples=examples(5))
+@given(flights(mach=(0.9, 2.0), motors=("M1670", "M6400", "M2245", "L1350"), record_hz=50.0))
+def test_flights_strategy_widened_to_supersonic(rec):
+    assert 0.9 <= rec.provenance["summary"]["max_mach"] <= 2.0
+    assert rec.truth.apogee_altitude_m > 500.0

@@ -151,6 +151,32 @@ _CATALOGUE: tuple[Scenario, ...] = (
        "supersonic", {"motor": "M2245", "dry_mass_kg": 10.0, "diameter_m": 0.08},
        {"baro": ["ms5607"], "noise": ["noisy"], "k": [6]},
        spikes={"count": 3, "magnitude_pa": 800.0, "seed": 3, "window_s": (35.0, 45.0)}),
+    # --- RocketPy 6-DOF: wind, rail inclination --------------------------------------------------------------
+    _s("rp-k400-670m-wind10", "RocketPy: K400C sport rocket, 10 m/s wind, rail at 80 deg into the wind", "subsonic",
+       {"motor": "K400C", "dry_mass_kg": 8.0, "diameter_m": 0.10},
+       {"baro": ["analog-10", "ms5607"], "noise": ["noisy"], "k": [5, 6]}, simulator="rocketpy",
+       rocketpy={"wind_u": -10.0, "inclination_deg": 80.0, "heading_deg": 90.0}),
+    _s("rp-k828-1400m-wind5", "RocketPy: K828FJ rocket, 5 m/s crosswind, rail at 85 deg", "subsonic",
+       {"motor": "K828FJ", "dry_mass_kg": 10.0, "diameter_m": 0.08},
+       {"baro": ["analog-12", "analog-16"], "noise": ["none", "noisy"], "k": [6, 7]}, simulator="rocketpy",
+       rocketpy={"wind_v": 5.0, "inclination_deg": 85.0, "heading_deg": 90.0}),
+    _s("rp-m1670-m105-vertical", "RocketPy: the M1670 cross-check rocket, vertical, no wind, transonic step",
+       "transonic", {"motor": "M1670", "dry_mass_kg": 12.0, "diameter_m": 0.127},
+       {"baro": ["analog-16", "ms5607"], "noise": ["noisy"], "k": [6]}, simulator="rocketpy",
+       rocketpy={"inclination_deg": 90.0}, transonic=_TS),
+    _s("rp-m1670-m105-wind4", "RocketPy: M1670 rocket, 4 m/s wind, rail at 86 deg, transonic step", "transonic",
+       {"motor": "M1670", "dry_mass_kg": 12.0, "diameter_m": 0.127},
+       {"baro": ["analog-10", "analog-16"], "noise": ["noisy"], "k": [5, 6]}, simulator="rocketpy",
+       rocketpy={"wind_u": 4.0, "inclination_deg": 86.0, "heading_deg": 45.0}, transonic=_TS),
+    _s("rp-l1350-m137-windprofile", "RocketPy: L1350 rocket at Mach ~1.35, wind rising 2 -> 15 m/s with height, "
+       "rail at 84 deg, transonic step", "supersonic", {"motor": "L1350", "dry_mass_kg": 6.0, "diameter_m": 0.10},
+       {"baro": ["analog-12", "ms5607"], "noise": ["noisy"], "k": [6, 7]}, simulator="rocketpy",
+       rocketpy={"wind_u": [[0.0, 2.0], [1000.0, 8.0], [6000.0, 15.0]], "inclination_deg": 84.0,
+                 "heading_deg": 270.0}, transonic=_TS),
+    _s("rp-m2245-m17-8700m-wind3", "RocketPy: M2245 in 80 mm to ~8.7 km, 3 m/s wind, rail at 88 deg, step",
+       "supersonic", {"motor": "M2245", "dry_mass_kg": 12.0, "diameter_m": 0.08},
+       {"baro": ["analog-16", "ms5607"], "noise": ["noisy"], "k": [6, 8]}, simulator="rocketpy",
+       rocketpy={"wind_u": 3.0, "inclination_deg": 88.0, "heading_deg": 0.0}, transonic=_TS),
 )
 
 _BY_NAME: dict[str, Scenario] = {s.name: s for s in _CATALOGUE}
@@ -272,12 +298,17 @@ def _simulate_physics(s: Scenario) -> tuple[FlightRecord, np.ndarray]:
 def _simulate_cached(name: str) -> tuple[FlightRecord, np.ndarray]:
     s = get_scenario(name)
     rec, mach = _simulate_physics(s)
-    return _apply_effects(s, rec, mach), mach
+    rec = _apply_effects(s, rec, mach)
+    # the cached arrays are shared by every caller: make them read-only so nobody changes a later caller's flight
+    for a in (rec.time_s, rec.pressure_pa, rec.accel_mps2, mach, rec.truth.altitude_m, rec.truth.velocity_mps,
+              rec.truth.accel_mps2):
+        a.flags.writeable = False
+    return rec, mach
 
 
 def simulate_scenario(name: str) -> FlightRecord:
-    """The scenario's flight record (physics + pressure effects; no sensor model). Deterministic and cached:
-    treat the returned arrays as read-only."""
+    """The scenario's flight record (physics + pressure effects; no sensor model). Deterministic and cached in
+    the process: its arrays are shared and read-only (copy before changing them)."""
     return _simulate_cached(name)[0]
 
 
