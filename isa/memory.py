@@ -162,7 +162,8 @@ class Memory:
             a &= 0xFFFFFF
             if fl[a] & fl[a + 2] & 1:
                 return unpack_l(m, a)[0]
-            raise fault(BusError, "long read of unmapped address", a + (0 if fl[a] & 1 else 2))
+            # The first unmapped byte: the high word's if it is unmapped, else the low word's (regions are even).
+            raise fault(BusError, "long read of unmapped address", a + (2 if fl[a] & 1 else 0))
 
         def wb(a: int, v: int) -> None:
             a &= 0xFFFFFF

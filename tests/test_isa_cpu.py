@@ -101,6 +101,31 @@ def test_unmapped_read_is_bus_error_naming_pc_instruction_and_line() -> None:
     assert "$009000" in str(err) and "fault.s:2" in str(err)
 
 
+@pytest.mark.parametrize("src, address", [
+    (" move.l $20000,d1", 0x020000),  # wholly unmapped: its first byte (was $020002)
+    (" move.l $7FFE,d1", 0x008000),  # straddles the end of RAM: the first unmapped byte (was the mapped $007FFE)
+    (" movem.l $7FFC,d1-d2", 0x008000),  # the second register's long (was $008002)
+    (" move.l d1,$7FFE", 0x008000),
+    (" add.l $20000,d1", 0x020000),
+    (" lea $7FFE,a0\n move.l (a0)+,d1", 0x008000),
+])
+@pytest.mark.parametrize("path", ["step", "closures", "blocks"])
+def test_bus_error_on_a_long_names_the_first_unmapped_byte(src: str, address: int, path: str) -> None:
+    # Issue 8.3, with RAM at $0-$7FFF as in the issue; m68000-python's stacked access address agrees
+    # (tests/test_isa_vs_m68000py.py, test_bus_error_address_cases / test_bus_errors_name_the_faulting_access).
+    cpu = CPU(mapped=False)
+    cpu.map(0, 0x8000, "ram")
+    cpu.load(isa.assemble(src + "\n trap #0\n", filename="bus.s", origin=0x1000))
+    cpu.block_compile = path == "blocks"
+    with pytest.raises(BusError) as info:
+        if path == "step":
+            for _ in range(3):
+                cpu.step()
+        else:
+            cpu.run(max_instructions=10)
+    assert f"unmapped address ${address:06X} at PC=" in str(info.value), str(info.value)
+
+
 def test_write_to_rom_is_bus_error() -> None:
     cpu = load_mapped(" move.w d0,$0100\n")
     with pytest.raises(BusError, match="read-only"):
