@@ -62,7 +62,7 @@ from isa import codecache
 from isa.blocks import _RN, BLOCK_MAX, _BlockInfo, block_entries, compile_block
 from isa.closures import HANDLERS, build_closure
 from isa.errors import AddressError, BusError, CPUFault, IllegalInstruction, IsaError, LimitExceeded
-from isa.memory import _CODE, _TOP, MapError, Memory, Region
+from isa.memory import _CODE, _TOP, MapError, MapFacts, Memory, Region
 
 _SET_CODE_TABLE = bytes(b | _CODE for b in range(256))
 from isa.operands import Instruction
@@ -394,7 +394,7 @@ class CPU:
                 self._blocks[start] = entry
                 self._block_members.setdefault(start, []).append(start)
             return entry
-        bind, info = compile_block(entries)
+        bind, info = compile_block(entries, MapFacts(self.memory.regions))
         if most == BLOCK_MAX:
             codecache.store_block(self._mem, start, self._mkey, info.end, entries, bind, info)
         return self._bind_block(start, entries, bind, info)
@@ -413,8 +413,7 @@ class CPU:
 
     def _bind_block(self, start: int, entries: list[Any], bind: Any, info: _BlockInfo
                     ) -> tuple[Callable[[], int] | None, int, int, int]:
-        rd, wr = self._rd, self._wr
-        fn = bind(self._R, self._min_sp, self._smc, rd[1], rd[2], rd[4], wr[1], wr[2], wr[4])
+        fn = bind(self._R, self._min_sp, self._smc, self.memory)
         entry = (fn, info.n, info.bound, info.end)
         self._blocks[start] = entry
         self._block_code[fn.__code__] = info

@@ -63,18 +63,19 @@ class ReferenceApogee:
 def liftoff_time(record: FlightRecord) -> float:
     """Time of liftoff on the record's axis.
 
-    In order: truth (first sample where the true altitude exceeds 0.5 m, or velocity 1 m/s), else the
+    In order: truth (the sample before the true velocity first exceeds 0.01 m/s, or the altitude 1 mm), else the
     accelerometer (the first time the specific force stays above pad + 2 g for 50 ms, backed off to the last
-    sample before it below pad + 0.5 g), else the log's ``altos_boost`` event, else the barometer (first sample
-    30 m above the pad median, backed off to the last sample below 3 m), else the record's first time."""
+    sample before it below pad + 0.5 g), else the log's ``altos_boost`` event, else the barometer (the last
+    sample below 3 m and the first above 30 m over the pad median, extrapolated back to rest assuming constant
+    acceleration), else the record's first time."""
     t = np.asarray(record.time_s, dtype=np.float64)
     tr = record.truth
-    if tr is not None and tr.altitude_m is not None:
-        up = np.nonzero(np.asarray(tr.altitude_m) > 0.5)[0]
+    if tr is not None and tr.velocity_mps is not None:
+        up = np.nonzero(np.asarray(tr.velocity_mps) > 0.01)[0]
         if up.size:
             return float(t[max(0, int(up[0]) - 1)])
-    if tr is not None and tr.velocity_mps is not None:
-        up = np.nonzero(np.asarray(tr.velocity_mps) > 1.0)[0]
+    if tr is not None and tr.altitude_m is not None:
+        up = np.nonzero(np.asarray(tr.altitude_m) > 0.001)[0]
         if up.size:
             return float(t[max(0, int(up[0]) - 1)])
     f = record.specific_force_mps2()
@@ -97,7 +98,11 @@ def liftoff_time(record: FlightRecord) -> float:
     above = np.nonzero(np.nan_to_num(h - h0, nan=-np.inf) > 30.0)[0]
     if above.size:
         low = np.nonzero(np.nan_to_num(h[: above[0]] - h0, nan=np.inf) < 3.0)[0]
-        return float(t[int(low[-1])]) if low.size else float(t[0])
+        if not low.size:
+            return float(t[0])
+        t3, t30 = float(t[int(low[-1])]), float(t[int(above[0])])
+        # constant acceleration from rest: h ~ t^2, so 3 m is reached at sqrt(3/30) of the time to 30 m
+        return max(float(t[0]), t30 - (t30 - t3) / (1.0 - (3.0 / 30.0) ** 0.5))
     return float(t[0])
 
 
