@@ -718,6 +718,17 @@ def cases(draw, row, size: Size | None, first_mode: Mode | None, odd: bool = Fal
         else:
             code[3] |= 1
         code = bytes(code)
+    # Brief extension words (d8(An,Xn), d8(PC,Xn)): the 68000 ignores bits 10..8 (the 68020's scale and
+    # full-format bits); about half the indexed operands get random bits there (issue 8.1).
+    from isa.encoder import extension_offsets
+
+    for op, off in zip(instr.operands, extension_offsets(instr)):
+        if op.mode in (Mode.AINDEX, Mode.PCINDEX) and off is not None:
+            junk = draw(st.one_of(st.just(0), st.integers(1, 7)))
+            if junk:
+                code = bytearray(code)
+                code[off] |= junk
+                code = bytes(code)
     blocks.append((pc, code))
     blocks.append((pc + len(code), NOP.to_bytes(2, "big") * 4))
     image = bytes(base_image(seed, blocks))

@@ -126,6 +126,31 @@ def test_bus_error_on_a_long_names_the_first_unmapped_byte(src: str, address: in
     assert f"unmapped address ${address:06X} at PC=" in str(info.value), str(info.value)
 
 
+@pytest.mark.parametrize("path", ["step", "closures", "blocks"])
+def test_brief_extension_bits_10_8_execute_as_on_the_68000(path: str) -> None:
+    # Issue 8.1: d8(An,Xn) / d8(PC,Xn) with bits 10..8 of the brief word set (scale/full format on a 68020) run
+    # as the 68000 runs them: the bits are ignored. Both forms must give the same registers and clocks.
+    def run(junk: int) -> tuple[list[int], int]:
+        cpu = CPU()
+        # move.w 8(a0,d1.w),d2 ; lea 4(pc,d1.w),a1 (extension word at $1006) ; move.l -2(a0,d1.l),d3 ; trap #0
+        words = [0x3430, 0x1008 | junk << 8, 0x43FB, 0x1004 | junk << 8, 0x2630, 0x18FE | junk << 8, 0x4E40]
+        cpu.write_bytes(0x1000, b"".join(w.to_bytes(2, "big") for w in words))
+        cpu.write_bytes(0x2000, bytes(range(64)))
+        cpu.pc, cpu.a[0], cpu.d[1] = 0x1000, 0x2000, 0x10
+        cpu.block_compile = path == "blocks"
+        if path == "step":
+            clocks = sum(cpu.step() for _ in range(4))
+        else:
+            cpu.run()
+            clocks = cpu.cycles
+        return [cpu.d[2], cpu.a[1], cpu.d[3]], clocks
+
+    canonical = run(0)
+    assert canonical[0] == [0x1819, 0x101A, 0x0E0F1011]
+    for junk in range(1, 8):
+        assert run(junk) == canonical
+
+
 def test_write_to_rom_is_bus_error() -> None:
     cpu = load_mapped(" move.w d0,$0100\n")
     with pytest.raises(BusError, match="read-only"):
