@@ -169,7 +169,8 @@ class Memory:
             a &= 0xFFFFFF
             if fl[a] & fl[a + 2] & 1:
                 return unpack_l(m, a)[0]
-            raise fault(BusError, "long read of unmapped address", a + (0 if fl[a] & 1 else 2))
+            # The first unmapped byte: the high word's if it is unmapped, else the low word's (regions are even).
+            raise fault(BusError, "long read of unmapped address", a + (2 if fl[a] & 1 else 0))
 
         # Flag bytes 7 = mapped | writable | written (no code): nothing to do; 3 = mapped | writable, first write
         # (mark written). Anything else: slow_write (faults, code invalidation, mixed bytes).
