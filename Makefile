@@ -68,6 +68,7 @@ main: vectors budget
 bench: $(STAMP)
 	$(PY) bench/bench_cpu.py
 	$(PY) bench/bench_model.py
+	$(PY) bench/bench_sim1dof.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info out

@@ -15,7 +15,9 @@ Layout, chosen so that a program is easy to change or add:
   :class:`~firmware_model.constants.FirmwareConstants`. A new constant: a new index + a line in
   :func:`pack_constants`.
 * **Programs**: ``<program>_init(st, adc, acc, c)`` and ``<program>_step(st, adc, acc, c) -> wrap id`` for each
-  program, dispatched by :func:`_init` / :func:`_step` on the program number ``P_*``.
+  program, dispatched on the program number ``P_*`` by :func:`_init` and :func:`run_streams` (which calls one
+  sample loop per program, ``_stream_<program>``). A table (e.g. a lookup table of the firmware) can be appended
+  to the constants array (its first index a ``C_*`` constant) without changing any signature.
 * **Wrap detection**: every ``.l`` value is computed exactly, then :func:`_note` records the first quantity of
   the sample whose exact value is outside int32 (its id, an index into :data:`WRAP_NAMES`) and :func:`_w32`
   wraps it; ``step`` returns that id (0: none) and the driver keeps the first sample with a nonzero id.
@@ -216,7 +218,7 @@ def recursive_init(st, adc, acc, c):  # type: ignore[no-untyped-def]
     st[EVENTS_R] = 0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def recursive_step(st, adc, acc, c):  # type: ignore[no-untyped-def]
     """docs/firmware-spec.md §5 steps 1-5; returns the first wrap id of the sample (0: none)."""
     rnd = c[C_ROUND]
@@ -261,7 +263,7 @@ def seed_literal_init(st, adc, acc, c):  # type: ignore[no-untyped-def]
     st[EST] = (adc * c[C_BARO_SIGN]) << 8
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def seed_literal_step(st, adc, acc, c):  # type: ignore[no-untyped-def]
     """Seed 000's listing as written: EST += rs(EST, S) - (z << (8 - S)); no flight logic."""
     S = c[C_S]
@@ -284,7 +286,7 @@ def kalman_init(st, adc, acc, c):  # type: ignore[no-untyped-def]
     st[APFRAC] = 0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def kalman_step(st, adc, acc, c, accel):  # type: ignore[no-untyped-def]
     """docs/firmware-spec.md §6 steps 1-10 (``accel``: kalman_accel, else kalman_baro); returns the first wrap id.
 
@@ -391,13 +393,13 @@ def kalman_step(st, adc, acc, c, accel):  # type: ignore[no-untyped-def]
     return w
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def kalman_baro_step(st, adc, acc, c):  # type: ignore[no-untyped-def]
     """kalman_baro: :func:`kalman_step` without the accelerometer and the lockout."""
     return kalman_step(st, adc, acc, c, False)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def kalman_accel_step(st, adc, acc, c):  # type: ignore[no-untyped-def]
     """kalman_accel: :func:`kalman_step` with the accelerometer innovation and the Mach lockout."""
     return kalman_step(st, adc, acc, c, True)
@@ -414,15 +416,63 @@ def _init(prog, st, adc, acc, c):  # type: ignore[no-untyped-def]
         kalman_init(st, adc, acc, c)
 
 
+@njit(cache=True, inline="always")
+def _copy_out(st, cols, row):  # type: ignore[no-untyped-def]
+    """``row[j] = st[cols[j]]``: the output words of the state."""
+    for j in range(cols.shape[0]):
+        row[j] = st[cols[j]]
+
+
 @njit(cache=True)
-def _step(prog, st, adc, acc, c):  # type: ignore[no-untyped-def]
-    if prog == P_RECURSIVE:
-        return recursive_step(st, adc, acc, c)
-    if prog == P_SEED_LITERAL:
-        return seed_literal_step(st, adc, acc, c)
-    if prog == P_KALMAN_BARO:
-        return kalman_baro_step(st, adc, acc, c)
-    return kalman_accel_step(st, adc, acc, c)
+def _stream_recursive(st, adc, acc, c, cols, out):  # type: ignore[no-untyped-def]
+    """Samples 0..n-1 of one stream through :func:`recursive_step`: (first wrap sample or -1, its wrap id)."""
+    f = -1
+    wid = 0
+    for i in range(adc.shape[0]):
+        w = recursive_step(st, adc[i], acc[i], c)
+        if w != 0 and f < 0:
+            f, wid = i, w
+        _copy_out(st, cols, out[i])
+    return f, wid
+
+
+@njit(cache=True)
+def _stream_seed_literal(st, adc, acc, c, cols, out):  # type: ignore[no-untyped-def]
+    """Samples 0..n-1 of one stream through :func:`seed_literal_step`: (first wrap sample or -1, its wrap id)."""
+    f = -1
+    wid = 0
+    for i in range(adc.shape[0]):
+        w = seed_literal_step(st, adc[i], acc[i], c)
+        if w != 0 and f < 0:
+            f, wid = i, w
+        _copy_out(st, cols, out[i])
+    return f, wid
+
+
+@njit(cache=True)
+def _stream_kalman_baro(st, adc, acc, c, cols, out):  # type: ignore[no-untyped-def]
+    """Samples 0..n-1 of one stream through :func:`kalman_baro_step`: (first wrap sample or -1, its wrap id)."""
+    f = -1
+    wid = 0
+    for i in range(adc.shape[0]):
+        w = kalman_baro_step(st, adc[i], acc[i], c)
+        if w != 0 and f < 0:
+            f, wid = i, w
+        _copy_out(st, cols, out[i])
+    return f, wid
+
+
+@njit(cache=True)
+def _stream_kalman_accel(st, adc, acc, c, cols, out):  # type: ignore[no-untyped-def]
+    """Samples 0..n-1 of one stream through :func:`kalman_accel_step`: (first wrap sample or -1, its wrap id)."""
+    f = -1
+    wid = 0
+    for i in range(adc.shape[0]):
+        w = kalman_accel_step(st, adc[i], acc[i], c)
+        if w != 0 and f < 0:
+            f, wid = i, w
+        _copy_out(st, cols, out[i])
+    return f, wid
 
 
 @njit(cache=True, parallel=True)
@@ -430,23 +480,27 @@ def run_streams(prog, adc, acc, c, cols, state, init_out, out, first, word):  # 
     """Run every stream ``s`` of ``adc``/``acc`` (shape ``(streams, n)``) through program ``prog``: ``init`` on
     sample 0, then ``step`` on samples 0..n-1. Writes ``init_out[s, j]`` and ``out[s, i, j]`` (the state entries
     ``cols[j]``), ``first[s]`` (first sample with a wrap, or -1) and ``word[s]`` (its wrap id, or 0);
-    ``state`` (``(streams, N_STATE)``) is the work area. Streams run in parallel when compiled."""
+    ``state`` (``(streams, N_STATE)``) is the work area. Streams run in parallel when compiled.
+
+    Speed notes (bench/bench_model.py, measured): numba does not inline a call between two jitted functions
+    that pass arrays (each call costs a call plus atomic reference counts of every array argument), so the step
+    functions are ``inline="always"`` into one sample loop per program (``_stream_*``), which the parallel
+    driver calls once per stream: 1.4x over the step called per sample, at the same compile time; inlining also
+    the loops into this parallel function was another 1.2x but quadrupled the cold compile (~20 s CPU). A
+    program dispatch inside the sample loop cost ~30 %; passing the step function as an argument would stop
+    numba from caching the driver."""
     n_streams = adc.shape[0]
-    n = adc.shape[1]
-    nw = cols.shape[0]
     for s in prange(n_streams):
         st = state[s]
         _init(prog, st, adc[s, 0], acc[s, 0], c)
-        for j in range(nw):
-            init_out[s, j] = st[cols[j]]
-        f = -1
-        wid = 0
-        for i in range(n):
-            w = _step(prog, st, adc[s, i], acc[s, i], c)
-            if w != 0 and f < 0:
-                f = i
-                wid = w
-            for j in range(nw):
-                out[s, i, j] = st[cols[j]]
+        _copy_out(st, cols, init_out[s])
+        if prog == P_KALMAN_ACCEL:
+            f, wid = _stream_kalman_accel(st, adc[s], acc[s], c, cols, out[s])
+        elif prog == P_KALMAN_BARO:
+            f, wid = _stream_kalman_baro(st, adc[s], acc[s], c, cols, out[s])
+        elif prog == P_RECURSIVE:
+            f, wid = _stream_recursive(st, adc[s], acc[s], c, cols, out[s])
+        else:
+            f, wid = _stream_seed_literal(st, adc[s], acc[s], c, cols, out[s])
         first[s] = f
         word[s] = wid

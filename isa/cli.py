@@ -95,13 +95,14 @@ def register(subparsers: Any) -> None:
 
 
 def _assemble(args: argparse.Namespace) -> Program:
-    from isa.assembler import assemble
+    from isa.assembler import assemble, decode_source
 
     path = Path(args.source)
     try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise IsaError(f"cannot read {path}: {getattr(exc, 'strerror', None) or exc}") from None
+        data = path.read_bytes()
+    except OSError as exc:
+        raise IsaError(f"cannot read {path}: {exc.strerror or exc}") from None
+    text = decode_source(data, str(path))
     program = assemble(text, filename=str(path), origin=args.origin, include_paths=args.include,
                        defines=dict(args.defines))
     for warning in program.warnings:
