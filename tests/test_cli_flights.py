@@ -184,3 +184,20 @@ def test_sweep_small(tmp_path, capsys):
         assert (out / name).is_file(), name
     rows = _rows(out / "ratio.csv")
     assert [r["ratio"] for r in rows] == ["1000.0", "50000.0", "1000000.0"]
+
+
+def test_harness_progress_callback_changes_nothing():
+    from firmware_model.build import build_firmware
+    from firmware_model.config import BuildConfig
+    from firmware_model.harness import run_firmware
+    from firmware_model.inputs import synthetic_flight
+
+    s = synthetic_flight(5, 16, seed=3)
+    build = build_firmware(BuildConfig(program="kalman_baro", k=5))
+    calls: list[tuple[int, int]] = []
+    with_cb = run_firmware(build, s.adc, s.acc, progress=lambda d, t: calls.append((d, t)))
+    plain = run_firmware(build, s.adc, s.acc)
+    n = len(s.adc)
+    assert np.array_equal(with_cb.words, plain.words) and np.array_equal(with_cb.cycles, plain.cycles)
+    assert calls[0] == (0, n) and calls[-1] == (n, n)
+    assert [d for d, _ in calls[:-1]] == list(range(0, n, 4096))
