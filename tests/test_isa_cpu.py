@@ -101,6 +101,56 @@ def test_unmapped_read_is_bus_error_naming_pc_instruction_and_line() -> None:
     assert "$009000" in str(err) and "fault.s:2" in str(err)
 
 
+@pytest.mark.parametrize("src, address", [
+    (" move.l $20000,d1", 0x020000),  # wholly unmapped: its first byte (was $020002)
+    (" move.l $7FFE,d1", 0x008000),  # straddles the end of RAM: the first unmapped byte (was the mapped $007FFE)
+    (" movem.l $7FFC,d1-d2", 0x008000),  # the second register's long (was $008002)
+    (" move.l d1,$7FFE", 0x008000),
+    (" add.l $20000,d1", 0x020000),
+    (" lea $7FFE,a0\n move.l (a0)+,d1", 0x008000),
+])
+@pytest.mark.parametrize("path", ["step", "closures", "blocks"])
+def test_bus_error_on_a_long_names_the_first_unmapped_byte(src: str, address: int, path: str) -> None:
+    # Issue 8.3, with RAM at $0-$7FFF as in the issue; m68000-python's stacked access address agrees
+    # (tests/test_isa_vs_m68000py.py, test_bus_error_address_cases / test_bus_errors_name_the_faulting_access).
+    cpu = CPU(mapped=False)
+    cpu.map(0, 0x8000, "ram")
+    cpu.load(isa.assemble(src + "\n trap #0\n", filename="bus.s", origin=0x1000))
+    cpu.block_compile = path == "blocks"
+    with pytest.raises(BusError) as info:
+        if path == "step":
+            for _ in range(3):
+                cpu.step()
+        else:
+            cpu.run(max_instructions=10)
+    assert f"unmapped address ${address:06X} at PC=" in str(info.value), str(info.value)
+
+
+@pytest.mark.parametrize("path", ["step", "closures", "blocks"])
+def test_brief_extension_bits_10_8_execute_as_on_the_68000(path: str) -> None:
+    # Issue 8.1: d8(An,Xn) / d8(PC,Xn) with bits 10..8 of the brief word set (scale/full format on a 68020) run
+    # as the 68000 runs them: the bits are ignored. Both forms must give the same registers and clocks.
+    def run(junk: int) -> tuple[list[int], int]:
+        cpu = CPU()
+        # move.w 8(a0,d1.w),d2 ; lea 4(pc,d1.w),a1 (extension word at $1006) ; move.l -2(a0,d1.l),d3 ; trap #0
+        words = [0x3430, 0x1008 | junk << 8, 0x43FB, 0x1004 | junk << 8, 0x2630, 0x18FE | junk << 8, 0x4E40]
+        cpu.write_bytes(0x1000, b"".join(w.to_bytes(2, "big") for w in words))
+        cpu.write_bytes(0x2000, bytes(range(64)))
+        cpu.pc, cpu.a[0], cpu.d[1] = 0x1000, 0x2000, 0x10
+        cpu.block_compile = path == "blocks"
+        if path == "step":
+            clocks = sum(cpu.step() for _ in range(4))
+        else:
+            cpu.run()
+            clocks = cpu.cycles
+        return [cpu.d[2], cpu.a[1], cpu.d[3]], clocks
+
+    canonical = run(0)
+    assert canonical[0] == [0x1819, 0x101A, 0x0E0F1011]
+    for junk in range(1, 8):
+        assert run(junk) == canonical
+
+
 def test_write_to_rom_is_bus_error() -> None:
     cpu = load_mapped(" move.w d0,$0100\n")
     with pytest.raises(BusError, match="read-only"):
