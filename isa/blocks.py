@@ -142,6 +142,7 @@ class _BlockGen:
         self.facts = facts
         self.known: dict[int, int] = {}
         self.wrote = False  # set by write(): the instruction writes memory; check D[0] after it
+        self.u32: set[str] = set()  # temporaries of this instruction known to hold a masked 32-bit address
         self.smc_inline = False  # set by gen(): a last write may leave the block right after it (smc_slots)
         self.smc_slots: list[int] = []  # item indices to fill with the exit after the instruction  # data register -> value known here (set by gen() for one instruction)
         self.items: list[tuple[int, object]] = []  # (indent, line str | ("exit", ...) | ("mark", i))
@@ -197,11 +198,13 @@ class _BlockGen:
             an = self.wg(8 + op.reg)
             self.emit(f"{tmp} = {an}")
             self.emit(f"{an} = ({tmp} + {_inc(op, nb)}) & 0xFFFFFFFF")
+            self.u32.add(tmp)
             return tmp
         if m is _M.APREDEC:
             an = self.wg(8 + op.reg)
             self.emit(f"{an} = ({an} - {_inc(op, nb)}) & 0xFFFFFFFF")
             self.emit(f"{tmp} = {an}")
+            self.u32.add(tmp)
             return tmp
         if m is _M.ADISP:
             return f"({self.rg(8 + op.reg)} + {op.value})"
@@ -260,6 +263,11 @@ class _BlockGen:
         lo, hi = self.facts.span
         if hi - lo < nb:
             return f"{fn}({a})"
+        if a in self.u32 or a in _RN:  # a local holding 0..2^32-1: the span comparison needs no mask
+            odd = "" if nb == 1 else f"not {a} & 1 and "
+            rng = f"{a} <= {hi - nb}" if lo == 0 else f"{lo} <= {a} <= {hi - nb}"
+            val = (f"m[{a}]", f"(m[{a}] << 8 | m[{a} + 1])", "", f"UL(m, {a})[0]")[nb - 1]
+            return f"({val} if {odd}{rng} else {fn}({a}))"
         rng = f"(_t := ({a}) & 0xFFFFFF) <= {hi - nb}" if lo == 0 else f"{lo} <= (_t := ({a}) & 0xFFFFFF) <= {hi - nb}"
         odd = "" if nb == 1 else f"not ({a}) & 1 and "
         val = ("m[_t]", "(m[_t] << 8 | m[_t + 1])", "", "UL(m, _t)[0]")[nb - 1]
@@ -1032,6 +1040,7 @@ def _block_source(entries: list[_Entry], facts: MapFacts
             r = role.get(i)
             if r is None:
                 g.wrote = False
+                g.u32 = set()
                 g.smc_inline = not _lowers_sp(ins, h)
                 g.smc_slots = []
                 g.known = {}
