@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import importlib.util
 import os
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
@@ -91,6 +92,8 @@ def compiled_kernels() -> ModuleType:
 
 
 _PURE: ModuleType | None = None
+#: numba's fork-safe workqueue threading layer must not be entered by two threads at once.
+_KERNEL_LOCK = threading.Lock()
 
 
 def pure_kernels() -> ModuleType:
@@ -182,7 +185,11 @@ def _run_kernels(kern: ModuleType, consts: "FirmwareConstants", adc: np.ndarray,
     state = np.zeros((n_streams, kern.N_STATE), dtype=dt)
     init_out = np.empty((n_streams, len(cols)), dtype=dt)
     out = np.empty((n_streams, n, len(cols)), dtype=dt)
-    kern.run_streams(prog, adc_k, acc_k, c, cols, state, init_out, out, first, word)
+    if kern.COMPILED:
+        with _KERNEL_LOCK:
+            kern.run_streams(prog, adc_k, acc_k, c, cols, state, init_out, out, first, word)
+    else:
+        kern.run_streams(prog, adc_k, acc_k, c, cols, state, init_out, out, first, word)
     if not kern.COMPILED:
         init_out, out = init_out.astype(np.int64), out.astype(np.int64)
     return init_out, out, first, word
