@@ -177,7 +177,10 @@ def _run_kernels(kern: ModuleType, consts: "FirmwareConstants", adc: np.ndarray,
     word = np.empty(n_streams, dtype=np.int64)
     if kern.COMPILED:
         dt: type = np.int64
-        adc_k, acc_k = np.ascontiguousarray(adc, dtype=np.int64), np.ascontiguousarray(acc, dtype=np.int64)
+        # One machine-code specialization only: C-contiguous, writeable int64 (numba types a read-only or
+        # strided array differently and would compile the driver again for it).
+        adc_k, acc_k = (x if x.flags.c_contiguous and x.flags.writeable and x.dtype == np.int64
+                        else np.array(x, dtype=np.int64, order="C") for x in (adc, acc))
     else:
         dt = object
         adc_k, acc_k = adc.astype(object), acc.astype(object)

@@ -295,3 +295,24 @@ def test_parallel_kernel_then_fork_and_threads():
     want = [int(run_model(build_constants(BuildConfig(program="kalman_accel")), np.full((4, 50), 30000 + i))
                 .words.sum()) for i in range(4)]
     assert res.stdout.strip() == f"{want[0]} {want} {want}"
+
+
+@needs_numba
+def test_one_compiled_specialization_whatever_the_input_layout():
+    """Read-only, strided, int32 or uint16 inputs run through the same machine code (numba would otherwise
+    compile the driver again, seconds each, for every new array type) and give the same words."""
+    consts = build_constants(BuildConfig(program="kalman_accel"))
+    rng = np.random.default_rng(4)
+    adc = rng.integers(20000, 40000, (3, 80))
+    acc = rng.integers(-3000, 3000, (3, 80))
+    want = run_model(consts, adc, acc)
+    n_sigs = len(KC.run_streams.signatures)
+    ro_adc, ro_acc = adc.copy(), acc.copy()
+    ro_adc.flags.writeable = ro_acc.flags.writeable = False
+    variants = [(ro_adc, ro_acc), (adc.T.copy().T, acc.T.copy().T), (adc.astype(np.int32), acc.astype(np.int32)),
+                (adc.astype(np.uint16), acc.astype(np.int16))]
+    for a, b in variants:
+        _same_trace(run_model(consts, a, b), want, f"{a.dtype} {a.flags.c_contiguous} {a.flags.writeable}")
+    strided = np.repeat(adc, 2, axis=1)[:, ::2], np.repeat(acc, 2, axis=1)[:, ::2]
+    _same_trace(run_model(consts, *strided), want, "strided")
+    assert len(KC.run_streams.signatures) == n_sigs
