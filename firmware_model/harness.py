@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import struct
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -72,7 +72,8 @@ def _fault(build: FirmwareBuild, exc: Exception, where: str) -> Exception:
 
 
 def run_firmware(build: FirmwareBuild, adc: Any, acc: Any = None, *,
-                 max_cycles_per_call: int = DEFAULT_MAX_CYCLES_PER_CALL) -> FirmwareTrace:
+                 max_cycles_per_call: int = DEFAULT_MAX_CYCLES_PER_CALL,
+                 progress: Callable[[int, int], None] | None = None) -> FirmwareTrace:
     """Run ``build`` on the emulated 68000 over one stream (``adc`` shape ``(n,)``) or many (``(streams, n)``).
 
     ``adc``: barometer ADC samples, integers 0..65535 (raw counts, written to ``BARO_ADC``); ``acc``:
@@ -83,6 +84,7 @@ def run_firmware(build: FirmwareBuild, adc: Any, acc: Any = None, *,
 
     Raises :class:`UserError` for bad input values (naming stream/sample and value) and the CPU's own
     :class:`isa.errors.CPUFault` subclass, with the sample index (or ``init``) prepended, if the firmware faults.
+    ``progress(done, total)``, if given, is called every 4,096 samples of each stream and at its end.
     """
     if not isinstance(build, FirmwareBuild):
         raise UserError(f"run_firmware needs a FirmwareBuild (from build_firmware), got {type(build).__name__}")
@@ -100,7 +102,7 @@ def run_firmware(build: FirmwareBuild, adc: Any, acc: Any = None, *,
     for s in range(n_streams):
         init_cycles[s], stack_s, written_s = _run_stream(build, adc2[s], acc2[s] & 0xFFFF, addr_size, words[s],
                                                         init_words[s], cycles[s], max_cycles_per_call,
-                                                        "" if n_streams == 1 else f"stream {s} ")
+                                                        "" if n_streams == 1 else f"stream {s} ", progress)
         stack, written = max(stack, stack_s), max(written, written_s)
     if np.ndim(adc) == 1:
         return FirmwareTrace(build.program_name, names, words[0], init_words[0], cycles[0], int(init_cycles[0]),
@@ -110,8 +112,8 @@ def run_firmware(build: FirmwareBuild, adc: Any, acc: Any = None, *,
 
 
 def _run_stream(build: FirmwareBuild, adc: np.ndarray, acc: np.ndarray, addr_size: list[tuple[int, int]],
-                words: np.ndarray, init_words: np.ndarray, cycles: np.ndarray, max_cycles: int, label: str
-                ) -> tuple[int, int, int]:
+                words: np.ndarray, init_words: np.ndarray, cycles: np.ndarray, max_cycles: int, label: str,
+                progress: Callable[[int, int], None] | None = None) -> tuple[int, int, int]:
     """Run one stream into the preallocated ``words``/``init_words``/``cycles``; return (init clocks, stack bytes,
     RAM bytes written)."""
     machine = _Machine(build)
@@ -173,6 +175,10 @@ def _run_stream(build: FirmwareBuild, adc: np.ndarray, acc: np.ndarray, addr_siz
                 write(ACCEL_ADC, acc_l[i], 2)
             cyc[i] = call(step_addr, max_cycles=max_cycles)
             out[i] = read_state_lean()
+            if progress is not None and not i & 4095:
+                progress(i, len(adc_l))
+        if progress is not None:
+            progress(len(adc_l), len(adc_l))
     except Exception as exc:
         raise _fault(build, exc, f"{label}init" if i < 0 else f"{label}sample {i}") from exc
     words[:] = np.array(out, dtype=np.int64).reshape(words.shape)

@@ -62,6 +62,13 @@ COMPILED: bool = _numba is not None
 if _numba is not None:
     njit = _numba.njit
     prange = _numba.prange
+    if not os.environ.get("NUMBA_THREADING_LAYER"):
+        # A fork-safe layer (tbb if installed, else numba's workqueue), not GNU OpenMP: with OpenMP, a process
+        # that ran a parallel kernel and then forks workers that run one too (multiprocessing's default on
+        # Linux, e.g. a --jobs pool) has them terminate ("fork() called from a process already using GNU
+        # OpenMP") and the pool hangs (tests/test_model_kernels.py). workqueue is not thread-safe: run_model
+        # holds a lock around the kernel call. Read by numba at the first parallel launch.
+        _numba.config.THREADING_LAYER = "forksafe"
 else:
     def njit(*args, **kwargs):  # type: ignore[no-redef]
         """No numba: the decorated function stays plain Python."""

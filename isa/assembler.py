@@ -29,8 +29,9 @@
 * Encoding is what is written: no MOVE->MOVEQ or ADD->ADDQ rewrites. Absolute operands are ``abs.L`` unless
   written ``x.w`` / ``(x).w``; branches without a size are ``.W``, ``.s``/``.b`` select the 8-bit form.
   ``MOVE``/``ADD``/``SUB``/``CMP`` with an address-register destination assemble as ``MOVEA``/``ADDA``/``SUBA``/
-  ``CMPA`` (their only encoding, as every Motorola assembler does). ``x(PC)`` / ``(x,PC)``: ``x`` is the target
-  address (a warning when ``x`` is a plain number, which GNU as would read as the displacement). Aliases:
+  ``CMPA`` (their only encoding, as every Motorola assembler does); ``CMP (Ay)+,(Ax)+`` assembles as ``CMPM``.
+  ``x(PC)`` / ``(x,PC)``: ``x`` is the target address (a warning when ``x`` is a plain number, which GNU as
+  would read as the displacement). Aliases:
   ``shl``/``shr`` = ``lsl``/``lsr`` (with a warning), ``dbf`` = ``dbra``, ``bhs``/``blo`` = ``bcc``/``bcs`` (also
   for ``DBcc``/``Scc``). Shifts need an explicit count (``lsl.w #1,d0``); ``asl (a0)`` is the memory form.
 """
@@ -908,6 +909,8 @@ class _Assembler:
         operands = self._operands(rec, p)
         if mn in _TO_A_FORM and len(operands) == 2 and operands[1].mode is Mode.AREG:
             mn = _TO_A_FORM[mn]
+        if mn == "cmp" and len(operands) == 2 and all(op.mode is Mode.APOSTINC for op in operands):
+            mn = "cmpm"  # CMP (Ay)+,(Ax)+ has one encoding, CMPM (as GNU as and Motorola assemblers do)
         if mn == "movem" and len(operands) == 2:  # a one-register list written as a plain register
             regs = (Mode.DREG, Mode.AREG)
             for k in (0, 1):

@@ -62,7 +62,7 @@ _COND_EXPR: tuple[str, ...] = (
 _SHIFT_NAMES = frozenset("asl asr lsl lsr rol ror roxl roxr".split())
 _NO_FLAGS = frozenset("movea adda suba lea pea exg movem nop bra bsr jmp jsr rts".split())
 _NZVC_DEFS = frozenset("move moveq and andi or ori eor eori not tst clr ext swap muls mulu divs divu cmp cmpi "
-                       "cmpa".split())
+                       "cmpa cmpm".split())
 
 
 class _Unblockable(Exception):
@@ -94,7 +94,7 @@ def _flag_effect(ins: Instruction, h: str, cond: int | None) -> tuple[int, int]:
 #: Constant-address modes (the address is known when compiling).
 _CONST_MODES = frozenset((_M.ABSW, _M.ABSL, _M.PCDISP))
 #: Handlers that only read their last operand (every other handler with a memory destination writes it).
-_READ_ONLY_DST = frozenset("cmp cmpi cmpa tst".split())
+_READ_ONLY_DST = frozenset("cmp cmpi cmpa cmpm tst".split())
 
 
 def _const_addr(op: Operand, pc: int) -> int:
@@ -556,6 +556,17 @@ class _BlockGen:
                 self.set_dreg(dst.reg, nb, "rm")
             else:
                 self.write(nb, "eb", "rm", last=True)
+            return base, False
+        if h == "cmpm":  # (Ay)+,(Ax)+: Ay read and incremented first; flags as CMP (X kept)
+            s_op, d_op = ops
+            sa = self.addr(s_op, nb, pc, "ea")
+            self.emit(f"s = {self.load(nb, sa)}")
+            da = self.addr(d_op, nb, pc, "eb")
+            self.emit(f"x = {self.load(nb, da)}")
+            if need & _FLAGS_NZVC:
+                self.emit("r = x - s")
+                self.emit(f"rm = r & {M}")
+                self.arith_flags("cmp", nb, "s", "x", need)
             return base, False
         if h in ("addx", "subx"):
             s_op, d_op = ops

@@ -753,6 +753,28 @@ def bus_combos() -> list[tuple[object, Size | None, Mode | None]]:
             if mode in MEMORY_MODES + (Mode.ABSW, Mode.ABSL) and row.handler not in ("lea", "pea", "jmp", "jsr")]
 
 
+@st.composite
+def cmpm_cases(draw) -> Case:  # noqa: ANN001
+    """CMPM (Ay)+,(Ax)+ with Ay = Ax and A7 (byte steps of 2) drawn often, both pointing at edge-valued data."""
+    from isa.encoder import encode
+
+    size = draw(st.sampled_from((Size.B, Size.W, Size.L)))
+    ay = draw(st.sampled_from((0, 7, draw(st.integers(0, 7)))))
+    ax = draw(st.sampled_from((ay, 7, draw(st.integers(0, 7)))))
+    instr = Instruction("cmpm", size, (Operand(Mode.APOSTINC, ay), Operand(Mode.APOSTINC, ax)))
+    d = [draw(u32()) for _ in range(8)]
+    a = [draw(u32()) for _ in range(8)]
+    blocks: list[tuple[int, bytes]] = []
+    for r in (ay, ax):
+        t = draw(st.integers(DATA_LO + 0x100, DATA_HI - 0x100))
+        a[r] = t & ~1 if size is not Size.B or r == 7 else t
+        blocks.append((a[r], b"".join(draw(value_of(size.bytes)).to_bytes(size.bytes, "big") for _ in range(2))))
+    code = encode(instr, CODE)
+    blocks += [(CODE, code), (CODE + len(code), NOP.to_bytes(2, "big") * 4)]
+    image = bytes(base_image(draw(st.integers(0, 2**32 - 1)), blocks))
+    return Case(instr, format_text(instr), code, Machine(d, a, draw(st.integers(0, 0x1F)), CODE, image))
+
+
 def format_text(instr: Instruction) -> str:
     """Our formatter's text of ``instr`` (falls back to a plain rendering while isa.formatter is absent)."""
     try:

@@ -38,8 +38,8 @@ EDGE = (0, 1, 2, 7, 0x7F, 0x80, 0xFF, 0x7FFF, 0x8000, 0xFFFF, 0x7FFFFFFF, 0x8000
 #: Data-processing rows for the m68000-python comparison (no TRAP/ILLEGAL/jumps/calls, no rows that load an
 #: address register with an arbitrary value, which would only turn most blocks into bus errors).
 ALU_ROWS = ["move", "moveq", "add", "addi", "addq", "addx", "sub", "subi", "subq", "subx", "neg", "negx", "cmp",
-            "cmpa", "cmpi", "tst", "and", "andi", "or", "ori", "eor", "eori", "not", "clr", "ext", "swap", "asl",
-            "asr", "lsl", "lsr", "rol", "ror", "roxl", "roxr", "muls", "mulu", "divs", "divu", "scc", "nop"]
+            "cmpa", "cmpi", "cmpm", "tst", "and", "andi", "or", "ori", "eor", "eori", "not", "clr", "ext", "swap",
+            "asl", "asr", "lsl", "lsr", "rol", "ror", "roxl", "roxr", "muls", "mulu", "divs", "divu", "scc", "nop"]
 SAFE_MODES = frozenset({Mode.DREG, Mode.AREG, Mode.IMM, Mode.AIND, Mode.APOSTINC, Mode.APREDEC, Mode.ADISP,
                         Mode.ABSW})
 DATA_ABS = st.integers(oracles.DATA_LO // 2, (oracles.DATA_HI - 8) // 2).map(lambda v: 2 * v)

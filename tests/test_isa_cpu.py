@@ -14,7 +14,8 @@ from hypothesis import strategies as st
 
 import isa
 from isa.cpu import CALL_SENTINEL, CPU, HANDLERS, MapError
-from isa.errors import AddressError, BusError, CPUFault, DivideByZero, IllegalInstruction, LimitExceeded
+from isa.errors import (AddressError, BusError, CPUFault, DivideByZero, IllegalInstruction, IsaError,
+                        LimitExceeded)
 from isa.table import TABLE
 
 X, N, Z, V, C = 0x10, 8, 4, 2, 1
@@ -424,6 +425,31 @@ def test_addx_subx_negx_z_rule() -> None:
     assert cpu.d[0] == 0xFF and cpu.ccr == X | N | C
     cpu, _ = one(" negx.b d0", d0=0, sr=0x2700 | Z)
     assert cpu.d[0] == 0 and cpu.ccr == Z
+
+
+def test_cmpm_compares_and_post_increments() -> None:
+    # CMPM (Ay)+,(Ax)+ (issue 8.2): flags of (Ax) - (Ay) as CMP, X unchanged; Ay read first; A7 steps 2 for bytes.
+    X, N, Z, V, C = 0x10, 0x08, 0x04, 0x02, 0x01
+    cpu = CPU()
+    cpu.write_bytes(0x3000, bytes.fromhex("05 80 7FFF 00000001"))
+    cpu.write_bytes(0x4000, bytes.fromhex("05 7F 8000 80000000"))
+    cpu.load(isa.assemble(" cmpm.b (a0)+,(a1)+\n cmpm.b (a0)+,(a1)+\n cmpm.w (a0)+,(a1)+\n cmpm.l (a0)+,(a1)+\n"
+                          " cmp.b (a7)+,(a7)+\n trap #0\n", origin=ORG))
+    cpu.a[0], cpu.a[1], cpu.a[7], cpu.sr = 0x3000, 0x4000, 0x5000, 0x2700 | X
+    clocks = cpu.step()
+    assert (cpu.sr & 0x1F, clocks, cpu.a[0], cpu.a[1]) == (X | Z, 12, 0x3001, 0x4001)  # 5 - 5
+    cpu.step()
+    assert cpu.sr & 0x1F == X | N | V | C  # $7F - $80 = $FF: borrow, and 127 - (-128) overflows
+    cpu.step()
+    assert cpu.sr & 0x1F == X | V  # $8000 - $7FFF = 1: overflow (negative minus positive gives positive)
+    clocks = cpu.step()
+    assert (cpu.sr & 0x1F, clocks, cpu.a[0], cpu.a[1]) == (X | V, 20, 0x3008, 0x4008)  # $80000000 - 1
+    cpu.write_bytes(0x5000, bytes.fromhex("0102 0300"))
+    cpu.step()  # cmp.b (a7)+,(a7)+ assembles as CMPM: reads $5000 then $5002 (A7 keeps word alignment)
+    assert cpu.a[7] == 0x5004 and cpu.sr & 0x1F == X  # 3 - 1 = 2
+    assert isa.assemble(" cmp.w (a2)+,(a3)+\n cmpm.l (a7)+,(a7)+\n").code == bytes.fromhex("B74A BF8F")
+    with pytest.raises(IsaError, match="cmpm"):
+        isa.assemble(" cmpm.b d0,d1\n")
 
 
 def test_addx_memory_predecrement() -> None:

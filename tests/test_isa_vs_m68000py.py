@@ -195,3 +195,10 @@ def test_harness_detects_a_difference() -> None:
     diffs = oracles.compare(base, other, cycles=True)
     assert any(d.startswith("D1") for d in diffs) and any("CCR Z" in d for d in diffs)
     assert any(d.startswith("memory") for d in diffs) and any(d.startswith("cycles") for d in diffs)
+
+
+@settings(max_examples=examples(60))
+@given(case=oracles.cmpm_cases())
+def test_cmpm_same_register_and_a7(case: oracles.Case) -> None:
+    """CMPM (issue 8.2) with Ay = Ax, A7 and edge-valued operands against m68000-python."""
+    check(case)

@@ -259,3 +259,60 @@ def test_engine_argument_and_env_switch():
     want = run_model(consts, np.full(5, 30000)).words[-1].tolist()
     assert lines[0] == f"False {want}"
     assert lines[1] == "run_model: engine='numba' but FWEMU_NO_NUMBA is set"
+
+
+_FORK_AND_THREADS = """
+import sys, threading, multiprocessing
+import numpy as np
+from firmware_model.config import BuildConfig
+from firmware_model.constants import build_constants
+from firmware_model.model import run_model
+c = build_constants(BuildConfig(program="kalman_accel"))
+def f(i):
+    return int(run_model(c, np.full((4, 50), 30000 + i)).words.sum())
+parent = f(0)
+out = [None] * 4
+def g(i):
+    out[i] = f(i)
+threads = [threading.Thread(target=g, args=(i,)) for i in range(4)]
+for t in threads: t.start()
+for t in threads: t.join()
+with multiprocessing.get_context("fork").Pool(2) as pool:
+    print(parent, out, pool.map(f, range(4)))
+"""
+
+
+@needs_numba
+def test_parallel_kernel_then_fork_and_threads():
+    """A process that ran the parallel kernel can still fork workers that run it (a --jobs pool; with GNU
+    OpenMP as numba's threading layer they would terminate and the pool hang), and threads may call run_model
+    concurrently (serialised by a lock). In a fresh process, with a time limit."""
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_THREADING_LAYER"}
+    env["PYTHONPATH"] = str(ROOT)
+    res = subprocess.run([sys.executable, "-c", _FORK_AND_THREADS], env=env, capture_output=True, text=True,
+                         timeout=120)
+    assert res.returncode == 0, res.stderr[-2000:]
+    want = [int(run_model(build_constants(BuildConfig(program="kalman_accel")), np.full((4, 50), 30000 + i))
+                .words.sum()) for i in range(4)]
+    assert res.stdout.strip() == f"{want[0]} {want} {want}"
+
+
+@needs_numba
+def test_one_compiled_specialization_whatever_the_input_layout():
+    """Read-only, strided, int32 or uint16 inputs run through the same machine code (numba would otherwise
+    compile the driver again, seconds each, for every new array type) and give the same words."""
+    consts = build_constants(BuildConfig(program="kalman_accel"))
+    rng = np.random.default_rng(4)
+    adc = rng.integers(20000, 40000, (3, 80))
+    acc = rng.integers(-3000, 3000, (3, 80))
+    want = run_model(consts, adc, acc)
+    n_sigs = len(KC.run_streams.signatures)
+    ro_adc, ro_acc = adc.copy(), acc.copy()
+    ro_adc.flags.writeable = ro_acc.flags.writeable = False
+    variants = [(ro_adc, ro_acc), (adc.T.copy().T, acc.T.copy().T), (adc.astype(np.int32), acc.astype(np.int32)),
+                (adc.astype(np.uint16), acc.astype(np.int16))]
+    for a, b in variants:
+        _same_trace(run_model(consts, a, b), want, f"{a.dtype} {a.flags.c_contiguous} {a.flags.writeable}")
+    strided = np.repeat(adc, 2, axis=1)[:, ::2], np.repeat(acc, 2, axis=1)[:, ::2]
+    _same_trace(run_model(consts, *strided), want, "strided")
+    assert len(KC.run_streams.signatures) == n_sigs
