@@ -25,6 +25,11 @@ COMMAND_MODULES: tuple[str, ...] = (
     "firmware_model.cli_compare",
     "firmware_model.cli_budget",
     "firmware_model.cli_vectors",
+    "firmware_model.cli_simulate",
+    "firmware_model.cli_run",
+    "firmware_model.cli_plot",
+    "firmware_model.cli_evaluate",
+    "firmware_model.cli_sweep",
 )
 
 

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import importlib.util
 import os
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
@@ -91,6 +92,8 @@ def compiled_kernels() -> ModuleType:
 
 
 _PURE: ModuleType | None = None
+#: numba's fork-safe workqueue threading layer must not be entered by two threads at once.
+_KERNEL_LOCK = threading.Lock()
 
 
 def pure_kernels() -> ModuleType:
@@ -174,7 +177,10 @@ def _run_kernels(kern: ModuleType, consts: "FirmwareConstants", adc: np.ndarray,
     word = np.empty(n_streams, dtype=np.int64)
     if kern.COMPILED:
         dt: type = np.int64
-        adc_k, acc_k = np.ascontiguousarray(adc, dtype=np.int64), np.ascontiguousarray(acc, dtype=np.int64)
+        # One machine-code specialization only: C-contiguous, writeable int64 (numba types a read-only or
+        # strided array differently and would compile the driver again for it).
+        adc_k, acc_k = (x if x.flags.c_contiguous and x.flags.writeable and x.dtype == np.int64
+                        else np.array(x, dtype=np.int64, order="C") for x in (adc, acc))
     else:
         dt = object
         adc_k, acc_k = adc.astype(object), acc.astype(object)
@@ -182,7 +188,11 @@ def _run_kernels(kern: ModuleType, consts: "FirmwareConstants", adc: np.ndarray,
     state = np.zeros((n_streams, kern.N_STATE), dtype=dt)
     init_out = np.empty((n_streams, len(cols)), dtype=dt)
     out = np.empty((n_streams, n, len(cols)), dtype=dt)
-    kern.run_streams(prog, adc_k, acc_k, c, cols, state, init_out, out, first, word)
+    if kern.COMPILED:
+        with _KERNEL_LOCK:
+            kern.run_streams(prog, adc_k, acc_k, c, cols, state, init_out, out, first, word)
+    else:
+        kern.run_streams(prog, adc_k, acc_k, c, cols, state, init_out, out, first, word)
     if not kern.COMPILED:
         init_out, out = init_out.astype(np.int64), out.astype(np.int64)
     return init_out, out, first, word

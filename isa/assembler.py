@@ -29,14 +29,16 @@
 * Encoding is what is written: no MOVE->MOVEQ or ADD->ADDQ rewrites. Absolute operands are ``abs.L`` unless
   written ``x.w`` / ``(x).w``; branches without a size are ``.W``, ``.s``/``.b`` select the 8-bit form.
   ``MOVE``/``ADD``/``SUB``/``CMP`` with an address-register destination assemble as ``MOVEA``/``ADDA``/``SUBA``/
-  ``CMPA`` (their only encoding, as every Motorola assembler does). ``x(PC)`` / ``(x,PC)``: ``x`` is the target
-  address (a warning when ``x`` is a plain number, which GNU as would read as the displacement). Aliases:
+  ``CMPA`` (their only encoding, as every Motorola assembler does); ``CMP (Ay)+,(Ax)+`` assembles as ``CMPM``.
+  ``x(PC)`` / ``(x,PC)``: ``x`` is the target address (a warning when ``x`` is a plain number, which GNU as
+  would read as the displacement). Aliases:
   ``shl``/``shr`` = ``lsl``/``lsr`` (with a warning), ``dbf`` = ``dbra``, ``bhs``/``blo`` = ``bcc``/``bcs`` (also
   for ``DBcc``/``Scc``). Shifts need an explicit count (``lsl.w #1,d0``); ``asl (a0)`` is the memory form.
 """
 
 from __future__ import annotations
 
+import bisect
 import os
 import re
 from collections.abc import Mapping, Sequence
@@ -51,11 +53,13 @@ from isa.operands import IndexReg, Instruction, Mode, Operand, Size
 from isa.program import ListingLine, Program, Segment, SourceLine, Symbol
 from isa.table import BY_MNEMONIC
 
-__all__ = ["assemble", "format_listing"]
+__all__ = ["assemble", "decode_source", "format_listing"]
 
 #: Highest address + 1 of the 24-bit address space.
 ADDRESS_LIMIT = 1 << 24
 _MAX_PASSES = 12
+#: Run passes after the first as the final one (see ``_Assembler.run``); a test switches it off to compare.
+_SPECULATE = True
 _MAX_INCLUDE_DEPTH = 32
 _MAX_MACRO_DEPTH = 64
 _MAX_EXPANDED_LINES = 1_000_000
@@ -89,6 +93,7 @@ _RESERVED = frozenset(_REGISTERS) | _UNSUPPORTED_REGS | {"pc"}
 _LABEL_RE = re.compile(r"(\.?[A-Za-z_][A-Za-z0-9_]*|\.[0-9]+|[0-9]+\$)")
 _INDENTED_LABEL_RE = re.compile(r" *" + _LABEL_RE.pattern + ":")
 _OP_RE = re.compile(r"([A-Za-z_][A-Za-z0-9_]*)(?:\.([A-Za-z0-9_]*))?")
+_NEWLINE_RE = re.compile(r"\r\n|\r|\n")
 _MACRO_ARG_RE = re.compile(r"\\(@|[0-9]|[A-Za-z_][A-Za-z0-9_]*)")
 _DATA_RANGE = {1: (-0x80, 0xFF), 2: (-0x8000, 0xFFFF), 4: (-0x8000_0000, 0xFFFF_FFFF)}
 
@@ -247,6 +252,8 @@ class _Assembler:
         self.defines = dict(defines or {})
         self.main_recs = self._recs_of(text, filename)
         self.file_cache: dict[str, list[_Rec]] = {}
+        self.parse_cache: dict[tuple[_Rec, bool], _Parsed] = {}
+        self.token_cache: dict[tuple[_Rec, str, int], list[Token]] = {}
         self.prev: dict[str, _Sym] = {}
         self.prev_bases: dict[str, int] = {"code": origin, "data": origin, "bss": origin}
         self.final = False
@@ -255,7 +262,12 @@ class _Assembler:
     # --- driver -----------------------------------------------------------------------------------------------
     @staticmethod
     def _recs_of(text: str, filename: str) -> list[_Rec]:
-        return [_Rec(filename, i + 1, line) for i, line in enumerate(text.splitlines())]
+        # Lines end at \n, \r\n or \r only (str.splitlines also breaks at \f, \v, \x1c.. and U+2028, which
+        # would put every later line number off from what an editor shows).
+        lines = _NEWLINE_RE.split(text[1:] if text.startswith("\ufeff") else text)
+        if lines and lines[-1] == "":
+            lines.pop()
+        return [_Rec(filename, i + 1, line) for i, line in enumerate(lines)]
 
     def run(self) -> Program:
         """Run passes until symbol values and section bases are stable, then a final encoding pass."""
@@ -272,10 +284,26 @@ class _Assembler:
                 raise AssemblyError(f"define {name} = {value!r} is not an integer", self.filename, 0, 0)
         snapshot: tuple[dict[str, int], dict[str, int]] | None = None
         changing: list[str] = []
+        speculate = _SPECULATE
         for _ in range(_MAX_PASSES):
-            self._pass()
+            # From the second pass on, run each pass as the final one: when it completes and its symbols and
+            # bases equal the previous pass's, it had exactly the inputs the final pass would have (the same
+            # ``prev``), so it IS the final pass and one pass is saved. A final pass differs from a non-final one
+            # only by raising where the other substitutes 0 (undefined symbol, range, encoding), so when it
+            # completes its symbols are those of the non-final pass. After one speculative pass fails, passes
+            # run the plain way (an erroneous program costs at most one extra pass).
+            self.final = speculate and snapshot is not None
+            try:
+                self._pass()
+            except AssemblyError:
+                if not self.final:
+                    raise
+                self.final = speculate = False
+                self._pass()
             new = (self._snapshot(), dict(self.bases))
             if new == snapshot:
+                if self.final:
+                    return self._program()
                 break
             if snapshot is not None:
                 changing = [k for k, v in new[0].items() if snapshot[0].get(k) != v]
@@ -309,7 +337,7 @@ class _Assembler:
         self.source_map: dict[int, SourceLine] = {}
         self.warnings: list[str] = []
         self.include_stack: list[str] = [os.path.abspath(self.filename)]
-        self.macro_depth = 0
+        self.macro_calls: list[tuple[str, str]] = []  # (macro name, "file:line" of its call), outermost first
         self.lines_done = 0
         self.defining: _Macro | None = None
         try:
@@ -398,7 +426,15 @@ class _Assembler:
         self._instruction(rec, p)
 
     def _parse_fields(self, rec: _Rec, lenient: bool) -> _Parsed:
-        """Split a line into label, operation, size and operand field."""
+        """Split a line into label, operation, size and operand field (a pure function of the line: cached for
+        the later passes; errors are not cached, they recur)."""
+        key = (rec, lenient)
+        p = self.parse_cache.get(key)
+        if p is None:
+            p = self.parse_cache[key] = self._parse_fields_uncached(rec, lenient)
+        return p
+
+    def _parse_fields_uncached(self, rec: _Rec, lenient: bool) -> _Parsed:
         text = rec.text.replace("\t", " ") if "\t" in rec.text else rec.text
         p = _Parsed()
         stripped = text.lstrip()
@@ -525,7 +561,12 @@ class _Assembler:
 
     # --- expressions ----------------------------------------------------------------------------------------------
     def _tokens(self, rec: _Rec, text: str, col: int) -> list[Token]:
-        return tokenize(text, col, rec.where())
+        """``tokenize`` (cached per line and field for the later passes; callers never mutate the list)."""
+        key = (rec, text, col)
+        toks = self.token_cache.get(key)
+        if toks is None:
+            toks = self.token_cache[key] = tokenize(text, col, rec.where())
+        return toks
 
     def _eval_tokens(self, rec: _Rec, toks: list[Token], strict: bool = False, what: str = "expression") -> int:
         """Evaluate a complete token list (must be one expression)."""
@@ -716,19 +757,21 @@ class _Assembler:
         recs = self.file_cache.get(key)
         if recs is None:
             try:
-                text = path.read_text(encoding="utf-8")
-            except (OSError, UnicodeDecodeError) as exc:
-                raise rec.where().error(f"cannot read INCLUDE file '{path}': {exc}", p.operand_col) from None
+                data = path.read_bytes()
+            except OSError as exc:
+                raise rec.where().error(f"cannot read INCLUDE file '{path}': {exc.strerror or exc}",
+                                        p.operand_col) from None
+            text = decode_source(data, str(path))
             recs = self._recs_of(text, str(path))
             self.file_cache[key] = recs
         self._list(rec, None)
         self.include_stack.append(key)
-        saved_macro_depth, self.macro_depth = self.macro_depth, 0
+        saved_calls, self.macro_calls = self.macro_calls, []
         try:
             self._unit(recs, "file")
         finally:
             self.include_stack.pop()
-            self.macro_depth = saved_macro_depth
+            self.macro_calls = saved_calls
 
     # --- conditionals ----------------------------------------------------------------------------------------------
     def _cond_op(self, rec: _Rec, p: _Parsed, cond_base: int) -> None:
@@ -800,8 +843,12 @@ class _Assembler:
         args = [a for a, _ in _split_args(p.operands)] if p.operands.strip() else []
         if len(args) > 9 and not mac.params:
             raise rec.where().error("more than 9 macro arguments", p.operand_col)
-        if self.macro_depth >= _MAX_MACRO_DEPTH:
-            raise rec.where().error(f"macro '{mac.name}' nested too deeply (recursive macro?)", p.op_col)
+        calls = self.macro_calls
+        if len(calls) >= _MAX_MACRO_DEPTH:
+            first_name, first_at = calls[0]
+            raise Where(rec.file, rec.line, rec.text).error(
+                f"macro '{mac.name}' nested {len(calls)} levels deep (recursive macro?); the outermost call is "
+                f"'{first_name}' at {first_at}", p.op_col)
         self.unique += 1
         unique = f"_{self.unique:03d}"
         named = {prm: (args[i] if i < len(args) else "") for i, prm in enumerate(mac.params)}
@@ -817,14 +864,13 @@ class _Assembler:
                 return args[n - 1] if n <= len(args) else ""
             return named.get(key.lower(), m.group(0))
 
-        where = f"{rec.file}:{rec.line}"
-        note = f"in macro '{mac.name}' called at {where}" + (f"; {rec.note}" if rec.note else "")
+        calls.append((mac.name, f"{rec.file}:{rec.line}"))
+        note = _macro_note(calls)
         body = [_Rec(r.file, r.line, _MACRO_ARG_RE.sub(sub, r.text), note) for r in mac.body]
-        self.macro_depth += 1
         try:
             self._unit(body, "macro")
         finally:
-            self.macro_depth -= 1
+            calls.pop()
 
     # --- instructions ----------------------------------------------------------------------------------------------
     def _instruction(self, rec: _Rec, p: _Parsed) -> None:
@@ -863,6 +909,8 @@ class _Assembler:
         operands = self._operands(rec, p)
         if mn in _TO_A_FORM and len(operands) == 2 and operands[1].mode is Mode.AREG:
             mn = _TO_A_FORM[mn]
+        if mn == "cmp" and len(operands) == 2 and all(op.mode is Mode.APOSTINC for op in operands):
+            mn = "cmpm"  # CMP (Ay)+,(Ax)+ has one encoding, CMPM (as GNU as and Motorola assemblers do)
         if mn == "movem" and len(operands) == 2:  # a one-register list written as a plain register
             regs = (Mode.DREG, Mode.AREG)
             for k in (0, 1):
@@ -1086,26 +1134,70 @@ class _Assembler:
         origin = code_chunks[0].start if code_chunks else self.origin
         code = bytes(code_chunks[0].data) if code_chunks else b""
         symbols: dict[str, Symbol] = {}
-        labels = sorted((s for s in self.cur.values() if s.kind == "label"), key=lambda s: (s.value, s.order))
+        sizes = self._label_sizes()
         for s in sorted(self.cur.values(), key=lambda s: s.order):
-            size = 0
-            if s.kind == "label":
-                size = self._label_size(s, labels)
-            symbols[s.name] = Symbol(s.name, s.value, s.section, size)
+            symbols[s.name] = Symbol(s.name, s.value, s.section, sizes.get(id(s), 0))
         return Program(segments, origin, code, symbols, self.listing, self.source_map, self.warnings)
 
-    def _label_size(self, s: _Sym, labels: list[_Sym]) -> int:
-        chunk_end = s.value
-        for c in self.sections[s.section].chunks:
-            if c.start <= s.value <= c.start + c.size:
-                chunk_end = c.start + c.size
-        nxt = chunk_end
-        for other in labels:
-            if other is s or other.section != s.section or (not s.local and other.local):
+    def _label_sizes(self) -> dict[int, int]:
+        """Size of every label (keyed by ``id`` of its ``_Sym``), in O(n log n) for n labels.
+
+        A label ends at the next label after it in (address, definition order) -- the next global label for a
+        global one, the next label of any kind for a local one -- in its section, or at the end of its block
+        (the last-created chunk of its section whose closed range holds its address), whichever comes first."""
+        out: dict[int, int] = {}
+        for name in _SECTIONS:
+            labels = sorted((s for s in self.cur.values() if s.kind == "label" and s.section == name),
+                            key=lambda s: (s.value, s.order))
+            if not labels:
                 continue
-            if (other.value, other.order) > (s.value, s.order) and other.value <= chunk_end:
-                nxt = min(nxt, other.value)
-        return max(nxt - s.value, 0)
+            values = [s.value for s in labels]
+            # Block end per label: later chunks overwrite earlier ones (a label on the boundary of two blocks
+            # belongs to the one created last). Each chunk touches only the labels inside its range.
+            block_end = values[:]
+            for c in self.sections[name].chunks:
+                end = c.start + c.size
+                for k in range(bisect.bisect_left(values, c.start), bisect.bisect_right(values, end)):
+                    block_end[k] = end
+            next_any: int | None = None
+            next_global: int | None = None
+            for k in range(len(labels) - 1, -1, -1):
+                s = labels[k]
+                end = block_end[k]
+                nxt = next_any if s.local else next_global
+                if nxt is not None and nxt <= end:
+                    end = nxt
+                out[id(s)] = max(end - s.value, 0)
+                next_any = s.value
+                if not s.local:
+                    next_global = s.value
+        return out
+
+
+def decode_source(data: bytes, filename: str) -> str:
+    """The text of a source file's bytes: UTF-8 (a leading byte-order mark is dropped). A byte sequence that is
+    not UTF-8 (say one Latin-1 byte in a comment) raises :class:`~isa.errors.AssemblyError` at its
+    ``file:line:col``, naming the byte, rather than a byte offset into the file."""
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        start = exc.start
+        before = _NEWLINE_RE.split(data[:start].decode("utf-8"))
+        line, col = len(before), len(before[-1]) + 1
+        text = _NEWLINE_RE.split(data.decode("utf-8", errors="replace"))[line - 1]
+        if line == 1 and text.startswith("\ufeff"):
+            text, col = text[1:], col - 1
+        raise AssemblyError(f"byte ${data[start]:02X} is not UTF-8 (save the file as UTF-8)", filename, line, col,
+                            text) from None
+
+
+def _macro_note(calls: list[tuple[str, str]]) -> str:
+    """Where an expanded line comes from: the macro calls innermost first; beyond three levels only the two
+    innermost and the outermost are named (a runaway recursion does not repeat the same call 64 times)."""
+    parts = [f"in macro '{name}' called at {at}" for name, at in reversed(calls)]
+    if len(parts) > 3:
+        parts = parts[:2] + [f"{len(parts) - 3} more macro levels"] + parts[-1:]
+    return "; ".join(parts)
 
 
 def _cycle_range(instr: Instruction) -> tuple[int, int] | None:

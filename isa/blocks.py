@@ -26,15 +26,20 @@ Contract with :mod:`isa.cpu` (which decodes, caches and runs blocks):
 
 from __future__ import annotations
 
+import struct
 from typing import Any
 
 from isa import timing
 from isa.errors import AddressError, DivideByZero
 from isa.operands import Instruction, Operand, Size
+from isa.memory import MapFacts
 from isa.semantics import (BITS, CALL_SENTINEL, CF, M32, MASK, NF, SIGN, VF, XF, ZF, _M, _MEMORY_MODES, _Fault,
                            _inc, _k_addx, _k_shift, _k_subx, _lowers_sp, _nb, _nz, _pc_target, _sx)
 
 __all__ = ["BLOCK_MAX", "block_entries", "compile_block"]
+
+_UL, _PL = struct.Struct(">L").unpack_from, struct.Struct(">L").pack_into
+_UW, _PW = struct.Struct(">H").unpack_from, struct.Struct(">H").pack_into
 
 
 #: Most instructions in one compiled block.
@@ -57,7 +62,7 @@ _COND_EXPR: tuple[str, ...] = (
 _SHIFT_NAMES = frozenset("asl asr lsl lsr rol ror roxl roxr".split())
 _NO_FLAGS = frozenset("movea adda suba lea pea exg movem nop bra bsr jmp jsr rts".split())
 _NZVC_DEFS = frozenset("move moveq and andi or ori eor eori not tst clr ext swap muls mulu divs divu cmp cmpi "
-                       "cmpa".split())
+                       "cmpa cmpm".split())
 
 
 class _Unblockable(Exception):
@@ -86,11 +91,68 @@ def _flag_effect(ins: Instruction, h: str, cond: int | None) -> tuple[int, int]:
     raise KeyError(h)  # pragma: no cover - every handler is listed above
 
 
-def _may_fault(ins: Instruction, h: str) -> bool:
-    """True when the instruction can raise a CPU fault (memory access, divide, pushes/pops, computed jumps)."""
-    if h in ("divs", "divu", "jmp", "jsr", "rts", "bsr", "pea", "movem"):
+#: Constant-address modes (the address is known when compiling).
+_CONST_MODES = frozenset((_M.ABSW, _M.ABSL, _M.PCDISP))
+#: Handlers that only read their last operand (every other handler with a memory destination writes it).
+_READ_ONLY_DST = frozenset("cmp cmpi cmpa cmpm tst".split())
+
+
+def _const_addr(op: Operand, pc: int) -> int:
+    """The 32-bit address of a constant-address operand (as :meth:`_BlockGen.addr` forms it)."""
+    if op.mode is _M.ABSW:
+        return ((op.value & 0xFFFF) ^ 0x8000) - 0x8000 & M32
+    if op.mode is _M.ABSL:
+        return op.value & M32
+    return _pc_target(pc, op.value)
+
+
+#: Handlers whose faults are not all through the memory accessors, or that read flags or end/branch the block.
+_NO_DEFER = frozenset("divs divu jmp jsr rts bsr pea movem bcc bra dbcc scc trap illegal".split())
+
+
+def _defer_flags(entries: list[_Entry], i: int, hi: int, role: dict[int, tuple[Any, ...]], targets: set[int]
+                 ) -> bool:
+    """True when entry ``i``'s NZVC flags (from a value, as MOVE/TST/AND... set them) may be set on the faulting
+    paths only: the next entry follows it in straight line (no internal branch role, not a branch target, inside
+    the region being generated), reads no flag and sets all of N, Z, V and C, and its only faults are memory
+    accesses (whose slow paths assign the deferred SR first); entry ``i`` itself writes memory at most once, as
+    its last action (its slow path also assigns SR first) and does not lower A7."""
+    j = i + 1
+    if j >= hi or i in role or j in role or j in targets:
+        return False
+    _, ins, h, cond, _ = entries[i]
+    _, kins, kh, kcond, _ = entries[j]
+    if h in _NO_DEFER or kh in _NO_DEFER or _lowers_sp(ins, h):
+        return False
+    uses, defs = _flag_effect(kins, kh, kcond)
+    return not uses and defs & _FLAGS_NZVC == _FLAGS_NZVC
+
+
+def _may_fault(ins: Instruction, h: str, facts: MapFacts | None = None, pc: int = 0) -> bool:
+    """True when the instruction can raise a CPU fault (memory access, divide, pushes/pops, computed jumps).
+    With ``facts``, an access to a constant address that the memory map guarantees (:class:`MapFacts`) does not
+    count (a read; a write still counts: if it hits compiled code the block leaves right after it, exposing SR),
+    nor does DIVU/DIVS by a nonzero immediate, LEA, or JMP to a constant (even) address."""
+    ops = ins.operands
+    if h in ("jsr", "rts", "bsr", "pea", "movem"):
         return True
-    return any(op.mode in _MEMORY_MODES for op in ins.operands)
+    if h in ("divs", "divu") and not (ops[0].mode is _M.IMM and ops[0].value & 0xFFFF):
+        return True
+    if h == "jmp":
+        return ops[0].mode not in _CONST_MODES
+    if h == "lea":
+        return False
+    nb = _nb(ins)
+    for k, op in enumerate(ops):
+        if op.mode not in _MEMORY_MODES:
+            continue
+        if facts is None or op.mode not in _CONST_MODES:
+            return True
+        if k == len(ops) - 1 and h not in _READ_ONLY_DST:
+            return True  # a write: even where it cannot fault, a write to code leaves the block right after it
+        if not facts.readable(_const_addr(op, pc), 2 if h in _SHIFT_NAMES else nb):
+            return True
+    return False
 
 
 class _BlockGen:
@@ -98,7 +160,19 @@ class _BlockGen:
     ``sr``, data-dependent clocks accumulate in ``c``; every exit writes the registers back and returns
     ``next_pc | instructions << 24 | clocks << 56``."""
 
-    def __init__(self) -> None:
+    def __init__(self, facts: MapFacts) -> None:
+        self.facts = facts
+        self.known: dict[int, int] = {}
+        self.wrote = False  # set by write(): the instruction writes memory; check D[0] after it
+        self.u32: set[str] = set()  # temporaries of this instruction known to hold a masked 32-bit address
+        # Deferred flags (set by gen() for an instruction whose NZVC only a fault of itself or of the next
+        # instruction can observe): ``pending`` is the SR expression the slow (faulting) paths assign first.
+        self.defer = False
+        self.pending: str | None = None
+        self.pending_from = -1
+        self.cur = -1
+        self.smc_inline = False  # set by gen(): a last write may leave the block right after it (smc_slots)
+        self.smc_slots: list[int] = []  # item indices to fill with the exit after the instruction  # data register -> value known here (set by gen() for one instruction)
         self.items: list[tuple[int, object]] = []  # (indent, line str | ("exit", ...) | ("mark", i))
         self.ind = 1
         self.used: set[int] = set()
@@ -108,6 +182,8 @@ class _BlockGen:
 
     # ---- emission helpers
     def emit(self, line: str) -> None:
+        if self.pending is not None and self.cur != self.pending_from and line.startswith(("sr = ", "rm, sr = ")):
+            self.pending = None  # the next instruction sets all the flags the deferred ones were (see gen)
         self.items.append((self.ind, line))
 
     def const(self, obj: object, hint: str) -> str:
@@ -152,11 +228,13 @@ class _BlockGen:
             an = self.wg(8 + op.reg)
             self.emit(f"{tmp} = {an}")
             self.emit(f"{an} = ({tmp} + {_inc(op, nb)}) & 0xFFFFFFFF")
+            self.u32.add(tmp)
             return tmp
         if m is _M.APREDEC:
             an = self.wg(8 + op.reg)
             self.emit(f"{an} = ({an} - {_inc(op, nb)}) & 0xFFFFFFFF")
             self.emit(f"{tmp} = {an}")
+            self.u32.add(tmp)
             return tmp
         if m is _M.ADISP:
             return f"({self.rg(8 + op.reg)} + {op.value})"
@@ -196,8 +274,96 @@ class _BlockGen:
                 return tmp
             return str(op.value & M)
         a = self.addr(op, nb, pc, "ea")
-        self.emit(f"{tmp} = {'rb rw _ rl'.split()[nb - 1]}({a})")
+        self.emit(f"{tmp} = {self.load(nb, a)}")
         return tmp
+
+    # ---- memory
+    def load(self, nb: int, a: str) -> str:
+        """An expression reading ``nb`` bytes at address expression ``a`` (32-bit, unmasked). A constant address
+        the map guarantees is read straight from memory; any other address is checked against the largest mapped
+        span inline and read straight from memory when inside it, else through the exact accessor (which raises
+        the fault)."""
+        fn = "rb rw _ rl".split()[nb - 1]
+        slow = f"{fn}({a})" if self.pending is None else f"(sr := {self.pending}, {fn}({a}))[1]"
+        if a.isdigit():
+            v = int(a)
+            if self.facts.readable(v, nb):
+                t = v & 0xFFFFFF
+                return (f"m[{t}]", f"(m[{t}] << 8 | m[{t + 1}])", "", f"UL(m, {t})[0]")[nb - 1]
+            return slow
+        lo, hi = self.facts.span
+        if hi - lo < nb:
+            return slow
+        if a in self.u32 or a in _RN:  # a local holding 0..2^32-1: the span comparison needs no mask
+            odd = "" if nb == 1 else f"not {a} & 1 and "
+            rng = f"{a} <= {hi - nb}" if lo == 0 else f"{lo} <= {a} <= {hi - nb}"
+            val = (f"m[{a}]", f"(m[{a}] << 8 | m[{a} + 1])", "", f"UL(m, {a})[0]")[nb - 1]
+            return f"({val} if {odd}{rng} else {slow})"
+        rng = f"(_t := ({a}) & 0xFFFFFF) <= {hi - nb}" if lo == 0 else f"{lo} <= (_t := ({a}) & 0xFFFFFF) <= {hi - nb}"
+        odd = "" if nb == 1 else f"not ({a}) & 1 and "
+        val = ("m[_t]", "(m[_t] << 8 | m[_t + 1])", "", "UL(m, _t)[0]")[nb - 1]
+        return f"({val} if {odd}{rng} else {slow})"
+
+    def write(self, nb: int, a: str, v: str, last: bool = False) -> None:
+        """Emit a write of the ``nb``-byte value ``v`` (already masked) at address expression ``a``: straight
+        into memory when one look at the (aligned) flag bytes says mapped, writable and holding no code (marking
+        them written on a first write), else through the exact accessor (faults, code invalidation, mixed or
+        misaligned flag bytes). ``last``: the write is the instruction's last action, so a write that hit
+        compiled code (``D[0]``) can leave the block right there (:attr:`smc_slots`); otherwise the block
+        checks ``D[0]`` after the instruction (:attr:`wrote`)."""
+        fn = "wb ww _ wl".split()[nb - 1]
+        const = a.isdigit()
+        if const and not self.facts.writable(int(a), nb):
+            if self.pending is not None:
+                self.emit(f"sr = {self.pending}")
+                self.pending = None
+            self.emit(f"{fn}({a}, {v})")
+            self.wrote = True
+            return
+        t = str(int(a) & 0xFFFFFF) if const else "_t"
+        ta = t if const else f"(_t := ({a}) & 0xFFFFFF)"
+        if nb == 1:
+            fast, first, store = f"(f := fl[{ta}]) == 7", "f == 3", f"m[{t}] = {v}"
+            setf = f"fl[{t}] = 7"
+        elif nb == 2:
+            i16 = str(int(t) >> 1) if const else f"{ta} >> 1"
+            fast = f"(f := F16[{i16}]) == 1799"
+            first, store = "f == 771", f"PW(m, {t}, {v})"
+            setf = f"F16[{int(t) >> 1 if const else '_t >> 1'}] = 1799"
+            if not const:
+                fast = f"not ({a}) & 1 and " + fast
+                first = f"not ({a}) & 1 and " + first
+        else:
+            aligned = (int(a) & 3) == 0 if const else True
+            i32 = str(int(t) >> 2) if const else f"{ta} >> 2"
+            fast = f"(f := F32[{i32}]) == 117901063"
+            first, store = "f == 50529027", f"PL(m, {t}, {v})"
+            setf = f"F32[{int(t) >> 2 if const else '_t >> 2'}] = 117901063"
+            if not const:
+                fast = f"not ({a}) & 3 and " + fast
+                first = f"not ({a}) & 3 and " + first
+            elif not aligned:
+                fast = f"UL(fl, {t})[0] == 117901063"
+                first = None
+        self.emit(f"if {fast}:")
+        self.emit(f"    {store}")
+        if first is not None:
+            self.emit(f"elif {first}:")
+            self.emit(f"    {setf}")
+            self.emit(f"    {store}")
+        self.emit("else:")
+        if self.pending is not None:
+            self.emit(f"    sr = {self.pending}")
+        self.emit(f"    {fn}({a}, {v})")
+        if last and self.smc_inline:
+            self.emit("    if D[0]:")
+            self.emit("        D[0] = 0")
+            self.ind += 2
+            self.smc_slots.append(len(self.items))
+            self.items.append((self.ind, ("smc",)))
+            self.ind -= 2
+        else:
+            self.wrote = True
 
     # ---- flag fragments
     def nz(self, v: str, nb: int) -> str:
@@ -205,6 +371,11 @@ class _BlockGen:
 
     def logic_flags(self, v: str, nb: int, need: int) -> None:
         if need & _FLAGS_NZVC:
+            if self.defer:  # only a fault can observe them: keep the value, set SR on the slow paths only
+                self.emit(f"pf = {v}")
+                self.pending = f"(sr & 0xFF10) | {self.nz('pf', nb)}"
+                self.pending_from = self.cur
+                return
             self.emit(f"sr = (sr & 0xFF10) | {self.nz(v, nb)}")
 
     def arith_flags(self, kind: str, nb: int, s: str, d: str, need: int) -> None:
@@ -240,15 +411,12 @@ class _BlockGen:
         else:
             self.emit(f"{r} = ({r} & 0x{M32 ^ MASK[nb]:08X}) | {v}")
 
-    def write(self, nb: int, a: str, v: str) -> None:
-        self.emit(f"{'wb ww _ wl'.split()[nb - 1]}({a}, {v})")
-
     def push(self, v: str) -> None:
         """Push the long ``v`` (PEA, BSR, JSR) and lower ``min_sp`` at once: a later instruction of the same
         block (an RTS after a PEA, say) may raise A7 again before the block exits."""
         sp = self.wg(15)
         self.emit(f"eb = ({sp} - 4) & 0xFFFFFFFF")
-        self.emit(f"wl(eb, {v})")
+        self.write(4, "eb", v)
         self.emit(f"{sp} = eb")
         self.emit("if eb < MS[0]:")
         self.emit("    MS[0] = eb")
@@ -281,7 +449,7 @@ class _BlockGen:
             v = self.read(src, nb, pc, "v", materialize=True)
             a = self.addr(dst, nb, pc, "eb")
             self.logic_flags(v, nb, need)
-            self.write(nb, a, v)
+            self.write(nb, a, v, last=True)
             return base, False
         if h == "movea":
             v = self.read(ops[0], nb, pc, "v")
@@ -309,7 +477,7 @@ class _BlockGen:
             else:
                 a = self.addr_tmp(dst, nb, pc, "eb")
                 d = "x"
-                self.emit(f"x = {'rb rw _ rl'.split()[nb - 1]}({a})")
+                self.emit(f"x = {self.load(nb, a)}")
             if kind in ("add", "sub", "cmp"):
                 expr = f"{s} + {d}" if kind == "add" else f"{d} - {s}"
                 if need & (_ALL_FLAGS if kind != "cmp" else _FLAGS_NZVC):
@@ -329,7 +497,7 @@ class _BlockGen:
             if dst.mode is _M.DREG:
                 self.set_dreg(dst.reg, nb, "rm")
             else:
-                self.write(nb, "eb", "rm")
+                self.write(nb, "eb", "rm", last=True)
             return base, False
         if h in ("adda", "suba"):
             v = self.read(ops[0], nb, pc, "v")
@@ -366,7 +534,7 @@ class _BlockGen:
                 self.emit(f"x = {dn}" if nb == 4 else f"x = {dn} & {M}")
             else:
                 a = self.addr_tmp(dst, nb, pc, "eb")
-                self.emit(f"x = {'rb rw _ rl'.split()[nb - 1]}({a})")
+                self.emit(f"x = {self.load(nb, a)}")
             if h == "clr":
                 self.emit("rm = 0")
                 if need & _FLAGS_NZVC:
@@ -387,7 +555,18 @@ class _BlockGen:
             if dst.mode is _M.DREG:
                 self.set_dreg(dst.reg, nb, "rm")
             else:
-                self.write(nb, "eb", "rm")
+                self.write(nb, "eb", "rm", last=True)
+            return base, False
+        if h == "cmpm":  # (Ay)+,(Ax)+: Ay read and incremented first; flags as CMP (X kept)
+            s_op, d_op = ops
+            sa = self.addr(s_op, nb, pc, "ea")
+            self.emit(f"s = {self.load(nb, sa)}")
+            da = self.addr(d_op, nb, pc, "eb")
+            self.emit(f"x = {self.load(nb, da)}")
+            if need & _FLAGS_NZVC:
+                self.emit("r = x - s")
+                self.emit(f"rm = r & {M}")
+                self.arith_flags("cmp", nb, "s", "x", need)
             return base, False
         if h in ("addx", "subx"):
             s_op, d_op = ops
@@ -399,10 +578,11 @@ class _BlockGen:
                 self.set_dreg(d_op.reg, nb, "rm")
                 return base, False
             sa = self.addr(s_op, nb, pc, "ea")
-            self.emit(f"s = {'rb rw _ rl'.split()[nb - 1]}({sa})")
+            self.emit(f"s = {self.load(nb, sa)}")
             da = self.addr_tmp(d_op, nb, pc, "eb")
-            self.emit(f"rm, sr = {k}(s, {'rb rw _ rl'.split()[nb - 1]}({da}), sr)")
-            self.write(nb, "eb", "rm")
+            self.emit(f"x = {self.load(nb, da)}")
+            self.emit(f"rm, sr = {k}(s, x, sr)")
+            self.write(nb, "eb", "rm", last=True)
             return base, False
         if h == "ext":
             dn = self.wg(ops[0].reg)
@@ -451,33 +631,7 @@ class _BlockGen:
                 self.cycles(f"2 * {s}.bit_count()")
             return 38 + timing.EA_TIME[ops[0].mode][0], False
         if h in ("divu", "divs"):
-            s = self.read(ops[0], 2, pc, "s", materialize=True)
-            dn = self.wg(ops[1].reg)
-            name = "DIVS" if h == "divs" else "DIVU"
-            fault = self.const(_Fault, "Fault")
-            dz = self.const(DivideByZero, "DivideByZero")
-            self.emit(f"if {s} == 0:")
-            self.emit(f"    raise {fault}({dz}, f\"{name} by zero (dividend ${{{dn}:08X}})\")")
-            self.emit(f"d = {dn}")
-            if h == "divs":
-                self.emit("sd = (d ^ 0x80000000) - 0x80000000")
-                self.emit(f"ss = ({s} ^ 0x8000) - 0x8000")
-                self.emit("q = abs(sd) // abs(ss)")
-                self.emit("if (sd < 0) != (ss < 0):")
-                self.emit("    q = -q")
-                self.emit("rem = sd - q * ss")
-                self.emit("if -0x8000 <= q <= 0x7FFF:")
-            else:
-                self.emit(f"q, rem = divmod(d, {s})")
-                self.emit("if q <= 0xFFFF:")
-            self.emit("    q &= 0xFFFF")
-            self.emit(f"    {dn} = ((rem & 0xFFFF) << 16) | q")
-            self.emit(f"    sr = (sr & 0xFF10) | {self.nz('q', 2)}")
-            self.emit("else:")
-            self.emit(f"    sr = (sr & 0xFF10) | {NF | VF}")
-            tc = self.const(timing.divs_cycles if h == "divs" else timing.divu_cycles, "divc")
-            self.cycles(f"{tc}(d, {s})")
-            return timing.EA_TIME[ops[0].mode][0], False
+            return self.divide(ops, h, pc), False
         if h in _SHIFT_NAMES:
             return self.shift(ins, h, nb, pc, need, base), False
         if h == "scc":
@@ -493,7 +647,7 @@ class _BlockGen:
                 self.dyn = True
                 return 4, False
             a = self.addr(dst, 1, pc, "eb")
-            self.emit(f"wb({a}, 0xFF if {ce} else 0)")
+            self.write(1, a, f"(0xFF if {ce} else 0)", last=True)
             return timing.cycles(ins), False
         if h in ("bcc", "bra", "bsr"):
             target = ops[0].value & 0xFFFFFF
@@ -550,7 +704,7 @@ class _BlockGen:
             sp = self.wg(15)
             fault = self.const(_Fault, "Fault")
             ae = self.const(AddressError, "AddressError")
-            self.emit(f"v = rl({sp})")
+            self.emit(f"v = {self.load(4, sp)}")
             self.emit(f"{sp} = ({sp} + 4) & 0xFFFFFFFF")
             self.emit(f"if v & 1 and (v & 0xFFFFFF) != {CALL_SENTINEL}:")
             self.emit(f"    raise {fault}({ae}, f\"return to odd address ${{v & 0xFFFFFF:06X}}\")")
@@ -563,25 +717,98 @@ class _BlockGen:
             return base, False
         raise _Unblockable(h)  # trap, illegal: the per-instruction path handles them
 
+    def divide(self, ops: tuple[Operand, ...], h: str, pc: int) -> int:
+        """DIVU/DIVS with the clocks of :func:`isa.timing.divu_cycles` / :func:`isa.timing.divs_cycles` computed
+        inline from the quotient (the microcode's shift-and-subtract steps in closed form: DIVU 136 - 2 per
+        quotient bit 15..1 set - 2 per step whose partial remainder has its top bit set, which needs a divisor
+        above $8000 (then the timing function is called); DIVS 2 * (61 + ...) as in divs_cycles). Returns the
+        constant clocks (EA time); the rest goes to ``c``."""
+        src, dst = ops
+        const = src.mode is _M.IMM
+        sv = src.value & 0xFFFF
+        s = str(sv) if const else self.read(src, 2, pc, "s", materialize=True)
+        dn = self.wg(dst.reg)
+        name = "DIVS" if h == "divs" else "DIVU"
+        if not const or sv == 0:
+            fault = self.const(_Fault, "Fault")
+            dz = self.const(DivideByZero, "DivideByZero")
+            if const:
+                self.emit(f"raise {fault}({dz}, f\"{name} by zero (dividend ${{{dn}:08X}})\")")
+                return timing.EA_TIME[src.mode][0]
+            self.emit(f"if {s} == 0:")
+            self.emit(f"    raise {fault}({dz}, f\"{name} by zero (dividend ${{{dn}:08X}})\")")
+        self.dyn = True
+        self.emit(f"d = {dn}")
+        if h == "divu":
+            self.emit(f"if d >> 16 >= {s}:")
+            self.emit(f"    sr = (sr & 0xFF10) | {NF | VF}")
+            self.emit("    c += 10")
+            self.emit("else:")
+            self.emit(f"    q, rem = divmod(d, {s})")
+            self.emit(f"    {dn} = (rem << 16) | q")
+            self.emit(f"    sr = (sr & 0xFF10) | {self.nz('q', 2)}")
+            tc = self.const(timing.divu_cycles, "divc")
+            if const and sv <= 0x8000:
+                self.emit("    c += 136 - 2 * (q >> 1).bit_count()")
+            elif const:
+                self.emit(f"    c += {tc}(d, {s})")
+            else:
+                self.emit(f"    c += 136 - 2 * (q >> 1).bit_count() if {s} <= 0x8000 else {tc}(d, {s})")
+            return timing.EA_TIME[src.mode][0]
+        self.emit("sd = (d ^ 0x80000000) - 0x80000000")
+        if const:
+            ss = _sx(sv, 2)
+            ss_e, as_e = str(ss), str(abs(ss))
+        else:
+            self.emit(f"ss = ({s} ^ 0x8000) - 0x8000")
+            ss_e, as_e = "ss", "abs(ss)"
+        self.emit("ad = abs(sd)")
+        self.emit(f"if ad >> 16 >= {as_e}:")
+        self.emit(f"    sr = (sr & 0xFF10) | {NF | VF}")
+        self.emit("    c += 18 if sd < 0 else 16")
+        self.emit("else:")
+        self.emit(f"    aq = ad // {as_e}")
+        if const:
+            self.emit(f"    q = -aq if sd < 0 else aq" if ss > 0 else f"    q = aq if sd < 0 else -aq")
+            base = (126, 120) if ss >= 0 else (124, 122)  # 2 * (61 + [sd < 0] + adjust): (sd < 0, sd >= 0)
+            self.emit(f"    c += ({base[0]} if sd < 0 else {base[1]}) + 30 - 2 * ((aq >> 1) & 0x7FFF).bit_count()")
+        else:
+            self.emit("    q = -aq if (sd < 0) != (ss < 0) else aq")
+            self.emit("    c += ((126 if sd < 0 else 120) if ss >= 0 else (124 if sd < 0 else 122)) + 30 "
+                      "- 2 * ((aq >> 1) & 0x7FFF).bit_count()")
+        self.emit("    if -0x8000 <= q <= 0x7FFF:")
+        self.emit(f"        {dn} = (((sd - q * {ss_e}) & 0xFFFF) << 16) | (q & 0xFFFF)")
+        self.emit(f"        sr = (sr & 0xFF10) | {self.nz('(q & 0xFFFF)', 2)}")
+        self.emit("    else:")
+        self.emit(f"        sr = (sr & 0xFF10) | {NF | VF}")
+        return timing.EA_TIME[src.mode][0]
+
     def shift(self, ins: Instruction, h: str, nb: int, pc: int, need: int, base: int) -> int:
         ops = ins.operands
         M, S, W = MASK[nb], SIGN[nb], BITS[nb]
         if len(ops) == 1:  # memory word by 1
             k = self.const(_k_shift(h, 2), f"{h}2")
             a = self.addr_tmp(ops[0], 2, pc, "eb")
-            self.emit(f"rm, sr = {k}(rw({a}), 1, sr)")
-            self.write(2, "eb", "rm")
+            self.emit(f"x = {self.load(2, a)}")
+            self.emit(f"rm, sr = {k}(x, 1, sr)")
+            self.write(2, "eb", "rm", last=True)
             return base
         cnt, dst = ops
         dn = self.rg(dst.reg)
         x = dn if nb == 4 else "x"
         if nb != 4:
             self.emit(f"x = {dn} & {M}")
-        if cnt.mode is _M.IMM and h in ("lsl", "lsr", "asr"):
-            n = cnt.value
+        fixed = None  # a count known when compiling: an immediate, or a register set by the MOVEQ just before
+        if cnt.mode is _M.IMM:
+            fixed = cnt.value
+        elif cnt.reg in self.known:
+            fixed = self.known[cnt.reg] & 63
+            base = (8 if nb == 4 else 6) + 2 * fixed
+        if fixed and h in ("lsl", "lsr", "asr"):
+            n = fixed
             if h == "lsl":
                 self.emit(f"rm = ({x} << {n}) & {M}" if n else f"rm = {x}")
-                cexpr = f"{x} >> {W - n} & 1"
+                cexpr = f"{x} >> {W - n} & 1" if n <= W else "0"
             elif h == "lsr":
                 self.emit(f"rm = {x} >> {n}")
                 cexpr = f"{x} >> {n - 1} & 1"
@@ -594,8 +821,8 @@ class _BlockGen:
             self.set_dreg(dst.reg, nb, "rm")
             return base
         k = self.const(_k_shift(h, nb), f"{h}{nb}")
-        if cnt.mode is _M.IMM:
-            self.emit(f"rm, sr = {k}({x}, {cnt.value}, sr)")
+        if fixed is not None:
+            self.emit(f"rm, sr = {k}({x}, {fixed}, sr)")
             self.set_dreg(dst.reg, nb, "rm")
             return base
         self.emit(f"n = {self.rg(cnt.reg)} & 63")
@@ -606,7 +833,6 @@ class _BlockGen:
 
     def movem(self, ins: Instruction, nb: int, pc: int) -> None:
         M = MASK[nb]
-        rd = "rb rw _ rl".split()[nb - 1]
         if ins.operands[0].mode is _M.REGLIST:
             mask, ea = ins.operands[0].value, ins.operands[1]
             regs = [i for i in range(16) if mask >> i & 1]
@@ -636,9 +862,9 @@ class _BlockGen:
             a = f"ea + {j * nb}" if j else "ea"
             r = self.wg(i)
             if nb == 4:
-                self.emit(f"{r} = {rd}({a})")
+                self.emit(f"{r} = {self.load(nb, a)}")
             else:
-                self.emit(f"{r} = (({rd}({a}) ^ 0x8000) - 0x8000) & 0xFFFFFFFF")
+                self.emit(f"{r} = (({self.load(nb, a)} ^ 0x8000) - 0x8000) & 0xFFFFFFFF")
         if post:
             self.emit(f"{self.wg(an)} = (ea + {len(regs) * nb}) & 0xFFFFFFFF")
 
@@ -761,8 +987,8 @@ def _plan(entries: list[_Entry]) -> tuple[dict[int, tuple[Any, ...]], list[bool]
     return role, reach, head
 
 
-def _liveness(entries: list[_Entry], role: dict[int, tuple[Any, ...]], reach: list[bool], head: int | None
-              ) -> list[int]:
+def _liveness(entries: list[_Entry], role: dict[int, tuple[Any, ...]], reach: list[bool], head: int | None,
+              facts: MapFacts) -> list[int]:
     """Flags live after each entry (CCR bit masks): what a later instruction on any path inside the block reads,
     all flags at a block exit and around an instruction that may fault (a fault exposes SR)."""
     k = len(entries)
@@ -773,11 +999,12 @@ def _liveness(entries: list[_Entry], role: dict[int, tuple[Any, ...]], reach: li
         for i in range(k - 1, -1, -1):
             if not reach[i]:
                 continue
-            _, ins, h, cond, _ = entries[i]
+            pc, ins, h, cond, _ = entries[i]
+            faults = _may_fault(ins, h, facts, pc)
             r = role.get(i)
             if r is None:
                 after = live_in[i + 1]
-                if h in _BLOCK_ENDS or h in ("bcc", "dbcc") or _may_fault(ins, h):
+                if h in _BLOCK_ENDS or h in ("bcc", "dbcc") or faults:
                     after = _ALL_FLAGS
             elif r[0] in ("if", "ifelse"):
                 after = live_in[i + 1] | live_in[r[1]]
@@ -787,22 +1014,22 @@ def _liveness(entries: list[_Entry], role: dict[int, tuple[Any, ...]], reach: li
                 after = live0 if h == "bra" else live0 | live_in[i + 1]
             uses, defs = _flag_effect(ins, h, cond)
             need[i] = after
-            live_in[i] = _ALL_FLAGS if _may_fault(ins, h) else (after & ~defs) | uses
+            live_in[i] = _ALL_FLAGS if faults else (after & ~defs) | uses
         if head is None or live_in[head] | live0 == live0:
             return need
         live0 |= live_in[head]
 
 
-def _block_source(entries: list[_Entry]
+def _block_source(entries: list[_Entry], facts: MapFacts
                   ) -> tuple[str, dict[str, object], list[int], list[int], list[int], list[int], bool]:
     """Python source of the block function for ``entries`` ((pc, instruction, handler, cond, length) each, back to
     back in memory). Returns (source, constants, first generated line per entry, constant clocks and constant
     instruction count before each entry on the path that reaches it, registers used, whether it loops)."""
     k = len(entries)
     role, reach, head = _plan(entries)
-    need = _liveness(entries, role, reach, head)
+    need = _liveness(entries, role, reach, head, facts)
     loops = head is not None
-    g = _BlockGen()
+    g = _BlockGen(facts)
     prefix = [0] * k
     ncount = [0] * k
     marks: dict[int, int] = {}
@@ -838,6 +1065,11 @@ def _block_source(entries: list[_Entry]
         g.emit("    continue")
         g.exit(head_pc, n_head, c_head)
 
+    # Entries reached other than by falling through from the entry before (values known there do not hold).
+    targets = {head} if head is not None else set()
+    for rr in role.values():
+        targets.update(x for x in rr[1:] if isinstance(x, int))
+
     def gen(lo: int, hi: int, n: int, cy: int) -> tuple[bool, int, int]:
         """Emit entries lo..hi-1 reached with ``n`` instructions and ``cy`` constant clocks done; return (every
         path has left the block, n, cy at ``hi``)."""
@@ -848,14 +1080,28 @@ def _block_source(entries: list[_Entry]
             mark(i, n, cy)
             r = role.get(i)
             if r is None:
-                n_items = len(g.items)
+                g.cur = i
+                g.defer = _defer_flags(entries, i, hi, role, targets)
+                g.wrote = False
+                g.u32 = set()
+                g.smc_inline = not _lowers_sp(ins, h)
+                g.smc_slots = []
+                g.known = {}
+                if i > lo and i not in targets and entries[i - 1][2] == "moveq" and (i - 1) not in role:
+                    prev = entries[i - 1][1].operands
+                    g.known = {prev[1].reg: _sx(prev[0].value & 0xFF, 1) & M32}
                 cyc, ended = g.instruction(n, ins, h, cond, pc, nxt, need[i], cy)
                 cy += cyc
                 n += 1
                 if _lowers_sp(ins, h) and h not in ("pea", "bsr", "jsr"):
                     g.emit(f"if {g.rg(15)} < MS[0]:")
                     g.emit(f"    MS[0] = {g.rg(15)}")
-                wrote = any(isinstance(t, str) and t.startswith(("wb(", "ww(", "wl(")) for _, t in g.items[n_items:])
+                wrote = g.wrote
+                g.defer = False
+                if g.pending is not None and g.pending_from < i:
+                    g.pending = None  # the instruction after the deferring one is done
+                for slot in g.smc_slots:
+                    g.items[slot] = (g.items[slot][0], ("exit", nxt, n, cy, frozenset(g.dirty)))
                 if wrote and not ended:
                     g.emit("if D[0]:")
                     g.ind += 1
@@ -973,7 +1219,7 @@ def _block_source(entries: list[_Entry]
     text = [t for _, t in g.items if isinstance(t, str)]
     uses_sr = any("sr" in t for t in text)
     sr_dirty = any("sr = " in t for t in text)
-    lines_ = [f"def __make(R, MS, D, rb, rw, rl, wb, ww, wl{''.join(', ' + n for n in g.consts)}):",
+    lines_ = [f"def __make(R, MS, D, rb, rw, rl, wb, ww, wl, m, fl, F16, F32, UL, UW, PL, PW{''.join(', ' + n for n in g.consts)}):",
             "    def __block(bn, bc, until):"]
     used = sorted(g.used)
     lines_ += [f"        {_RN[r]} = R[{r}]" for r in used]
@@ -1030,10 +1276,11 @@ def _block_bound(entries: list[_Entry]) -> int:
     return sum(worst) - min(worst)
 
 
-def compile_block(entries: list[_Entry]) -> tuple[Any, _BlockInfo]:
-    """Generate and compile the block of ``entries`` (see the module docstring); returns ``(make, info)``."""
+def compile_block(entries: list[_Entry], facts: MapFacts) -> tuple[Any, _BlockInfo]:
+    """Generate and compile the block of ``entries`` for an address space with map ``facts`` (see the module
+    docstring); returns ``(bind, info)``, ``bind(R, MS, D, memory)`` giving the block function of one CPU."""
     start = entries[0][0]
-    src, consts, lines, prefix, ncount, regs, _ = _block_source(entries)
+    src, consts, lines, prefix, ncount, regs, _ = _block_source(entries, facts)
     ns: dict[str, Any] = {}
     exec(compile(src, f"<block ${start:06X}>", "exec"), ns)  # noqa: S102 - our own generated source
     make = ns["__make"]
@@ -1042,8 +1289,10 @@ def compile_block(entries: list[_Entry]) -> tuple[Any, _BlockInfo]:
     info = _BlockInfo(start, [e[0] for e in entries], lines, prefix, ncount, regs, _block_bound(entries),
                       last_pc + last_len)
 
-    def bind(R: list[int], MS: list[int], D: list[int], rb: Any, rw: Any, rl: Any, wb: Any, ww: Any, wl: Any) -> Any:
-        return make(R, MS, D, rb, rw, rl, wb, ww, wl, *values)
+    def bind(R: list[int], MS: list[int], D: list[int], memory: Any) -> Any:
+        rd, wr = memory.rd, memory.wr
+        return make(R, MS, D, rd[1], rd[2], rd[4], wr[1], wr[2], wr[4], memory.mem, memory.flags,
+                    memory.flags16, memory.flags32, _UL, _UW, _PL, _PW, *values)
 
     return bind, info
 

@@ -380,6 +380,25 @@ def h_addx(ctx: _Ctx) -> Callable[[], int]:
     return addx_m
 
 
+def h_cmpm(ctx: _Ctx) -> Callable[[], int]:
+    """CMPM (Ay)+,(Ax)+: flags of (Ax) - (Ay) as CMP (X unchanged); Ay is read (and incremented) first."""
+    ins = ctx.instr
+    nb = _nb(ins)
+    kernel = _KERNELS["cmp"](nb)
+    R = ctx.R
+    K = _packed(ctx.nxt, timing.cycles(ins))
+    rd = ctx.rd[nb]
+    sa = _addr_fn(ctx, ins.operands[0], nb)
+    da = _addr_fn(ctx, ins.operands[1], nb)
+
+    def cmpm() -> int:
+        s = rd(sa())
+        R[16] = kernel(s, rd(da()), R[16])[1]
+        return K
+
+    return cmpm
+
+
 def h_adda(ctx: _Ctx) -> Callable[[], int]:
     """ADDA/SUBA: source sign-extended to 32 bits (.W), whole An changes, flags unaffected (PRM 4-7, 4-179)."""
     ins = ctx.instr
@@ -1098,7 +1117,7 @@ HANDLERS: dict[str, Builder] = {
     "clr": h_unary, "ext": h_ext, "swap": h_swap, "exg": h_exg,
     "add": h_binary, "adda": h_adda, "addi": h_binary, "addq": h_addq, "addx": h_addx,
     "sub": h_binary, "suba": h_adda, "subi": h_binary, "subq": h_addq, "subx": h_addx,
-    "neg": h_unary, "negx": h_unary, "cmp": h_binary, "cmpa": h_cmpa, "cmpi": h_binary, "tst": h_unary,
+    "neg": h_unary, "negx": h_unary, "cmp": h_binary, "cmpa": h_cmpa, "cmpi": h_binary, "cmpm": h_cmpm, "tst": h_unary,
     "and": h_binary, "andi": h_binary, "or": h_binary, "ori": h_binary, "eor": h_binary, "eori": h_binary,
     "not": h_unary,
     "asl": h_shift, "asr": h_shift, "lsl": h_shift, "lsr": h_shift, "rol": h_shift, "ror": h_shift,

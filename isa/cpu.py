@@ -62,7 +62,7 @@ from isa import codecache
 from isa.blocks import _RN, BLOCK_MAX, _BlockInfo, block_entries, compile_block
 from isa.closures import HANDLERS, build_closure
 from isa.errors import AddressError, BusError, CPUFault, IllegalInstruction, IsaError, LimitExceeded
-from isa.memory import _CODE, _TOP, MapError, Memory, Region
+from isa.memory import _CODE, _TOP, MapError, MapFacts, Memory, Region
 
 _SET_CODE_TABLE = bytes(b | _CODE for b in range(256))
 from isa.operands import Instruction
@@ -394,7 +394,7 @@ class CPU:
                 self._blocks[start] = entry
                 self._block_members.setdefault(start, []).append(start)
             return entry
-        bind, info = compile_block(entries)
+        bind, info = compile_block(entries, MapFacts(self.memory.regions))
         if most == BLOCK_MAX:
             codecache.store_block(self._mem, start, self._mkey, info.end, entries, bind, info)
         return self._bind_block(start, entries, bind, info)
@@ -413,8 +413,7 @@ class CPU:
 
     def _bind_block(self, start: int, entries: list[Any], bind: Any, info: _BlockInfo
                     ) -> tuple[Callable[[], int] | None, int, int, int]:
-        rd, wr = self._rd, self._wr
-        fn = bind(self._R, self._min_sp, self._smc, rd[1], rd[2], rd[4], wr[1], wr[2], wr[4])
+        fn = bind(self._R, self._min_sp, self._smc, self.memory)
         entry = (fn, info.n, info.bound, info.end)
         self._blocks[start] = entry
         self._block_code[fn.__code__] = info
@@ -515,6 +514,11 @@ class CPU:
         ``max_cycles`` clocks have run in this call (so the cycle limit may be passed by one instruction). Reaching
         a limit raises :class:`~isa.errors.LimitExceeded`, or returns reason ``"max_instructions"``/
         ``"max_cycles"`` when ``stop_at_limit`` is true. Faults raise their :class:`~isa.errors.CPUFault`."""
+        return RunResult(*self._run(max_instructions, max_cycles, until_pc, stop_at_limit))
+
+    def _run(self, max_instructions: int | None, max_cycles: int | None, until_pc: int | None,
+             stop_at_limit: bool) -> tuple[str, int | None, int, int, int]:
+        """:meth:`run` without building the :class:`RunResult`: (reason, trap number, instructions, clocks, PC)."""
         maxn = (1 << 62) if max_instructions is None else int(max_instructions)
         maxc = (1 << 62) if max_cycles is None else int(max_cycles)
         until = -1 if until_pc is None else until_pc & 0xFFFFFF
@@ -621,7 +625,7 @@ class CPU:
             if not stop_at_limit:
                 limit = f"{maxn} instructions" if n >= maxn else f"{maxc} cycles"
                 raise self._fault(LimitExceeded, f"run limit of {limit} reached (started at ${start_pc:06X})", pc)
-        return RunResult(reason, trap, n, cyc, pc)
+        return reason, trap, n, cyc, pc
 
     def call(self, address: int, max_cycles: int | None = 10_000_000,
              max_instructions: int | None = None) -> int:
@@ -640,9 +644,9 @@ class CPU:
         if sp < self._min_sp[0]:
             self._min_sp[0] = sp
         self._pc = address & 0xFFFFFF
-        res = self.run(max_instructions=max_instructions, max_cycles=max_cycles, until_pc=CALL_SENTINEL)
-        if res.reason != "until_pc":
-            raise self._fault(CPUFault, f"call(${address:06X}) stopped by TRAP #{res.trap_number} before "
+        reason, trap, _, cycles, _ = self._run(max_instructions, max_cycles, CALL_SENTINEL, False)
+        if reason != "until_pc":
+            raise self._fault(CPUFault, f"call(${address:06X}) stopped by TRAP #{trap} before "
                               "returning", (self._pc - 2) & 0xFFFFFF)
         self._pc = saved_pc
-        return res.cycles
+        return cycles

@@ -10,6 +10,9 @@ Canonical form of decoded operands (what :func:`isa.encoder.encode` accepts back
 * ``d16(An)``/``d8(An,Xn)`` signed displacements; ``abs.W`` the sign-extended 24-bit address
   (``$8000.w`` -> ``$FF8000``); ``abs.L`` the full 32-bit extension value (the CPU ignores bits 31..24);
 * PC-relative operands and branch targets as absolute 24-bit target addresses;
+* brief extension words (``d8(An,Xn)``, ``d8(PC,Xn)``) as the 68000 reads them: bits 10..8 are ignored (the
+  68020's scale and full-format bits), so such an instruction decodes to what the chip executes and re-encodes
+  with those bits 0;
 * MOVEM register masks in canonical order (bit i = Di, bit 8+i = Ai) whatever the addressing mode;
 * sizes: the encoded size, the implied size of one-size rows (``lea`` -> ``Size.L``, ``muls`` -> ``Size.W``,
   ``scc`` -> ``Size.B``, ``dbcc`` -> ``Size.W``), ``Size.S``/``Size.W`` for branches, ``None`` for JMP, JSR, RTS,
@@ -140,11 +143,10 @@ def decode(fetch_word: Callable[[int], int], address: int) -> Decoded:
                 operands[i] = Operand(mode, r, _s16(fetch_word(pc) & 0xFFFF))
                 pc += 2
             elif mode in (Mode.AINDEX, Mode.PCINDEX):
+                # Brief extension word: D/A, register, W/L, bits 10..8, d8. The 68000 ignores bits 10..8 (the
+                # 68020 reads them as scale and the full-format flag), so they are ignored here too: the
+                # instruction is what the chip executes (re-encoding it gives those bits as 0).
                 brief = fetch_word(pc) & 0xFFFF
-                if brief & 0x0700:
-                    # Bits 10..8 must be zero on the 68000 (68020 full-format / scale); not in the subset.
-                    raise IllegalInstruction(f"bad brief extension word ${brief:04X} after ${opcode:04X}",
-                                             pc=address, instruction=f"dc.w ${opcode:04X},${brief:04X}")
                 idx = IndexReg(bool(brief & 0x8000), (brief >> 12) & 7, bool(brief & 0x800))
                 if mode is Mode.AINDEX:
                     operands[i] = Operand(mode, r, _s8(brief & 0xFF), idx)

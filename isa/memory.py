@@ -29,7 +29,7 @@ from dataclasses import dataclass
 from isa.errors import AddressError, BusError, CPUFault, IsaError
 from isa.semantics import M32, MASK, _Fault
 
-__all__ = ["Memory", "MapError", "Region"]
+__all__ = ["Memory", "MapError", "MapFacts", "Region"]
 
 _MAPPED, _WRITABLE, _WRITTEN, _CODE = 1, 2, 4, 8
 _FAST_W = _MAPPED | _WRITABLE | _WRITTEN  # a write needs no bookkeeping
@@ -41,6 +41,7 @@ _CODE_TABLE = bytes((1 if b & _CODE else 0) for b in range(256))  # flag byte ->
 _HOST_PLAIN_TABLE = bytes((0 if b & _MAPPED and not b & _CODE else 1) for b in range(256))
 _ZEROS = {1: b"\0", 2: b"\0\0", 4: b"\0\0\0\0"}
 _LONG = struct.Struct(">L")
+_WORD = struct.Struct(">H")
 #: flag byte -> 0 if a program write there needs nothing but the written mark (mapped, writable, not code)
 _FIRST_WRITE_TABLE = bytes((0 if b & (_MAPPED | _WRITABLE | _CODE) == _MAPPED | _WRITABLE else 1) for b in range(256))
 _FAST_BYTES = {n: bytes([_FAST_W]) * n for n in (1, 2, 4)}
@@ -68,6 +69,10 @@ class Memory:
                  host_code_written: Callable[[int, bytes], None]) -> None:
         self.mem = mmap.mmap(-1, _TOP + _PAD)
         self.flags = mmap.mmap(-1, _TOP + _PAD)
+        #: The flag bytes as native 16/32-bit words: one subscript checks 2 (4) flag bytes of an aligned word
+        #: (long), e.g. ``flags32[a >> 2] == 0x07070707``: all four mapped, writable, written, no code.
+        self.flags16 = memoryview(self.flags).cast("H")
+        self.flags32 = memoryview(self.flags).cast("I")
         self.regions: list[Region] = []
         self._pc_of = pc_of
         self._code_written = code_written
@@ -136,8 +141,10 @@ class Memory:
     def _build_accessors(self) -> None:
         m = self.mem
         fl = self.flags
+        f16, f32 = self.flags16, self.flags32
         slow_write = self._slow_write
         unpack_l, pack_l = _LONG.unpack_from, _LONG.pack_into
+        pack_w = _WORD.pack_into
 
         def fault(cls: type[CPUFault], what: str, a: int) -> _Fault:
             return _Fault(cls, f"{what} ${a & 0xFFFFFF:06X}")
@@ -162,29 +169,47 @@ class Memory:
             a &= 0xFFFFFF
             if fl[a] & fl[a + 2] & 1:
                 return unpack_l(m, a)[0]
-            raise fault(BusError, "long read of unmapped address", a + (0 if fl[a] & 1 else 2))
+            # The first unmapped byte: the high word's if it is unmapped, else the low word's (regions are even).
+            raise fault(BusError, "long read of unmapped address", a + (2 if fl[a] & 1 else 0))
 
+        # Flag bytes 7 = mapped | writable | written (no code): nothing to do; 3 = mapped | writable, first write
+        # (mark written). Anything else: slow_write (faults, code invalidation, mixed bytes).
         def wb(a: int, v: int) -> None:
             a &= 0xFFFFFF
-            if fl[a] != 7:
-                slow_write(a, 1)
+            f = fl[a]
+            if f != 7:
+                if f == 3:
+                    fl[a] = 7
+                else:
+                    slow_write(a, 1)
             m[a] = v & 0xFF
 
         def ww(a: int, v: int) -> None:
             if a & 1:
                 raise fault(AddressError, "word write at odd address", a)
             a &= 0xFFFFFF
-            if fl[a] != 7 or fl[a + 1] != 7:
-                slow_write(a, 2)
-            m[a] = (v >> 8) & 0xFF
-            m[a + 1] = v & 0xFF
+            f = f16[a >> 1]
+            if f != 0x0707:
+                if f == 0x0303:
+                    f16[a >> 1] = 0x0707
+                else:
+                    slow_write(a, 2)
+            pack_w(m, a, v & 0xFFFF)
 
         def wl(a: int, v: int) -> None:
             if a & 1:
                 raise fault(AddressError, "long write at odd address", a)
             a &= 0xFFFFFF
-            if fl[a] != 7 or fl[a + 1] != 7 or fl[a + 2] != 7 or fl[a + 3] != 7:
-                slow_write(a, 4)
+            if a & 2:
+                if fl[a] != 7 or fl[a + 1] != 7 or fl[a + 2] != 7 or fl[a + 3] != 7:
+                    slow_write(a, 4)
+            else:
+                f = f32[a >> 2]
+                if f != 0x07070707:
+                    if f == 0x03030303:
+                        f32[a >> 2] = 0x07070707
+                    else:
+                        slow_write(a, 4)
             pack_l(m, a, v & M32)
 
         self.rd = {1: rb, 2: rw, 4: rl}
@@ -268,3 +293,48 @@ class Memory:
         marks = self.flags[a : a + len(data)].translate(_CODE_TABLE)
         if marks.find(1) != -1:
             self._host_code_written(a, marks)
+
+
+class MapFacts:
+    """What compiled code may assume about an address space forever: its regions (they are never removed and
+    never change kind), so a constant address that is mapped (readable) or mapped and writable stays so.
+
+    Used by the block compiler (:mod:`isa.blocks`) to access constant addresses without a per-access check and
+    to know they cannot fault, and to pick :attr:`span`, the largest run of back-to-back mapped regions, for the
+    one-comparison guard of register-indirect reads (any other address takes the exact accessor)."""
+
+    def __init__(self, regions: list[Region] | tuple[Region, ...]) -> None:
+        self.regions = tuple(sorted(regions, key=lambda r: r.start))
+        spans: list[list[int]] = []
+        for r in self.regions:
+            if spans and spans[-1][1] == r.start:
+                spans[-1][1] = r.start + r.size
+            else:
+                spans.append([r.start, r.start + r.size])
+        best = max(spans, key=lambda s: s[1] - s[0]) if spans else [0, 0]
+        self.span = (best[0], best[1])
+
+    def _covered(self, a: int, n: int, write: bool) -> bool:
+        end = a + n
+        for r in self.regions:
+            if r.start <= a < r.start + r.size:
+                if write and not r.writable:
+                    return False
+                if end <= r.start + r.size:
+                    return True
+                a = r.start + r.size  # continues into the next region (back to back) or is unmapped
+        return False
+
+    def readable(self, address: int, n: int) -> bool:
+        """True when an ``n``-byte program read at the constant 32-bit ``address`` can never fault."""
+        if n > 1 and address & 1:
+            return False
+        a = address & 0xFFFFFF
+        return a + n <= _TOP and self._covered(a, n, False)
+
+    def writable(self, address: int, n: int) -> bool:
+        """True when an ``n``-byte program write at the constant ``address`` can never fault."""
+        if n > 1 and address & 1:
+            return False
+        a = address & 0xFFFFFF
+        return a + n <= _TOP and self._covered(a, n, True)

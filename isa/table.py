@@ -24,7 +24,8 @@ Operands
 * ``"ea"``: an effective address; ``modes`` is the allowed set (one of the named 68000 categories below),
   ``mode_field``/``reg_field`` the pattern letters. Byte-sized operations never allow ``An`` (68000 rule; see
   :meth:`Row.allowed_modes`).
-* ``"reg"``: a register in a fixed mode (``Dn``, ``An`` or ``-(An)``), ``reg_field`` the pattern letter.
+* ``"reg"``: a register in a fixed mode (``Dn``, ``An``, ``-(An)`` or ``(An)+``), ``reg_field`` the pattern
+  letter.
 * ``"imm"``: an immediate in extension words sized by the instruction size (byte: one word, low byte).
 * ``"quick3"`` (1..8 in field ``q``), ``"quick8"`` (-128..127 in field ``i``), ``"vector"`` (0..15 in ``v``).
 * ``"reglist"``: the MOVEM register mask extension word (``Operand(Mode.REGLIST, value=mask)``, canonical order).
@@ -70,7 +71,7 @@ CONDITION_NAMES: tuple[str, ...] = ("t", "f", "hi", "ls", "cc", "cs", "ne", "eq"
 #: Handler names (docs/isa-internals.md); every ``Row.handler`` is one of these.
 HANDLER_NAMES: frozenset[str] = frozenset(
     "move movea moveq movem lea pea clr ext swap exg add adda addi addq addx sub suba subi subq subx neg negx cmp "
-    "cmpa cmpi tst and andi or ori eor eori not asl asr lsl lsr rol ror roxl roxr muls mulu divs divu bcc bra bsr "
+    "cmpa cmpi cmpm tst and andi or ori eor eori not asl asr lsl lsr rol ror roxl roxr muls mulu divs divu bcc bra bsr "
     "dbcc scc jmp jsr rts nop trap illegal".split()
 )
 
@@ -130,7 +131,7 @@ def ea(modes: frozenset[Mode], mode_field: str = "m", reg_field: str = "r") -> O
 
 
 def reg(mode: Mode, reg_field: str) -> OperandSpec:
-    """A register operand in fixed ``mode`` (``DREG``, ``AREG`` or ``APREDEC``) with its number in ``reg_field``."""
+    """A register operand in fixed ``mode`` (``DREG``, ``AREG``, ``APREDEC``, ``APOSTINC``), number in ``reg_field``."""
     return OperandSpec("reg", frozenset({mode}), None, reg_field)
 
 
@@ -308,6 +309,7 @@ def _rows() -> tuple[Row, ...]:
     add(_std("cmp", "1011RRR0SSmmmrrr", (ea(ALL), DN_R)))
     add(Row("cmpa", "1011RRRS11mmmrrr", (Size.W, Size.L), (ea(ALL), AN_R), "cmpa", size_codes=_WL))
     add(_std("cmpi", "00001100SSmmmrrr", (IMM, ea(DATA_ALT))))
+    add(_std("cmpm", "1011RRR1SS001rrr", (reg(Mode.APOSTINC, "r"), reg(Mode.APOSTINC, "R"))))  # (Ay)+,(Ax)+
     add(_std("tst", "01001010SSmmmrrr", (ea(DATA_ALT),)))
     for mn, hi in (("muls", "1100RRR111"), ("mulu", "1100RRR011"), ("divs", "1000RRR111"), ("divu", "1000RRR011")):
         add(Row(mn, hi + "mmmrrr", (Size.W,), (ea(DATA), DN_R), mn))

@@ -197,6 +197,8 @@ def cycles(
         if dst.mode is _M.DREG:
             return 8 if long else 4
         return (12 if long else 8) + _ea(dst, size)
+    if h == "cmpm":  # UM Table 8-4 (multiprecision): CMPM (Ay)+,(Ax)+ .b/.w 12(3/0), .l 20(5/0)
+        return 20 if long else 12
     if h in ("addx", "subx"):
         if ops[0].mode is _M.DREG:
             return 8 if long else 4

@@ -328,3 +328,25 @@ def test_generic_round_trip_bit_exact(data: st.DataObject, n: int, with_acc: boo
         assert back.truth.apogee_altitude_m == truth.apogee_altitude_m
     else:
         assert back.truth is None
+
+
+# ------------------------------------------------------------------------------------------------ fuzz
+_tokens = st.sampled_from(["0", "1.5", "-2", "nan", "", " ", "abc", "1e3", "99999", "#", "time_s", "pressure_pa",
+                           "accel_mps2", "ts", "id", "P", "T", "Ax", "Ay", "BARO0", "pad", "boost", "drogue"])
+_line = st.lists(_tokens, min_size=0, max_size=8).map(",".join) | st.lists(_tokens, max_size=5).map(" ".join)
+_headers = st.sampled_from(["", "time_s,pressure_pa,accel_mps2", "ts,id,T,P", ALTOS_V6_HEAD, "RDAS export"])
+
+
+@settings(max_examples=examples(150))
+@given(header=_headers, body=st.lists(_line, max_size=25), fmt=st.sampled_from([None, *FORMATS]))
+def test_fuzz_only_user_errors(header: str, body: list[str], fmt: str | None) -> None:
+    """Whatever the text, a reader returns a valid record or raises one UserError naming the file."""
+    with tempfile.TemporaryDirectory() as d:
+        p = Path(d) / "fuzz-baro.csv"
+        p.write_text("\n".join([header, *body]) + "\n")
+        try:
+            rec = read_flight(p, format=fmt)
+        except UserError as exc:
+            assert str(exc).startswith(str(p)) and "\n" not in str(exc)
+            return
+    assert rec.n >= 2 and np.all(np.diff(rec.time_s) > 0)

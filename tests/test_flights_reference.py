@@ -147,3 +147,20 @@ def test_parabola_on_scenarios(name: str) -> None:
         err = ref.time_s - rec.truth.apogee_time_s
         assert abs(err) <= ref.uncertainty_s + 0.03, (name, noise, err, ref.uncertainty_s)
         assert abs(ref.altitude_m - rec.truth.apogee_altitude_m) < 1.0
+
+
+@pytest.mark.parametrize("name", ["sub-k400-300m", "sub-m1670-3200m", "trans-k828-m118", "sup-m6400-m167-clean"])
+def test_liftoff_from_each_source(name: str) -> None:
+    """Liftoff from truth, from the accelerometer alone and from the barometer alone agree within 0.03 s."""
+    import dataclasses
+
+    from firmware_model.flights.scenarios import simulate_scenario
+
+    rec = simulate_scenario(name)
+    v = rec.truth.velocity_mps
+    true_t = float(rec.time_s[int(np.argmax(v > 0.01)) - 1])
+    assert liftoff_time(rec) == true_t
+    no_truth = dataclasses.replace(rec, truth=None)
+    assert abs(liftoff_time(no_truth) - true_t) <= 0.01
+    baro_only = dataclasses.replace(rec, truth=None, accel_mps2=None)
+    assert abs(liftoff_time(baro_only) - true_t) <= 0.03

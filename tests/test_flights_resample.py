@@ -91,3 +91,28 @@ def test_missing_values_and_outside_span() -> None:
         resample(t[::-1], {"y": y}, 5)
     with pytest.raises(UserError, match="no multiple"):
         grid(0, 0.2, 0.7)
+
+
+SHARED = __import__("pathlib").Path(__import__("os").environ.get("FWEMU_SHARED_FLIGHTS") or
+                                    __import__("pathlib").Path(__file__).resolve().parents[1].parent / "shared" / "flights")
+
+
+@pytest.mark.skipif(not SHARED.is_dir(), reason="../shared/flights is absent")
+def test_altosui_rate_change_found_where_the_log_slows() -> None:
+    """Each AltosUI log switches from 100 to ~10 samples/s once after apogee; the report finds that one change at
+    the start of the first long interval (independently: the first row after boost whose next interval is
+    longer than 50 ms and whose next 20 intervals have a median above 50 ms), and hedy (100 samples/s throughout) has none."""
+    from firmware_model.flights.readers import read_flight
+
+    for path in sorted((SHARED / "altosui").glob("*.csv")):
+        rec = read_flight(path)
+        t = rec.time_s
+        d = np.diff(t)
+        first = next(i for i in range(d.size - 20) if t[i] > 0 and d[i] > 0.05 and np.median(d[i:i + 20]) > 0.05)
+        _, _, rep = resample(t, {"p": rec.pressure_pa}, 7, "hold")
+        assert len(rep.rate_changes) == 1, (path.name, rep.rate_changes)
+        rc = rep.rate_changes[0]
+        assert rc.from_hz == pytest.approx(100.0) and 8.0 <= rc.to_hz <= 12.5
+        assert rc.time_s == t[first], (path.name, rc.time_s, t[first])
+    hedy = read_flight(SHARED / "cats" / "hedy-baro.csv")
+    assert resample(hedy.time_s, {"p": hedy.pressure_pa}, 7)[2].rate_changes == []

@@ -108,9 +108,16 @@ def test_counts_per_metre() -> None:
 
 accel_sensors = st.one_of(
     st.sampled_from(sorted(ACCEL_PRESETS)).map(AccelSensor.preset),
-    st.builds(AccelSensor, bits=st.integers(8, 16), range_g=st.floats(2, 400),
+    st.builds(AccelSensor, bits=st.integers(10, 16), range_g=st.floats(2, 400),
               counts_per_mps2=st.floats(0.5, 500), offset_counts=st.floats(-500, 500), noise_counts=st.floats(0, 30)),
 )
+
+
+def test_accel_rejects_impossible_sensors() -> None:
+    with pytest.raises(UserError, match="outside the 8-bit word"):
+        AccelSensor(bits=8, range_g=2.0, counts_per_mps2=1.0, offset_counts=147.0)
+    with pytest.raises(UserError, match="less than one count"):
+        AccelSensor(range_g=0.01, counts_per_mps2=1.0)
 
 
 @settings(max_examples=examples(80))

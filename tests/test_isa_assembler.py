@@ -460,9 +460,98 @@ def test_include_recursion(tmp_path: Path) -> None:
     assert (e.file, e.line) == (str(tmp_path / "b.inc"), 1) and "include recursion" in e.message
 
 
-def test_recursive_macro_is_an_error_not_a_crash() -> None:
-    e = err("m macro\n m\n endm\n m")
-    assert "nested too deeply" in e.message
+def test_recursive_macro_is_a_short_error_naming_macro_depth_and_first_call() -> None:
+    e = err("m macro\n m\n endm\n nop\n m\n", filename="rec.s")
+    assert where(e) == "rec.s:2:2"
+    assert "macro 'm'" in e.message and "64 levels" in e.message and "rec.s:5" in e.message
+    assert str(e).count("rec.s:2") <= 2 and len(str(e)) < 200, str(e)  # not the call repeated 64 times
+
+
+def test_mutually_recursive_macros_name_the_outermost_call() -> None:
+    e = err("a macro\n b\n endm\nb macro\n a\n endm\n nop\n a\n", filename="rec.s")
+    assert "64 levels" in e.message and "'a' at rec.s:8" in e.message and len(str(e)) < 200, str(e)
+
+
+def test_error_deep_in_nested_macros_names_few_calls() -> None:
+    src = "".join(f"m{i} macro\n m{i + 1}\n endm\n" for i in range(10)) + "m10 macro\n bogus\n endm\n m0\n"
+    e = err(src, filename="n.s")
+    assert "unknown mnemonic 'bogus'" in e.message
+    assert "in macro 'm10' called at n.s:29" in e.message and "in macro 'm0' called at n.s:34" in e.message
+    assert "8 more macro levels" in e.message and e.message.count("called at") == 3
+
+
+def test_non_utf8_byte_gives_file_line_col(tmp_path: Path) -> None:
+    from isa.assembler import decode_source
+
+    with pytest.raises(AssemblyError) as info:
+        decode_source(b" nop\r\n nop ; caf\xe9 \xe0 la\n trap #0\n", "latin.s")
+    e = info.value
+    assert (e.file, e.line, e.col) == ("latin.s", 2, 11) and "$E9" in e.message and "UTF-8" in e.message
+    # ... also inside an INCLUDE file
+    (tmp_path / "l1.inc").write_bytes(b" nop\n\n ; \xa9 1987\n")
+    e = err(' nop\n include "l1.inc"\n', filename=str(tmp_path / "main.s"))
+    assert (e.file, e.line, e.col) == (str(tmp_path / "l1.inc"), 3, 4) and "$A9" in e.message
+
+
+def test_line_numbers_count_only_real_line_ends() -> None:
+    # A form feed (old listings' page break) or U+2028 inside a comment is not a line end for an editor.
+    e = err(" nop ; page\x0c break\n nop ; \u2028\r\n bogus\n", filename="ff.s")
+    assert where(e) == "ff.s:3:2" and "unknown mnemonic 'bogus'" in e.message
+    assert assemble("\ufeff nop\n").code == w("0100 1110 0111 0001")  # a UTF-8 byte-order mark is dropped
+
+
+def _calls_to_assemble(src: str) -> int:
+    """Python and builtin function calls made while assembling ``src`` (a count of work, immune to load)."""
+    import sys
+
+    count = [0]
+
+    def prof(frame: object, event: str, arg: object) -> None:
+        if event in ("call", "c_call"):
+            count[0] += 1
+
+    sys.setprofile(prof)
+    try:
+        assemble(src)
+    finally:
+        sys.setprofile(None)
+    return count[0]
+
+
+def test_assembler_work_is_linear_in_labels() -> None:
+    # Issue 8.5: symbol sizes compared every label with every other (5 k labels 6 s, 40 k over 300 s). Doubling
+    # the number of labelled lines must about double the work, not quadruple it.
+    one, two = (_calls_to_assemble("".join(f"l{i}: nop\n" for i in range(n))) for n in (1500, 3000))
+    assert two / one < 2.3, (one, two)
+    lots = "".join(f"l{i}: dc.w l{(i * 7) % 1000}\n" for i in range(1000)) + " section data\nd: dc.l l0\n"
+    three, six = (_calls_to_assemble(lots.replace("1000", str(n))) for n in (1000, 2000))
+    assert six / three < 2.3, (three, six)
+
+
+def _symbols_and_segments(src: str) -> object:
+    try:
+        prog = assemble(src, origin=0x1000)
+    except AssemblyError as e:
+        return str(e)
+    return (prog.segments, prog.symbols, prog.warnings, prog.listing, prog.source_map)
+
+
+@pytest.mark.parametrize("src", [
+    "a: bra.w b\n nop\nb: dc.w c-a\nc equ 5\n",
+    " section data\nx: dc.l y\n section code\ny: lea x,a0\n bra y\n section bss\nz: ds.l 3\n",
+    " move.l #u,d0\n",  # an error found only by the final pass
+    " dc.b 300\n",
+    "p: ds.w q\nq equ 2\n",
+    "s set 1\ns set s+1\n dc.w s,t\nt equ s*2\n",
+    " org $2000\nu: nop\n org $1000\nv: bra u\n dc.w v\n",
+    " lea x(pc),a0\nx: nop\n lea 100(pc),a1\n",
+])
+def test_speculative_final_pass_gives_the_plain_result(src: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    import isa.assembler as asm
+
+    fast = _symbols_and_segments(src)
+    monkeypatch.setattr(asm, "_SPECULATE", False)
+    assert _symbols_and_segments(src) == fast
 
 
 # --- listing, source map, outputs ---------------------------------------------------------------------------------

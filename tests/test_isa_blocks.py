@@ -38,8 +38,8 @@ EDGE = (0, 1, 2, 7, 0x7F, 0x80, 0xFF, 0x7FFF, 0x8000, 0xFFFF, 0x7FFFFFFF, 0x8000
 #: Data-processing rows for the m68000-python comparison (no TRAP/ILLEGAL/jumps/calls, no rows that load an
 #: address register with an arbitrary value, which would only turn most blocks into bus errors).
 ALU_ROWS = ["move", "moveq", "add", "addi", "addq", "addx", "sub", "subi", "subq", "subx", "neg", "negx", "cmp",
-            "cmpa", "cmpi", "tst", "and", "andi", "or", "ori", "eor", "eori", "not", "clr", "ext", "swap", "asl",
-            "asr", "lsl", "lsr", "rol", "ror", "roxl", "roxr", "muls", "mulu", "divs", "divu", "scc", "nop"]
+            "cmpa", "cmpi", "cmpm", "tst", "and", "andi", "or", "ori", "eor", "eori", "not", "clr", "ext", "swap",
+            "asl", "asr", "lsl", "lsr", "rol", "ror", "roxl", "roxr", "muls", "mulu", "divs", "divu", "scc", "nop"]
 SAFE_MODES = frozenset({Mode.DREG, Mode.AREG, Mode.IMM, Mode.AIND, Mode.APOSTINC, Mode.APREDEC, Mode.ADISP,
                         Mode.ABSW})
 DATA_ABS = st.integers(oracles.DATA_LO // 2, (oracles.DATA_HI - 8) // 2).map(lambda v: 2 * v)
@@ -621,3 +621,160 @@ def test_min_sp_sees_a_push_that_the_same_block_pops(block: bool) -> None:
     result = cpu.run(max_instructions=10)
     assert result.reason == "trap" and cpu.a[7] == 0x8000
     assert cpu.min_sp == 0x8000 - 4
+
+
+# ------------------------------------------------------------------------------------------------------------------
+# Memory accesses compiled without accessor calls (isa/blocks.py: constant addresses the map guarantees, span-guarded
+# register-indirect reads, flag-guarded writes with first-write marking) on a map with ROM, RAM, I/O and holes.
+FW_CODE = 0x1000
+#: Interesting addresses: ROM (read-only, holds the code), RAM start/end, I/O, holes, region edges, odd ones.
+MAP_ADDRS = [0x0800, 0x0FFC, 0x3FFC, 0x3FFE, 0x4000, 0x4002, 0x4004, 0x4100, 0x4101, 0x7FFC, 0x7FFE, 0x7FFF,
+             0x8000, 0x9000, 0xFFF000, 0xFFF002, 0xFFF003, 0xFFEFFE, 0xFFF004, 0xFFFFFC, 0x3FFF, 0x4003]
+MAP_ABS = st.sampled_from(MAP_ADDRS)
+MEM_ROWS = ["move", "add", "addi", "addq", "sub", "subi", "subq", "cmp", "cmpi", "tst", "and", "andi", "or", "ori",
+            "eor", "eori", "not", "neg", "negx", "clr", "addx", "subx", "scc", "asl", "lsr", "roxl", "movem", "pea",
+            "lea", "moveq", "divu", "divs", "muls", "mulu"]
+MEM_INS = instructions(rows=MEM_ROWS, address=FW_CODE,
+                       modes=frozenset({Mode.DREG, Mode.AREG, Mode.IMM, Mode.AIND, Mode.APOSTINC, Mode.APREDEC,
+                                        Mode.ADISP, Mode.ABSW, Mode.ABSL, Mode.PCDISP}),
+                       absolute=MAP_ABS).filter(lambda i: _small_disp(i))
+
+
+def _map_cpu(blocks: bool) -> CPU:
+    cpu = CPU(mapped=False)
+    cpu.block_compile = blocks
+    cpu.map(0, 0x4000, "rom", writable=False)
+    cpu.map(0x4000, 0x4000, "ram")
+    cpu.map(0xFFF000, 4, "io")
+    return cpu
+
+
+def _run_map(code: bytes, d: list[int], a: list[int], ccr: int, pre_written: bool, limit: int
+             ) -> list[tuple[object, ...]]:
+    out = []
+    for blocks in (True, False):
+        cpu = _map_cpu(blocks)
+        cpu.write_bytes(FW_CODE, code)
+        cpu.write_bytes(0x4000, bytes(range(256)) * 64)
+        if pre_written:  # some RAM already written by the program (the fast write path), the rest first writes
+            cpu.write_bytes(0x1F00, bytes([0x21, 0xFC, 0xAB, 0xCD, 0x12, 0x34, 0x41, 0x00, 0x4E, 0x40]))
+            cpu.pc = 0x1F00  # move.l #$ABCD1234,($4100).w ; trap #0
+            cpu.run()
+        for i in range(8):
+            cpu.d[i], cpu.a[i] = d[i], a[i]
+        cpu.sr = 0x2700 | ccr
+        cpu.pc = FW_CODE
+        cpu.reset_counters()
+        try:
+            res = cpu.run(max_instructions=limit, stop_at_limit=True)
+            outcome: tuple[object, ...] = ("ok", res)
+        except CPUFault as exc:
+            outcome = (type(exc).__name__, str(exc), exc.pc, exc.instruction)
+        out.append(outcome + (tuple(cpu.d), tuple(cpu.a), cpu.pc, cpu.sr, cpu.instructions, cpu.cycles,
+                              cpu.min_sp, cpu.ram_written, cpu.written_ranges(), cpu.read_bytes(0x4000, 0x4000),
+                              cpu.read_bytes(0xFFF000, 4)))
+    return out
+
+
+@settings(max_examples=examples(250), deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(MEM_INS, min_size=1, max_size=12), st.lists(st.sampled_from(EDGE) | st.integers(0, M32),
+                                                            min_size=8, max_size=8),
+       st.lists(st.sampled_from(MAP_ADDRS + [0x4200, 0x5000, 0x7F00]), min_size=8, max_size=8),
+       st.integers(0, 31), st.booleans(), st.integers(1, 30))
+def test_blocks_equal_closures_on_a_rom_ram_io_map(prog: list[Instruction], d: list[int], a: list[int], ccr: int,
+                                                   pre_written: bool, limit: int) -> None:
+    """Constant and register-indirect reads/writes of ROM, RAM, I/O, holes, region edges and odd addresses, first
+    writes and re-writes: blocks and closures give the same registers, SR (also at a fault after constant accesses
+    whose flags the block compiler treats as dead), memory, counters, written ranges and fault."""
+    code = b""
+    for ins in prog:
+        try:
+            code += encode(ins, FW_CODE + len(code))
+        except isa.errors.EncodingError:
+            code += b"\x4e\x71"  # a PC-relative operand drawn out of reach from here: NOP instead
+    addr = FW_CODE + len(code)
+    code += bytes([0x4E, 0x40])  # trap #0
+    if addr + 2 > 0x4000:
+        return
+    a = a[:7] + [0x7F00]
+    blocks, closures = _run_map(code, d, a, ccr, pre_written, limit)
+    assert blocks == closures
+
+
+def test_constant_access_paths_are_used_and_exact() -> None:
+    """Not vacuous: a block with constant RAM/ROM/I-O reads and writes runs in one call, marks first writes, and
+    a constant write to ROM or to a hole faults exactly as the closures do (same SR, counters, message)."""
+    src = """
+        move.l  ($4000).w,d0
+        add.l   ($0800).w,d0
+        move.w  ($FFF000).l,d1
+        move.l  d0,($4004).w
+        move.l  d0,($4004).w
+        move.b  d1,($4009).w
+        cmp.l   ($4004).w,d0
+        move.l  d0,(a0)+
+        move.w  d1,(a0)+
+        move.l  -4(a0),d2
+        trap    #0
+"""
+    prog = isa.assemble(src, origin=FW_CODE)
+    results = []
+    for blocks in (True, False):
+        cpu = _map_cpu(blocks)
+        cpu.write_bytes(FW_CODE, prog.code)
+        cpu.write_bytes(0x4000, bytes(range(1, 65)))
+        cpu.write(0xFFF000, 0x1234, 2)
+        cpu.a[0] = 0x4100
+        cpu.pc = FW_CODE
+        res = cpu.run()
+        results.append((res, tuple(cpu.d), tuple(cpu.a), cpu.sr, cpu.ram_written, cpu.written_ranges(),
+                        cpu.read_bytes(0x4000, 0x200)))
+        if blocks:
+            assert len(cpu._block_code) == 1  # the whole program ran as one block
+    assert results[0] == results[1]
+    assert results[0][4] == 4 + 1 + 6 and results[0][5] == [(0x4004, 0x4008), (0x4009, 0x400A), (0x4100, 0x4106)]
+    for target in ("($0800).w", "($9000).l", "($FFF004).l", "($4001).w", "($FFEFFE).l"):
+        bad = isa.assemble(f" moveq #-1,d0\n tst.l d0\n move.l d0,{target}\n trap #0\n", origin=FW_CODE)
+        outs = []
+        for blocks in (True, False):
+            cpu = _map_cpu(blocks)
+            cpu.write_bytes(FW_CODE, bad.code)
+            cpu.pc = FW_CODE
+            with pytest.raises(CPUFault) as info:
+                cpu.run()
+            outs.append((type(info.value), str(info.value), cpu.sr, cpu.instructions, cpu.cycles, cpu.pc))
+        assert outs[0] == outs[1], target
+
+
+@pytest.mark.parametrize("src", ["moveq #12,d5\n asr.l d5,d0", "moveq #40,d5\n lsl.l d5,d0",
+                                 "moveq #33,d5\n lsr.l d5,d0", "moveq #0,d5\n asr.l d5,d0",
+                                 "moveq #-1,d5\n ror.w d5,d0", "moveq #9,d5\n roxl.l d5,d0"])
+def test_shift_by_a_register_set_by_moveq(src: str) -> None:
+    """MOVEQ #n,Dc then a shift by Dc compiles as a constant shift: same result, flags and clocks as the
+    closures and as m68000-python."""
+    for value in (0, 1, 0x7FFFFFFF, 0x80000000, 0xDEADBEEF, 0x00012345):
+        code = isa.assemble(f" {src}\n trap #0\n", origin=oracles.CODE).code
+        image = bytes(oracles.base_image(0, [(oracles.CODE, code)]))
+        for ccr in (0, 0x1F):
+            blocks, closures = _run_both(image, [value] + [0] * 7, [0x6000] * 7 + [0x6F00], ccr, {})
+            assert blocks == closures
+            m = oracles.Machine([value] + [0] * 7, [0x6000] * 7 + [0x6F00], ccr, oracles.CODE, image)
+            end = oracles.CODE + len(code) - 2
+            assert ours_blocks(m, end, 10) == ref_run(m, end, 10)
+
+
+@pytest.mark.parametrize("op", ["divu.w #1000,d0", "divu.w #$9001,d0", "divu.w #1,d0", "divs.w #-3000,d0",
+                                "divs.w #7,d0", "divs.w #-1,d0", "divu.w d1,d0", "divs.w d1,d0"])
+def test_division_clocks_inline_vs_m68000py(op: str) -> None:
+    """DIVU/DIVS clocks computed inline (closed form of the microcode loop) equal m68000-python's for dividends
+    and divisors at the edges: overflow, divisors above $8000, negative operands, zero quotient."""
+    code = isa.assemble(f" {op}\n trap #0\n", origin=oracles.CODE).code
+    image = bytes(oracles.base_image(0, [(oracles.CODE, code)]))
+    end = oracles.CODE + len(code) - 2
+    rng = random.Random(op)
+    values = [0, 1, 999, 0x7FFF, 0x8000, 0xFFFF, 0x10000, 0x7FFFFFFF, 0x80000000, 0xFFFFFFFF, 0xFFFF8000, 0x12345678]
+    values += [rng.getrandbits(32) for _ in range(12)] + [rng.getrandbits(20) for _ in range(12)]
+    for dividend in values:
+        for divisor in (3, 0x9001, 0xFFFF, 0x8000, 0x8001, 7, 1000):
+            m = oracles.Machine([dividend, divisor] + [0] * 6, [0x6000] * 7 + [0x6F00], 0, oracles.CODE, image)
+            assert ours_blocks(m, end, 10) == ref_run(m, end, 10), (hex(dividend), hex(divisor))

@@ -14,7 +14,8 @@ from hypothesis import strategies as st
 
 import isa
 from isa.cpu import CALL_SENTINEL, CPU, HANDLERS, MapError
-from isa.errors import AddressError, BusError, CPUFault, DivideByZero, IllegalInstruction, LimitExceeded
+from isa.errors import (AddressError, BusError, CPUFault, DivideByZero, IllegalInstruction, IsaError,
+                        LimitExceeded)
 from isa.table import TABLE
 
 X, N, Z, V, C = 0x10, 8, 4, 2, 1
@@ -99,6 +100,56 @@ def test_unmapped_read_is_bus_error_naming_pc_instruction_and_line() -> None:
     assert err.instruction.lower() == "move.w ($009000).l,d0"
     assert err.source == "fault.s:2"
     assert "$009000" in str(err) and "fault.s:2" in str(err)
+
+
+@pytest.mark.parametrize("src, address", [
+    (" move.l $20000,d1", 0x020000),  # wholly unmapped: its first byte (was $020002)
+    (" move.l $7FFE,d1", 0x008000),  # straddles the end of RAM: the first unmapped byte (was the mapped $007FFE)
+    (" movem.l $7FFC,d1-d2", 0x008000),  # the second register's long (was $008002)
+    (" move.l d1,$7FFE", 0x008000),
+    (" add.l $20000,d1", 0x020000),
+    (" lea $7FFE,a0\n move.l (a0)+,d1", 0x008000),
+])
+@pytest.mark.parametrize("path", ["step", "closures", "blocks"])
+def test_bus_error_on_a_long_names_the_first_unmapped_byte(src: str, address: int, path: str) -> None:
+    # Issue 8.3, with RAM at $0-$7FFF as in the issue; m68000-python's stacked access address agrees
+    # (tests/test_isa_vs_m68000py.py, test_bus_error_address_cases / test_bus_errors_name_the_faulting_access).
+    cpu = CPU(mapped=False)
+    cpu.map(0, 0x8000, "ram")
+    cpu.load(isa.assemble(src + "\n trap #0\n", filename="bus.s", origin=0x1000))
+    cpu.block_compile = path == "blocks"
+    with pytest.raises(BusError) as info:
+        if path == "step":
+            for _ in range(3):
+                cpu.step()
+        else:
+            cpu.run(max_instructions=10)
+    assert f"unmapped address ${address:06X} at PC=" in str(info.value), str(info.value)
+
+
+@pytest.mark.parametrize("path", ["step", "closures", "blocks"])
+def test_brief_extension_bits_10_8_execute_as_on_the_68000(path: str) -> None:
+    # Issue 8.1: d8(An,Xn) / d8(PC,Xn) with bits 10..8 of the brief word set (scale/full format on a 68020) run
+    # as the 68000 runs them: the bits are ignored. Both forms must give the same registers and clocks.
+    def run(junk: int) -> tuple[list[int], int]:
+        cpu = CPU()
+        # move.w 8(a0,d1.w),d2 ; lea 4(pc,d1.w),a1 (extension word at $1006) ; move.l -2(a0,d1.l),d3 ; trap #0
+        words = [0x3430, 0x1008 | junk << 8, 0x43FB, 0x1004 | junk << 8, 0x2630, 0x18FE | junk << 8, 0x4E40]
+        cpu.write_bytes(0x1000, b"".join(w.to_bytes(2, "big") for w in words))
+        cpu.write_bytes(0x2000, bytes(range(64)))
+        cpu.pc, cpu.a[0], cpu.d[1] = 0x1000, 0x2000, 0x10
+        cpu.block_compile = path == "blocks"
+        if path == "step":
+            clocks = sum(cpu.step() for _ in range(4))
+        else:
+            cpu.run()
+            clocks = cpu.cycles
+        return [cpu.d[2], cpu.a[1], cpu.d[3]], clocks
+
+    canonical = run(0)
+    assert canonical[0] == [0x1819, 0x101A, 0x0E0F1011]
+    for junk in range(1, 8):
+        assert run(junk) == canonical
 
 
 def test_write_to_rom_is_bus_error() -> None:
@@ -374,6 +425,31 @@ def test_addx_subx_negx_z_rule() -> None:
     assert cpu.d[0] == 0xFF and cpu.ccr == X | N | C
     cpu, _ = one(" negx.b d0", d0=0, sr=0x2700 | Z)
     assert cpu.d[0] == 0 and cpu.ccr == Z
+
+
+def test_cmpm_compares_and_post_increments() -> None:
+    # CMPM (Ay)+,(Ax)+ (issue 8.2): flags of (Ax) - (Ay) as CMP, X unchanged; Ay read first; A7 steps 2 for bytes.
+    X, N, Z, V, C = 0x10, 0x08, 0x04, 0x02, 0x01
+    cpu = CPU()
+    cpu.write_bytes(0x3000, bytes.fromhex("05 80 7FFF 00000001"))
+    cpu.write_bytes(0x4000, bytes.fromhex("05 7F 8000 80000000"))
+    cpu.load(isa.assemble(" cmpm.b (a0)+,(a1)+\n cmpm.b (a0)+,(a1)+\n cmpm.w (a0)+,(a1)+\n cmpm.l (a0)+,(a1)+\n"
+                          " cmp.b (a7)+,(a7)+\n trap #0\n", origin=ORG))
+    cpu.a[0], cpu.a[1], cpu.a[7], cpu.sr = 0x3000, 0x4000, 0x5000, 0x2700 | X
+    clocks = cpu.step()
+    assert (cpu.sr & 0x1F, clocks, cpu.a[0], cpu.a[1]) == (X | Z, 12, 0x3001, 0x4001)  # 5 - 5
+    cpu.step()
+    assert cpu.sr & 0x1F == X | N | V | C  # $7F - $80 = $FF: borrow, and 127 - (-128) overflows
+    cpu.step()
+    assert cpu.sr & 0x1F == X | V  # $8000 - $7FFF = 1: overflow (negative minus positive gives positive)
+    clocks = cpu.step()
+    assert (cpu.sr & 0x1F, clocks, cpu.a[0], cpu.a[1]) == (X | V, 20, 0x3008, 0x4008)  # $80000000 - 1
+    cpu.write_bytes(0x5000, bytes.fromhex("0102 0300"))
+    cpu.step()  # cmp.b (a7)+,(a7)+ assembles as CMPM: reads $5000 then $5002 (A7 keeps word alignment)
+    assert cpu.a[7] == 0x5004 and cpu.sr & 0x1F == X  # 3 - 1 = 2
+    assert isa.assemble(" cmp.w (a2)+,(a3)+\n cmpm.l (a7)+,(a7)+\n").code == bytes.fromhex("B74A BF8F")
+    with pytest.raises(IsaError, match="cmpm"):
+        isa.assemble(" cmpm.b d0,d1\n")
 
 
 def test_addx_memory_predecrement() -> None:

@@ -83,6 +83,7 @@ STANDARD = [
     # Table 8-10 misc, 8-11 multiprecision
     ("ext.w d0", 4), ("ext.l d0", 4), ("swap d0", 4), ("exg d0,a0", 6), ("nop", 4),
     ("addx.l d0,d1", 8), ("addx.w d0,d1", 4), ("subx.b -(a0),-(a1)", 18), ("addx.l -(a0),-(a1)", 30),
+    ("cmpm.b (a0)+,(a1)+", 12), ("cmpm.w (a0)+,(a1)+", 12), ("cmpm.l (a0)+,(a1)+", 20),  # Table 8-4: 12(3/0), 20(5/0)
 ]
 
 

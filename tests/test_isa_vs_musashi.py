@@ -135,3 +135,10 @@ def test_divs_min_by_minus_one_exclusion_is_real() -> None:
     reference = oracles.M68000PyRef().run(machine)
     assert ours.d[0] == reference.d[0] == 0x80000000 and ours.ccr & 0x02 and reference.ccr & 0x02
     assert theirs.d[0] == 0 and theirs.ccr & 0x0F == 0x04
+
+
+@settings(max_examples=examples(60))
+@given(case=oracles.cmpm_cases())
+def test_cmpm_same_register_and_a7(case: oracles.Case) -> None:
+    """CMPM (issue 8.2) with Ay = Ax, A7 and edge-valued operands against Musashi."""
+    check(case)

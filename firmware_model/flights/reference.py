@@ -63,18 +63,19 @@ class ReferenceApogee:
 def liftoff_time(record: FlightRecord) -> float:
     """Time of liftoff on the record's axis.
 
-    In order: truth (first sample where the true altitude exceeds 0.5 m, or velocity 1 m/s), else the
+    In order: truth (the sample before the true velocity first exceeds 0.01 m/s, or the altitude 1 mm), else the
     accelerometer (the first time the specific force stays above pad + 2 g for 50 ms, backed off to the last
-    sample before it below pad + 0.5 g), else the log's ``altos_boost`` event, else the barometer (first sample
-    30 m above the pad median, backed off to the last sample below 3 m), else the record's first time."""
+    sample before it below pad + 0.5 g), else the log's ``altos_boost`` event, else the barometer (the last
+    sample below 3 m and the first above 30 m over the pad median, extrapolated back to rest assuming constant
+    acceleration), else the record's first time."""
     t = np.asarray(record.time_s, dtype=np.float64)
     tr = record.truth
-    if tr is not None and tr.altitude_m is not None:
-        up = np.nonzero(np.asarray(tr.altitude_m) > 0.5)[0]
+    if tr is not None and tr.velocity_mps is not None:
+        up = np.nonzero(np.asarray(tr.velocity_mps) > 0.01)[0]
         if up.size:
             return float(t[max(0, int(up[0]) - 1)])
-    if tr is not None and tr.velocity_mps is not None:
-        up = np.nonzero(np.asarray(tr.velocity_mps) > 1.0)[0]
+    if tr is not None and tr.altitude_m is not None:
+        up = np.nonzero(np.asarray(tr.altitude_m) > 0.001)[0]
         if up.size:
             return float(t[max(0, int(up[0]) - 1)])
     f = record.specific_force_mps2()
@@ -97,7 +98,11 @@ def liftoff_time(record: FlightRecord) -> float:
     above = np.nonzero(np.nan_to_num(h - h0, nan=-np.inf) > 30.0)[0]
     if above.size:
         low = np.nonzero(np.nan_to_num(h[: above[0]] - h0, nan=np.inf) < 3.0)[0]
-        return float(t[int(low[-1])]) if low.size else float(t[0])
+        if not low.size:
+            return float(t[0])
+        t3, t30 = float(t[int(low[-1])]), float(t[int(above[0])])
+        # constant acceleration from rest: h ~ t^2, so 3 m is reached at sqrt(3/30) of the time to 30 m
+        return max(float(t[0]), t30 - (t30 - t3) / (1.0 - (3.0 / 30.0) ** 0.5))
     return float(t[0])
 
 
@@ -254,3 +259,34 @@ def reference_apogee(record: FlightRecord) -> ReferenceApogee:
                             "near its peak (early deployment?); treat this reference with care")
     return ReferenceApogee(time_s=nominal[0], altitude_m=nominal[1], uncertainty_s=max(spread, resolution),
                            source="baro_parabola", window_s=NOMINAL_WINDOW_S, notes=notes)
+
+
+# ------------------------------------------------------------------------------------------------ a table
+def reference_table(paths: list[str], format: str | None = None) -> str:  # noqa: A002
+    """The Markdown table of docs/flights.md for flight logs ``paths``: reference apogee, its uncertainty,
+    altitude, fitted curvature, spikes rejected, and AltOS's own apogee against it where the log has one.
+    ``python -m firmware_model.flights.reference LOG...`` prints it."""
+    from firmware_model.flights.readers import read_flight
+
+    out = ["| log | reference apogee (s) | ± (s) | altitude AGL (m) | curvature (m/s²) | spikes rejected "
+           "| AltOS apogee (s) | AltOS − reference (s) |", "|---|---|---|---|---|---|---|---|"]
+    for path in paths:
+        rec = read_flight(path, format=format)
+        ref = reference_apogee(rec)
+        altos = rec.events.get("altos_apogee")
+        warn = " ⚠" if "warning" in ref.notes else ""
+        curv = ref.notes.get("curvature_mps2")
+        out.append(f"| {rec.name} | {ref.time_s:.3f}{warn} | {ref.uncertainty_s:.3f} | {ref.altitude_m:.1f} | "
+                   + ("—" if curv is None else f"{curv:.1f}") + f" | {ref.notes.get('spikes_rejected', 0)} | "
+                   + ("— | — |" if altos is None else f"{altos:.2f} | {altos - ref.time_s:+.2f} |"))
+    return "\n".join(out)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    import sys
+
+    try:
+        print(reference_table(sys.argv[1:]))
+    except UserError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        raise SystemExit(2) from None

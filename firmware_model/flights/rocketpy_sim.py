@@ -141,11 +141,14 @@ def simulate_rocketpy_with_mach(rocket: Rocket, launch: Launch = Launch(), name:
     hz = launch.record_hz
     n_pad = int(round(launch.pad_s * hz))
     t_fl = np.arange(0, int(np.floor(t_end * hz + 1e-9)) + 1) / hz
+    site_asl = launch.site_altitude_m
     sol = np.asarray(fl.solution, dtype=np.float64)
 
     def at(col: int) -> np.ndarray:
         return np.interp(t_fl, sol[:, 0], sol[:, col])
 
+    moving = np.nonzero(sol[:, 3] > site_asl + 1e-4)[0]
+    first_motion = float(sol[moving[0] - 1, 0]) if moving.size else float("nan")
     z_asl = at(3)
     vz = at(6)
     e0, e1, e2, e3 = at(7), at(8), at(9), at(10)
@@ -168,7 +171,7 @@ def simulate_rocketpy_with_mach(rocket: Rocket, launch: Launch = Launch(), name:
     burn_i = int(round(rocket.motor.burn_time_s * hz))
     vmag = np.sqrt(at(4) ** 2 + at(5) ** 2 + vz ** 2)
     summary = {
-        "liftoff_s": float(fl.out_of_rail_time) if hasattr(fl, "out_of_rail_time") else None,
+        "liftoff_s": first_motion, "out_of_rail_s": float(fl.out_of_rail_time),
         "out_of_rail_velocity_mps": float(fl.out_of_rail_velocity),
         "burnout_s": rocket.motor.burn_time_s,
         "burnout_velocity_mps": float(vz[burn_i]) if burn_i < vz.size else float("nan"),

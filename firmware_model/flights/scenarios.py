@@ -298,12 +298,17 @@ def _simulate_physics(s: Scenario) -> tuple[FlightRecord, np.ndarray]:
 def _simulate_cached(name: str) -> tuple[FlightRecord, np.ndarray]:
     s = get_scenario(name)
     rec, mach = _simulate_physics(s)
-    return _apply_effects(s, rec, mach), mach
+    rec = _apply_effects(s, rec, mach)
+    # the cached arrays are shared by every caller: make them read-only so nobody changes a later caller's flight
+    for a in (rec.time_s, rec.pressure_pa, rec.accel_mps2, mach, rec.truth.altitude_m, rec.truth.velocity_mps,
+              rec.truth.accel_mps2):
+        a.flags.writeable = False
+    return rec, mach
 
 
 def simulate_scenario(name: str) -> FlightRecord:
-    """The scenario's flight record (physics + pressure effects; no sensor model). Deterministic and cached:
-    treat the returned arrays as read-only."""
+    """The scenario's flight record (physics + pressure effects; no sensor model). Deterministic and cached in
+    the process: its arrays are shared and read-only (copy before changing them)."""
     return _simulate_cached(name)[0]
 
 

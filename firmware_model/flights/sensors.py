@@ -184,6 +184,12 @@ class AccelSensor:
             _finite(name, getattr(self, name))
         if self.range_g <= 0 or self.counts_per_mps2 <= 0 or self.noise_counts < 0:
             raise UserError("accelerometer: range_g and counts_per_mps2 must be > 0, noise_counts >= 0")
+        word = 1 << (self.bits - 1)
+        if not -word <= self.offset_counts <= word - 1:
+            raise UserError(f"accelerometer: offset_counts={self.offset_counts!r} outside the {self.bits}-bit word "
+                            f"{-word}..{word - 1}")
+        if self.range_g * G0 * self.counts_per_mps2 < 1.0:
+            raise UserError("accelerometer: the range spans less than one count (range_g x g0 x counts_per_mps2 < 1)")
 
     @classmethod
     def preset(cls, name: str, **kw: Any) -> AccelSensor:

@@ -178,6 +178,11 @@ def _prepare(rockets: list[Rocket], launches: list[Launch]) -> _Batch:
     for i, r in enumerate(rockets):
         thrust[:, i] = r.motor.thrust_at(tj)
         mass[:, i] = dry[i] + r.motor.propellant_at(tj)
+    weak = np.nonzero(np.max(thrust - mass * G0, axis=0) <= 0.0)[0]
+    if weak.size:
+        r = rockets[int(weak[0])]
+        raise UserError(f"1-DOF: rocket {r.name}: thrust never exceeds weight (peak {r.motor.thrust_n.max():.0f} N, "
+                        f"lift-off mass {r.liftoff_mass_kg:.2f} kg): it would never leave the pad")
     _, rho_tab, c_tab = _atmosphere_tables()
     return _Batch(h=h, m_per=m_per, max_steps=int(ceil(max_time / h)),
                   site=np.array([l.site_altitude_m for l in launches], dtype=np.float64),
@@ -442,8 +447,9 @@ def _integrate_kernel(b: _Batch, kernel):
     return out, ev[:, 1], ev[:, 2], ev[:, 3], ev[:, 4], ev[:, 5], ev[:, 6], ev[:, 7]
 
 
-#: Integrator used by :func:`simulate_1dof`: "kernel" (numba-compiled scalar RK4 per flight; needs the 'fast'
-#: extra) or "numpy" (vectorised over flights; always available). Both do the same arithmetic.
+#: Integrator used by :func:`simulate_1dof` by default: "kernel" (numba-compiled scalar RK4 per flight; needs the
+#: 'fast' extra); without numba: "python" (the same loop uncompiled) up to 8 flights, "numpy" (vectorised over
+#: flights) for larger batches. All three do the same arithmetic (same bytes; tested).
 DEFAULT_ENGINE: str = "kernel" if _kernel is not None else "numpy"
 
 
@@ -464,7 +470,8 @@ def simulate_1dof(rockets: Sequence[Rocket] | Rocket, launch: Launch | Sequence[
     if len(launches) != nf:
         raise UserError(f"1-DOF: {nf} rockets but {len(launches)} launches")
     b = _prepare(rockets, launches)
-    engine = engine or DEFAULT_ENGINE
+    if engine is None:   # numba if installed; else the uncompiled loop for a few flights, numpy for batches
+        engine = DEFAULT_ENGINE if _kernel is not None else ("python" if nf <= 8 else "numpy")
     if engine == "numpy":
         res = _integrate_numpy(b)
     elif engine == "kernel":
