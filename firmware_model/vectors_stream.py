@@ -132,8 +132,12 @@ class FirmwareStepper:
 
 class ModelStepper:
     """The integer model (:mod:`firmware_model.model_kernels`, compiled when numba is there) resumed chunk by
-    chunk from its state array. Same words and wrap report as :func:`firmware_model.model.run_model` on the whole
-    stream (tested)."""
+    chunk from its state array, through the kernels' own one-stream sample loops (``_stream_<program>``, the loop
+    :func:`~firmware_model.model_kernels.run_streams` calls once per stream). Same words and wrap report as
+    :func:`firmware_model.model.run_model` on the whole stream (tested)."""
+
+    _LOOPS = {"recursive": "_stream_recursive", "recursive_seed_literal": "_stream_seed_literal",
+              "kalman_baro": "_stream_kalman_baro", "kalman_accel": "_stream_kalman_accel"}
 
     def __init__(self, consts: Any) -> None:
         from firmware_model import model_kernels as kern
@@ -141,67 +145,29 @@ class ModelStepper:
         self.kern = kern
         self.program = consts.program
         self.prog = kern.PROGRAMS.index(consts.program)
+        self.loop = getattr(kern, self._LOOPS[consts.program])
         self.cols = np.array(kern.OUT_COLS[consts.program], dtype=np.int64)
-        self.dtype: Any = np.int64 if kern.COMPILED else object
+        self.dtype: Any = np.int64 if kern.COMPILED else object   # object: exact Python ints, as run_model
         self.c = kern.pack_constants(consts, dtype=self.dtype)
         self.state = np.zeros(kern.N_STATE, dtype=self.dtype)
         self.first_wrap = -1
         self.wrap_word = str(kern.WRAP_NAMES[0])
-        self._chunk = _compiled_chunk_loop(kern) if kern.COMPILED else None
+
+    def _arr(self, values: Any) -> np.ndarray:
+        a = np.ascontiguousarray(values, dtype=np.int64)
+        return a if self.dtype is np.int64 else a.astype(object)
 
     def init(self, adc0: int, acc0: int) -> list[int]:
-        self.kern._init(self.prog, self.state, self.dtype(adc0) if self.dtype is np.int64 else int(adc0),
-                        self.dtype(acc0) if self.dtype is np.int64 else int(acc0), self.c)
+        adc, acc = self._arr([adc0]), self._arr([acc0])
+        self.kern._init(self.prog, self.state, adc[0], acc[0], self.c)
         return [int(self.state[j]) for j in self.cols]
 
     def run(self, adc: np.ndarray, acc: np.ndarray, start: int) -> np.ndarray:
-        m = len(adc)
-        if self._chunk is not None:
-            out = np.empty((m, len(self.cols)), dtype=np.int64)
-            f, w = self._chunk(self.prog, self.state, np.ascontiguousarray(adc, dtype=np.int64),
-                               np.ascontiguousarray(acc, dtype=np.int64), self.c, self.cols, out)
-        else:
-            out_o = np.empty((m, len(self.cols)), dtype=object)
-            f, w = -1, 0
-            step, st, c, cols = self.kern._step, self.state, self.c, self.cols
-            for i, (a, b) in enumerate(zip(adc.tolist(), acc.tolist())):
-                wid = step(self.prog, st, a, b, c)
-                if wid != 0 and f < 0:
-                    f, w = i, wid
-                for j in range(len(cols)):
-                    out_o[i, j] = st[cols[j]]
-            out = out_o.astype(np.int64)
+        out = np.empty((len(adc), len(self.cols)), dtype=self.dtype)
+        f, w = self.loop(self.state, self._arr(adc), self._arr(acc), self.c, self.cols, out)
         if f >= 0 and self.first_wrap < 0:
             self.first_wrap, self.wrap_word = start + int(f), str(self.kern.WRAP_NAMES[int(w)])
-        return out
-
-
-_CHUNK_LOOPS: dict[int, Any] = {}
-
-
-def _compiled_chunk_loop(kern: Any) -> Any:
-    """A numba loop over one chunk that calls the model's compiled step (compiled once per process)."""
-    key = id(kern)
-    if key not in _CHUNK_LOOPS:
-        import numba
-
-        step = kern._step
-
-        @numba.njit(cache=False)
-        def loop(prog, st, adc, acc, c, cols, out):  # type: ignore[no-untyped-def]
-            f = -1
-            wid = 0
-            for i in range(adc.shape[0]):
-                w = step(prog, st, adc[i], acc[i], c)
-                if w != 0 and f < 0:
-                    f = i
-                    wid = w
-                for j in range(cols.shape[0]):
-                    out[i, j] = st[cols[j]]
-            return f, wid
-
-        _CHUNK_LOOPS[key] = loop
-    return _CHUNK_LOOPS[key]
+        return out.astype(np.int64)
 
 
 # ------------------------------------------------------------------------------------------- the user set
@@ -275,7 +241,7 @@ def generate_user(program: str, input_csv: str | Path, out: str | Path, config: 
     path = Path(input_csv)
     info = CsvInfo(path, cfg.baro_bits, cfg.k)
     sizes: dict[str, int] = {}
-    with output.staged_folder(out, owned=("cases",), guard=guard, last=("manifest.json",)) as stage:
+    with output.staged_folder(out, owned=("cases", "tables"), guard=guard, last=("manifest.json",)) as stage:
         # 1. validate and spool the inputs
         adc_path, acc_path = _spool_path(stage, "adc"), _spool_path(stage, "acc")
         with adc_path.open("wb") as fa, acc_path.open("wb") as fb:
@@ -367,6 +333,13 @@ def generate_user(program: str, input_csv: str | Path, out: str | Path, config: 
 
         rel_files = [f"cases/{name}.json"] + ([f"cases/{name}.h", "c/cases.h"] if header else [])
         (stage / "cases").mkdir()
+        if getattr(consts, "ALT_TABLE", None):       # the shared altitude table of a Kalman build
+            for rel, data in vectors.alt_table_files(consts).items():
+                if rel.endswith(".h") and not header:
+                    continue
+                (stage / rel).parent.mkdir(exist_ok=True)
+                (stage / rel).write_bytes(data)
+                rel_files.append(rel)
         with (stage / rel_files[0]).open("w", encoding="ascii", newline="") as f:
             for piece in vectors.case_json_parts(res, values(adc, vectors._json_values),
                                                  values(acc, vectors._json_values), _chunks_of(json_rows)):
