@@ -169,7 +169,8 @@ def test_summary_median_worst_misses():
 # ---------------------------------------------------------------------------------------------------- subsonic flights
 #: The stated window for kalman_baro (default build: k = 7, R/q = 50,000, floor) on subsonic 1-DOF flights sensed by a
 #: noisy 16-bit MPX4115-class barometer: error = detection - true apogee in [-3.5, +0.6] s, and never before burnout.
-#: Measured on 150 random flights of the same box (docs/evaluation.md): median -0.01 s, max +0.19 s, min -2.74 s; the
+#: Measured on 150 random flights of the same box (docs/evaluation.md), field-ready firmware: median +0.07 s, max
+#: +0.32 s, min -2.53 s (before it: median -0.01 s, max +0.19 s, min -2.74 s); the
 #: early tail is light, high-drag rockets (drag >> g after burnout) that the constant-acceleration model with a tiny
 #: model variance follows too slowly; its velocity estimate crosses zero seconds before the rocket's.
 SUBSONIC_WINDOW_S: tuple[float, float] = (-3.5, 0.6)
