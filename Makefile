@@ -1,5 +1,5 @@
 # fwemu — every target installs what it needs (a .venv made here; Debian tools via apt when run as root).
-#   make main   golden vectors + budget report for the default firmware on the default input
+#   make main   golden vectors + budget report + apogee table (out/evaluate/) for the default firmware builds
 #   make test   the whole test suite (what CI runs)
 PYTHON ?= python3
 VENV := .venv
@@ -13,7 +13,7 @@ APT_PROBE := m68k-linux-gnu-as avr-gcc simavr
 APT_ARM := gcc-arm-none-eabi libnewlib-arm-none-eabi qemu-system-arm
 APT_ARM_PROBE := arm-none-eabi-gcc qemu-system-arm
 
-.PHONY: all venv tools test test-mcu test-thorough vectors budget main bench clean
+.PHONY: all venv tools test test-mcu test-thorough vectors budget evaluate main bench clean
 
 all: main
 
@@ -63,7 +63,11 @@ vectors: $(STAMP)
 budget: $(STAMP)
 	$(FWEMU) budget --out out/budget
 
-main: vectors budget
+# The apogee table of the default builds over the evaluation set (simulated scenarios + ../shared/flights logs).
+evaluate: $(STAMP)
+	$(FWEMU) evaluate set:eval --jobs 2 --out out/evaluate
+
+main: vectors budget evaluate
 
 bench: $(STAMP)
 	$(PY) bench/bench_cpu.py

@@ -106,10 +106,33 @@ def _const_addr(op: Operand, pc: int) -> int:
     return _pc_target(pc, op.value)
 
 
+#: Handlers whose faults are not all through the memory accessors, or that read flags or end/branch the block.
+_NO_DEFER = frozenset("divs divu jmp jsr rts bsr pea movem bcc bra dbcc scc trap illegal".split())
+
+
+def _defer_flags(entries: list[_Entry], i: int, hi: int, role: dict[int, tuple[Any, ...]], targets: set[int]
+                 ) -> bool:
+    """True when entry ``i``'s NZVC flags (from a value, as MOVE/TST/AND... set them) may be set on the faulting
+    paths only: the next entry follows it in straight line (no internal branch role, not a branch target, inside
+    the region being generated), reads no flag and sets all of N, Z, V and C, and its only faults are memory
+    accesses (whose slow paths assign the deferred SR first); entry ``i`` itself writes memory at most once, as
+    its last action (its slow path also assigns SR first) and does not lower A7."""
+    j = i + 1
+    if j >= hi or i in role or j in role or j in targets:
+        return False
+    _, ins, h, cond, _ = entries[i]
+    _, kins, kh, kcond, _ = entries[j]
+    if h in _NO_DEFER or kh in _NO_DEFER or _lowers_sp(ins, h):
+        return False
+    uses, defs = _flag_effect(kins, kh, kcond)
+    return not uses and defs & _FLAGS_NZVC == _FLAGS_NZVC
+
+
 def _may_fault(ins: Instruction, h: str, facts: MapFacts | None = None, pc: int = 0) -> bool:
     """True when the instruction can raise a CPU fault (memory access, divide, pushes/pops, computed jumps).
     With ``facts``, an access to a constant address that the memory map guarantees (:class:`MapFacts`) does not
-    count, nor does DIVU/DIVS by a nonzero immediate, LEA, or JMP to a constant (even) address."""
+    count (a read; a write still counts: if it hits compiled code the block leaves right after it, exposing SR),
+    nor does DIVU/DIVS by a nonzero immediate, LEA, or JMP to a constant (even) address."""
     ops = ins.operands
     if h in ("jsr", "rts", "bsr", "pea", "movem"):
         return True
@@ -125,10 +148,9 @@ def _may_fault(ins: Instruction, h: str, facts: MapFacts | None = None, pc: int 
             continue
         if facts is None or op.mode not in _CONST_MODES:
             return True
-        a = _const_addr(op, pc)
-        n = 2 if h in _SHIFT_NAMES else nb
-        write = k == len(ops) - 1 and h not in _READ_ONLY_DST
-        if not (facts.writable(a, n) if write else facts.readable(a, n)):
+        if k == len(ops) - 1 and h not in _READ_ONLY_DST:
+            return True  # a write: even where it cannot fault, a write to code leaves the block right after it
+        if not facts.readable(_const_addr(op, pc), 2 if h in _SHIFT_NAMES else nb):
             return True
     return False
 
@@ -143,6 +165,12 @@ class _BlockGen:
         self.known: dict[int, int] = {}
         self.wrote = False  # set by write(): the instruction writes memory; check D[0] after it
         self.u32: set[str] = set()  # temporaries of this instruction known to hold a masked 32-bit address
+        # Deferred flags (set by gen() for an instruction whose NZVC only a fault of itself or of the next
+        # instruction can observe): ``pending`` is the SR expression the slow (faulting) paths assign first.
+        self.defer = False
+        self.pending: str | None = None
+        self.pending_from = -1
+        self.cur = -1
         self.smc_inline = False  # set by gen(): a last write may leave the block right after it (smc_slots)
         self.smc_slots: list[int] = []  # item indices to fill with the exit after the instruction  # data register -> value known here (set by gen() for one instruction)
         self.items: list[tuple[int, object]] = []  # (indent, line str | ("exit", ...) | ("mark", i))
@@ -154,6 +182,8 @@ class _BlockGen:
 
     # ---- emission helpers
     def emit(self, line: str) -> None:
+        if self.pending is not None and self.cur != self.pending_from and line.startswith(("sr = ", "rm, sr = ")):
+            self.pending = None  # the next instruction sets all the flags the deferred ones were (see gen)
         self.items.append((self.ind, line))
 
     def const(self, obj: object, hint: str) -> str:
@@ -254,24 +284,25 @@ class _BlockGen:
         span inline and read straight from memory when inside it, else through the exact accessor (which raises
         the fault)."""
         fn = "rb rw _ rl".split()[nb - 1]
+        slow = f"{fn}({a})" if self.pending is None else f"(sr := {self.pending}, {fn}({a}))[1]"
         if a.isdigit():
             v = int(a)
             if self.facts.readable(v, nb):
                 t = v & 0xFFFFFF
                 return (f"m[{t}]", f"(m[{t}] << 8 | m[{t + 1}])", "", f"UL(m, {t})[0]")[nb - 1]
-            return f"{fn}({a})"
+            return slow
         lo, hi = self.facts.span
         if hi - lo < nb:
-            return f"{fn}({a})"
+            return slow
         if a in self.u32 or a in _RN:  # a local holding 0..2^32-1: the span comparison needs no mask
             odd = "" if nb == 1 else f"not {a} & 1 and "
             rng = f"{a} <= {hi - nb}" if lo == 0 else f"{lo} <= {a} <= {hi - nb}"
             val = (f"m[{a}]", f"(m[{a}] << 8 | m[{a} + 1])", "", f"UL(m, {a})[0]")[nb - 1]
-            return f"({val} if {odd}{rng} else {fn}({a}))"
+            return f"({val} if {odd}{rng} else {slow})"
         rng = f"(_t := ({a}) & 0xFFFFFF) <= {hi - nb}" if lo == 0 else f"{lo} <= (_t := ({a}) & 0xFFFFFF) <= {hi - nb}"
         odd = "" if nb == 1 else f"not ({a}) & 1 and "
         val = ("m[_t]", "(m[_t] << 8 | m[_t + 1])", "", "UL(m, _t)[0]")[nb - 1]
-        return f"({val} if {odd}{rng} else {fn}({a}))"
+        return f"({val} if {odd}{rng} else {slow})"
 
     def write(self, nb: int, a: str, v: str, last: bool = False) -> None:
         """Emit a write of the ``nb``-byte value ``v`` (already masked) at address expression ``a``: straight
@@ -283,6 +314,9 @@ class _BlockGen:
         fn = "wb ww _ wl".split()[nb - 1]
         const = a.isdigit()
         if const and not self.facts.writable(int(a), nb):
+            if self.pending is not None:
+                self.emit(f"sr = {self.pending}")
+                self.pending = None
             self.emit(f"{fn}({a}, {v})")
             self.wrote = True
             return
@@ -318,6 +352,8 @@ class _BlockGen:
             self.emit(f"    {setf}")
             self.emit(f"    {store}")
         self.emit("else:")
+        if self.pending is not None:
+            self.emit(f"    sr = {self.pending}")
         self.emit(f"    {fn}({a}, {v})")
         if last and self.smc_inline:
             self.emit("    if D[0]:")
@@ -335,6 +371,11 @@ class _BlockGen:
 
     def logic_flags(self, v: str, nb: int, need: int) -> None:
         if need & _FLAGS_NZVC:
+            if self.defer:  # only a fault can observe them: keep the value, set SR on the slow paths only
+                self.emit(f"pf = {v}")
+                self.pending = f"(sr & 0xFF10) | {self.nz('pf', nb)}"
+                self.pending_from = self.cur
+                return
             self.emit(f"sr = (sr & 0xFF10) | {self.nz(v, nb)}")
 
     def arith_flags(self, kind: str, nb: int, s: str, d: str, need: int) -> None:
@@ -1039,6 +1080,8 @@ def _block_source(entries: list[_Entry], facts: MapFacts
             mark(i, n, cy)
             r = role.get(i)
             if r is None:
+                g.cur = i
+                g.defer = _defer_flags(entries, i, hi, role, targets)
                 g.wrote = False
                 g.u32 = set()
                 g.smc_inline = not _lowers_sp(ins, h)
@@ -1054,6 +1097,9 @@ def _block_source(entries: list[_Entry], facts: MapFacts
                     g.emit(f"if {g.rg(15)} < MS[0]:")
                     g.emit(f"    MS[0] = {g.rg(15)}")
                 wrote = g.wrote
+                g.defer = False
+                if g.pending is not None and g.pending_from < i:
+                    g.pending = None  # the instruction after the deferring one is done
                 for slot in g.smc_slots:
                     g.items[slot] = (g.items[slot][0], ("exit", nxt, n, cy, frozenset(g.dirty)))
                 if wrote and not ended:

@@ -137,7 +137,7 @@ def plot_k_sweep(res: Any, title: str = "") -> bytes:
     n = len(methods)
     cols = min(3, n)
     rows = (n + cols - 1) // cols
-    fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.3 * rows), squeeze=False, sharex=True)
+    fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.3 * rows), squeeze=False)
     x = np.asarray(res.axis)
     for ax, m in zip(axes.flat, methods):
         for f in res.flights:
@@ -145,6 +145,7 @@ def plot_k_sweep(res: Any, title: str = "") -> bytes:
             ax.plot(x, y, marker="o", ms=3, label=f)
         ax.axhline(0, color="k", lw=0.6)
         ax.set_title(m, fontsize=10)
+        ax.set_xticks(x)
         ax.grid(True, alpha=0.3)
         ax.set_xlabel("k (dt = 2^-k s)")
         ax.set_ylabel("error (s)")
