@@ -1,9 +1,12 @@
 """``fwemu asm`` and ``fwemu exec``: assemble a 68000 source file (listing with cycles, symbols, binary and
 S-record output) or assemble and run it on the interpreter to a ``TRAP`` or a limit.
 
-Both commands load code at ``--origin`` (default ``$1000``). ``exec`` maps all 16 MiB as RAM, sets A7 to
-``--stack`` (default ``$FFFF00``) and SR to ``$2700``, runs from the origin and prints D0-D7, A0-A7, PC, SR and the
-instruction and cycle totals. It exits 0 when the program stopped at a ``TRAP`` and 1 when it reached
+Both commands load code at ``--origin`` (default ``$1000``). ``exec`` maps only the program's sections (code,
+data, bss, as RAM) and a stack of ``--stack-size`` bytes (default 64 KiB) below ``--stack`` (default ``$FFFF00``),
+plus every ``--map START:SIZE[:ro]`` given (``--map 0:0x1000000`` maps all 16 MiB as before); everything else is a
+bus error, so a program that runs off its end, or returns with nothing on the stack, stops at once with a bus
+error naming the PC, and memory stays bounded by what is mapped. It sets A7 to ``--stack`` and SR to ``$2700``,
+runs from the origin and prints D0-D7, A0-A7, PC, SR and the instruction and cycle totals. It exits 0 when the program stopped at a ``TRAP`` and 1 when it reached
 ``--max-instructions`` / ``--max-cycles``; CPU faults and assembly errors exit 2 with one ``fwemu: error:`` line
 (plus the source line and a caret for assembly errors).
 """
@@ -16,13 +19,15 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from isa.errors import IsaError
+from isa.errors import BusError, IsaError
 from isa.program import Program
 
 #: Default load address of ``fwemu asm`` / ``fwemu exec``.
 DEFAULT_ORIGIN = 0x1000
 #: Default initial A7 of ``fwemu exec``.
 DEFAULT_STACK = 0xFFFF00
+#: Default size of the stack region ``fwemu exec`` maps below the initial A7.
+DEFAULT_STACK_SIZE = 0x10000
 
 
 def parse_int(text: str) -> int:
@@ -50,6 +55,17 @@ def _count(text: str) -> int:
     if value < 1:
         raise argparse.ArgumentTypeError(f"limit {text!r} must be a positive integer")
     return value
+
+
+def _region(text: str) -> tuple[int, int, bool]:
+    """``START:SIZE[:ro]`` of ``--map`` (both even, inside the 24-bit space) -> (start, size, writable)."""
+    parts = text.split(":")
+    if len(parts) not in (2, 3) or (len(parts) == 3 and parts[2].lower() not in ("ro", "rw")):
+        raise argparse.ArgumentTypeError(f"bad region {text!r} (use START:SIZE or START:SIZE:ro)")
+    start, size = parse_int(parts[0]), parse_int(parts[1])
+    if size <= 0 or start < 0 or start + size > 1 << 24 or start & 1 or size & 1:
+        raise argparse.ArgumentTypeError(f"region {text!r} must be even, non-empty and inside $000000-$FFFFFF")
+    return start, size, not (len(parts) == 3 and parts[2].lower() == "ro")
 
 
 def _define(text: str) -> tuple[str, int]:
@@ -91,6 +107,11 @@ def register(subparsers: Any) -> None:
     p.add_argument("--max-cycles", type=_count, default=None, metavar="N", help="stop after N clock cycles")
     p.add_argument("--stack", type=_address, default=DEFAULT_STACK, metavar="N",
                    help="initial A7 (default $FFFF00)")
+    p.add_argument("--stack-size", type=_count, default=DEFAULT_STACK_SIZE, metavar="N",
+                   help="bytes of RAM mapped below the initial A7 (default 65536)")
+    p.add_argument("--map", dest="regions", action="append", type=_region, default=[], metavar="START:SIZE[:ro]",
+                   help="also map SIZE bytes at START (RAM, or ROM with :ro; repeatable). Only the program's "
+                   "sections and the stack are mapped otherwise; --map 0:0x1000000 maps everything")
     p.set_defaults(func=cmd_exec)
 
 
@@ -151,15 +172,61 @@ def format_registers(cpu: Any) -> str:
     return "\n".join(lines)
 
 
+def _merge(ranges: list[tuple[int, int]]) -> list[tuple[int, int]]:
+    """Union of half-open ``(start, end)`` ranges, sorted."""
+    out: list[tuple[int, int]] = []
+    for lo, hi in sorted(r for r in ranges if r[1] > r[0]):
+        if out and lo <= out[-1][1]:
+            out[-1] = (out[-1][0], max(out[-1][1], hi))
+        else:
+            out.append((lo, hi))
+    return out
+
+
+def map_for_exec(cpu: Any, program: Program, stack: int, stack_size: int,
+                 regions: list[tuple[int, int, bool]]) -> str:
+    """Map ``regions`` (``--map``) and, as RAM, the parts of the program's sections and of the stack
+    ``[stack - stack_size, stack)`` they do not cover (rounded out to even addresses). Returns the map as text
+    for error messages. Overlapping ``--map`` regions are an error."""
+    from isa.cpu import MapError
+
+    for start, size, writable in regions:
+        try:
+            cpu.map(start, size, f"--map ${start:06X}", writable=writable)
+        except MapError as exc:
+            raise IsaError(f"--map: {exc}") from None
+    wanted = [(s.origin & ~1, (s.origin + len(s.data) + 1) & ~1) for s in program.segments]
+    wanted.append((max(stack - stack_size, 0), stack))
+    taken = _merge([(start, start + size) for start, size, _ in regions])
+    for lo, hi in _merge(wanted):
+        for t_lo, t_hi in taken:  # leave out what --map covers
+            if t_hi <= lo or hi <= t_lo:
+                continue
+            if lo < t_lo:
+                cpu.map(lo, t_lo - lo, "exec", writable=True)
+            lo = max(lo, t_hi)
+            if lo >= hi:
+                break
+        if lo < hi:
+            cpu.map(lo, hi - lo, "exec", writable=True)
+    return ", ".join(f"${r.start:06X}-${r.start + r.size - 1:06X}{'' if r.writable else ' (ro)'}"
+                     for r in cpu.regions)
+
+
 def cmd_exec(args: argparse.Namespace) -> int:
     """``fwemu exec``: assemble, run to a TRAP or a limit, print registers and totals; 0 at a TRAP, 1 at a limit."""
     from isa.cpu import CPU
 
     program = _assemble(args)
-    cpu = CPU()
+    cpu = CPU(mapped=False)
+    mapped = map_for_exec(cpu, program, args.stack, args.stack_size, args.regions)
     cpu.load(program)
     cpu.a[7] = args.stack
-    result = cpu.run(max_instructions=args.max_instructions, max_cycles=args.max_cycles, stop_at_limit=True)
+    try:
+        result = cpu.run(max_instructions=args.max_instructions, max_cycles=args.max_cycles, stop_at_limit=True)
+    except BusError as exc:
+        hint = "; the program ran off its end or jumped outside it" if "instruction fetch" in str(exc) else ""
+        raise IsaError(f"{exc}{hint}; mapped: {mapped} (--map START:SIZE[:ro] maps more)") from None
     if result.reason == "trap":
         print(f"stopped: TRAP #{result.trap_number} (PC after the TRAP ${result.pc:06X})")
     elif result.reason == "max_instructions":

@@ -105,14 +105,17 @@ def test_pad_only_streams_give_no_event(stream, name):
 def test_finding_8bit_adc_kalman_baro_lifts_off_on_the_pad():
     """Finding (docs/evaluation.md): with an 8-bit ADC over the MPX4115's range one count is about 73 m; at k = 8
     kalman_baro's velocity answer to a single one-count step (the pad reading flickering to the next code) peaks
-    near 74 m/s, above the 30 m/s liftoff threshold: LIFTOFF on the pad (at k = 4, 17 m/s: no liftoff)."""
+    near 74 m/s, above the 30 m/s liftoff threshold: LIFTOFF on the pad (at k = 4, 17 m/s: no liftoff). Since the
+    field-ready firmware (docs/firmware-spec.md History: metres, innovation gate) the false liftoff is followed by a
+    false APOGEE once the velocity has been negative for APO_N samples (the 73 m step is inside the gate, whose
+    sigma is the 8-bit sensor's own noise in metres); before, no APOGEE followed."""
     for k, lifts in ((8, True), (4, False)):
         n = 20 * 2 ** k
         adc = np.full(n, 200, dtype=np.int64)
         adc[n // 4:] = 199                   # one count less pressure = one count "up"
         ev = _events(METHODS["kalman_baro"], METHODS["kalman_baro"].config(k, _sensor(8)), adc, None)
         assert bool(np.any(ev & EVENT_BITS["LIFTOFF"])) is lifts
-        assert not np.any(ev & EVENT_BITS["APOGEE"])
+        assert bool(np.any(ev & EVENT_BITS["APOGEE"])) is lifts
 
 
 def test_finding_recursive_pad_bias_of_first_accel_sample():

@@ -163,6 +163,49 @@ def test_asm_recursive_macro_is_a_short_error(tmp_path: Path) -> None:
     assert len(res.stderr) < 400, res.stderr
 
 
+def test_exec_running_off_the_program_is_a_bus_error_at_once(tmp_path: Path) -> None:
+    # Issue 8.4: with all 16 MiB mapped, `start: nop` ran on through zeroed RAM (ORI.B #0,D0) at ~10,500
+    # instructions/s, growing ~1 KB per instruction. exec now maps only the program and a stack.
+    src = tmp_path / "nop.s"
+    src.write_text("start: nop\n")
+    res = run_fwemu("exec", str(src), timeout=60)
+    assert res.returncode == 2 and "Traceback" not in res.stderr and res.stderr.count("\n") == 1, res.stderr
+    assert "instruction fetch from unmapped address $001002 at PC=$001002" in res.stderr
+    assert "ran off its end" in res.stderr and "mapped: $001000-$001001, $FEFF00-$FFFEFF" in res.stderr
+    src.write_text(" rts\n")  # nothing to return to: the pop reads above the stack
+    res = run_fwemu("exec", str(src), timeout=60)
+    assert res.returncode == 2 and res.stderr.count("\n") == 1, res.stderr
+    assert "long read of unmapped address $FFFF00 at PC=$001000 (rts)" in res.stderr and f"{src}:1" in res.stderr
+
+
+def test_exec_map_option(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    src = tmp_path / "io.s"
+    src.write_text(" move.l #$12345678,$20000\n move.w $20002,d1\n trap #0\n")
+    assert fwemu(["exec", str(src)]) == 2
+    err = capsys.readouterr().err
+    assert "write to unmapped address $020000" in err and "--map" in err
+    assert fwemu(["exec", str(src), "--map", "$20000:4"]) == 0
+    assert registers(capsys.readouterr().out)["D1"] == 0x5678
+    assert fwemu(["exec", str(src), "--map", "$20000:4:ro"]) == 2
+    assert "read-only" in capsys.readouterr().err
+    assert fwemu(["exec", str(src), "--map", "0:0x1000000"]) == 0  # everything, as before
+    capsys.readouterr()
+    assert fwemu(["exec", str(src), "--map", "0:0x1000", "--map", "0x800:0x1000"]) == 2
+    assert "overlaps" in capsys.readouterr().err
+    src.write_text(" move.l #1,-(a7)\n move.l #2,-(a7)\n trap #0\n")
+    assert fwemu(["exec", str(src), "--stack", "$8000", "--stack-size", "4"]) == 2  # the second push is below
+    assert "write to unmapped address $007FF8" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("bad", ["0:3", "1:2", "0", "0:2:rx", "$FFFFFE:4", "0:0"])
+def test_exec_bad_map_is_a_usage_error(bad: str, capsys: pytest.CaptureFixture[str]) -> None:
+    try:
+        code = fwemu(["exec", str(DEMO), "--map", bad])
+    except SystemExit as exc:
+        code = exc.code
+    assert code == 2 and "--map" in capsys.readouterr().err
+
+
 def test_bad_origin_is_a_usage_error(capsys: pytest.CaptureFixture[str]) -> None:
     try:  # fwemu's main returns argparse's exit status; isa.cli.main alone lets SystemExit through
         code = fwemu(["asm", str(DEMO), "--origin", "$1001"])
