@@ -768,10 +768,13 @@ def generate(specs: Sequence[CaseSpec], generator: str = "emulation", progress: 
         if jobs > 1 and len(specs) > 1:
             import multiprocessing
 
-            from firmware_model.output import worker_init
+            from firmware_model.output import worker_init, worker_signals_ignored
 
-            # spawn, not fork: a forked child of a process whose numba thread pool already ran can deadlock
-            pool = multiprocessing.get_context("spawn").Pool(min(jobs, len(specs)), initializer=worker_init)
+            # spawn, not fork: a forked child of a process whose numba thread pool already ran can deadlock.
+            # The workers are started with SIGINT ignored (inherited through exec, kept by Python): a Ctrl-C to
+            # the process group while they are still importing must not print their KeyboardInterrupt.
+            with worker_signals_ignored():
+                pool = multiprocessing.get_context("spawn").Pool(min(jobs, len(specs)), initializer=worker_init)
             try:
                 for res in pool.imap(_compute_job, [(spec, generator) for spec in specs], chunksize=2):
                     results.append(res)

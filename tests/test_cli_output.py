@@ -21,6 +21,9 @@ from firmware_model import output, vectors
 from firmware_model.errors import UserError
 
 ROOT = Path(__file__).resolve().parents[1]
+SHARED = Path(os.environ.get("FWEMU_SHARED_FLIGHTS") or ROOT.parent / "shared" / "flights")
+#: `fwemu vectors --all` includes cases made from the shared flight logs (docs/vectors.md, "Flight cases").
+needs_logs = pytest.mark.skipif(not SHARED.is_dir(), reason=f"shared flight logs not at {SHARED}")
 SUBSET = ["recursive_floor_k4_b16_edge_step", "kalman_baro_half_up_k5_b12_edge_ties",
           "kalman_accel_floor_k6_b16_edge_ramp"]
 
@@ -46,6 +49,23 @@ def temp_names(*folders: Path) -> list[Path]:
             found += [p for p in folder.rglob("*") if p.name.startswith(".fwemu") or p.name.startswith(".old-")
                       or p.name.startswith(".budget-")]
     return found
+
+
+def wait_until_catching(pid: int, sig: int, timeout: float = 60.0) -> None:
+    """Wait until process ``pid`` has installed a handler for ``sig`` (Linux /proc SigCgt), i.e. fwemu's main() is
+    running: a signal before that (interpreter start-up, imports) would get the default action."""
+    status = Path(f"/proc/{pid}/status")
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            caught = next(int(line.split()[1], 16) for line in status.read_text().splitlines()
+                          if line.startswith("SigCgt:"))
+        except (OSError, StopIteration):
+            caught = 0
+        if caught >> (sig - 1) & 1:
+            return
+        time.sleep(0.02)
+    raise AssertionError(f"pid {pid} never caught signal {sig}")
 
 
 def snapshot(folder: Path) -> dict[str, bytes]:
@@ -151,7 +171,8 @@ def _writer(out: str, tag: int, rounds: int, queue: multiprocessing.Queue,  # ty
             go: multiprocessing.synchronize.Barrier) -> None:
     """Write a small vector set ``rounds`` times, each round with content unique to (tag, round)."""
     try:
-        base = vectors.render_set(vectors.generate([s for s in vectors.case_matrix() if s.name in SUBSET],
+        base = vectors.render_set(vectors.generate([s for s in vectors.case_matrix(require_logs=False)
+                                                    if s.name in SUBSET],
                                                    "model", progress=False), "subset")
         go.wait(120)   # both writers start together
         for r in range(rounds):
@@ -276,6 +297,7 @@ def test_enospc_during_commit_is_one_line_in_process(tmp_path: Path, monkeypatch
 
 
 # ------------------------------------------------------------------------------------------ signals (item 8)
+@needs_logs
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
 def test_interrupted_vectors_run_leaves_previous_outputs_and_no_temp(sig: int, tmp_path: Path) -> None:
     out = tmp_path / "vectors"
@@ -283,10 +305,11 @@ def test_interrupted_vectors_run_leaves_previous_outputs_and_no_temp(sig: int, t
     before = snapshot(out)
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     outcomes = []
-    for delay in (2.0, 4.0, 7.0):
+    for delay in (0.5, 3.0, 6.0):
         proc = subprocess.Popen([sys.executable, "-m", "firmware_model.cli", "vectors", "--all", "--generator",
                                  "model", "--out", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                 text=True, env=env)
+        wait_until_catching(proc.pid, sig)
         time.sleep(delay)
         proc.send_signal(sig)
         _, err = proc.communicate(timeout=120)
@@ -303,12 +326,14 @@ def test_interrupted_vectors_run_leaves_previous_outputs_and_no_temp(sig: int, t
     assert "interrupted" in outcomes
 
 
+@needs_logs
 def test_interrupted_jobs_run_terminates_its_workers(tmp_path: Path) -> None:
     out = tmp_path / "v"
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     proc = subprocess.Popen([sys.executable, "-m", "firmware_model.cli", "vectors", "--all", "--generator", "model",
                              "--jobs", "2", "--out", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True, env=env, start_new_session=True)
+    wait_until_catching(proc.pid, signal.SIGINT)
     time.sleep(3.0)
     os.killpg(proc.pid, signal.SIGINT)          # Ctrl-C reaches the whole process group, workers included
     _, err = proc.communicate(timeout=120)
