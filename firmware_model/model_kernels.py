@@ -2,8 +2,9 @@
 (exact Python ints) when it is not or when ``FWEMU_NO_NUMBA=1``.
 
 docs/firmware-spec.md §5-§7 bit for bit. :func:`firmware_model.model.run_model` packs the build constants
-(:func:`pack_constants`), allocates the arrays and calls :func:`run_streams`, which runs every stream (in
-parallel with ``prange`` when compiled) through the program's ``*_init`` once and its ``*_step`` per sample.
+(:func:`pack_constants`), allocates the arrays and calls :func:`run_streams` (or :func:`run_streams_serial`
+for small calls), which runs every stream (in parallel with ``prange`` when compiled) through the program's
+``*_init`` once and its ``*_step`` per sample.
 
 Layout, chosen so that a program is easy to change or add:
 
@@ -15,8 +16,9 @@ Layout, chosen so that a program is easy to change or add:
   :class:`~firmware_model.constants.FirmwareConstants`. A new constant: a new index + a line in
   :func:`pack_constants`.
 * **Programs**: ``<program>_init(st, adc, acc, c)`` and ``<program>_step(st, adc, acc, c) -> wrap id`` for each
-  program, dispatched on the program number ``P_*`` by :func:`_init` and :func:`run_streams` (which calls one
-  sample loop per program, ``_stream_<program>``). A table (e.g. a lookup table of the firmware) can be appended
+  program, dispatched on the program number ``P_*`` by :func:`_init` and :func:`run_stream` (which calls one
+  sample loop per program, ``_stream_<program>``); :func:`run_streams` runs it over the streams in parallel,
+  :func:`run_streams_serial` on one thread. A table (e.g. a lookup table of the firmware) can be appended
   to the constants array (its first index a ``C_*`` constant) without changing any signature.
 * **Wrap detection**: every ``.l`` value is computed exactly, then :func:`_note` records the first quantity of
   the sample whose exact value is outside int32 (its id, an index into :data:`WRAP_NAMES`) and :func:`_w32`
@@ -527,15 +529,23 @@ def _init(prog, st, adc, acc, c):  # type: ignore[no-untyped-def]
         kalman_init(st, adc, acc, c)
 
 
+#: The output columns as module-level tuples: numba freezes them as constants, so the copy of the output words
+#: compiles to fixed loads and stores (5-12 % faster than the ``cols`` array).
+_OUT_RECURSIVE = OUT_COLS["recursive"]
+_OUT_SEED_LITERAL = OUT_COLS["recursive_seed_literal"]
+_OUT_KALMAN_BARO = OUT_COLS["kalman_baro"]
+_OUT_KALMAN_ACCEL = OUT_COLS["kalman_accel"]
+
+
 @njit(cache=True, inline="always")
 def _copy_out(st, cols, row):  # type: ignore[no-untyped-def]
-    """``row[j] = st[cols[j]]``: the output words of the state."""
-    for j in range(cols.shape[0]):
+    """``row[j] = st[cols[j]]``: the output words of the state (``cols`` an array or a tuple)."""
+    for j in range(len(cols)):
         row[j] = st[cols[j]]
 
 
 @njit(cache=True)
-def _stream_recursive(st, adc, acc, c, cols, out):  # type: ignore[no-untyped-def]
+def _stream_recursive(st, adc, acc, c, out):  # type: ignore[no-untyped-def]
     """Samples 0..n-1 of one stream through :func:`recursive_step`: (first wrap sample or -1, its wrap id)."""
     f = -1
     wid = 0
@@ -543,12 +553,12 @@ def _stream_recursive(st, adc, acc, c, cols, out):  # type: ignore[no-untyped-de
         w = recursive_step(st, adc[i], acc[i], c)
         if w != 0 and f < 0:
             f, wid = i, w
-        _copy_out(st, cols, out[i])
+        _copy_out(st, _OUT_RECURSIVE, out[i])
     return f, wid
 
 
 @njit(cache=True)
-def _stream_seed_literal(st, adc, acc, c, cols, out):  # type: ignore[no-untyped-def]
+def _stream_seed_literal(st, adc, acc, c, out):  # type: ignore[no-untyped-def]
     """Samples 0..n-1 of one stream through :func:`seed_literal_step`: (first wrap sample or -1, its wrap id)."""
     f = -1
     wid = 0
@@ -556,12 +566,12 @@ def _stream_seed_literal(st, adc, acc, c, cols, out):  # type: ignore[no-untyped
         w = seed_literal_step(st, adc[i], acc[i], c)
         if w != 0 and f < 0:
             f, wid = i, w
-        _copy_out(st, cols, out[i])
+        _copy_out(st, _OUT_SEED_LITERAL, out[i])
     return f, wid
 
 
 @njit(cache=True)
-def _stream_kalman_baro(st, adc, acc, c, cols, out):  # type: ignore[no-untyped-def]
+def _stream_kalman_baro(st, adc, acc, c, out):  # type: ignore[no-untyped-def]
     """Samples 0..n-1 of one stream through :func:`kalman_baro_step`: (first wrap sample or -1, its wrap id)."""
     f = -1
     wid = 0
@@ -569,12 +579,12 @@ def _stream_kalman_baro(st, adc, acc, c, cols, out):  # type: ignore[no-untyped-
         w = kalman_baro_step(st, adc[i], acc[i], c)
         if w != 0 and f < 0:
             f, wid = i, w
-        _copy_out(st, cols, out[i])
+        _copy_out(st, _OUT_KALMAN_BARO, out[i])
     return f, wid
 
 
 @njit(cache=True)
-def _stream_kalman_accel(st, adc, acc, c, cols, out):  # type: ignore[no-untyped-def]
+def _stream_kalman_accel(st, adc, acc, c, out):  # type: ignore[no-untyped-def]
     """Samples 0..n-1 of one stream through :func:`kalman_accel_step`: (first wrap sample or -1, its wrap id)."""
     f = -1
     wid = 0
@@ -582,36 +592,52 @@ def _stream_kalman_accel(st, adc, acc, c, cols, out):  # type: ignore[no-untyped
         w = kalman_accel_step(st, adc[i], acc[i], c)
         if w != 0 and f < 0:
             f, wid = i, w
-        _copy_out(st, cols, out[i])
+        _copy_out(st, _OUT_KALMAN_ACCEL, out[i])
     return f, wid
+
+
+@njit(cache=True)
+def run_stream(prog, st, adc, acc, c, cols, init_row, out):  # type: ignore[no-untyped-def]
+    """One stream (``adc``/``acc`` of shape ``(n,)``) through program ``prog``: ``init`` on sample 0 into
+    ``init_row``, then ``step`` on samples 0..n-1 into ``out[i]`` (the state entries ``cols``); ``st`` is the
+    state. Returns (first sample with a wrap or -1, its wrap id or 0).
+
+    Speed notes (bench/bench_model.py, measured): numba does not inline a call between two jitted functions
+    that pass arrays (each call costs a call plus atomic reference counts of every array argument), so the step
+    functions are ``inline="always"`` into one sample loop per program (``_stream_*``), called once per stream:
+    1.4x over the step called per sample, at the same compile time; inlining also the loops into the parallel
+    driver was another 1.2x but quadrupled the cold compile (~20 s CPU). A program dispatch inside the sample
+    loop cost ~30 %; passing the step function as an argument would stop numba from caching the driver."""
+    _init(prog, st, adc[0], acc[0], c)
+    _copy_out(st, cols, init_row)
+    if prog == P_KALMAN_ACCEL:
+        return _stream_kalman_accel(st, adc, acc, c, out)
+    if prog == P_KALMAN_BARO:
+        return _stream_kalman_baro(st, adc, acc, c, out)
+    if prog == P_RECURSIVE:
+        return _stream_recursive(st, adc, acc, c, out)
+    return _stream_seed_literal(st, adc, acc, c, out)
 
 
 @njit(cache=True, parallel=True)
 def run_streams(prog, adc, acc, c, cols, state, init_out, out, first, word):  # type: ignore[no-untyped-def]
-    """Run every stream ``s`` of ``adc``/``acc`` (shape ``(streams, n)``) through program ``prog``: ``init`` on
-    sample 0, then ``step`` on samples 0..n-1. Writes ``init_out[s, j]`` and ``out[s, i, j]`` (the state entries
-    ``cols[j]``), ``first[s]`` (first sample with a wrap, or -1) and ``word[s]`` (its wrap id, or 0);
-    ``state`` (``(streams, N_STATE)``) is the work area. Streams run in parallel when compiled.
+    """Run every stream ``s`` of ``adc``/``acc`` (shape ``(streams, n)``) through program ``prog``
+    (:func:`run_stream`), the streams in parallel when compiled. Writes ``init_out[s, j]`` and ``out[s, i, j]``
+    (the state entries ``cols[j]``), ``first[s]`` (first sample with a wrap, or -1) and ``word[s]`` (its wrap
+    id, or 0); ``state`` (``(streams, N_STATE)``) is the work area."""
+    for s in prange(adc.shape[0]):
+        f, wid = run_stream(prog, state[s], adc[s], acc[s], c, cols, init_out[s], out[s])
+        first[s] = f
+        word[s] = wid
 
-    Speed notes (bench/bench_model.py, measured): numba does not inline a call between two jitted functions
-    that pass arrays (each call costs a call plus atomic reference counts of every array argument), so the step
-    functions are ``inline="always"`` into one sample loop per program (``_stream_*``), which the parallel
-    driver calls once per stream: 1.4x over the step called per sample, at the same compile time; inlining also
-    the loops into this parallel function was another 1.2x but quadrupled the cold compile (~20 s CPU). A
-    program dispatch inside the sample loop cost ~30 %; passing the step function as an argument would stop
-    numba from caching the driver."""
-    n_streams = adc.shape[0]
-    for s in prange(n_streams):
-        st = state[s]
-        _init(prog, st, adc[s, 0], acc[s, 0], c)
-        _copy_out(st, cols, init_out[s])
-        if prog == P_KALMAN_ACCEL:
-            f, wid = _stream_kalman_accel(st, adc[s], acc[s], c, cols, out[s])
-        elif prog == P_KALMAN_BARO:
-            f, wid = _stream_kalman_baro(st, adc[s], acc[s], c, cols, out[s])
-        elif prog == P_RECURSIVE:
-            f, wid = _stream_recursive(st, adc[s], acc[s], c, cols, out[s])
-        else:
-            f, wid = _stream_seed_literal(st, adc[s], acc[s], c, cols, out[s])
+
+@njit(cache=True)
+def run_streams_serial(prog, adc, acc, c, cols, state, init_out, out, first, word):  # type: ignore[no-untyped-def]
+    """:func:`run_streams` on the calling thread only: for small calls, where waking the worker threads costs
+    more than the work (0.02-0.2 ms per call on this loaded machine, against ~4 us for 100 samples). About half
+    as fast per sample as the parallel driver even on one stream (numba marks the array arguments of a parallel
+    loop body ``noalias``, not those of a plain function)."""
+    for s in range(adc.shape[0]):
+        f, wid = run_stream(prog, state[s], adc[s], acc[s], c, cols, init_out[s], out[s])
         first[s] = f
         word[s] = wid

@@ -295,8 +295,8 @@ from firmware_model.config import BuildConfig
 from firmware_model.constants import build_constants
 from firmware_model.model import run_model
 c = build_constants(BuildConfig(program="kalman_accel"))
-def f(i):
-    return int(run_model(c, np.full((4, 50), 30000 + i)).words.sum())
+def f(i):  # 4 x 8,000 samples: above PARALLEL_MIN_SAMPLES, so the parallel driver runs
+    return int(run_model(c, np.full((4, 8000), 30000 + i)).words.sum())
 parent = f(0)
 out = [None] * 4
 def g(i):
@@ -319,7 +319,7 @@ def test_parallel_kernel_then_fork_and_threads():
     res = subprocess.run([sys.executable, "-c", _FORK_AND_THREADS], env=env, capture_output=True, text=True,
                          timeout=120)
     assert res.returncode == 0, res.stderr[-2000:]
-    want = [int(run_model(build_constants(BuildConfig(program="kalman_accel")), np.full((4, 50), 30000 + i))
+    want = [int(run_model(build_constants(BuildConfig(program="kalman_accel")), np.full((4, 8000), 30000 + i))
                 .words.sum()) for i in range(4)]
     assert res.stdout.strip() == f"{want[0]} {want} {want}"
 
@@ -343,3 +343,31 @@ def test_one_compiled_specialization_whatever_the_input_layout():
     strided = np.repeat(adc, 2, axis=1)[:, ::2], np.repeat(acc, 2, axis=1)[:, ::2]
     _same_trace(run_model(consts, *strided), want, "strided")
     assert len(KC.run_streams.signatures) == n_sigs
+
+
+@needs_numba
+@pytest.mark.parametrize("program", PROGRAMS)
+def test_parallel_driver_equals_serial_driver_and_one_by_one(program):
+    """A call above PARALLEL_MIN_SAMPLES runs the parallel driver; it equals the serial driver on the same
+    arrays and run_model one stream at a time (4,000 samples: serial), every word and the wrap report."""
+    from firmware_model import model as model_mod
+
+    consts = _hot(program, 11) if program.startswith("kalman") else build_constants(
+        BuildConfig(program=program, shift=1))
+    adc, acc = _wrapping_streams(6, 4_000, 6)
+    assert adc.size >= model_mod.PARALLEL_MIN_SAMPLES
+    many = run_model(consts, adc, acc)
+    init, words, first, word = model_mod._run_kernels(KC, consts, adc, acc)       # the same call, parallel
+    assert np.array_equal(words, many.words) and np.array_equal(first, many.first_wrap)
+    cols = np.array(KC.OUT_COLS[program], dtype=np.int64)
+    out = np.empty_like(words)
+    init_s, first_s, word_s = np.empty_like(init), np.empty_like(first), np.empty_like(word)
+    KC.run_streams_serial(KC.PROGRAMS.index(program), adc, acc, KC.pack_constants(consts), cols,
+                          np.zeros((6, KC.N_STATE), dtype=np.int64), init_s, out, first_s, word_s)
+    assert np.array_equal(out, words) and np.array_equal(init_s, init)
+    assert np.array_equal(first_s, first) and np.array_equal(word_s, word)
+    assert (first >= 0).any() == (program != "recursive")   # recursive VEL needs > 32,767 samples to wrap
+    for j in range(6):
+        one = run_model(consts, adc[j], acc[j])
+        assert np.array_equal(one.words, many.words[j]) and one.first_wrap == many.first_wrap[j]
+        assert one.wrap_word == many.wrap_word[j]
