@@ -146,6 +146,12 @@ class ModelStepper:
         self.program = consts.program
         self.prog = kern.PROGRAMS.index(consts.program)
         self.loop = getattr(kern, self._LOOPS[consts.program])
+        import inspect
+
+        # these loops are the kernels' internals: their signature has changed once (the output columns became
+        # compile-time constants); pass ``cols`` only where the loop still takes it
+        params = inspect.signature(getattr(self.loop, "py_func", self.loop)).parameters
+        self._pass_cols = "cols" in params
         self.cols = np.array(kern.OUT_COLS[consts.program], dtype=np.int64)
         self.dtype: Any = np.int64 if kern.COMPILED else object   # object: exact Python ints, as run_model
         self.c = kern.pack_constants(consts, dtype=self.dtype)
@@ -164,7 +170,8 @@ class ModelStepper:
 
     def run(self, adc: np.ndarray, acc: np.ndarray, start: int) -> np.ndarray:
         out = np.empty((len(adc), len(self.cols)), dtype=self.dtype)
-        f, w = self.loop(self.state, self._arr(adc), self._arr(acc), self.c, self.cols, out)
+        args = (self.state, self._arr(adc), self._arr(acc), self.c) + ((self.cols,) if self._pass_cols else ())
+        f, w = self.loop(*args, out)
         if f >= 0 and self.first_wrap < 0:
             self.first_wrap, self.wrap_word = start + int(f), str(self.kern.WRAP_NAMES[int(w)])
         return out.astype(np.int64)
