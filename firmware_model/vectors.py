@@ -139,11 +139,13 @@ def case_name(program: str, rounding: str, k: int, bits: int, stream: str) -> st
     return f"{program}_{rounding}_k{k}_b{bits}_{stream}"
 
 
-def case_matrix() -> list[CaseSpec]:
+def case_matrix(require_logs: bool = True) -> list[CaseSpec]:
     """Every case of the committed set, in a fixed order (documented in docs/vectors.md):
     programs x roundings x k in :data:`MATRIX_K` x ADC bits in :data:`MATRIX_BITS` x (the
     :data:`~firmware_model.inputs.EDGE_KINDS` edge streams of :data:`EDGE_SAMPLES` samples, plus the synthetic
-    flight for :data:`FLIGHT_PROGRAMS`)."""
+    flight for :data:`FLIGHT_PROGRAMS`), then the flight cases of
+    :data:`firmware_model.flights.vectorcases.FLIGHT_CASES` (the real-log cases need ../shared/flights: without
+    it a :class:`UserError`, or with ``require_logs=False`` the set without them)."""
     specs: list[CaseSpec] = []
     flights: dict[tuple[int, int], Stream] = {}
     for program in PROGRAMS:
@@ -167,6 +169,11 @@ def case_matrix() -> list[CaseSpec]:
                                                             name="flight_fast")
                         stream = flights[key]
                         specs.append(CaseSpec(case_name(program, rounding, k, bits, stream.name), cfg, stream))
+    # Flight cases (docs/vectors.md, "Flight cases"): MIT-licensed shared logs and simulated flights, floor, k = 5,
+    # built as the apogee table builds them; provenance and licence in each case's input.provenance.
+    from firmware_model.flights.vectorcases import flight_case_specs
+
+    specs += flight_case_specs(case_name, CaseSpec, Stream, require_logs)
     return specs
 
 
@@ -733,7 +740,7 @@ def generate_all(out: str | Path, generator: str = "emulation", progress: bool |
 def generate_subset(names: Sequence[str], out: str | Path, generator: str = "emulation") -> dict[str, bytes]:
     """Write the cases of the committed matrix named ``names`` (in matrix order) as a set of kind ``subset``."""
     wanted = set(names)
-    specs = [spec for spec in case_matrix() if spec.name in wanted]
+    specs = [spec for spec in case_matrix(require_logs=False) if spec.name in wanted]
     unknown = wanted - {spec.name for spec in specs}
     if unknown:
         raise UserError(f"vectors: unknown case name(s): {', '.join(sorted(unknown))}")
