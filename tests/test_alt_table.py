@@ -130,3 +130,18 @@ def test_bad_table_parameters_are_user_errors():
         BuildConfig(alt_shift=12, baro_bits=12)
     with pytest.raises(UserError, match="cal_p"):
         BuildConfig(cal_p=9)
+
+
+def test_recommended_tuning_builds():
+    """The README's recommended builds exist for k = 5..7 and assemble into constants; unknown ones are errors."""
+    from firmware_model.tuning import RECOMMENDED, recommended_config
+
+    for program, per_k in RECOMMENDED.items():
+        for k in per_k:
+            cfg = recommended_config(program, k, baro_bits=16)
+            assert cfg.k == k and build_constants(cfg).program == program
+    assert recommended_config("kalman_accel", 6).rounding == "half_up"
+    with pytest.raises(UserError, match="k=9"):
+        recommended_config("kalman_baro", 9)
+    with pytest.raises(UserError, match="program"):
+        recommended_config("nope", 6)

@@ -167,3 +167,16 @@ def test_acc_g_too_large_is_a_user_error() -> None:
 def test_build_constants_rejects_non_config() -> None:
     with pytest.raises(UserError, match="BuildConfig"):
         build_constants({"k": 7})  # type: ignore[arg-type]
+
+
+def test_transonic_gain_below_the_representable_range_is_zero() -> None:
+    """A near-noise-free accelerometer makes a transonic barometer gain (barometer variance x 100) smaller than
+    2^-33: it is built as 0 (the design value stays in float_gains; the model-vs-mirror bound carries the
+    difference) instead of refusing the build, while a regular gain that small is still refused."""
+    cfg = BuildConfig(program="kalman_accel", k=5, baro_bits=12, units_per_metre=3.5 / 16, baro_sigma=0.5,
+                      accel_sigma=1.0)
+    c = build_constants(cfg)
+    tiny = [n for n in ("G11T", "G21T", "G31T") if abs(c.float_gains[n]) < 2.0**-33]
+    assert tiny, {n: c.float_gains[n] for n in ("G11T", "G21T", "G31T")}
+    for n in tiny:
+        assert (c.gains[n].m, c.gains[n].s) == (0, 0) and c.gains[n].target == c.float_gains[n]
