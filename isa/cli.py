@@ -7,8 +7,8 @@ plus every ``--map START:SIZE[:ro]`` given (``--map 0:0x1000000`` maps all 16 Mi
 bus error, so a program that runs off its end, or returns with nothing on the stack, stops at once with a bus
 error naming the PC, and memory stays bounded by what is mapped. It sets A7 to ``--stack`` and SR to ``$2700``,
 runs from the origin and prints D0-D7, A0-A7, PC, SR and the instruction and cycle totals. It exits 0 when the
-program stopped at a ``TRAP`` and 1 when it reached ``--max-instructions`` / ``--max-cycles``; CPU faults and assembly errors exit 2 with one ``fwemu: error:`` line
-(plus the source line and a caret for assembly errors).
+program stopped at a ``TRAP`` and 1 when it reached ``--max-instructions`` / ``--max-cycles``; CPU faults and
+assembly errors exit 2 with one ``fwemu: error:`` line (plus the source line and a caret for assembly errors).
 """
 
 from __future__ import annotations
