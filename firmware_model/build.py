@@ -146,10 +146,11 @@ def _assembler_digest() -> str:
     return h.hexdigest()
 
 
-def build_key(program: str, equates: tuple[tuple[str, int], ...], digest: str) -> str:
+def build_key(program: str, equates: tuple[tuple[str, int], ...], digest: str, data: str = "") -> str:
     """The content key of one build: program, equates, source digest, where the sources are (the listing and the
     source map name the files), the assembler's digest, the cache format and the Python version."""
-    text = repr((_CACHE_FORMAT, sys.version_info[:2], program, equates, digest, str(ASM_DIR), _assembler_digest()))
+    text = repr((_CACHE_FORMAT, sys.version_info[:2], program, equates, digest, str(ASM_DIR), _assembler_digest(),
+                 hashlib.sha256(data.encode()).hexdigest()))
     return hashlib.sha256(text.encode()).hexdigest()
 
 
@@ -193,22 +194,24 @@ cache_stats: dict[str, int] = {"assembled": 0, "disk_hits": 0}
 
 
 @functools.lru_cache(maxsize=128)
-def _assemble_cached(program: str, equates: tuple[tuple[str, int], ...], stamp: tuple[tuple[str, int], ...]
-                     ) -> tuple[object, tuple[tuple[str, str], ...], str]:
+def _assemble_cached(program: str, equates: tuple[tuple[str, int], ...], stamp: tuple[tuple[str, int], ...],
+                     data: str = "") -> tuple[object, tuple[tuple[str, str], ...], str]:
     """Assemble ``program`` with ``equates`` (``stamp`` = source mtimes, so edited sources are rebuilt in this
-    process), or load the same build from the disk cache (keyed by content: :func:`build_key`)."""
+    process) and the build's ROM data text ``data`` appended (the altitude table,
+    :meth:`FirmwareConstants.data_source`), or load the same build from the disk cache (keyed by content:
+    :func:`build_key`, which includes ``data``)."""
     import isa  # local: keep `import firmware_model.build` cheap
 
     paths = source_files(program)
     sources, digest = _hash_sources(paths)
     folder = cache_dir()
-    path = folder / "builds" / f"{build_key(program, equates, digest)}.pickle" if folder is not None else None
+    path = folder / "builds" / f"{build_key(program, equates, digest, data)}.pickle" if folder is not None else None
     prog = _load_cached(path) if path is not None else None
     if prog is not None:
         cache_stats["disk_hits"] += 1
         return prog, sources, digest
     top = paths[0]
-    prog = isa.assemble(top.read_text(), filename=str(top), origin=ROM_START, include_paths=[str(ASM_DIR)],
+    prog = isa.assemble(top.read_text() + data, filename=str(top), origin=ROM_START, include_paths=[str(ASM_DIR)],
                         defines=dict(equates))
     cache_stats["assembled"] += 1
     if path is not None:
@@ -239,7 +242,7 @@ def build_firmware(cfg_or_consts: Union[BuildConfig, FirmwareConstants]) -> Firm
     name = consts.program
     equates = tuple(sorted(consts.equates().items()))
     stamp = tuple((str(p), p.stat().st_mtime_ns) for p in source_files(name))
-    prog, sources, digest = _assemble_cached(name, equates, stamp)
+    prog, sources, digest = _assemble_cached(name, equates, stamp, consts.data_source())
     return _describe(name, consts, prog, sources, digest)
 
 

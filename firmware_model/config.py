@@ -43,6 +43,17 @@ class BuildConfig:
         counts), ``mach_lo_mps``/``mach_hi_mps`` (Mach-lockout velocity window, m/s), ``mach_innov_m`` (innovation
         that triggers lockout, m), ``baro_min``/``baro_max`` (valid raw ADC range; ``None`` = full range).
       * all: ``liftoff_mps`` (liftoff velocity threshold, m/s).
+    Field-ready Kalman inputs (docs/firmware-spec.md §2a, §6; the Kalman programs run in metres):
+      * ``baro_pa_per_count``, ``baro_pa_at_zero``: the barometer's linear transfer function, ``P(c) =
+        baro_pa_at_zero - baro_sign * baro_pa_per_count * c`` (Pa); ``None`` = TeleMetrum v1's MP3H6115A
+        (3.3925 Pa/count at 16 bits, scaled by 2^(16-bits); 10,555.6 Pa at count 0).
+      * ``alt_shift``: altitude-table segment width 2^alt_shift counts (``None`` = bits - 9: 513 nodes).
+      * ``cal_p``: pad calibration over 2^cal_p valid samples (0..8; ``None`` = min(8, max(0, k - 2)), a quarter
+        second of pad).
+      * ``gate_sigmas``: innovation gate in steady-state innovation sigmas (0 = no gate); ``gate_hold_s``: how long
+        (s) the gate may stay closed before it opens (GATE_N = max(1, round(gate_hold_s * 2^k))).
+      * ``apogee_hold_s``: X2 < 0 this long (APO_N = max(1, round(apogee_hold_s * 2^k)) samples) declares apogee.
+      * ``transonic_r_factor``: kalman_accel's barometer variance factor above ``mach_lo_mps`` (>= 1).
     """
 
     program: str = "kalman_baro"
@@ -65,6 +76,14 @@ class BuildConfig:
     baro_min: int | None = None
     baro_max: int | None = None
     liftoff_mps: float = 30.0
+    baro_pa_per_count: float | None = None
+    baro_pa_at_zero: float | None = None
+    alt_shift: int | None = None
+    cal_p: int | None = None
+    gate_sigmas: float = 6.0
+    gate_hold_s: float = 0.1
+    apogee_hold_s: float = 0.06
+    transonic_r_factor: float = 100.0
     extra: dict[str, Any] = field(default_factory=dict, compare=False, hash=False)
 
     def __post_init__(self) -> None:
@@ -103,6 +122,28 @@ class BuildConfig:
                 raise bad(name, "must be a finite number >= 0")
         if self.mach_lo_mps >= self.mach_hi_mps:
             raise bad("mach_lo_mps", f"must be below mach_hi_mps={self.mach_hi_mps}")
+        for name in ("baro_pa_per_count",):
+            value = getattr(self, name)
+            if value is not None and (not isinstance(value, (int, float)) or isinstance(value, bool)
+                                      or not math.isfinite(value) or value <= 0):
+                raise bad(name, "must be a finite number > 0 (Pa per count) or null")
+        if self.baro_pa_at_zero is not None and (not isinstance(self.baro_pa_at_zero, (int, float))
+                                                 or isinstance(self.baro_pa_at_zero, bool)
+                                                 or not math.isfinite(self.baro_pa_at_zero)):
+            raise bad("baro_pa_at_zero", "must be a finite number (Pa) or null")
+        if self.alt_shift is not None and (isinstance(self.alt_shift, bool) or not isinstance(self.alt_shift, int)
+                                           or not 1 <= self.alt_shift <= min(15, self.baro_bits - 1)):
+            raise bad("alt_shift", f"altitude-table segment shift must be 1..{min(15, self.baro_bits - 1)} or null")
+        if self.cal_p is not None and (isinstance(self.cal_p, bool) or not isinstance(self.cal_p, int)
+                                       or not 0 <= self.cal_p <= 8):
+            raise bad("cal_p", "pad calibration over 2^cal_p samples needs cal_p in 0..8 (or null)")
+        for name in ("gate_sigmas", "gate_hold_s", "apogee_hold_s"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
+                raise bad(name, "must be a finite number >= 0")
+        if (isinstance(self.transonic_r_factor, bool) or not isinstance(self.transonic_r_factor, (int, float))
+                or not math.isfinite(self.transonic_r_factor) or self.transonic_r_factor < 1):
+            raise bad("transonic_r_factor", "must be a finite number >= 1")
         full = (1 << self.baro_bits) - 1
         lo, hi = self.baro_range
         if not 0 <= lo <= hi <= full:
@@ -121,6 +162,26 @@ class BuildConfig:
         lo = 0 if self.baro_min is None else self.baro_min
         hi = full if self.baro_max is None else self.baro_max
         return lo, hi
+
+    @property
+    def baro_transfer(self) -> tuple[float, float]:
+        """``(pa_per_count, pa_at_zero)`` of the barometer with the TeleMetrum defaults filled in."""
+        from firmware_model.alt_table import TELEMETRUM_PA_AT_ZERO, TELEMETRUM_PA_PER_COUNT
+
+        a = (TELEMETRUM_PA_PER_COUNT * 2.0 ** (16 - self.baro_bits) if self.baro_pa_per_count is None
+             else float(self.baro_pa_per_count))
+        b = TELEMETRUM_PA_AT_ZERO if self.baro_pa_at_zero is None else float(self.baro_pa_at_zero)
+        return a, b
+
+    @property
+    def cal_p_bits(self) -> int:
+        """The pad-calibration exponent with the default (a quarter second: min(8, max(0, k - 2))) filled in."""
+        return min(8, max(0, self.k - 2)) if self.cal_p is None else int(self.cal_p)
+
+    @property
+    def alt_shift_bits(self) -> int:
+        """The altitude-table segment shift with the default (bits - 9, at least 1) filled in."""
+        return max(1, self.baro_bits - 9) if self.alt_shift is None else int(self.alt_shift)
 
     def replace(self, **changes: Any) -> BuildConfig:
         """Return a copy with ``changes`` applied (validated)."""

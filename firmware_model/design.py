@@ -42,6 +42,8 @@ from firmware_model.errors import UserError
 #: Gain names by (measurement, state): Gi1 for the barometer innovation, Gi2 for the accelerometer's.
 GAIN_NAMES_BARO: tuple[str, ...] = ("G11", "G21", "G31")
 GAIN_NAMES_ACCEL: tuple[str, ...] = ("G12", "G22", "G32")
+#: kalman_accel's transonic barometer gains (docs/firmware-spec.md §6 step 5).
+GAIN_NAMES_TRANSONIC: tuple[str, ...] = ("G11T", "G21T", "G31T")
 
 #: A closed-loop pole this close to the unit circle (1 - |lambda| below it) means a degenerate design.
 POLE_MARGIN: float = 1e-9
@@ -255,16 +257,37 @@ def design_config(cfg: BuildConfig) -> SteadyState:
                          baro_sigma=cfg.baro_sigma, accel_sigma_units=accel_sigma_units(cfg), where=describe(cfg))
 
 
+def transonic_design(cfg: BuildConfig) -> SteadyState:
+    """kalman_accel's transonic design: the same process noise q = baro_sigma^2 / ratio, the barometer's variance
+    multiplied by ``transonic_r_factor`` (its weight falls, never to zero: a floor, not a lockout)."""
+    if cfg.program != "kalman_accel":
+        raise UserError(f"build config: program={cfg.program!r} has no transonic gains")
+    return design_kalman(cfg.k, cfg.noise_model, None, q=cfg.baro_sigma**2 / cfg.ratio, with_accel=True,
+                         baro_sigma=cfg.baro_sigma * math.sqrt(cfg.transonic_r_factor),
+                         accel_sigma_units=accel_sigma_units(cfg), where=describe(cfg) + " (transonic)")
+
+
+def innovation_sigma_m(cfg: BuildConfig) -> float:
+    """Steady-state standard deviation (m) of the barometer innovation, sqrt(H P H^T + R) of the design, converted
+    from barometer units with the pad's ``units_per_metre`` (docs/firmware-spec.md §6 step 4: the gate)."""
+    ss = design_config(cfg)
+    return math.sqrt(float(ss.P_prior[0, 0] + ss.R[0, 0])) / cfg.units_per_metre
+
+
 def float_gains(cfg: BuildConfig) -> dict[str, float]:
     """Unquantized gains of ``cfg`` by name: G11 G21 G31 (1, 1/s, 1/s^2), and for kalman_accel G12 G22 G32
-    (s^2, s, 1) and ACC_G (Q24.8 units/s^2 per accelerometer count). Empty for recursive programs."""
+    (s^2, s, 1), the transonic G11T G21T G31T and ACC_G (Q24.8 m/s^2 per accelerometer count: the Kalman programs
+    run in metres; the gains are the same in metres as in barometer units because K is invariant under a common
+    scaling of Q and R). Empty for recursive programs."""
     if cfg.program not in ("kalman_baro", "kalman_accel"):
         return {}
     ss = design_config(cfg)
     gains = {name: float(ss.K[i, 0]) for i, name in enumerate(GAIN_NAMES_BARO)}
     if cfg.program == "kalman_accel":
         gains.update({name: float(ss.K[i, 1]) for i, name in enumerate(GAIN_NAMES_ACCEL)})
-        gains["ACC_G"] = 256.0 * cfg.units_per_metre / cfg.accel_counts_per_mps2
+        tr = transonic_design(cfg)
+        gains.update({name: float(tr.K[i, 0]) for i, name in enumerate(GAIN_NAMES_TRANSONIC)})
+        gains["ACC_G"] = 256.0 / cfg.accel_counts_per_mps2
     return gains
 
 

@@ -32,6 +32,7 @@ _MACH = EVENT_BITS["MACH_LOCKOUT"]
 _BARO_INVALID = EVENT_BITS["BARO_INVALID"]
 _PREDICTED = EVENT_BITS["APOGEE_PREDICTED"]
 _GATE_HIGH = EVENT_BITS["GATE_HIGH"]
+_BARO_REJECT = EVENT_BITS["BARO_REJECT"]
 
 
 class _WrapTracker:
@@ -145,70 +146,104 @@ def _run_seed_literal(consts: "FirmwareConstants", mode: str, adc: np.ndarray, a
 # ---------------------------------------------------------------------------------------------------- Kalman
 def _run_kalman(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np.ndarray,
                 tr: _WrapTracker) -> tuple[np.ndarray, np.ndarray]:
-    """docs/firmware-spec.md §6 (kalman_baro: X1 X2 X3 EVENTS APFRAC; kalman_accel: X1 X2 X3 ACC0 EVENTS APFRAC)."""
+    """docs/firmware-spec.md §6 (kalman_baro: X1 X2 X3 EVENTS APFRAC GND SUMZ CAL REJ NEG; kalman_accel: X1 X2 X3
+    ACC0 EVENTS APFRAC GND SUMZ SUMA CAL REJ NEG)."""
     accel = consts.program == "kalman_accel"
     n_streams, n = adc.shape
     K = int(consts.K)
     g = consts.gains
     g1 = [g["G11"], g["G21"], g["G31"]]
+    g1t = [g["G11T"], g["G21T"], g["G31T"]] if accel else g1
     g2 = [g["G12"], g["G22"], g["G32"]] if accel else None
     acc_g = g["ACC_G"] if accel else None
-    z8 = (adc * np.int64(consts.BARO_SIGN)) << np.int64(8)
+    table = np.asarray(consts.ALT_TABLE, dtype=np.int64)
+    sh = int(consts.ALT_SHIFT)
     baro_ok_all = (adc >= consts.BARO_MIN) & (adc <= consts.BARO_MAX)
-    x1 = z8[:, 0].copy()
+    a_safe = np.where(baro_ok_all, adc, 0)
+    ii = a_safe >> np.int64(sh)
+    ff = a_safe & np.int64((1 << sh) - 1)
+    lo = table[ii]
+    h_all = np.where(baro_ok_all, lo + rs((table[ii + 1] - lo) * ff, sh, mode), 0)   # alt(adc), exact
+    ncal = 1 << int(consts.CAL_P)
+    x1 = h_all[:, 0].copy()
+    gnd = x1.copy()
     x2 = np.zeros(n_streams, dtype=np.int64)
     x3 = np.zeros(n_streams, dtype=np.int64)
     acc0 = acc[:, 0].copy()
+    sumz = np.zeros(n_streams, dtype=np.int64)
+    suma = np.zeros(n_streams, dtype=np.int64)
+    cal = np.zeros(n_streams, dtype=np.int64)
+    rej = np.zeros(n_streams, dtype=np.int64)
+    neg = np.zeros(n_streams, dtype=np.int64)
     ev = np.zeros(n_streams, dtype=np.int64)
     apfrac = np.zeros(n_streams, dtype=np.int64)
     zero = np.zeros(n_streams, dtype=np.int64)
-    cols = [x1, x2, x3] + ([acc0] if accel else []) + [ev, apfrac]
-    init = np.stack(cols, axis=-1)
-    out = np.empty((n_streams, n, len(cols)), dtype=np.int64)
-    v_lift = np.int64(consts.V_LIFT)
-    vlo, vhi, me = np.int64(consts.MACH_VLO), np.int64(consts.MACH_VHI), np.int64(consts.MACH_E)
+
+    def row():
+        cols = [x1, x2, x3] + ([acc0] if accel else []) + [ev, apfrac, gnd, sumz] + ([suma] if accel else [])
+        return cols + [cal, rej, neg]
+
+    init = np.stack(row(), axis=-1)
+    out = np.empty((n_streams, n, init.shape[-1]), dtype=np.int64)
+    v_lift, vlo = np.int64(consts.V_LIFT), np.int64(consts.MACH_VLO)
+    e_gate, gate_n, apo_n = np.int64(consts.E_GATE), np.int64(consts.GATE_N), np.int64(consts.APO_N)
     for i in range(n):
-        # 1. predict
-        t1 = rs(x2, K, mode) + rs(x3, 2 * K + 1, mode)
-        t2 = rs(x3, K, mode)
-        x1 = tr.w32(x1 + t1, i, "X1")
-        x2 = tr.w32(x2 + t2, i, "X2")
         ev = ev & LATCHED_EVENTS
-        # 2. barometer range
         baro_ok = baro_ok_all[:, i]
         ev = np.where(baro_ok, ev, ev | _BARO_INVALID)
-        # 3. innovation
-        e1 = tr.w32(z8[:, i] - x1, i, "e1")
-        # 4. Mach lockout: kalman_accel only (kalman_baro has no other measurement to run on meanwhile)
+        h = h_all[:, i]
+        calib = cal < ncal
+        run = ~calib
+        count = calib & baro_ok
+        if count.any():
+            sumz = np.where(count, tr.w32(sumz + h, i, "SUMZ"), sumz)
+            if accel:
+                suma = np.where(count, tr.w32(suma + acc[:, i], i, "SUMA"), suma)
+            cal = np.where(count, cal + 1, cal)
+            done = count & (cal == ncal)
+            gnd = np.where(done, rs(sumz, int(consts.CAL_P), mode), gnd)
+            x1 = np.where(done, gnd, x1)
+            if accel:
+                acc0 = np.where(done, rs(suma, int(consts.CAL_P), mode), acc0)
+        # 2. predict
+        t1 = rs(x2, K, mode) + rs(x3, 2 * K + 1, mode)
+        t2 = rs(x3, K, mode)
+        x1 = np.where(run, tr.w32(np.where(run, x1 + t1, 0), i, "X1"), x1)
+        x2 = np.where(run, tr.w32(np.where(run, x2 + t2, 0), i, "X2"), x2)
+        # 3./4. innovation and gate
+        e1 = tr.w32(np.where(run & baro_ok, h - x1, 0), i, "e1")
+        inside = (e1 >= -e_gate) & (e1 <= e_gate)
+        reject = run & baro_ok & ~inside & (rej < gate_n)
+        use = run & baro_ok & ~reject
+        rej = np.where(run & baro_ok & inside, 0, np.where(reject, rej + 1, rej))
+        ev = np.where(reject, ev | _BARO_REJECT, ev)
+        # 5. transonic weighting (kalman_accel)
         if accel:
-            lift = (ev & _LIFTOFF) != 0
-            lockout = baro_ok & lift & (x2 > vlo) & (x2 < vhi) & ((e1 > me) | (e1 < -me))
-            ev = np.where(lockout, ev | _MACH, ev)
-        else:
-            lockout = np.zeros(n_streams, dtype=bool)
-        # 5. accelerometer innovation
-        if accel:
-            a = tr.mulg(acc[:, i] - acc0, acc_g, mode, i, "mulg(acc,ACC_G)")
-            e2 = tr.w32(a - x3, i, "e2")
-        # 6. correct
-        use1 = baro_ok & ~lockout
+            trans = run & ((ev & _LIFTOFF) != 0) & (x2 > vlo)
+            ev = np.where(trans, ev | _MACH, ev)
+            a = tr.mulg(np.where(run, acc[:, i] - acc0, 0), acc_g, mode, i, "mulg(acc,ACC_G)")
+            e2 = tr.w32(np.where(run, a - x3, 0), i, "e2")
+        # 7. correct
         xs = [x1, x2, x3]
         for j in range(3):
-            c1 = np.where(use1, tr.mulg(e1, g1[j], mode, i, f"mulg(e1,G{j + 1}1)"), zero)
+            c1 = np.where(use, tr.mulg(e1, g1[j], mode, i, f"mulg(e1,G{j + 1}1)"), zero)
+            if accel:
+                c1t = np.where(use, tr.mulg(e1, g1t[j], mode, i, f"mulg(e1,G{j + 1}1T)"), zero)
+                c1 = np.where(trans, c1t, c1)
             c = xs[j] + c1
             if accel:
                 c = c + tr.mulg(e2, g2[j], mode, i, f"mulg(e2,G{j + 1}2)")
-            xs[j] = tr.w32(c, i, f"X{j + 1}")
+            xs[j] = np.where(run, tr.w32(np.where(run, c, 0), i, f"X{j + 1}"), xs[j])
         x1, x2, x3 = xs
-        # 7. lockout: altitude := measurement
-        x1 = np.where(lockout, z8[:, i], x1)
         # 8. liftoff
-        ev = np.where(((ev & _LIFTOFF) == 0) & (x2 > v_lift), ev | _LIFTOFF, ev)
-        # 9. apogee
+        ev = np.where(run & ((ev & _LIFTOFF) == 0) & (x2 > v_lift), ev | _LIFTOFF, ev)
         lift = (ev & _LIFTOFF) != 0
-        ev = np.where(lift & ((ev & _APOGEE) == 0) & ~lockout & (x2 < 0), ev | _APOGEE, ev)
+        # 9. apogee after APO_N consecutive negative velocities
+        fl = run & lift & ((ev & _APOGEE) == 0)
+        neg = np.where(fl, np.where(x2 < 0, neg + 1, 0), neg)
+        ev = np.where(fl & (x2 < 0) & (neg >= apo_n), ev | _APOGEE, ev)
         # 10. low-rate apogee prediction
-        cand = lift & ((ev & (_APOGEE | _PREDICTED)) == 0) & (x2 > 0)
+        cand = fl & ((ev & (_APOGEE | _PREDICTED)) == 0) & (x2 > 0)
         if cand.any():
             d = -rs(x3, K, mode)
             hit = cand & (x2 < d)
@@ -224,11 +259,5 @@ def _run_kalman(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np
                 frac = np.minimum(65535, (v << np.int64(16)) // dd)
                 apfrac = np.where(hit, frac, apfrac)
                 ev = np.where(hit, ev | _PREDICTED, ev)
-        out[:, i, 0] = x1
-        out[:, i, 1] = x2
-        out[:, i, 2] = x3
-        if accel:
-            out[:, i, 3] = acc0
-        out[:, i, -2] = ev
-        out[:, i, -1] = apfrac
+        out[:, i] = np.stack(row(), axis=-1)
     return init, out

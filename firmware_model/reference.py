@@ -37,6 +37,7 @@ _MACH = EVENT_BITS["MACH_LOCKOUT"]
 _BARO_INVALID = EVENT_BITS["BARO_INVALID"]
 _PREDICTED = EVENT_BITS["APOGEE_PREDICTED"]
 _GATE_HIGH = EVENT_BITS["GATE_HIGH"]
+_BARO_REJECT = EVENT_BITS["BARO_REJECT"]
 
 
 @dataclass
@@ -151,71 +152,121 @@ def _mirror_recursive(consts: "FirmwareConstants", adc: np.ndarray, acc: np.ndar
     return init, out
 
 
+def _alt_table_float(consts: "FirmwareConstants"):
+    """The float interpolation of the build's altitude table (same nodes, no rounding), word scale."""
+    from firmware_model.alt_table import AltTable
+
+    bits = (len(consts.ALT_TABLE) - 1).bit_length() - 1 + int(consts.ALT_SHIFT)
+    return AltTable(tuple(consts.ALT_TABLE), int(consts.ALT_SHIFT), bits).lookup_float
+
+
 def _mirror_kalman(consts: "FirmwareConstants", g: dict[str, float], adc: np.ndarray,
                    acc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """docs/firmware-spec.md §6 in float64: the table interpolated without rounding, the calibration means and
+    every shift exact; the same integer thresholds and counters (CAL, REJ, NEG) as the firmware."""
     accel = consts.program == "kalman_accel"
     n_streams, n = adc.shape
     dt = 2.0 ** -int(consts.K)
     half_dt2 = 2.0 ** -(2 * int(consts.K) + 1)
-    z8 = adc * float(consts.BARO_SIGN) * 256.0
     baro_ok_all = (adc >= consts.BARO_MIN) & (adc <= consts.BARO_MAX)
-    x1 = z8[:, 0].copy()
+    lookup = _alt_table_float(consts)
+    h_all = np.where(baro_ok_all, lookup(np.where(baro_ok_all, adc, 0.0)), 0.0)
+    ncal = 1 << int(consts.CAL_P)
+    x1 = h_all[:, 0].copy()
+    gnd = x1.copy()
     x2 = np.zeros(n_streams)
     x3 = np.zeros(n_streams)
     acc0 = acc[:, 0].copy()
+    sumz = np.zeros(n_streams)
+    suma = np.zeros(n_streams)
+    cal = np.zeros(n_streams, dtype=np.int64)
+    rej = np.zeros(n_streams, dtype=np.int64)
+    neg = np.zeros(n_streams, dtype=np.int64)
     ev = np.zeros(n_streams, dtype=np.int64)
     apfrac = np.zeros(n_streams)
-    cols = [x1, x2, x3] + ([acc0] if accel else []) + [ev.astype(float), apfrac]
-    init = np.stack(cols, axis=-1)
-    out = np.empty((n_streams, n, len(cols)))
-    g1 = (g["G11"], g["G21"], g["G31"])
-    g2 = (g["G12"], g["G22"], g["G32"]) if accel else (0.0, 0.0, 0.0)
+
+    def row() -> list[np.ndarray]:
+        cols = [x1, x2, x3] + ([acc0] if accel else []) + [ev.astype(float), apfrac, gnd, sumz]
+        return cols + ([suma] if accel else []) + [cal.astype(float), rej.astype(float), neg.astype(float)]
+
+    init = np.stack(row(), axis=-1)
+    out = np.empty((n_streams, n, init.shape[-1]))
+    g1 = np.array([g["G11"], g["G21"], g["G31"]])
+    g1t = np.array([g["G11T"], g["G21T"], g["G31T"]]) if accel else g1
+    g2 = np.array([g["G12"], g["G22"], g["G32"]]) if accel else np.zeros(3)
+    e_gate, gate_n, apo_n = float(consts.E_GATE), int(consts.GATE_N), int(consts.APO_N)
     for i in range(n):
-        x1 = x1 + x2 * dt + x3 * half_dt2
-        x2 = x2 + x3 * dt
         ev = ev & LATCHED_EVENTS
         baro_ok = baro_ok_all[:, i]
         ev = np.where(baro_ok, ev, ev | _BARO_INVALID)
-        e1 = z8[:, i] - x1
+        h = h_all[:, i]
+        # 1. pad calibration (streams still calibrating take this branch only)
+        calib = cal < ncal
+        count = calib & baro_ok
+        sumz = np.where(count, sumz + h, sumz)
+        suma = np.where(count, suma + acc[:, i], suma)
+        cal = np.where(count, cal + 1, cal)
+        done = count & (cal == ncal)
+        gnd = np.where(done, sumz / ncal, gnd)
+        x1 = np.where(done, gnd, x1)
+        if accel:
+            acc0 = np.where(done, suma / ncal, acc0)
+        run = ~calib
+        # 2. predict
+        x1 = np.where(run, x1 + x2 * dt + x3 * half_dt2, x1)
+        x2 = np.where(run, x2 + x3 * dt, x2)
+        # 3./4. innovation and gate
+        e1 = h - x1
+        inside = (e1 >= -e_gate) & (e1 <= e_gate)
+        reject = run & baro_ok & ~inside & (rej < gate_n)
+        use = run & baro_ok & ~reject
+        rej = np.where(run & baro_ok & inside, 0, np.where(reject, rej + 1, rej))
+        ev = np.where(reject, ev | _BARO_REJECT, ev)
+        # 5. transonic weighting (kalman_accel)
         lift = (ev & _LIFTOFF) != 0
-        lockout = (baro_ok & lift & (x2 > consts.MACH_VLO) & (x2 < consts.MACH_VHI)
-                   & ((e1 > consts.MACH_E) | (e1 < -consts.MACH_E)) & accel)   # kalman_accel only
-        ev = np.where(lockout, ev | _MACH, ev)
-        e2 = (acc[:, i] - acc0) * g["ACC_G"] - x3 if accel else 0.0
-        use1 = baro_ok & ~lockout
-        c1 = np.where(use1, e1, 0.0)
-        x1 = x1 + g1[0] * c1 + g2[0] * e2
-        x2 = x2 + g1[1] * c1 + g2[1] * e2
-        x3 = x3 + g1[2] * c1 + g2[2] * e2
-        x1 = np.where(lockout, z8[:, i], x1)
-        ev = np.where(((ev & _LIFTOFF) == 0) & (x2 > consts.V_LIFT), ev | _LIFTOFF, ev)
+        trans = run & lift & (x2 > consts.MACH_VLO) & accel
+        ev = np.where(trans, ev | _MACH, ev)
+        # 6./7. correct
+        e2 = (acc[:, i] - acc0) * g["ACC_G"] - x3 if accel else np.zeros(n_streams)
+        c1 = np.where(use, e1, 0.0)
+        gb = np.where(trans[:, None], g1t[None, :], g1[None, :])
+        x1 = np.where(run, x1 + gb[:, 0] * c1 + g2[0] * e2, x1)
+        x2 = np.where(run, x2 + gb[:, 1] * c1 + g2[1] * e2, x2)
+        x3 = np.where(run, x3 + gb[:, 2] * c1 + g2[2] * e2, x3)
+        # 8. liftoff
+        ev = np.where(run & ((ev & _LIFTOFF) == 0) & (x2 > consts.V_LIFT), ev | _LIFTOFF, ev)
         lift = (ev & _LIFTOFF) != 0
-        ev = np.where(lift & ((ev & _APOGEE) == 0) & ~lockout & (x2 < 0), ev | _APOGEE, ev)
+        # 9. apogee after APO_N consecutive negative velocities
+        fl = run & lift & ((ev & _APOGEE) == 0)
+        neg = np.where(fl, np.where(x2 < 0, neg + 1, 0), neg)
+        ev = np.where(fl & (x2 < 0) & (neg >= apo_n), ev | _APOGEE, ev)
+        # 10. low-rate prediction
         d = -x3 * dt
-        hit = lift & ((ev & (_APOGEE | _PREDICTED)) == 0) & (x2 > 0) & (x2 < d)
+        hit = fl & ((ev & (_APOGEE | _PREDICTED)) == 0) & (x2 > 0) & (x2 < d)
         if hit.any():
             with np.errstate(divide="ignore", invalid="ignore"):
                 frac = np.minimum(65535.0, 65536.0 * x2 / np.where(hit, d, 1.0))
             apfrac = np.where(hit, frac, apfrac)
             ev = np.where(hit, ev | _PREDICTED, ev)
-        row = [x1, x2, x3] + ([acc0] if accel else []) + [ev.astype(float), apfrac]
-        out[:, i] = np.stack(row, axis=-1)
+        out[:, i] = np.stack(row(), axis=-1)
     return init, out
 
 
 # ---------------------------------------------------------------------------------------------------- ideal Kalman
 def kalman_matrices(cfg: "BuildConfig") -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """``(F, H, Q, R)`` of the gain design (:func:`firmware_model.design.design_config`) in word scale (Q24.8
-    LSB = 1: Q and R multiplied by 256^2), so that the reference and the design cannot drift apart.
+    m = 1: Q and R converted from barometer units with the pad's ``units_per_metre`` and multiplied by 256^2), so
+    that the reference and the design cannot drift apart (the gains are invariant under that common scaling).
 
-    State ``[alt, vel, acc]`` (1/256 unit, 1/256 unit/s, 1/256 unit/s^2); ``F = [[1, dt, dt^2/2], [0, 1, dt],
+    State ``[alt, vel, acc]`` (1/256 m, 1/256 m/s, 1/256 m/s^2); ``F = [[1, dt, dt^2/2], [0, 1, dt],
     [0, 0, 1]]`` with ``dt = 2^-k`` s; ``H = [1 0 0]`` (kalman_baro) or ``[[1,0,0],[0,0,1]]`` (kalman_accel);
     R and Q as documented in :mod:`firmware_model.design`. Raises :class:`UserError` for a non-Kalman program.
     """
     from firmware_model.design import design_config
 
     ss = design_config(cfg)
-    return ss.F.copy(), ss.H.copy(), ss.Q * 65536.0, ss.R * 65536.0
+    m2 = 65536.0 / cfg.units_per_metre**2    # units^2 -> (Q24.8 m)^2: the Kalman programs run in metres
+    return ss.F.copy(), ss.H.copy(), ss.Q * m2, ss.R * m2
 
 
 def steady_state(cfg: "BuildConfig", tol: float = 1e-13, max_iter: int = 10_000_000) -> tuple[np.ndarray, np.ndarray]:
@@ -241,13 +292,13 @@ def ideal_kalman(cfg: "BuildConfig", adc: np.ndarray, acc: np.ndarray | None = N
                  steady: bool = False, P0: np.ndarray | None = None) -> FloatTrace:
     """The ideal float64 Kalman filter for ``cfg`` (``kalman_baro`` or ``kalman_accel``), word scale.
 
-    Same input conventions and sequencing as the firmware: ``x = [z0 * 256, 0, 0]`` after ``init``; each
-    sample: ``x = F x``, ``P = F P F^T + Q``, ``K = P H^T (H P H^T + R)^-1``, ``x += K (y - H x)``,
-    ``P = (I - K H) P``, with ``y = [BARO_SIGN * adc * 256]`` (+ ``(acc - acc0) * 256 * units_per_metre /
-    accel_counts_per_mps2`` for kalman_accel). ``steady=True`` uses the steady-state gain every sample.
-    ``P0`` (word scale^2) defaults to ``diag(R_baro, (256 * units_per_metre * 1 m/s)^2, (256 * units_per_metre *
-    1 m/s^2)^2)``: the pad state is known well. No barometer range check and no Mach lockout; EVENTS carries
-    LIFTOFF (X2 > liftoff threshold) and APOGEE (X2 < 0 after liftoff) only. Words ``X1, X2, X3, EVENTS``.
+    Metres, like the firmware since the altitude table: ``y = [alt(adc)]`` (the build's table interpolated in
+    float, word scale) (+ ``(acc - acc0) * 256 / accel_counts_per_mps2`` for kalman_accel); ``x = [y0, 0, 0]``
+    after ``init`` (no pad calibration); each sample: ``x = F x``, ``P = F P F^T + Q``, ``K = P H^T (H P H^T +
+    R)^-1``, ``x += K (y - H x)``, ``P = (I - K H) P``. ``steady=True`` uses the steady-state gain every sample.
+    ``P0`` (word scale^2) defaults to ``diag(R_baro, (256 * 1 m/s)^2, (256 * 1 m/s^2)^2)``: the pad state is
+    known well. No barometer range check, no gate, no transonic gains; EVENTS carries LIFTOFF (X2 > liftoff
+    threshold) and APOGEE (X2 < 0 after liftoff) only. Words ``X1, X2, X3, EVENTS``.
     """
     if cfg.program not in ("kalman_baro", "kalman_accel"):
         raise UserError(f"ideal_kalman: program {cfg.program!r} is not a Kalman program")
@@ -255,15 +306,19 @@ def ideal_kalman(cfg: "BuildConfig", adc: np.ndarray, acc: np.ndarray | None = N
     n_streams, n = a.shape
     F, H, Q, R = kalman_matrices(cfg)
     m = H.shape[0]
+    from firmware_model.alt_table import table_for
+
+    tf = cfg.baro_transfer
+    table = table_for(tf[0], tf[1], cfg.baro_sign, cfg.baro_bits, cfg.alt_shift_bits)
     y = np.empty((n_streams, n, m))
-    y[..., 0] = a * cfg.baro_sign * 256.0
+    y[..., 0] = table.lookup_float(np.clip(a, 0, (1 << cfg.baro_bits) - 1))
     if m == 2:
-        y[..., 1] = (b - b[:, :1]) * 256.0 * cfg.units_per_metre / cfg.accel_counts_per_mps2
-    v_lift = cfg.liftoff_mps * cfg.units_per_metre * 256.0
+        y[..., 1] = (b - b[:, :1]) * 256.0 / cfg.accel_counts_per_mps2
+    v_lift = cfg.liftoff_mps * 256.0
     if steady:
         K_ss, _ = steady_state(cfg)
     if P0 is None:
-        P = np.diag([R[0, 0], (256.0 * cfg.units_per_metre) ** 2, (256.0 * cfg.units_per_metre) ** 2])
+        P = np.diag([R[0, 0], 256.0 ** 2, 256.0 ** 2])
     else:
         P = np.asarray(P0, dtype=np.float64)
         if P.shape != (3, 3):
@@ -394,3 +449,121 @@ def kalman_error_bound(consts: "FirmwareConstants", e1_max: float, e2_max: float
             return B_new
         B = B_new
     raise UserError("kalman_error_bound: the fixed-point iteration did not converge (gain errors too large)")
+
+
+# ---------------------------------------------------------------------------------------------------- switched bound
+@dataclass
+class SwitchedBound:
+    """Per-sample bound of :func:`kalman_switched_bound`: ``bound`` (n, 3) word scale for X1, X2, X3 (during pad
+    calibration X1 = alt(adc0): the table rounding), ``e1_margin`` (n,) the bound on |e1_int - e1_mirror|
+    before the gate decision of each sample, ``decided`` the number of leading samples covered."""
+
+    bound: np.ndarray
+    e1_margin: np.ndarray
+    decided: int
+
+
+def kalman_switched_bound(consts: "FirmwareConstants", fm: FloatTrace, adc: np.ndarray,
+                          acc: np.ndarray | None = None) -> SwitchedBound:
+    """Bound on ``|X_int - X_mirror|`` (X1, X2, X3, word scale) for ONE stream, valid at every sample while the
+    integer run takes the same decisions as the mirror ``fm`` (barometer used or not: valid / gated; transonic
+    gains or not). Derivation (docs/numerics.md, "Switched bound"): with ``delta`` the state difference,
+
+        delta_{t+1} = A_t delta_t + w_t,   A_t = (I - K_t H_t) F,   |w_t| <= (I - K_t H_t)|u| + r_t
+
+    where ``H_t``/``K_t`` are the measurement rows and design gains applied at sample t (both rows; the
+    accelerometer row only when the barometer was not used; the transonic barometer gains when the mirror used
+    them), ``u`` the predict rounding, ``r_t`` the rounding of each gain multiply, the gain quantization times the
+    integer innovation (|e1_int| <= |e1_mirror| + margin), the table interpolation's rounding times the
+    barometer gains, and the accelerometer scale's rounding and quantization. Pad calibration leaves ``delta_0 =
+    (rho(CAL_P) + rho(ALT_SHIFT), 0, 0)`` (GND) and an ACC0 error of rho(CAL_P) counts. Then ``|delta_t| <=
+    sum_s |Phi(t, s+1)| |w_s| + |Phi(t, c0)| |delta_0|``, computed exactly by carrying every product ``Phi`` (no
+    geometric tail, no stability assumption)."""
+    if consts.program not in ("kalman_baro", "kalman_accel"):
+        raise UserError(f"kalman_switched_bound: {consts.program!r} is not a Kalman program")
+    mode = "half_up" if consts.ROUND else "floor"
+    rho = lambda s: rounding_error_bound(s, mode)  # noqa: E731
+    accel = consts.program == "kalman_accel"
+    adc = np.asarray(adc, dtype=np.float64)
+    acc = np.zeros_like(adc) if acc is None else np.asarray(acc, dtype=np.float64)
+    K = int(consts.K)
+    dt = 2.0 ** -K
+    F = np.array([[1.0, dt, dt * dt / 2], [0.0, 1.0, dt], [0.0, 0.0, 1.0]])
+    fg, qg = consts.float_gains, consts.gains
+    col = lambda names: np.array([fg[n] for n in names])  # noqa: E731
+    dcol = lambda names: np.array([abs(qg[n].value - fg[n]) for n in names])  # noqa: E731
+    rcol = lambda names: np.array([rho(qg[n].s) for n in names])  # noqa: E731
+    b1, b1t, b2 = ("G11", "G21", "G31"), ("G11T", "G21T", "G31T"), ("G12", "G22", "G32")
+    H1 = np.array([[1.0, 0.0, 0.0]])
+    H2 = np.array([[0.0, 0.0, 1.0]])
+    u = np.array([rho(K) + rho(2 * K + 1), rho(K), 0.0])
+    rho_alt = rho(int(consts.ALT_SHIFT))
+    names = fm.names
+    w = fm.words
+    init = fm.init_words
+    prev = np.vstack([init[None, :], w[:-1]])
+    ev = w[:, names.index("EVENTS")].astype(np.int64)
+    cal_prev = prev[:, names.index("CAL")]
+    ncal = 1 << int(consts.CAL_P)
+    n = len(adc)
+    bound = np.zeros((n, 3))
+    margin = np.zeros(n)
+    ok = (adc >= consts.BARO_MIN) & (adc <= consts.BARO_MAX)
+    if accel:
+        g_acc = qg["ACC_G"]
+        acc0_f = prev[:, names.index("ACC0")]
+        a_err_base = rho(g_acc.s) + abs(g_acc.value - fg["ACC_G"]) * np.abs(acc - acc0_f)
+    phis = np.zeros((0, 3, 3))
+    ws = np.zeros((0, 3))
+    B = np.zeros(3)
+    for t in range(n):
+        if cal_prev[t] < ncal:
+            if ok[t] and cal_prev[t] + 1 == ncal:       # calibration completes: the GND/ACC0 rounding
+                phis = np.eye(3)[None].copy()
+                ws = np.array([[rho(int(consts.CAL_P)) + rho_alt, 0.0, 0.0]])
+                B = ws[0].copy()
+            bound[t] = B if cal_prev[t] + 1 >= ncal and ok[t] else np.array([rho_alt, 0.0, 0.0])  # X1 = alt(adc0)
+            continue
+        x1p = prev[t, 0] + prev[t, 1] * dt + prev[t, 2] * dt * dt / 2
+        pred_b = np.abs(F) @ B + u
+        margin[t] = pred_b[0] + rho_alt
+        used = ok[t] and not (ev[t] & _BARO_REJECT)
+        trans = bool(ev[t] & _MACH)
+        r = np.zeros(3)
+        if used:
+            names1 = b1t if trans else b1
+            Hs = [H1]
+            Ks = [col(names1)]
+            e1_int = abs(_alt_mirror_e1(consts, adc[t], x1p)) + margin[t]
+            r += rcol(names1) + dcol(names1) * e1_int + np.abs(col(names1)) * rho_alt
+        else:
+            Hs, Ks = [], []
+        if accel:
+            Hs.append(H2)
+            Ks.append(col(b2))
+            e2_int = abs((acc[t] - acc0_f[t]) * fg["ACC_G"] - (prev[t, 2])) + pred_b[2] + a_err_base[t] \
+                + abs(fg["ACC_G"]) * rho(int(consts.CAL_P))
+            a_err = a_err_base[t] + abs(fg["ACC_G"]) * rho(int(consts.CAL_P))
+            r += rcol(b2) + dcol(b2) * e2_int + np.abs(col(b2)) * a_err
+        if Hs:
+            H = np.vstack(Hs)
+            Kt = np.stack(Ks, axis=1)
+            IKH = np.eye(3) - Kt @ H
+        else:
+            IKH = np.eye(3)
+        A = IKH @ F
+        wt = np.abs(IKH) @ u + r
+        phis = np.concatenate([A[None] @ phis, np.eye(3)[None]], axis=0) if len(phis) else np.eye(3)[None]
+        ws = np.concatenate([ws, wt[None]], axis=0) if len(ws) else wt[None]
+        B = np.einsum("sij,sj->i", np.abs(phis), ws)
+        # drop terms whose contribution has decayed below 1e-15 of the bound (they only shrink further)
+        keep = np.abs(phis).max(axis=(1, 2)) * ws.max(axis=1) > 1e-15 * max(B.max(), 1e-300)
+        keep[-1] = True
+        phis, ws = phis[keep], ws[keep]
+        bound[t] = B
+    return SwitchedBound(bound, margin, n)
+
+
+def _alt_mirror_e1(consts: "FirmwareConstants", adc: float, x1_pred: float) -> float:
+    """The mirror's barometer innovation alt_float(adc) - x1_pred (word scale)."""
+    return float(_alt_table_float(consts)(np.array([adc]))[0]) - x1_pred

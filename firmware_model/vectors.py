@@ -46,10 +46,11 @@ C_PROGRAM_ENUM: dict[str, str] = {"recursive": "FW_RECURSIVE", "kalman_baro": "F
                                   "kalman_accel": "FW_KALMAN_ACCEL",
                                   "recursive_seed_literal": "FW_RECURSIVE_SEED_LITERAL"}
 #: Gains in fw_consts order (vectors/c/fw.h).
-GAIN_NAMES: tuple[str, ...] = ("G11", "G21", "G31", "G12", "G22", "G32", "ACC_G")
+GAIN_NAMES: tuple[str, ...] = ("G11", "G21", "G31", "G12", "G22", "G32", "ACC_G", "G11T", "G21T", "G31T")
 #: Scalar constants in fw_consts order.
 SCALAR_CONSTANTS: tuple[str, ...] = ("K", "ROUND", "BARO_SIGN", "S", "THR", "V_LIFT", "V_GATE", "MACH_VLO",
-                                     "MACH_VHI", "MACH_E", "BARO_MIN", "BARO_MAX")
+                                     "MACH_VHI", "MACH_E", "BARO_MIN", "BARO_MAX", "ALT_SHIFT", "ALT_N", "CAL_P",
+                                     "E_GATE", "GATE_N", "APO_N")
 
 # ------------------------------------------------------------------------------------------- the case matrix
 #: k values (sample period 2^-k s) of the committed set.
@@ -73,11 +74,17 @@ Q_FORMATS: dict[str, dict[str, str]] = {
                   "VEL": "Q32.0 accelerometer counts x samples", "ACC0": "Q32.0 accelerometer counts",
                   "EVENTS": "uint16 event bits"},
     "recursive_seed_literal": {"EST": "Q24.8 barometer units (z = BARO_SIGN*adc)"},
-    "kalman_baro": {"X1": "Q24.8 barometer units", "X2": "Q24.8 units/s", "X3": "Q24.8 units/s^2",
-                    "EVENTS": "uint16 event bits", "APFRAC": "UQ0.16 fraction of a sample period"},
-    "kalman_accel": {"X1": "Q24.8 barometer units", "X2": "Q24.8 units/s", "X3": "Q24.8 units/s^2",
-                     "ACC0": "Q32.0 accelerometer counts", "EVENTS": "uint16 event bits",
-                     "APFRAC": "UQ0.16 fraction of a sample period"},
+    "kalman_baro": {"X1": "Q24.8 m (table altitude)", "X2": "Q24.8 m/s", "X3": "Q24.8 m/s^2",
+                    "EVENTS": "uint16 event bits", "APFRAC": "UQ0.16 fraction of a sample period",
+                    "GND": "Q24.8 m (pad average)", "SUMZ": "Q24.8 m (sum of pad altitudes)",
+                    "CAL": "uint16 pad samples", "REJ": "uint16 gated samples in a row",
+                    "NEG": "uint16 samples with X2 < 0 in a row"},
+    "kalman_accel": {"X1": "Q24.8 m (table altitude)", "X2": "Q24.8 m/s", "X3": "Q24.8 m/s^2",
+                     "ACC0": "Q32.0 accelerometer counts (pad average)", "EVENTS": "uint16 event bits",
+                     "APFRAC": "UQ0.16 fraction of a sample period", "GND": "Q24.8 m (pad average)",
+                     "SUMZ": "Q24.8 m (sum of pad altitudes)", "SUMA": "Q32.0 sum of pad accelerometer counts",
+                     "CAL": "uint16 pad samples", "REJ": "uint16 gated samples in a row",
+                     "NEG": "uint16 samples with X2 < 0 in a row"},
 }
 
 
@@ -97,9 +104,25 @@ def case_config(program: str, rounding: str, k: int, bits: int) -> BuildConfig:
     """The build config of one committed case: defaults of :class:`BuildConfig` except the ADC width, its counts
     per metre and noise, and a valid barometer range that excludes the two rail codes (0 and 2^bits-1: a saturated
     reading is invalid), so that the adc_min / adc_max / alternating streams exercise BARO_INVALID."""
+    pa_per_count, pa_at_zero = _flight_sensor(bits)
     return BuildConfig(program=program, rounding=rounding, k=k, baro_bits=bits,
                        units_per_metre=units_per_metre_for(bits), baro_sigma=baro_sigma_for(bits),
-                       baro_min=1, baro_max=(1 << bits) - 2)
+                       baro_min=1, baro_max=(1 << bits) - 2, baro_pa_per_count=pa_per_count,
+                       baro_pa_at_zero=pa_at_zero)
+
+
+def _flight_sensor(bits: int) -> tuple[float, float]:
+    """The linear barometer transfer (Pa per count, Pa at count 0) of :func:`firmware_model.inputs.synthetic_flight`
+    for a ``bits``-bit ADC with the default pad (altitude, fraction of full scale): the altitude table of the
+    committed Kalman cases matches the synthetic flights' sensor (field-ready firmware, docs/firmware-spec.md
+    §2a). Counts below about 26,000 (16-bit) map to pressures under the table's floor (above ~31 km)."""
+    from firmware_model.atmosphere import pressure_pa
+    from firmware_model.inputs import FlightParams
+
+    p = FlightParams()
+    p_pad = float(pressure_pa(p.pad_altitude_m))
+    a = (p_pad - float(pressure_pa(p.pad_altitude_m + 1.0))) / units_per_metre_for(bits)
+    return a, p_pad - a * p.pad_fraction * ((1 << bits) - 1)
 
 
 @dataclass(frozen=True)
@@ -116,11 +139,13 @@ def case_name(program: str, rounding: str, k: int, bits: int, stream: str) -> st
     return f"{program}_{rounding}_k{k}_b{bits}_{stream}"
 
 
-def case_matrix() -> list[CaseSpec]:
+def case_matrix(require_logs: bool = True) -> list[CaseSpec]:
     """Every case of the committed set, in a fixed order (documented in docs/vectors.md):
     programs x roundings x k in :data:`MATRIX_K` x ADC bits in :data:`MATRIX_BITS` x (the
     :data:`~firmware_model.inputs.EDGE_KINDS` edge streams of :data:`EDGE_SAMPLES` samples, plus the synthetic
-    flight for :data:`FLIGHT_PROGRAMS`)."""
+    flight for :data:`FLIGHT_PROGRAMS`), then the flight cases of
+    :data:`firmware_model.flights.vectorcases.FLIGHT_CASES` (the real-log cases need ../shared/flights: without
+    it a :class:`UserError`, or with ``require_logs=False`` the set without them)."""
     specs: list[CaseSpec] = []
     flights: dict[tuple[int, int], Stream] = {}
     for program in PROGRAMS:
@@ -144,14 +169,21 @@ def case_matrix() -> list[CaseSpec]:
                                                             name="flight_fast")
                         stream = flights[key]
                         specs.append(CaseSpec(case_name(program, rounding, k, bits, stream.name), cfg, stream))
+    # Flight cases (docs/vectors.md, "Flight cases"): MIT-licensed shared logs and simulated flights, floor, k = 5,
+    # built as the apogee table builds them; provenance and licence in each case's input.provenance.
+    from firmware_model.flights.vectorcases import flight_case_specs
+
+    specs += flight_case_specs(case_name, CaseSpec, Stream, require_logs)
     return specs
 
 
-#: The subset run on the ATmega2560 under simavr (must fit 64 KiB of program-memory data).
+#: The subset run on the ATmega2560 under simavr (must fit 64 KiB of program-memory data: the Kalman cases carry
+#: 10-12 words per sample and a 2 KiB altitude table since the field-ready change, so the Kalman flights run in
+#: one rounding each and the long transonic flight is left to the host).
 AVR_CASES: tuple[str, ...] = tuple(
-    [case_name(p, r, 4, 16, "flight") for p in FLIGHT_PROGRAMS for r in ROUNDINGS]
+    [case_name("recursive", r, 4, 16, "flight") for r in ROUNDINGS]
+    + [case_name(p, r, 4, 16, "flight") for p, r in (("kalman_baro", "floor"), ("kalman_accel", "half_up"))]
     + [case_name(p, r, 4, 16, "edge_" + kind) for p in PROGRAMS for r in ROUNDINGS for kind in ("ties", "step")]
-    + [case_name("kalman_baro", "floor", 4, 16, "flight_fast")]
 )
 
 
@@ -307,6 +339,8 @@ def case_document(res: CaseResult) -> dict[str, Any]:
         "sample_period": {"k": cfg.k, "dt_s": cfg.dt},
         "constants": {name: int(getattr(consts, name)) for name in SCALAR_CONSTANTS},
         "gains": gains,
+        "alt_table": ({"file": f"tables/{_alt_tag(consts)}.json", "n_nodes": consts.ALT_N,
+                       "shift": consts.ALT_SHIFT} if consts.ALT_TABLE else None),
         "q_formats": dict(Q_FORMATS[program]),
         "words": list(names),
         "word_bytes": {name: size for name, size in STATE_WORDS[program]},
@@ -380,6 +414,9 @@ def case_header(res: CaseResult) -> str:
             g = consts.gains[gname]
             out.append(f"#define FWV_{up}_{gname}_M ({int(g.m)}) /* {gname} = m / 2^s = {g.value!r} */")
             out.append(f"#define FWV_{up}_{gname}_S ({int(g.s)})")
+    if consts.ALT_TABLE:
+        out += [f"/* altitude table (Q24.8 m, node j at count j << {consts.ALT_SHIFT}), shared by every case with the "
+                "same table */", f'#include "../tables/{_alt_tag(consts)}.h"']
     out.append("/* column index of each state word in fwv_" + name + "_expected (and _init) */")
     for j, wname in enumerate(names):
         out.append(f"#define FWV_{up}_W_{wname} {j} /* {Q_FORMATS[cfg.program][wname]} */")
@@ -395,6 +432,28 @@ def case_header(res: CaseResult) -> str:
     out.append(",\n".join("    { " + ", ".join(_c_i32(v) for v in row) + " }" for row in res.words))
     out += ["};", "", f"#endif /* FWV_{up}_H */", ""]
     return "\n".join(out)
+
+
+def alt_table_files(consts: Any) -> dict[str, bytes]:
+    """The shared altitude-table files of a Kalman build: ``tables/<tag>.json`` (the node list, Q24.8 m) and
+    ``tables/<tag>.h`` (``fwv_<tag>[]`` with FWV_ROM placement), included by every case header that uses it."""
+    tag = _alt_tag(consts)
+    doc = {"name": tag, "shift": consts.ALT_SHIFT, "n_nodes": consts.ALT_N, "q_format": "Q24.8 m",
+           "node_count_of_j": f"j << {consts.ALT_SHIFT}", "nodes": list(consts.ALT_TABLE)}
+    h = [f"/* Golden vectors: altitude table {tag}. Generated by {tool_version()}; do not edit (fwemu vectors). */",
+         f"#ifndef FWV_{tag.upper()}_H", f"#define FWV_{tag.upper()}_H", "", "#include <stdint.h>", "",
+         "#ifndef FWV_ROM", "#define FWV_ROM /* e.g. PROGMEM on AVR */", "#endif", "",
+         f"/* {consts.ALT_N} nodes, Q24.8 m; node j is the altitude at count j << {consts.ALT_SHIFT} */",
+         f"static const int32_t fwv_{tag}[{consts.ALT_N}] FWV_ROM = {{",
+         ",\n".join("    " + ", ".join(_c_i32(v) for v in consts.ALT_TABLE[i:i + 8]) for i in range(0, consts.ALT_N, 8)),
+         "};", "", f"#endif /* FWV_{tag.upper()}_H */", ""]
+    return {f"tables/{tag}.json": (json.dumps(doc, sort_keys=True) + "\n").encode(), f"tables/{tag}.h": "\n".join(h).encode()}
+
+
+def _alt_tag(consts: Any) -> str:
+    """C identifier of a build's altitude table: ``alt_`` + the first 12 hex digits of the nodes' SHA-256."""
+    digest = hashlib.sha256(",".join(str(v) for v in consts.ALT_TABLE).encode()).hexdigest()[:12]
+    return f"alt_{digest}"
 
 
 def cases_table_header(results: Sequence[CaseResult], guard: str) -> str:
@@ -414,7 +473,9 @@ def cases_table_header(results: Sequence[CaseResult], guard: str) -> str:
                  for g in GAIN_NAMES}
         consts = ("{" + ", ".join(scal[c] for c in ("K", "ROUND", "BARO_SIGN", "S", "THR", "V_LIFT", "V_GATE"))
                   + ", " + ", ".join(gains[g] for g in GAIN_NAMES) + ", "
-                  + ", ".join(scal[c] for c in ("MACH_VLO", "MACH_VHI", "MACH_E", "BARO_MIN", "BARO_MAX")) + "}")
+                  + ", ".join(scal[c] for c in ("MACH_VLO", "MACH_VHI", "MACH_E", "BARO_MIN", "BARO_MAX",
+                                                "ALT_SHIFT", "ALT_N", "CAL_P", "E_GATE", "GATE_N", "APO_N"))
+                  + ", " + (f"fwv_{_alt_tag(res.consts)}" if res.consts.ALT_TABLE else "0") + "}")
         rows.append(f'    {{"{name}", {C_PROGRAM_ENUM[program]}, {consts},\n'
                     f"     FWV_{up}_N_SAMPLES, FWV_{up}_N_WORDS, fwv_{name}_adc, fwv_{name}_acc, fwv_{name}_init,\n"
                     f"     &fwv_{name}_expected[0][0]}}")
@@ -441,7 +502,7 @@ def case_schema() -> dict[str, Any]:
                        "unsigned 16-bit.",
         "type": "object",
         "required": ["schema_version", "name", "generator", "tool", "firmware", "build_config", "rounding",
-                     "sample_period", "constants", "gains", "q_formats", "words", "word_bytes", "event_bits",
+                     "sample_period", "constants", "gains", "alt_table", "q_formats", "words", "word_bytes", "event_bits",
                      "events_first_sample", "input", "int32_wrap", "cycles_68000", "sequencing", "init", "adc",
                      "acc", "expected"],
         "additionalProperties": False,
@@ -463,8 +524,11 @@ def case_schema() -> dict[str, Any]:
             "constants": {"type": "object", "required": list(SCALAR_CONSTANTS),
                           "additionalProperties": {"type": "integer"}},
             "gains": {"type": "object", "additionalProperties": gain},
+            "alt_table": {"type": ["object", "null"], "required": ["file", "n_nodes", "shift"],
+                          "properties": {"file": {"type": "string"}, "n_nodes": {"type": "integer", "minimum": 2},
+                                         "shift": {"type": "integer", "minimum": 1, "maximum": 15}}},
             "q_formats": {"type": "object", "additionalProperties": {"type": "string"}},
-            "words": {"type": "array", "items": {"type": "string"}, "minItems": 1, "maxItems": 6},
+            "words": {"type": "array", "items": {"type": "string"}, "minItems": 1, "maxItems": 12},
             "word_bytes": {"type": "object", "additionalProperties": {"enum": [2, 4]}},
             "event_bits": {"type": "object", "additionalProperties": {"type": "integer"}},
             "events_first_sample": {"type": "object", "additionalProperties": {"type": "integer", "minimum": -1}},
@@ -579,6 +643,8 @@ def render_set(results: Sequence[CaseResult], kind: str, avr: Sequence[str] = ()
     for res in results:
         files[f"cases/{res.spec.name}.json"] = case_json(res).encode()
         files[f"cases/{res.spec.name}.h"] = case_header(res).encode()
+        if res.consts.ALT_TABLE:
+            files.update(alt_table_files(res.consts))
     files["c/cases.h"] = cases_table_header(results, "FWV_CASES_H").encode()
     if avr:
         by_name = {r.spec.name: r for r in results}
@@ -602,7 +668,8 @@ def write_set(files: dict[str, bytes], out: str | Path, kind: str) -> None:
     ``user``) refuses to overwrite a directory holding the committed set (manifest kind ``all``)."""
     from firmware_model import output
 
-    with output.staged_folder(out, owned=("cases",), guard=_set_guard(kind), last=("manifest.json",)) as stage:
+    owned = ("cases", "tables") if any(rel.startswith("tables/") for rel in files) else ("cases",)
+    with output.staged_folder(out, owned=owned, guard=_set_guard(kind), last=("manifest.json",)) as stage:
         for rel, data in files.items():
             path = stage / rel
             path.parent.mkdir(parents=True, exist_ok=True)
@@ -673,7 +740,7 @@ def generate_all(out: str | Path, generator: str = "emulation", progress: bool |
 def generate_subset(names: Sequence[str], out: str | Path, generator: str = "emulation") -> dict[str, bytes]:
     """Write the cases of the committed matrix named ``names`` (in matrix order) as a set of kind ``subset``."""
     wanted = set(names)
-    specs = [spec for spec in case_matrix() if spec.name in wanted]
+    specs = [spec for spec in case_matrix(require_logs=False) if spec.name in wanted]
     unknown = wanted - {spec.name for spec in specs}
     if unknown:
         raise UserError(f"vectors: unknown case name(s): {', '.join(sorted(unknown))}")
@@ -698,10 +765,11 @@ def check_set(directory: str | Path) -> list[str]:
             problems.append(f"{rel}: listed in the manifest but missing")
         elif _sha256_file(path) != digest:
             problems.append(f"{rel}: SHA-256 differs from the manifest")
-    for path in sorted((directory / "cases").glob("*")) if (directory / "cases").is_dir() else []:
-        rel = f"cases/{path.name}"
-        if rel not in listed:
-            problems.append(f"{rel}: not listed in the manifest")
+    for sub in ("cases", "tables"):
+        for path in sorted((directory / sub).glob("*")) if (directory / sub).is_dir() else []:
+            rel = f"{sub}/{path.name}"
+            if rel not in listed:
+                problems.append(f"{rel}: not listed in the manifest")
     return problems
 
 

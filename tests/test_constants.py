@@ -88,12 +88,14 @@ def test_mulg_with_quantized_gain_error_bound(e: int, g: float, mode: str) -> No
 
 # ---------------------------------------------------------------------------------------------------- build_constants
 def test_default_kalman_baro_thresholds_in_documented_units() -> None:
-    c = build_constants(BuildConfig())  # 3.5 units/m, Q24.8: 896 per m/s
+    c = build_constants(BuildConfig())  # the Kalman programs run in metres: Q24.8, 256 per m/s
     assert c.K == 7 and c.ROUND == 0 and c.BARO_SIGN == -1
-    assert c.V_LIFT == 26880          # 30 m/s * 3.5 * 256
-    assert c.MACH_VLO == 218624       # 244 * 896
-    assert c.MACH_VHI == 327936       # 366 * 896
-    assert c.MACH_E == 26880          # 30 m * 896
+    assert c.V_LIFT == 7680           # 30 m/s * 256
+    assert c.MACH_VLO == 62464        # 244 * 256
+    assert c.MACH_VHI == 93696        # 366 * 256
+    assert c.MACH_E == 7680           # 30 m * 256
+    assert c.CAL_P == 5 and c.GATE_N == 13 and c.APO_N == 8   # round(0.1 * 128) = 13, round(0.06 * 128) = 8
+    assert c.ALT_SHIFT == 7 and c.ALT_N == 513                 # 16 - 9 = 7: 2^9 segments + 1 node
     assert (c.BARO_MIN, c.BARO_MAX) == (0, 65535)
     assert c.V_GATE == 1630606        # 61 m/s * (2048 / 9.80665) counts/(m/s^2) * 128 samples/s = 1630606.2
     assert set(c.gains) == {"G11", "G21", "G31"}
@@ -112,9 +114,11 @@ def test_recursive_velocity_units_are_accel_counts_times_samples() -> None:
 def test_kalman_accel_gains_and_acc_g() -> None:
     cfg = BuildConfig(program="kalman_accel", ratio=100.0, units_per_metre=4.0, accel_counts_per_mps2=100.0)
     c = build_constants(cfg)
-    assert set(c.gains) == {"G11", "G21", "G31", "G12", "G22", "G32", "ACC_G"}
-    assert c.float_gains["ACC_G"] == 256 * 4.0 / 100.0
-    assert c.gains["ACC_G"].value == pytest.approx(10.24, rel=2**-15)
+    assert set(c.gains) == {"G11", "G21", "G31", "G12", "G22", "G32", "ACC_G", "G11T", "G21T", "G31T"}
+    assert c.float_gains["ACC_G"] == 256 / 100.0           # Q24.8 m/s^2 per count
+    assert c.gains["ACC_G"].value == pytest.approx(2.56, rel=2**-15)
+    # transonic barometer weight is lower (barometer variance x transonic_r_factor), never zero
+    assert 0 < c.float_gains["G11T"] < c.float_gains["G11"]
     assert c.float_gains == float_gains(cfg)
     for name, q in c.gains.items():
         assert q.target == c.float_gains[name] and abs(q.rel_error) <= 2**-15
@@ -129,7 +133,7 @@ def test_equates_are_int32_and_complete(program: str, k: int, rounding: str) -> 
     c = build_constants(cfg)
     eq = c.equates()
     base = {"K", "ROUND", "BARO_SIGN", "S", "THR", "V_LIFT", "V_GATE", "MACH_VLO", "MACH_VHI", "MACH_E",
-            "BARO_MIN", "BARO_MAX"}
+            "BARO_MIN", "BARO_MAX", "ALT_SHIFT", "ALT_N", "CAL_P", "E_GATE", "GATE_N", "APO_N"}
     gain_keys = {f"{n}_{p}" for n in c.gains for p in ("M", "S")}
     assert set(eq) == base | gain_keys
     for name, value in eq.items():
@@ -142,8 +146,8 @@ def test_equates_are_int32_and_complete(program: str, k: int, rounding: str) -> 
 
 
 def test_threshold_that_overflows_int32_is_a_user_error() -> None:
-    cfg = BuildConfig(units_per_metre=1e5)  # 366 m/s * 1e5 * 256 = 9.4e9 > 2^31
-    with pytest.raises(UserError, match="MACH_VLO=.*signed 32-bit"):
+    cfg = BuildConfig(program="recursive", accel_counts_per_mps2=1e6)  # 30 m/s * 1e6 * 128 = 3.8e9 > 2^31
+    with pytest.raises(UserError, match="V_LIFT=.*signed 32-bit"):
         build_constants(cfg)
 
 
@@ -155,11 +159,24 @@ def test_unrepresentable_design_gain_names_config_and_gain() -> None:
 
 
 def test_acc_g_too_large_is_a_user_error() -> None:
-    cfg = BuildConfig(program="kalman_accel", ratio=100.0, units_per_metre=1000.0, accel_counts_per_mps2=1.0)
-    with pytest.raises(UserError, match="gain ACC_G=256000.*too large"):
+    cfg = BuildConfig(program="kalman_accel", ratio=100.0, units_per_metre=1.0, accel_counts_per_mps2=0.005)
+    with pytest.raises(UserError, match="gain ACC_G=51200.*too large"):
         build_constants(cfg)
 
 
 def test_build_constants_rejects_non_config() -> None:
     with pytest.raises(UserError, match="BuildConfig"):
         build_constants({"k": 7})  # type: ignore[arg-type]
+
+
+def test_transonic_gain_below_the_representable_range_is_zero() -> None:
+    """A near-noise-free accelerometer makes a transonic barometer gain (barometer variance x 100) smaller than
+    2^-33: it is built as 0 (the design value stays in float_gains; the model-vs-mirror bound carries the
+    difference) instead of refusing the build, while a regular gain that small is still refused."""
+    cfg = BuildConfig(program="kalman_accel", k=5, baro_bits=12, units_per_metre=3.5 / 16, baro_sigma=0.5,
+                      accel_sigma=1.0)
+    c = build_constants(cfg)
+    tiny = [n for n in ("G11T", "G21T", "G31T") if abs(c.float_gains[n]) < 2.0**-33]
+    assert tiny, {n: c.float_gains[n] for n in ("G11T", "G21T", "G31T")}
+    for n in tiny:
+        assert (c.gains[n].m, c.gains[n].s) == (0, 0) and c.gains[n].target == c.float_gains[n]

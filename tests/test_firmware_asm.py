@@ -215,7 +215,7 @@ def test_firmware_sources_assemble(program: str, rounding: str) -> None:
 # step on the emulated CPU and check it against docs/firmware-spec.md §5/§6 written out below as a one-step
 # oracle with Python integers.
 
-LIFTOFF, ARMED, APOGEE, MACH, INVALID, PRED, GATE_HIGH = 1, 2, 4, 8, 16, 32, 64
+LIFTOFF, ARMED, APOGEE, MACH, INVALID, PRED, GATE_HIGH, REJECT = 1, 2, 4, 8, 16, 32, 64, 128
 LATCHED = LIFTOFF | ARMED | APOGEE | PRED | GATE_HIGH
 
 
@@ -223,41 +223,77 @@ def _mulg_exact(e: int, m: int, s: int, half_up: bool) -> int:
     return wrap32(rs_exact(e * m, s, half_up))
 
 
+def spec_alt(c: object, adc: int) -> int:
+    """docs/firmware-spec.md §2a: ALT[i] + rs((ALT[i+1] - ALT[i]) * f, ALT_SHIFT), exact integers."""
+    s = c.ALT_SHIFT
+    i, f = adc >> s, adc & ((1 << s) - 1)
+    lo, hi = c.ALT_TABLE[i], c.ALT_TABLE[i + 1]
+    return wrap32(lo + rs_exact((hi - lo) * f, s, bool(c.ROUND)))
+
+
 def spec_kalman_step(c: object, st: dict[str, int], adc: int, acc: int) -> dict[str, int]:
-    """docs/firmware-spec.md §6 step 1-10, one sample, exact integers (Mach lockout: kalman_accel only)."""
+    """docs/firmware-spec.md §6 step 0-10, one sample, exact integers (transonic gains: kalman_accel only)."""
     h = bool(c.ROUND)
     K = c.K
-    x1, x2, x3 = st["X1"], st["X2"], st["X3"]
+    g = {name: (q.m, q.s) for name, q in c.gains.items()}
+    accel = "ACC_G" in g
+    st = dict(st)
     ev = st["EVENTS"] & LATCHED
-    frac = st["APFRAC"]
-    z8 = (c.BARO_SIGN * adc) << 8
-    t1 = rs_exact(x2, K, h) + rs_exact(x3, 2 * K + 1, h)
-    t2 = rs_exact(x3, K, h)
-    x1, x2 = wrap32(x1 + t1), wrap32(x2 + t2)
     ok = c.BARO_MIN <= adc <= c.BARO_MAX
     if not ok:
         ev |= INVALID
-    e1 = wrap32(z8 - x1)
-    g = {name: (q.m, q.s) for name, q in c.gains.items()}
-    accel = "ACC_G" in g
-    lock = (accel and ok and bool(ev & LIFTOFF) and c.MACH_VLO < x2 < c.MACH_VHI
-            and (e1 > c.MACH_E or e1 < -c.MACH_E))
-    if lock:
+    hh = spec_alt(c, adc) if ok else None
+    ncal = 1 << c.CAL_P
+    if st["CAL"] < ncal:                                              # 1. pad calibration
+        if ok:
+            st["SUMZ"] = wrap32(st["SUMZ"] + hh)
+            if accel:
+                st["SUMA"] = wrap32(st["SUMA"] + acc)
+            st["CAL"] += 1
+            if st["CAL"] == ncal:
+                st["GND"] = st["X1"] = wrap32(rs_exact(st["SUMZ"], c.CAL_P, h))
+                if accel:
+                    st["ACC0"] = wrap32(rs_exact(st["SUMA"], c.CAL_P, h))
+        st["EVENTS"] = ev
+        return st
+    x1, x2, x3 = st["X1"], st["X2"], st["X3"]
+    frac = st["APFRAC"]
+    t1 = rs_exact(x2, K, h) + rs_exact(x3, 2 * K + 1, h)             # 2. predict
+    t2 = rs_exact(x3, K, h)
+    x1, x2 = wrap32(x1 + t1), wrap32(x2 + t2)
+    use = False
+    e1 = 0
+    if ok:                                                            # 3./4. innovation, gate
+        e1 = wrap32(hh - x1)
+        if -c.E_GATE <= e1 <= c.E_GATE:
+            st["REJ"] = 0
+            use = True
+        elif st["REJ"] < c.GATE_N:
+            st["REJ"] += 1
+            ev |= REJECT
+        else:
+            use = True
+    trans = accel and bool(ev & LIFTOFF) and x2 > c.MACH_VLO          # 5. transonic gains
+    if trans:
         ev |= MACH
     e2 = wrap32(_mulg_exact(acc - st["ACC0"], *g["ACC_G"], h) - x3) if accel else 0
     xs = [x1, x2, x3]
-    for i in range(3):
-        c1 = _mulg_exact(e1, *g[f"G{i + 1}1"], h) if ok and not lock else 0
+    for i in range(3):                                                # 7. correct
+        gb = g[f"G{i + 1}1T"] if trans else g[f"G{i + 1}1"]
+        c1 = _mulg_exact(e1, *gb, h) if use else 0
         c2 = _mulg_exact(e2, *g[f"G{i + 1}2"], h) if accel else 0
         xs[i] = wrap32(xs[i] + c1 + c2)
     x1, x2, x3 = xs
-    if lock:
-        x1 = z8
-    if not ev & LIFTOFF and x2 > c.V_LIFT:
+    if not ev & LIFTOFF and x2 > c.V_LIFT:                            # 8. liftoff
         ev |= LIFTOFF
-    if ev & LIFTOFF and not ev & APOGEE and not lock and x2 < 0:
-        ev |= APOGEE
-    if ev & LIFTOFF and not ev & APOGEE and not ev & PRED and x2 > 0:
+    if ev & LIFTOFF and not ev & APOGEE:                              # 9. apogee evidence
+        if x2 < 0:
+            st["NEG"] += 1
+            if st["NEG"] >= c.APO_N:
+                ev |= APOGEE
+        else:
+            st["NEG"] = 0
+    if ev & LIFTOFF and not ev & APOGEE and not ev & PRED and x2 > 0:  # 10. prediction
         d = -rs_exact(x3, K, h)
         if x2 < d:
             ev |= PRED
@@ -266,8 +302,8 @@ def spec_kalman_step(c: object, st: dict[str, int], adc: int, acc: int) -> dict[
                 d >>= 1
                 v >>= 1
             frac = min(65535, (v << 16) // d)
-    out = dict(st, X1=x1, X2=x2, X3=x3, EVENTS=ev, APFRAC=frac)
-    return out
+    st.update(X1=x1, X2=x2, X3=x3, EVENTS=ev, APFRAC=frac)
+    return st
 
 
 def spec_recursive_step(c: object, st: dict[str, int], adc: int, acc: int) -> dict[str, int]:
@@ -330,12 +366,22 @@ def _near(*centres: int) -> st.SearchStrategy[int]:
     return st.one_of(near, near, st.integers(INT32_MIN, INT32_MAX))
 
 
-@settings(max_examples=examples(150))
+def _kalman_state(board: _Board, **words: int) -> dict[str, int]:
+    """A full Kalman state (calibrated unless CAL is given) restricted to the build's variables."""
+    c = board.build.consts
+    base = {"X1": 0, "X2": 0, "X3": 0, "ACC0": 0, "EVENTS": 0, "APFRAC": 0, "GND": 0, "SUMZ": 0, "SUMA": 0,
+            "CAL": 1 << c.CAL_P, "REJ": 0, "NEG": 0}
+    base.update(words)
+    return {name: base[name] for name in board.build.variables}
+
+
+@settings(max_examples=examples(150), deadline=None)
 @given(program=st.sampled_from(("kalman_baro", "kalman_accel")), k=st.sampled_from((4, 6, 8)),
        rounding=st.sampled_from(("floor", "half_up")), data=st.data())
 def test_kalman_one_step_boundaries(program: str, k: int, rounding: str, data: st.DataObject) -> None:
-    """Mach window and innovation limits, liftoff threshold, X2 sign, baro range edges, apogee prediction with
-    DIVU overflow: CPU == spec on all words after one step from a chosen state."""
+    """Innovation at/next to +-E_GATE with the reject counter at/next to GATE_N, transonic speed MACH_VLO,
+    liftoff threshold, X2 sign with the apogee counter at/next to APO_N, baro range edges, apogee prediction with
+    DIVU overflow, the last pad-calibration sample: CPU == spec on all words after one step from a chosen state."""
     board = _board(program, k, rounding)
     c = board.build.consts
     h = bool(c.ROUND)
@@ -344,7 +390,7 @@ def test_kalman_one_step_boundaries(program: str, k: int, rounding: str, data: s
     acc0 = data.draw(st.integers(-32768, 32767), label="ACC0")
     acc = data.draw(st.one_of(st.just(acc0), st.integers(-32768, 32767)), label="acc")
     events = data.draw(st.sampled_from((0, LIFTOFF, LIFTOFF | APOGEE, LIFTOFF | PRED, LIFTOFF | MACH | INVALID,
-                                        LIFTOFF | GATE_HIGH)),
+                                        LIFTOFF | REJECT, LIFTOFF | GATE_HIGH)),
                        label="EVENTS")
     x3 = data.draw(st.one_of(st.just(0), _near(0, -(1 << (15 + k)), -(1 << 30), INT32_MIN, INT32_MAX)), label="X3")
     mode = data.draw(st.sampled_from(("window", "predict", "free")), label="mode")
@@ -354,14 +400,21 @@ def test_kalman_one_step_boundaries(program: str, k: int, rounding: str, data: s
         x2_target = data.draw(_near(1, 2, d - 1, d, d + 1, d // 2, (d + 1) // 2), label="x2_target")
         x2 = wrap32(x2_target - rs_exact(x3, k, h))
     else:
-        x2_target = data.draw(_near(c.MACH_VLO, c.MACH_VHI, c.V_LIFT, 0), label="x2_target")
+        x2_target = data.draw(_near(c.MACH_VLO, c.V_LIFT, 0), label="x2_target")
         x2 = wrap32(x2_target - rs_exact(x3, k, h))
-    # X1 such that the innovation after the prediction is (near) +-MACH_E
-    e1 = data.draw(_near(c.MACH_E, -c.MACH_E, 0), label="e1")
+    # X1 such that the innovation after the prediction is (near) +-E_GATE or 0
+    e1 = data.draw(_near(c.E_GATE, -c.E_GATE, 0), label="e1")
     t1 = rs_exact(x2, k, h) + rs_exact(x3, 2 * k + 1, h)
-    x1 = wrap32(((c.BARO_SIGN * adc) << 8) - e1 - t1)
-    state = {"X1": x1, "X2": x2, "X3": x3, "ACC0": acc0, "EVENTS": events, "APFRAC": 0}
-    state = {name: state[name] for name in board.build.variables}
+    hh = spec_alt(c, adc) if c.BARO_MIN <= adc <= c.BARO_MAX else 0
+    x1 = wrap32(hh - e1 - t1)
+    ncal = 1 << c.CAL_P
+    cal = data.draw(st.sampled_from((ncal, ncal, ncal, ncal - 1, 0)), label="CAL")
+    rej = data.draw(st.sampled_from((0, c.GATE_N - 1, c.GATE_N)), label="REJ")
+    neg = data.draw(st.sampled_from((0, max(0, c.APO_N - 1), c.APO_N - 2 if c.APO_N >= 2 else 0)), label="NEG")
+    sumz = data.draw(st.integers(-(1 << 30), 1 << 30), label="SUMZ")
+    suma = data.draw(st.integers(-(1 << 23), 1 << 23), label="SUMA")
+    state = _kalman_state(board, X1=x1, X2=x2, X3=x3, ACC0=acc0, EVENTS=events, CAL=cal, REJ=rej, NEG=neg,
+                          SUMZ=sumz, SUMA=suma, GND=12345)
     got = board.step(dict(state), adc, acc)
     want = spec_kalman_step(c, dict(state), adc, acc)
     want = {name: want[name] for name in board.build.variables}
@@ -398,28 +451,32 @@ def test_recursive_one_step_boundaries(k: int, rounding: str, data: st.DataObjec
 @pytest.mark.parametrize("rounding", ["floor", "half_up"])
 @pytest.mark.parametrize("k", [4, 7])
 @pytest.mark.parametrize("program", ["kalman_baro", "kalman_accel"])
-def test_kalman_lockout_and_liftoff_exact_boundaries(program: str, k: int, rounding: str) -> None:
-    """Every combination of X2 at/next to MACH_VLO, MACH_VHI, V_LIFT, 0 and e1 at/next to +-MACH_E, from the
-    pad and after liftoff, with an accelerometer at rest (e2 = -X3 = 0). kalman_accel must lock out on some of
-    them; kalman_baro on none (spec §6 step 4: Mach lockout exists only in kalman_accel)."""
+def test_kalman_gate_transonic_and_liftoff_exact_boundaries(program: str, k: int, rounding: str) -> None:
+    """Every combination of X2 at/next to MACH_VLO, V_LIFT, 0, e1 at/next to +-E_GATE and the reject counter
+    below/at GATE_N, from the pad and after liftoff, with an accelerometer at rest (e2 = -X3 = 0). kalman_accel
+    must use the transonic gains on some of them, kalman_baro on none; both must reject some samples and open the
+    gate on others."""
     board = _board(program, k, rounding)
     c = board.build.consts
     h = bool(c.ROUND)
     adc = 30000
-    locked = 0
+    hh = spec_alt(c, adc)
+    trans = rejected = opened = 0
     for events in (0, LIFTOFF):
-        for x2 in sorted({c.MACH_VLO + d for d in (-1, 0, 1)} | {c.MACH_VHI + d for d in (-1, 0, 1)}
-                         | {c.V_LIFT + d for d in (-1, 0, 1)} | {-1, 0, 1}):
-            for e1 in (c.MACH_E + 1, c.MACH_E, c.MACH_E - 1, 0, -c.MACH_E + 1, -c.MACH_E, -c.MACH_E - 1):
-                x1 = wrap32(((c.BARO_SIGN * adc) << 8) - e1 - rs_exact(x2, k, h))
-                state = {"X1": x1, "X2": x2, "X3": 0, "ACC0": 123, "EVENTS": events, "APFRAC": 0}
-                state = {name: state[name] for name in board.build.variables}
-                want = spec_kalman_step(c, dict(state), adc, 123)
-                want = {name: want[name] for name in board.build.variables}
-                got = board.step(dict(state), adc, 123)
-                assert got == want, f"{program} k={k} {rounding} state={state}"
-                locked += bool(got["EVENTS"] & MACH)
-    assert (locked > 0) == (program == "kalman_accel"), f"{program}: {locked} lockouts"
+        for x2 in sorted({c.MACH_VLO + d for d in (-1, 0, 1)} | {c.V_LIFT + d for d in (-1, 0, 1)} | {-1, 0, 1}):
+            for e1 in (c.E_GATE + 1, c.E_GATE, c.E_GATE - 1, 0, -c.E_GATE + 1, -c.E_GATE, -c.E_GATE - 1):
+                for rej in (0, c.GATE_N - 1, c.GATE_N):
+                    x1 = wrap32(hh - e1 - rs_exact(x2, k, h))
+                    state = _kalman_state(board, X1=x1, X2=x2, ACC0=123, EVENTS=events, REJ=rej)
+                    want = spec_kalman_step(c, dict(state), adc, 123)
+                    want = {name: want[name] for name in board.build.variables}
+                    got = board.step(dict(state), adc, 123)
+                    assert got == want, f"{program} k={k} {rounding} state={state}"
+                    trans += bool(got["EVENTS"] & MACH)
+                    rejected += bool(got["EVENTS"] & REJECT)
+                    opened += abs(e1) > c.E_GATE and rej == c.GATE_N and not got["EVENTS"] & REJECT
+    assert (trans > 0) == (program == "kalman_accel"), f"{program}: {trans} transonic samples"
+    assert rejected > 0 and opened > 0, (rejected, opened)
 
 
 @pytest.mark.parametrize("rounding", ["floor", "half_up"])
@@ -439,7 +496,7 @@ def test_kalman_apogee_prediction_exact_boundaries(k: int, rounding: str) -> Non
         for v in sorted({-1, 0, 1, 2, dd - 1, dd, dd + 1, dd // 2, (1 << 20) if dd == (1 << 20) + 1 else 1}):
             x2 = wrap32(v - rs_exact(x3, k, h))
             for events in (LIFTOFF, LIFTOFF | PRED, LIFTOFF | APOGEE, 0):
-                state = {"X1": 0, "X2": x2, "X3": x3, "EVENTS": events, "APFRAC": 7}
+                state = _kalman_state(board, X2=x2, X3=x3, EVENTS=events, APFRAC=7, NEG=max(0, c.APO_N - 1))
                 want = spec_kalman_step(c, dict(state), 0, 0)      # adc 0 < BARO_MIN: BARO_INVALID
                 got = board.step(dict(state), 0, 0)
                 assert got == want, f"k={k} {rounding} d={dd} v={v} state={state}"

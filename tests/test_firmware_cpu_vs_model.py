@@ -58,6 +58,12 @@ def assert_same(cfg_or_build: object, adc: np.ndarray, acc: np.ndarray | None = 
 
 
 def _cfg(program: str, k: int, rounding: str, **kw: object) -> BuildConfig:
+    """A build; the Kalman programs get the altitude table of the synthetic flights' linear sensor (the golden
+    vectors' case sensor), so that the flights below are physically consistent (field-ready, spec §2a)."""
+    if program in KALMAN and "baro_pa_per_count" not in kw:
+        from firmware_model.vectors import _flight_sensor
+
+        kw["baro_pa_per_count"], kw["baro_pa_at_zero"] = _flight_sensor(16)
     return BuildConfig(program=program, k=k, rounding=rounding, **kw)  # type: ignore[arg-type]
 
 
@@ -122,8 +128,8 @@ def test_cpu_equals_model_sign_bits_and_range(program: str, k: int, rounding: st
 LOW_MACH = dict(mach_lo_mps=40.0, mach_hi_mps=100.0, mach_innov_m=20.0, baro_max=65000)
 LOW_MACH_FLIGHT = FlightParams(boost_accel_g=12.0, burn_s=1.0, transonic_error_m=40.0,
                                transonic_band_mps=(50.0, 90.0), after_apogee_s=1.5)
-KALMAN_EVENTS = ("LIFTOFF", "APOGEE", "MACH_LOCKOUT", "BARO_INVALID", "APOGEE_PREDICTED")
-#: Bits a program never sets (spec §4-§6): Mach lockout exists only in kalman_accel.
+KALMAN_EVENTS = ("LIFTOFF", "APOGEE", "MACH_LOCKOUT", "BARO_INVALID", "APOGEE_PREDICTED", "BARO_REJECT")
+#: Bits a program never sets (spec §4-§6): the transonic gains (MACH_LOCKOUT bit) exist only in kalman_accel.
 NEVER_SET = {"kalman_baro": ("MACH_LOCKOUT", "ARMED", "GATE_HIGH"), "kalman_accel": ("ARMED", "GATE_HIGH")}
 
 
@@ -194,33 +200,41 @@ def test_harness_many_streams_and_counters() -> None:
     adc = rng.integers(20000, 20100, (3, 50))
     acc = rng.integers(-500, 3000, (3, 50))
     many = assert_same(build, adc, acc)
-    assert many.words.shape == (3, 50, 6) and many.cycles.shape == (3, 50)
+    assert many.words.shape == (3, 50, 12) and many.cycles.shape == (3, 50)
     for j in range(3):
         one = run_firmware(build, adc[j], acc[j])
         assert np.array_equal(one.words, many.words[j]) and np.array_equal(one.cycles, many.cycles[j])
-    # Every step takes at least the straight-line MULG work and the harness saw the 4-byte return address only.
-    assert many.cycles.min() > 500 and int(np.asarray(many.init_cycles).min()) > 0
+    # Every filter step (after the pad calibration) takes at least the straight-line MULG work, and the harness saw
+    # the 4-byte return address only.
+    ncal = 1 << build.consts.CAL_P
+    assert many.cycles[:, ncal:].min() > 500 and many.cycles[:, :ncal].min() > 0
+    assert int(np.asarray(many.init_cycles).min()) > 0
     assert many.stack_bytes == 4
     assert many.ram_written == build.ram_bytes + 4
     assert STACK_TOP - 4 >= 0x4000 + build.ram_bytes  # the stack never meets the variables
 
 
 def test_harness_sequencing_init_sees_sample_zero() -> None:
-    """init reads sample 0 (X1 = z << 8), then step runs on sample 0 again: spec §7."""
-    build = build_firmware(_cfg("kalman_baro", 5, "floor", baro_sign=1))
-    tr = run_firmware(build, np.array([1000, 1000]))
-    assert tr.init_words[tr.names.index("X1")] == 1000 << 8
-    assert tr.words.shape == (2, 5)
+    """init reads sample 0 (X1 = GND = alt(adc) by the table, spec §2a), then step runs on sample 0 again: spec §7
+    (the first step is the first pad-calibration sample: SUMZ = alt(adc), CAL = 1)."""
+    build = build_firmware(_cfg("kalman_baro", 5, "floor"))
+    tr = run_firmware(build, np.array([40000, 40000]))
+    t, s = build.consts.ALT_TABLE, build.consts.ALT_SHIFT
+    i, f = 40000 >> s, 40000 & ((1 << s) - 1)
+    alt = t[i] + (t[i + 1] - t[i]) * f // (1 << s)            # floor rounding, Python's exact floor division
+    assert tr.init_words[tr.names.index("X1")] == alt == tr.init_words[tr.names.index("GND")]
+    assert tr.words[0, tr.names.index("SUMZ")] == alt and tr.words[0, tr.names.index("CAL")] == 1
+    assert tr.words.shape == (2, 10)
 
 
 def test_harness_fault_names_sample() -> None:
     """A CPU fault (here the per-call clock limit) is re-raised with the sample index and the same fault class."""
     from isa.errors import CPUFault, LimitExceeded
 
-    build = build_firmware(_cfg("kalman_accel", 5, "floor"))
-    init_clocks = run_firmware(build, np.array([100])).init_cycles
-    with pytest.raises(LimitExceeded, match="sample 0") as info:
-        run_firmware(build, np.array([100, 100]), max_cycles_per_call=int(init_clocks) + 10)
+    build = build_firmware(_cfg("kalman_accel", 5, "floor", cal_p=0))
+    init_clocks = run_firmware(build, np.array([40000])).init_cycles
+    with pytest.raises(LimitExceeded, match="sample 1") as info:   # sample 0 is the (short) calibration step
+        run_firmware(build, np.array([40000, 40000, 40000]), max_cycles_per_call=int(init_clocks) + 10)
     assert isinstance(info.value, CPUFault)
     bad = dataclasses.replace(build, step_address=build.step_address + 1)   # odd PC: address error
     with pytest.raises(CPUFault, match="sample 0"):

@@ -105,14 +105,17 @@ def test_pad_only_streams_give_no_event(stream, name):
 def test_finding_8bit_adc_kalman_baro_lifts_off_on_the_pad():
     """Finding (docs/evaluation.md): with an 8-bit ADC over the MPX4115's range one count is about 73 m; at k = 8
     kalman_baro's velocity answer to a single one-count step (the pad reading flickering to the next code) peaks
-    near 74 m/s, above the 30 m/s liftoff threshold: LIFTOFF on the pad (at k = 4, 17 m/s: no liftoff)."""
+    near 74 m/s, above the 30 m/s liftoff threshold: LIFTOFF on the pad (at k = 4, 17 m/s: no liftoff). Since the
+    field-ready firmware (docs/firmware-spec.md History: metres, innovation gate) the false liftoff is followed by a
+    false APOGEE once the velocity has been negative for APO_N samples (the 73 m step is inside the gate, whose
+    sigma is the 8-bit sensor's own noise in metres); before, no APOGEE followed."""
     for k, lifts in ((8, True), (4, False)):
         n = 20 * 2 ** k
         adc = np.full(n, 200, dtype=np.int64)
         adc[n // 4:] = 199                   # one count less pressure = one count "up"
         ev = _events(METHODS["kalman_baro"], METHODS["kalman_baro"].config(k, _sensor(8)), adc, None)
         assert bool(np.any(ev & EVENT_BITS["LIFTOFF"])) is lifts
-        assert not np.any(ev & EVENT_BITS["APOGEE"])
+        assert bool(np.any(ev & EVENT_BITS["APOGEE"])) is lifts
 
 
 def test_finding_recursive_pad_bias_of_first_accel_sample():
@@ -166,7 +169,8 @@ def test_summary_median_worst_misses():
 # ---------------------------------------------------------------------------------------------------- subsonic flights
 #: The stated window for kalman_baro (default build: k = 7, R/q = 50,000, floor) on subsonic 1-DOF flights sensed by a
 #: noisy 16-bit MPX4115-class barometer: error = detection - true apogee in [-3.5, +0.6] s, and never before burnout.
-#: Measured on 150 random flights of the same box (docs/evaluation.md): median -0.01 s, max +0.19 s, min -2.74 s; the
+#: Measured on 150 random flights of the same box (docs/evaluation.md), field-ready firmware: median +0.07 s, max
+#: +0.32 s, min -2.53 s (before it: median -0.01 s, max +0.19 s, min -2.74 s); the
 #: early tail is light, high-drag rockets (drag >> g after burnout) that the constant-acceleration model with a tiny
 #: model variance follows too slowly; its velocity estimate crosses zero seconds before the rocket's.
 SUBSONIC_WINDOW_S: tuple[float, float] = (-3.5, 0.6)
@@ -191,3 +195,45 @@ def test_hypothesis_subsonic_flights_kalman_baro_within_window(data):
     assert det.time_s > record.provenance["summary"]["burnout_s"]
     # and nothing before liftoff: the first event of any kind is after the rocket left the pad
     assert det.liftoff_s is not None and det.liftoff_s >= record.provenance["summary"]["liftoff_s"]
+
+
+# ---------------------------------------------------------------------------------------------------- flight vectors
+def _flight_vector_docs():
+    from pathlib import Path
+
+    cases = Path(__file__).resolve().parents[1] / "vectors" / "cases"
+    return {p.stem: json.loads(p.read_text()) for p in sorted(cases.glob("*.json"))
+            if "_log_" in p.stem or "_sim_" in p.stem}
+
+
+def test_flight_vector_cases_carry_provenance_and_licence():
+    import hashlib
+    import os
+    from pathlib import Path
+
+    from firmware_model.flights.vectorcases import FLIGHT_CASES
+
+    docs = _flight_vector_docs()
+    assert len(docs) == sum(len(c[4]) for c in FLIGHT_CASES) == 9
+    shared = Path(os.environ.get("FWEMU_SHARED_FLIGHTS")
+                  or Path(__file__).resolve().parents[1].parent / "shared" / "flights")
+    for name, doc in docs.items():
+        prov, truth = doc["input"]["provenance"], doc["input"]["truth"]
+        assert prov["licence"].startswith("MIT"), name
+        assert "2012-" not in prov["source"], name                 # the GPL AltOS logs are not redistributed
+        if "_log_" in name:
+            assert prov["source"].startswith("../shared/flights/") and len(prov["file_sha256"]) == 64
+            path = shared / prov["source"][len("../shared/flights/"):]
+            if path.is_file():
+                assert hashlib.sha256(path.read_bytes()).hexdigest() == prov["file_sha256"], name
+        else:
+            assert prov["scenario"] and truth["apogee_source"] == "truth"
+        first = doc["events_first_sample"]
+        assert 0 < first["LIFTOFF"] < truth["apogee_sample"] < doc["input"]["n_samples"], name
+        # every flight case fires; kalman_baro and recursive within 2 s of the reference (k = 5: 64 samples);
+        # kalman_accel is seconds early on these high flights (docs/evaluation.md: linear counts/m), only fires
+        assert first["APOGEE"] >= 0, name
+        if not name.startswith("kalman_accel"):
+            assert abs(first["APOGEE"] - truth["apogee_sample"]) <= 64, name
+    accel = [d for n, d in docs.items() if n.startswith("kalman_accel")]
+    assert any(d["events_first_sample"]["MACH_LOCKOUT"] >= 0 for d in accel)

@@ -62,7 +62,7 @@ def test_kernel_numbering_matches_the_trace_contract():
     for name, bit in EVENT_BITS.items():
         assert getattr(KC, name) == bit
     assert KC.LATCHED == LATCHED_EVENTS
-    assert len(KC.WRAP_NAMES) == 15 and len(set(KC.WRAP_NAMES)) == 15 and KC.WRAP_NAMES[0] == ""
+    assert len(KC.WRAP_NAMES) == 20 and len(set(KC.WRAP_NAMES)) == 20 and KC.WRAP_NAMES[0] == ""
     assert KP.COMPILED is False
 
 
@@ -98,10 +98,26 @@ def _extreme_case(draw):
     c[KC.C_MACH_E] = draw(st.one_of(st.sampled_from((0, 1, 2 ** 31 - 1)), st.integers(0, 2 ** 31 - 1)))
     lo = draw(st.sampled_from((0, 1, 30000, 65535)))
     c[KC.C_BARO_MIN], c[KC.C_BARO_MAX] = lo, draw(st.sampled_from((lo, 65535)))
-    for i in range(KC.C_G11_M, KC.N_CONST, 2):
+    for i in range(KC.C_G11_M, KC.C_G31T_S + 1, 2):
         c[i] = draw(st.one_of(st.sampled_from((-32768, -32767, -1, 0, 1, 32767)), st.integers(-32768, 32767)))
         c[i + 1] = draw(st.one_of(st.sampled_from((0, 1, 15, 16, 31, 47)), st.integers(0, 47)))
+    # field-ready constants (spec §3) and an altitude table with nodes anywhere in +-2^30 (alt_table's limit)
+    c[KC.C_ALT_SHIFT] = draw(st.sampled_from((4, 7, 12, 15)))
+    c[KC.C_CAL_P] = draw(st.integers(0, 8))
+    c[KC.C_E_GATE] = draw(st.one_of(st.sampled_from((0, 1, 2 ** 31 - 1)), st.integers(0, 2 ** 31 - 1)))
+    c[KC.C_GATE_N] = draw(st.integers(1, 32767))
+    c[KC.C_APO_N] = draw(st.integers(1, 32767))
+    n_nodes = (1 << (16 - c[KC.C_ALT_SHIFT])) + 1
+    node = st.one_of(st.sampled_from((-(2 ** 30), 0, 2 ** 30)), st.integers(-(2 ** 30), 2 ** 30))
+    some = draw(st.lists(node, min_size=7, max_size=7))
+    c += [some[j % 7] for j in range(n_nodes)]     # adjacent nodes differ by anything up to 2^31
     state = [draw(edge32) for _ in range(KC.N_STATE)]
+    if program.startswith("kalman"):
+        ncal = 1 << c[KC.C_CAL_P]
+        state[KC.CAL] = draw(st.sampled_from((0, ncal - 1, ncal, ncal)))
+        state[KC.REJ] = draw(st.sampled_from((0, c[KC.C_GATE_N] - 1, c[KC.C_GATE_N])))
+        state[KC.NEG] = draw(st.sampled_from((0, c[KC.C_APO_N] - 1)))
+        state[KC.SUMA] = draw(st.integers(-(2 ** 23), 2 ** 23))
     if program == "recursive":
         state[KC.ACC0_R] = draw(st.integers(-32768, 32767))
         state[KC.EVENTS_R] = draw(st.integers(0, 127))
@@ -138,13 +154,24 @@ def test_compiled_step_equals_python_int_step_at_int32_extremes(case):
 def test_wrap_ids_are_reached_at_the_extremes():
     """The extremes really wrap (the step test is not vacuous): X1 = 2^31 - 1 with X2 > 0 wraps X1 in the predict;
     a gain 32767 / 2^0 on e1 = -2^31 wraps mulg(e1,G11); EST = -2^31 wraps EST; VEL = 2^31 - 1 wraps VEL."""
-    c = np.zeros(KP.N_CONST, dtype=object)
-    c[KP.C_BARO_SIGN], c[KP.C_BARO_MAX], c[KP.C_S] = 1, 65535, 5
-    st = np.array([2 ** 31 - 1, 1 << 10, 0, 0, 0, 0], dtype=object)
+    c = np.zeros(KP.N_CONST + 3, dtype=object)          # + a 3-node altitude table (ALT_SHIFT 15), all 0
+    c[KP.C_BARO_SIGN], c[KP.C_BARO_MAX], c[KP.C_S], c[KP.C_ALT_SHIFT] = 1, 65535, 5, 15
+    c[KP.C_GATE_N], c[KP.C_APO_N], c[KP.C_E_GATE] = 1, 1, 2 ** 31 - 1
+
+    def kst(*head):  # a calibrated Kalman state (CAL = 2^CAL_P = 1)
+        v = list(head) + [0] * (KP.N_STATE - len(head))
+        v[KP.CAL] = 1
+        return np.array(v, dtype=object)
+
+    st = kst(2 ** 31 - 1, 1 << 10)
     assert KP.WRAP_NAMES[KP.kalman_baro_step(st, 0, 0, c)] == "X1"
     c[KP.C_G11_M] = 32767
-    st = np.array([2 ** 31 - 1, 0, 0, 0, 0, 0], dtype=object)
+    st = kst(2 ** 31 - 1)
     assert KP.WRAP_NAMES[KP.kalman_baro_step(st, 0, 0, c)] == "mulg(e1,G11)"
+    st = kst(0, 0, 0, 0, 0, 0, 0, 2 ** 31 - 1)
+    st[KP.CAL] = 0
+    c[KP.C_ALT + 1] = 1000
+    assert KP.WRAP_NAMES[KP.kalman_baro_step(st, 1 << 14, 0, c)] == "SUMZ"     # calibration sum
     st = np.array([-(2 ** 31), 0, 0, 0, 0, 0], dtype=object)
     assert KP.WRAP_NAMES[KP.seed_literal_step(st, 65535, 0, c)] == "EST"
     st = np.array([0, 0, 2 ** 31 - 1, -5, 0, 0], dtype=object)
@@ -155,15 +182,15 @@ def test_wrap_ids_are_reached_at_the_extremes():
 def _hot(program: str, seed: int, rounding: str = "floor", k: int = 6):
     """Constants of ``program`` with every gain replaced by a random large one (mantissa up to 2^15, shift 0..18:
     gains up to 2^15): outside any design, so the state runs all over int32 and wraps in many places."""
-    consts = build_constants(BuildConfig(program=program, k=k, rounding=rounding))
+    consts = build_constants(BuildConfig(program=program, k=k, rounding=rounding, cal_p=2))   # short pad
     rng = np.random.default_rng(seed)
     gains = {name: QGain(int(rng.integers(-32768, 32768)), int(rng.integers(0, 19)), 0.0) for name in consts.gains}
     return dataclasses.replace(consts, gains=gains)
 
 
 WRAPPING = [  # outside the tuning range: the state runs all over int32 and wraps (first_wrap >= 0)
-    ("kalman_baro k10 ratio 1e-3", lambda: build_constants(
-        BuildConfig(program="kalman_baro", k=10, ratio=1e-3, noise_model="accel_only"))),
+    ("kalman_baro k10 ratio 1e-7", lambda: build_constants(
+        BuildConfig(program="kalman_baro", k=10, ratio=1e-7, noise_model="accel_only", cal_p=0, gate_sigmas=0.0))),
     ("kalman_baro hot floor", lambda: _hot("kalman_baro", 1)),
     ("kalman_baro hot half_up k0", lambda: _hot("kalman_baro", 2, "half_up", 0)),
     ("kalman_accel hot floor", lambda: _hot("kalman_accel", 3)),
@@ -268,8 +295,8 @@ from firmware_model.config import BuildConfig
 from firmware_model.constants import build_constants
 from firmware_model.model import run_model
 c = build_constants(BuildConfig(program="kalman_accel"))
-def f(i):
-    return int(run_model(c, np.full((4, 50), 30000 + i)).words.sum())
+def f(i):  # 4 x 8,000 samples: above PARALLEL_MIN_SAMPLES, so the parallel driver runs
+    return int(run_model(c, np.full((4, 8000), 30000 + i)).words.sum())
 parent = f(0)
 out = [None] * 4
 def g(i):
@@ -292,7 +319,7 @@ def test_parallel_kernel_then_fork_and_threads():
     res = subprocess.run([sys.executable, "-c", _FORK_AND_THREADS], env=env, capture_output=True, text=True,
                          timeout=120)
     assert res.returncode == 0, res.stderr[-2000:]
-    want = [int(run_model(build_constants(BuildConfig(program="kalman_accel")), np.full((4, 50), 30000 + i))
+    want = [int(run_model(build_constants(BuildConfig(program="kalman_accel")), np.full((4, 8000), 30000 + i))
                 .words.sum()) for i in range(4)]
     assert res.stdout.strip() == f"{want[0]} {want} {want}"
 
@@ -316,3 +343,31 @@ def test_one_compiled_specialization_whatever_the_input_layout():
     strided = np.repeat(adc, 2, axis=1)[:, ::2], np.repeat(acc, 2, axis=1)[:, ::2]
     _same_trace(run_model(consts, *strided), want, "strided")
     assert len(KC.run_streams.signatures) == n_sigs
+
+
+@needs_numba
+@pytest.mark.parametrize("program", PROGRAMS)
+def test_parallel_driver_equals_serial_driver_and_one_by_one(program):
+    """A call above PARALLEL_MIN_SAMPLES runs the parallel driver; it equals the serial driver on the same
+    arrays and run_model one stream at a time (4,000 samples: serial), every word and the wrap report."""
+    from firmware_model import model as model_mod
+
+    consts = _hot(program, 11) if program.startswith("kalman") else build_constants(
+        BuildConfig(program=program, shift=1))
+    adc, acc = _wrapping_streams(6, 4_000, 6)
+    assert adc.size >= model_mod.PARALLEL_MIN_SAMPLES
+    many = run_model(consts, adc, acc)
+    init, words, first, word = model_mod._run_kernels(KC, consts, adc, acc)       # the same call, parallel
+    assert np.array_equal(words, many.words) and np.array_equal(first, many.first_wrap)
+    cols = np.array(KC.OUT_COLS[program], dtype=np.int64)
+    out = np.empty_like(words)
+    init_s, first_s, word_s = np.empty_like(init), np.empty_like(first), np.empty_like(word)
+    KC.run_streams_serial(KC.PROGRAMS.index(program), adc, acc, KC.pack_constants(consts), cols,
+                          np.zeros((6, KC.N_STATE), dtype=np.int64), init_s, out, first_s, word_s)
+    assert np.array_equal(out, words) and np.array_equal(init_s, init)
+    assert np.array_equal(first_s, first) and np.array_equal(word_s, word)
+    assert (first >= 0).any() == (program != "recursive")   # recursive VEL needs > 32,767 samples to wrap
+    for j in range(6):
+        one = run_model(consts, adc[j], acc[j])
+        assert np.array_equal(one.words, many.words[j]) and one.first_wrap == many.first_wrap[j]
+        assert one.wrap_word == many.wrap_word[j]

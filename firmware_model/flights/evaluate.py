@@ -237,12 +237,22 @@ def sensors_for(spec: FlightSpec) -> tuple[Any, Any]:
 
 def sensor_config(inputs: Any) -> dict[str, Any]:
     """BuildConfig fields of a flight's sensing: ``inputs.config_overrides()`` (ADC width, sign, counts per metre,
-    accelerometer scale) plus the noise the Kalman design assumes, **measured on the pad part of the stream** (the
+    accelerometer scale), the barometer's transfer function for the Kalman programs' altitude table
+    (``baro_pa_per_count``, ``baro_pa_at_zero``), plus the noise the Kalman design assumes, **measured on the pad part of the stream** (the
     samples before ``inputs.liftoff_s``, as a designer measures a sensor on the bench): ``baro_sigma`` = standard
     deviation of the barometer words, at least 0.5 count (quantization); ``accel_sigma`` likewise for the
     accelerometer, at least 1 count. Barometer-only gains depend on R/q alone, so this matters only for
     kalman_accel (the weight of the barometer against the accelerometer)."""
+    import dataclasses
+
     out = dict(inputs.config_overrides())
+    names = {f.name for f in dataclasses.fields(BuildConfig)}
+    baro = getattr(inputs, "baro", None)
+    if baro is not None and getattr(baro, "kind", "adc") == "adc" and "baro_pa_per_count" in names:
+        # the field-ready Kalman programs' altitude table is generated from the sensor's transfer function
+        # P(c) = baro_pa_at_zero - baro_sign * baro_pa_per_count * c (BuildConfig): here (c - offset) / counts_per_pa
+        out["baro_pa_per_count"] = 1.0 / abs(float(baro.counts_per_pa))
+        out["baro_pa_at_zero"] = -float(baro.offset_counts) / float(baro.counts_per_pa)
     t = np.asarray(inputs.time_s, dtype=np.float64)
     lift = getattr(inputs, "liftoff_s", None)
     pad = t < (lift if lift is not None else t[0] + 1.0) - 0.05

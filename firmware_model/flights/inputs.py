@@ -70,8 +70,10 @@ class FirmwareInputs:
         return self.baro.counts_per_metre(self.ground_pressure_pa)
 
     def config_overrides(self) -> dict[str, Any]:
-        """BuildConfig fields consistent with the sensors: ``baro_bits`` (ADC sensors only: a pascal word is not
-        an 8..16-bit ADC, issue 9), ``baro_sign``, ``units_per_metre``, ``accel_counts_per_mps2``, ``k``. Only
+        """BuildConfig fields consistent with the sensors: ``baro_bits`` and the transfer function
+        ``baro_pa_per_count`` / ``baro_pa_at_zero`` (ADC sensors only: a pascal word is not an 8..16-bit ADC, issue
+        9; the Kalman programs' altitude table is generated from it), ``baro_sign``, ``units_per_metre``,
+        ``accel_counts_per_mps2``, ``k``. Only
         fields that :class:`~firmware_model.config.BuildConfig` has are returned."""
         from firmware_model.config import BuildConfig
 
@@ -79,6 +81,10 @@ class FirmwareInputs:
                                "accel_counts_per_mps2": self.accel.counts_per_mps2}
         if self.baro.kind == "adc":
             out["baro_bits"] = self.baro.bits
+            # the field-ready Kalman programs' altitude table is built from this transfer function
+            # (BuildConfig baro_pa_per_count / baro_pa_at_zero: P(c) = pa_at_zero - baro_sign * pa_per_count * c)
+            out["baro_pa_per_count"] = 1.0 / abs(self.baro.counts_per_pa)
+            out["baro_pa_at_zero"] = -self.baro.offset_counts / self.baro.counts_per_pa
         else:
             out["baro_kind"] = "pascal"
         names = {f.name for f in dataclasses.fields(BuildConfig)}

@@ -5,12 +5,12 @@ velocity, ``1:2`` raw altitude): ``time_s, raw_altitude_m, filtered_altitude_m, 
 ``events`` (the EVENTS word), ``new_events`` (names of the bits that set at this sample, ``|``-separated),
 ``cycles`` (68000 clocks of this ``step``; empty when the integer model ran).
 
-Conversion of the integer state to metres (docs/evaluation.md, "fwemu run"): the barometer words are counts
-(``X1/256`` or ``EST/256`` times ``BARO_SIGN`` is an ADC value); ``altitude_of_counts`` maps an ADC value to metres
-above the pad (the sensor model's inverse transfer function and the standard atmosphere; default: linear with the
-build's ``units_per_metre``); velocity and acceleration in counts/s are scaled by the local metres per count of the
-filtered altitude. The recursive program's velocity is its accelerometer integral ``VEL x dt /
-accel_counts_per_mps2`` and its acceleration ``(acc - ACC0) / accel_counts_per_mps2``.
+Conversion of the integer state to metres (docs/evaluation.md, "fwemu run"): the raw altitude is
+``altitude_of_counts(adc)``, metres above the pad through the sensor model's inverse transfer function and the
+standard atmosphere (default: linear with the build's ``units_per_metre``). The field-ready Kalman programs run in
+metres: filtered altitude ``(X1 - GND)/256``, velocity ``X2/256``, acceleration ``X3/256``. The recursive program's
+``EST/256`` times ``BARO_SIGN`` is an ADC value (through ``altitude_of_counts``), its velocity the accelerometer
+integral ``VEL x dt / accel_counts_per_mps2`` and its acceleration ``(acc - ACC0) / accel_counts_per_mps2``.
 """
 
 from __future__ import annotations
@@ -134,7 +134,12 @@ def from_trace(trace: Any, cfg: Any, time_s: np.ndarray, adc: np.ndarray, acc: n
     sign = float(cfg.baro_sign)
     dt = cfg.dt
     raw = alt(adc)
-    if trace.program in ("kalman_baro", "kalman_accel"):
+    if trace.program in ("kalman_baro", "kalman_accel") and "GND" in trace.names:
+        # field-ready Kalman programs (docs/firmware-spec.md §6): metres; above ground = X1 - GND
+        filt = (trace.column("X1") - trace.column("GND")) / 256.0
+        vel = trace.column("X2") / 256.0
+        accel = trace.column("X3") / 256.0
+    elif trace.program in ("kalman_baro", "kalman_accel"):
         c1 = trace.column("X1") / 256.0 * sign          # ADC value of the filtered altitude
         filt = alt(c1)
         m_per_count = (alt(c1 + 0.5) - alt(c1 - 0.5))  # metres per ADC count at the filtered altitude (signed)

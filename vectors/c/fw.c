@@ -49,6 +49,22 @@ static int64_t ls(int64_t x, int32_t s)
     return x * ((int64_t)1 << s);
 }
 
+int32_t fw_alt(const fw_consts *c, uint16_t adc)
+{
+    /* docs/firmware-spec.md 2a: ALT[i] + rs((ALT[i+1] - ALT[i]) * f, ALT_SHIFT, mode), product exact in int64 */
+    int32_t s = c->ALT_SHIFT;
+    int32_t i = (int32_t)((uint32_t)adc >> s);
+    int64_t f = (int64_t)((uint32_t)adc & ((UINT32_C(1) << s) - 1u));
+    int64_t lo = FW_ALT_READ(&c->ALT[i]);
+    int64_t hi = FW_ALT_READ(&c->ALT[i + 1]);
+    return fw_wrap32(lo + fw_rs((hi - lo) * f, s, c->ROUND));
+}
+
+static int baro_valid(const fw_consts *c, uint16_t adc)
+{
+    return (int32_t)adc >= c->BARO_MIN && (int32_t)adc <= c->BARO_MAX;
+}
+
 static int32_t baro_z(const fw_consts *c, uint16_t adc)
 {
     return c->BARO_SIGN * (int32_t)adc;
@@ -62,6 +78,8 @@ void fw_init(fw_program prog, const fw_consts *c, fw_state *st, uint16_t adc, in
     st->ACC0 = 0;
     st->EVENTS = 0;
     st->APFRAC = 0;
+    st->GND = st->SUMZ = st->SUMA = 0;
+    st->CAL = st->REJ = st->NEG = 0;
     switch (prog) {
     case FW_RECURSIVE:
         st->EST = z8;
@@ -76,7 +94,8 @@ void fw_init(fw_program prog, const fw_consts *c, fw_state *st, uint16_t adc, in
         st->ACC0 = acc;
         /* fall through */
     case FW_KALMAN_BARO:
-        st->X1 = z8;
+        st->X1 = baro_valid(c, adc) ? fw_alt(c, adc) : 0;
+        st->GND = st->X1;
         break;
     }
 }
@@ -121,32 +140,64 @@ static void step_kalman(const fw_consts *c, fw_state *st, uint16_t adc, int16_t 
 {
     const int32_t mode = c->ROUND;
     const int32_t K = c->K;
-    int64_t z8 = ls(baro_z(c, adc), 8);
+    const int32_t ncal = (int32_t)1 << c->CAL_P;
     int64_t t1, t2;
-    int32_t e1, e2 = 0;
-    int baro_ok, lockout;
+    int32_t h = 0, e1 = 0, e2 = 0;
+    int baro_ok, use, trans = 0;
     int64_t c1_1 = 0, c1_2 = 0, c1_3 = 0, c2_1 = 0, c2_2 = 0, c2_3 = 0;
+    fw_gain g1, g2, g3;
 
+    /* 0. per-sample bits, barometer range, h = alt(adc) for a valid sample */
     st->EVENTS &= (uint16_t)~FW_EV_PER_SAMPLE;
-    /* 1. predict */
+    baro_ok = baro_valid(c, adc);
+    if (!baro_ok) {
+        st->EVENTS |= FW_EV_BARO_INVALID;
+    } else {
+        h = fw_alt(c, adc);
+    }
+    /* 1. pad calibration */
+    if ((int32_t)st->CAL < ncal) {
+        if (baro_ok) {
+            st->SUMZ = fw_wrap32((int64_t)st->SUMZ + h);
+            if (with_accel) {
+                st->SUMA = fw_wrap32((int64_t)st->SUMA + acc);
+            }
+            st->CAL = (uint16_t)(st->CAL + 1u);
+            if ((int32_t)st->CAL == ncal) {
+                st->GND = fw_wrap32(fw_rs(st->SUMZ, c->CAL_P, mode));
+                st->X1 = st->GND;
+                if (with_accel) {
+                    st->ACC0 = fw_wrap32(fw_rs(st->SUMA, c->CAL_P, mode));
+                }
+            }
+        }
+        return;
+    }
+    /* 2. predict */
     t1 = fw_rs(st->X2, K, mode) + fw_rs(st->X3, 2 * K + 1, mode);
     t2 = fw_rs(st->X3, K, mode);
     st->X1 = fw_wrap32((int64_t)st->X1 + t1);
     st->X2 = fw_wrap32((int64_t)st->X2 + t2);
-    /* 2. barometer range */
-    baro_ok = (int32_t)adc >= c->BARO_MIN && (int32_t)adc <= c->BARO_MAX;
-    if (!baro_ok) {
-        st->EVENTS |= FW_EV_BARO_INVALID;
+    /* 3./4. innovation and gate */
+    use = 0;
+    if (baro_ok) {
+        e1 = fw_wrap32((int64_t)h - (int64_t)st->X1);
+        if ((int64_t)e1 >= -(int64_t)c->E_GATE && (int64_t)e1 <= (int64_t)c->E_GATE) {
+            st->REJ = 0;
+            use = 1;
+        } else if ((int32_t)st->REJ < c->GATE_N) {
+            st->REJ = (uint16_t)(st->REJ + 1u);
+            st->EVENTS |= FW_EV_BARO_REJECT;
+        } else {
+            use = 1;
+        }
     }
-    /* 3. innovation */
-    e1 = fw_wrap32(z8 - (int64_t)st->X1);
-    /* 4. Mach lockout: kalman_accel only (the barometer-only filter has nothing to run on meanwhile) */
-    lockout = with_accel && baro_ok && (st->EVENTS & FW_EV_LIFTOFF) && c->MACH_VLO < st->X2
-              && st->X2 < c->MACH_VHI && ((int64_t)e1 > (int64_t)c->MACH_E || (int64_t)e1 < -(int64_t)c->MACH_E);
-    if (lockout) {
+    /* 5. transonic weighting (kalman_accel) */
+    if (with_accel && (st->EVENTS & FW_EV_LIFTOFF) && st->X2 > c->MACH_VLO) {
+        trans = 1;
         st->EVENTS |= FW_EV_MACH_LOCKOUT;
     }
-    /* 5. accelerometer innovation */
+    /* 6. accelerometer innovation */
     if (with_accel) {
         int32_t a = fw_mulg((int64_t)acc - (int64_t)st->ACC0, c->ACC_G, mode);
         e2 = fw_wrap32((int64_t)a - (int64_t)st->X3);
@@ -154,26 +205,32 @@ static void step_kalman(const fw_consts *c, fw_state *st, uint16_t adc, int16_t 
         c2_2 = fw_mulg(e2, c->G22, mode);
         c2_3 = fw_mulg(e2, c->G32, mode);
     }
-    /* 6. correct */
-    if (baro_ok && !lockout) {
-        c1_1 = fw_mulg(e1, c->G11, mode);
-        c1_2 = fw_mulg(e1, c->G21, mode);
-        c1_3 = fw_mulg(e1, c->G31, mode);
+    /* 7. correct */
+    if (use) {
+        g1 = trans ? c->G11T : c->G11;
+        g2 = trans ? c->G21T : c->G21;
+        g3 = trans ? c->G31T : c->G31;
+        c1_1 = fw_mulg(e1, g1, mode);
+        c1_2 = fw_mulg(e1, g2, mode);
+        c1_3 = fw_mulg(e1, g3, mode);
     }
     st->X1 = fw_wrap32((int64_t)st->X1 + c1_1 + c2_1);
     st->X2 = fw_wrap32((int64_t)st->X2 + c1_2 + c2_2);
     st->X3 = fw_wrap32((int64_t)st->X3 + c1_3 + c2_3);
-    /* 7. lockout: altitude := measurement */
-    if (lockout) {
-        st->X1 = fw_wrap32(z8);
-    }
     /* 8. liftoff */
     if (!(st->EVENTS & FW_EV_LIFTOFF) && st->X2 > c->V_LIFT) {
         st->EVENTS |= FW_EV_LIFTOFF;
     }
-    /* 9. apogee */
-    if ((st->EVENTS & FW_EV_LIFTOFF) && !(st->EVENTS & FW_EV_APOGEE) && !lockout && st->X2 < 0) {
-        st->EVENTS |= FW_EV_APOGEE;
+    /* 9. apogee after APO_N consecutive samples with X2 < 0 */
+    if ((st->EVENTS & FW_EV_LIFTOFF) && !(st->EVENTS & FW_EV_APOGEE)) {
+        if (st->X2 < 0) {
+            st->NEG = (uint16_t)(st->NEG + 1u);
+            if ((int32_t)st->NEG >= c->APO_N) {
+                st->EVENTS |= FW_EV_APOGEE;
+            }
+        } else {
+            st->NEG = 0;
+        }
     }
     /* 10. low-rate apogee prediction */
     if ((st->EVENTS & FW_EV_LIFTOFF) && !(st->EVENTS & FW_EV_APOGEE) && !(st->EVENTS & FW_EV_APOGEE_PREDICTED)
@@ -191,7 +248,6 @@ static void step_kalman(const fw_consts *c, fw_state *st, uint16_t adc, int16_t 
             st->APFRAC = (uint16_t)(q > 65535 ? 65535 : q);
         }
     }
-    (void)e2;
 }
 
 void fw_step(fw_program prog, const fw_consts *c, fw_state *st, uint16_t adc, int16_t acc)
@@ -223,11 +279,13 @@ int fw_words(fw_program prog, const fw_state *st, int32_t out[FW_MAX_WORDS])
         return 1;
     case FW_KALMAN_BARO:
         out[0] = st->X1; out[1] = st->X2; out[2] = st->X3; out[3] = st->EVENTS; out[4] = st->APFRAC;
-        return 5;
+        out[5] = st->GND; out[6] = st->SUMZ; out[7] = st->CAL; out[8] = st->REJ; out[9] = st->NEG;
+        return 10;
     case FW_KALMAN_ACCEL:
         out[0] = st->X1; out[1] = st->X2; out[2] = st->X3; out[3] = st->ACC0; out[4] = st->EVENTS;
-        out[5] = st->APFRAC;
-        return 6;
+        out[5] = st->APFRAC; out[6] = st->GND; out[7] = st->SUMZ; out[8] = st->SUMA; out[9] = st->CAL;
+        out[10] = st->REJ; out[11] = st->NEG;
+        return 12;
     }
     return 0;
 }
@@ -236,17 +294,18 @@ const char *fw_word_name(fw_program prog, int i)
 {
     static const char *const rec[] = {"EST", "EXT", "VEL", "ACC0", "EVENTS"};
     static const char *const lit[] = {"EST"};
-    static const char *const kb[] = {"X1", "X2", "X3", "EVENTS", "APFRAC"};
-    static const char *const ka[] = {"X1", "X2", "X3", "ACC0", "EVENTS", "APFRAC"};
+    static const char *const kb[] = {"X1", "X2", "X3", "EVENTS", "APFRAC", "GND", "SUMZ", "CAL", "REJ", "NEG"};
+    static const char *const ka[] = {"X1", "X2", "X3", "ACC0", "EVENTS", "APFRAC", "GND", "SUMZ", "SUMA", "CAL",
+                                     "REJ", "NEG"};
     switch (prog) {
     case FW_RECURSIVE:
         return (i >= 0 && i < 5) ? rec[i] : "?";
     case FW_RECURSIVE_SEED_LITERAL:
         return (i == 0) ? lit[0] : "?";
     case FW_KALMAN_BARO:
-        return (i >= 0 && i < 5) ? kb[i] : "?";
+        return (i >= 0 && i < 10) ? kb[i] : "?";
     case FW_KALMAN_ACCEL:
-        return (i >= 0 && i < 6) ? ka[i] : "?";
+        return (i >= 0 && i < 12) ? ka[i] : "?";
     }
     return "?";
 }

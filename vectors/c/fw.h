@@ -30,7 +30,16 @@ typedef enum {
 #define FW_EV_BARO_INVALID     0x0010u /* this sample only */
 #define FW_EV_APOGEE_PREDICTED 0x0020u /* latched */
 #define FW_EV_GATE_HIGH        0x0040u /* latched (recursive: VEL has exceeded V_GATE since liftoff) */
-#define FW_EV_PER_SAMPLE       (FW_EV_MACH_LOCKOUT | FW_EV_BARO_INVALID)
+#define FW_EV_BARO_REJECT      0x0080u /* this sample only (Kalman: innovation outside the gate, not used) */
+#define FW_EV_PER_SAMPLE       (FW_EV_MACH_LOCKOUT | FW_EV_BARO_INVALID | FW_EV_BARO_REJECT)
+
+/* The altitude table lives in program memory on an AVR (PROGMEM); FW_ALT_READ reads one node. */
+#if defined(__AVR__)
+#include <avr/pgmspace.h>
+#define FW_ALT_READ(p) ((int32_t)pgm_read_dword(p))
+#else
+#define FW_ALT_READ(p) (*(p))
+#endif
 
 /* A quantized gain g = m / 2^s: m signed 16-bit mantissa, 0 <= s <= 47. */
 typedef struct {
@@ -49,12 +58,20 @@ typedef struct {
     int32_t V_GATE;     /* recursive velocity gate, accel counts x samples */
     fw_gain G11, G21, G31; /* Kalman gains on the barometer innovation */
     fw_gain G12, G22, G32; /* kalman_accel gains on the accelerometer innovation */
-    fw_gain ACC_G;         /* accelerometer counts -> Q24.8 units/s^2 */
-    int32_t MACH_VLO;   /* Mach-lockout window (kalman_accel only), Q24.8 units/s (exclusive bounds) */
-    int32_t MACH_VHI;
-    int32_t MACH_E;     /* Mach-lockout innovation magnitude, Q24.8 units */
+    fw_gain ACC_G;         /* accelerometer counts -> Q24.8 m/s^2 */
+    fw_gain G11T, G21T, G31T; /* kalman_accel transonic barometer gains */
+    int32_t MACH_VLO;   /* kalman_accel: above it (after liftoff) the transonic gains are used, Q24.8 m/s */
+    int32_t MACH_VHI;   /* unused since the field-ready change (seed-002 lockout window) */
+    int32_t MACH_E;     /* unused since the field-ready change */
     int32_t BARO_MIN;   /* valid raw ADC range, inclusive */
     int32_t BARO_MAX;
+    int32_t ALT_SHIFT;  /* Kalman: altitude-table segment width 2^ALT_SHIFT counts (1..15) */
+    int32_t ALT_N;      /* number of table nodes */
+    int32_t CAL_P;      /* pad calibration over 2^CAL_P valid samples (0..8) */
+    int32_t E_GATE;     /* innovation gate, Q24.8 m */
+    int32_t GATE_N;     /* gated samples in a row after which the gate opens */
+    int32_t APO_N;      /* consecutive samples with X2 < 0 that declare apogee */
+    const int32_t *ALT; /* [ALT_N] table nodes, Q24.8 m (FW_ALT_READ) */
 } fw_consts;
 
 /* The state of any program (the words each program uses are listed in fw_words()). */
@@ -64,15 +81,18 @@ typedef struct {
     int32_t ACC0;           /* pad accelerometer reading, counts */
     uint16_t EVENTS;        /* event bits */
     uint16_t APFRAC;        /* unsigned Q0.16 fraction of a sample period */
+    int32_t GND, SUMZ, SUMA; /* Kalman pad calibration: ground (Q24.8 m), sums of altitudes and accel counts */
+    uint16_t CAL, REJ, NEG;  /* Kalman counters: pad samples, gated samples in a row, X2 < 0 samples in a row */
 } fw_state;
 
 /* Maximum number of output words of any program. */
-#define FW_MAX_WORDS 6
+#define FW_MAX_WORDS 12
 
 /* Exact helpers (exposed for unit tests). */
 int32_t fw_wrap32(int64_t x);                      /* x reduced to int32 two's complement */
 int64_t fw_rs(int64_t x, int32_t s, int32_t mode); /* rounding right shift, mode 0 floor / 1 half_up */
 int32_t fw_mulg(int64_t e, fw_gain g, int32_t mode); /* wrap32(rs(e * m, s, mode)), exact 48-bit product */
+int32_t fw_alt(const fw_consts *c, uint16_t adc);    /* alt(adc): table lookup + interpolation, Q24.8 m */
 
 /* init: state after the first sample (adc unsigned 16-bit raw, acc signed 16-bit counts). */
 void fw_init(fw_program prog, const fw_consts *c, fw_state *st, uint16_t adc, int16_t acc);
