@@ -3,22 +3,28 @@
 Contract with :mod:`isa.cpu` (which decodes, caches and runs blocks):
 
 * Input: ``entries``, a list of ``(pc, instruction, handler name, condition or None, length)`` back to back in
-  memory, each accepted by :func:`_blockable`. :func:`compile_block` returns ``(make, info)``: ``make(R, MS, D,
-  rb, rw, rl, wb, ww, wl)`` binds the block to one CPU (``R`` its 17-register list, ``MS`` its one-element
-  ``min_sp`` list, ``D`` its one-element "compiled code was written" flag, ``rb..wl`` its memory accessors from
-  :class:`isa.memory.Memory`) and returns ``block(bn, bc, until) -> next_pc | instructions << 24 | clocks << 56``
-  where ``bn``/``bc`` are the instruction/clock budget left and ``until`` the ``until_pc`` (-1: none). ``info``
-  (:class:`_BlockInfo`) maps each line of the generated code back to its instruction, so that a fault inside the
-  block can be unwound exactly (:meth:`isa.cpu.CPU._unwind_block`). The generated source depends only on the
-  entries, so ``make`` may be shared by every CPU that holds the same code at the same address.
+  memory, each accepted by :func:`_blockable`, and the :class:`isa.memory.MapFacts` of the CPU's map.
+  :func:`compile_block` returns ``(bind, info)``: ``bind(R, MS, D, memory)`` binds the block to one CPU (``R``
+  its 17-register list, ``MS`` its one-element ``min_sp`` list, ``D`` its one-element "compiled code was
+  written" flag, ``memory`` its :class:`isa.memory.Memory`) and returns ``block(bn, bc, until) -> next_pc |
+  instructions << 24 | clocks << 56`` where ``bn``/``bc`` are the instruction/clock budget left and ``until``
+  the ``until_pc`` (-1: none). ``info`` (:class:`_BlockInfo`) maps each line of the generated code back to its
+  instruction, so that a fault inside the block can be unwound exactly (:meth:`isa.cpu.CPU._unwind_block`). The
+  generated source depends only on the entries and the map facts, so ``bind`` may be shared by every CPU that
+  holds the same code at the same address under the same map (:mod:`isa.codecache`).
+* Memory: reads of constant addresses the map guarantees go straight to ``memory.mem``; other reads are
+  span-checked inline; writes look at the aligned flag bytes once (``flags16``/``flags32``); anything else calls
+  the exact accessor, which raises the fault (docs/isa-internals.md, "Fast memory ...").
 * Semantics: registers live in locals (``d0..a7``, ``sr``), operands, addresses and clock constants are literals,
   CCR flags are computed only where a later instruction, a block exit or a possible fault can observe them
   (:func:`_liveness`). Control flow inside a block (:func:`_plan`): a Bcc forward inside the same region becomes
   an ``if`` (``if``/``else`` when the skipped code ends in a BRA forward), a BRA forward skips code, a branch back
   to the loop head becomes the ``continue`` of a ``while`` loop bounded by the remaining budget and ``until``;
   any other branch leaves the block. Clocks and instruction counts are folded per path (locals ``c``/``ni`` hold
-  what differs). A memory write that hits compiled code sets ``D[0]`` (in the memory accessor); the block then
-  leaves right after that instruction. Instructions the block compiler does not take (TRAP, ILLEGAL, constant
+  what differs); flags only a fault could see are assigned on the faulting slow paths only (:func:`_defer_flags`).
+  A memory write that hits compiled code sets ``D[0]`` (in the memory accessor); the block then leaves right
+  after that instruction, unless the write was to a constant address outside the block's own code
+  (:func:`_quiet_write`: this block's instructions did not change). Instructions the block compiler does not take (TRAP, ILLEGAL, constant
   odd branch targets) end the block; the CPU runs them through :mod:`isa.closures`.
 * The run loop starts a block only when ``bn >= info's most instructions`` and ``bc >`` the clock bound of one
   pass (:func:`_block_bound`) and ``until`` is not inside it: that keeps limits exact.
@@ -128,11 +134,21 @@ def _defer_flags(entries: list[_Entry], i: int, hi: int, role: dict[int, tuple[A
     return not uses and defs & _FLAGS_NZVC == _FLAGS_NZVC
 
 
-def _may_fault(ins: Instruction, h: str, facts: MapFacts | None = None, pc: int = 0) -> bool:
-    """True when the instruction can raise a CPU fault (memory access, divide, pushes/pops, computed jumps).
-    With ``facts``, an access to a constant address that the memory map guarantees (:class:`MapFacts`) does not
-    count (a read; a write still counts: if it hits compiled code the block leaves right after it, exposing SR),
-    nor does DIVU/DIVS by a nonzero immediate, LEA, or JMP to a constant (even) address."""
+def _quiet_write(address: int, n: int, facts: MapFacts, code: tuple[int, int]) -> bool:
+    """True when an ``n``-byte write at the constant ``address`` can never fault and never touches the block's
+    own code ``[code[0], code[1])``: it needs no fault path and no "leave the block" check (a write that hits
+    other compiled code drops that code; this block's instructions stay what they are)."""
+    a = address & 0xFFFFFF
+    return facts.writable(address, n) and (a + n <= code[0] or a >= code[1])
+
+
+def _may_fault(ins: Instruction, h: str, facts: MapFacts | None = None, pc: int = 0,
+               code: tuple[int, int] = (0, 1 << 24)) -> bool:
+    """True when the instruction can raise a CPU fault (memory access, divide, pushes/pops, computed jumps) or
+    leave the block after a write to its own code. With ``facts``, a read of a constant address that the memory
+    map guarantees (:class:`MapFacts`) does not count, nor does a write to such an address outside the block's
+    code ``code`` (:func:`_quiet_write`), DIVU/DIVS by a nonzero immediate, LEA, or JMP to a constant (even)
+    address."""
     ops = ins.operands
     if h in ("jsr", "rts", "bsr", "pea", "movem"):
         return True
@@ -148,9 +164,11 @@ def _may_fault(ins: Instruction, h: str, facts: MapFacts | None = None, pc: int 
             continue
         if facts is None or op.mode not in _CONST_MODES:
             return True
+        n = 2 if h in _SHIFT_NAMES else nb
         if k == len(ops) - 1 and h not in _READ_ONLY_DST:
-            return True  # a write: even where it cannot fault, a write to code leaves the block right after it
-        if not facts.readable(_const_addr(op, pc), 2 if h in _SHIFT_NAMES else nb):
+            if not _quiet_write(_const_addr(op, pc), n, facts, code):
+                return True  # may fault, or may rewrite this block (which then leaves right after it)
+        elif not facts.readable(_const_addr(op, pc), n):
             return True
     return False
 
@@ -160,8 +178,9 @@ class _BlockGen:
     ``sr``, data-dependent clocks accumulate in ``c``; every exit writes the registers back and returns
     ``next_pc | instructions << 24 | clocks << 56``."""
 
-    def __init__(self, facts: MapFacts) -> None:
+    def __init__(self, facts: MapFacts, code: tuple[int, int] = (0, 1 << 24)) -> None:
         self.facts = facts
+        self.code = code  # the block's own code bytes [start, end)
         self.known: dict[int, int] = {}
         self.wrote = False  # set by write(): the instruction writes memory; check D[0] after it
         self.u32: set[str] = set()  # temporaries of this instruction known to hold a masked 32-bit address
@@ -352,6 +371,9 @@ class _BlockGen:
             self.emit(f"    {setf}")
             self.emit(f"    {store}")
         self.emit("else:")
+        if const and _quiet_write(int(a), nb, self.facts, self.code):
+            self.emit(f"    {fn}({a}, {v})")  # first-write bookkeeping or other code dropped: no fault, no exit
+            return
         if self.pending is not None:
             self.emit(f"    sr = {self.pending}")
         self.emit(f"    {fn}({a}, {v})")
@@ -989,6 +1011,7 @@ def _plan(entries: list[_Entry]) -> tuple[dict[int, tuple[Any, ...]], list[bool]
 
 def _liveness(entries: list[_Entry], role: dict[int, tuple[Any, ...]], reach: list[bool], head: int | None,
               facts: MapFacts) -> list[int]:
+    code = (entries[0][0], entries[-1][0] + entries[-1][4])
     """Flags live after each entry (CCR bit masks): what a later instruction on any path inside the block reads,
     all flags at a block exit and around an instruction that may fault (a fault exposes SR)."""
     k = len(entries)
@@ -1000,7 +1023,7 @@ def _liveness(entries: list[_Entry], role: dict[int, tuple[Any, ...]], reach: li
             if not reach[i]:
                 continue
             pc, ins, h, cond, _ = entries[i]
-            faults = _may_fault(ins, h, facts, pc)
+            faults = _may_fault(ins, h, facts, pc, code)
             r = role.get(i)
             if r is None:
                 after = live_in[i + 1]
@@ -1029,7 +1052,7 @@ def _block_source(entries: list[_Entry], facts: MapFacts
     role, reach, head = _plan(entries)
     need = _liveness(entries, role, reach, head, facts)
     loops = head is not None
-    g = _BlockGen(facts)
+    g = _BlockGen(facts, (entries[0][0], entries[-1][0] + entries[-1][4]))
     prefix = [0] * k
     ncount = [0] * k
     marks: dict[int, int] = {}

@@ -6,9 +6,9 @@ data, bss, as RAM) and a stack of ``--stack-size`` bytes (default 64 KiB) below 
 plus every ``--map START:SIZE[:ro]`` given (``--map 0:0x1000000`` maps all 16 MiB as before); everything else is a
 bus error, so a program that runs off its end, or returns with nothing on the stack, stops at once with a bus
 error naming the PC, and memory stays bounded by what is mapped. It sets A7 to ``--stack`` and SR to ``$2700``,
-runs from the origin and prints D0-D7, A0-A7, PC, SR and the instruction and cycle totals. It exits 0 when the program stopped at a ``TRAP`` and 1 when it reached
-``--max-instructions`` / ``--max-cycles``; CPU faults and assembly errors exit 2 with one ``fwemu: error:`` line
-(plus the source line and a caret for assembly errors).
+runs from the origin and prints D0-D7, A0-A7, PC, SR and the instruction and cycle totals. It exits 0 when the
+program stopped at a ``TRAP`` and 1 when it reached ``--max-instructions`` / ``--max-cycles``; CPU faults and
+assembly errors exit 2 with one ``fwemu: error:`` line (plus the source line and a caret for assembly errors).
 """
 
 from __future__ import annotations
@@ -98,9 +98,10 @@ def register(subparsers: Any) -> None:
     p.set_defaults(func=cmd_asm)
 
     p = subparsers.add_parser("exec", help="assemble a 68000 source and run it to a TRAP or a limit",
-                              description="Assemble FILE.s, load it into a CPU with 16 MiB of RAM, run from the "
-                              "origin until TRAP #n or a limit, and print the registers and totals. Exit status 0 "
-                              "at a TRAP, 1 at a limit.")
+                              description="Assemble FILE.s, load it into a CPU that maps only its sections and a "
+                              "stack (--map adds memory; everything else is a bus error), run from the origin until "
+                              "TRAP #n or a limit, and print the registers and totals. Exit status 0 at a TRAP, 1 at "
+                              "a limit.")
     _add_source_args(p)
     p.add_argument("--max-instructions", type=_count, default=10_000_000, metavar="N",
                    help="stop after N instructions (default 10000000)")

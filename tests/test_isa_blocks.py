@@ -778,3 +778,34 @@ def test_division_clocks_inline_vs_m68000py(op: str) -> None:
         for divisor in (3, 0x9001, 0xFFFF, 0x8000, 0x8001, 7, 1000):
             m = oracles.Machine([dividend, divisor] + [0] * 6, [0x6000] * 7 + [0x6F00], 0, oracles.CODE, image)
             assert ours_blocks(m, end, 10) == ref_run(m, end, 10), (hex(dividend), hex(divisor))
+
+
+def test_constant_write_to_other_code_keeps_running_and_rewrites_it() -> None:
+    """A constant-address write outside the running block's own code (here: into a subroutine compiled earlier)
+    needs no block exit; the subroutine's compiled code is dropped and the rewritten instruction runs. A write
+    into the running block's own code still leaves the block (test_self_modifying_write_inside_loop)."""
+    src = """
+start:  moveq   #0,d1
+        bsr.s   sub             ; compiles and runs sub: d1 = 1
+        move.w  #$5283,patch    ; patch (in sub) becomes addq.l #1,d3
+        moveq   #5,d0
+        cmp.l   d0,d1
+        bsr.s   sub
+        trap    #0
+sub:    addq.l  #1,d1
+patch:  addq.l  #1,d2
+        rts
+"""
+    prog = isa.assemble(src, origin=oracles.CODE)
+    image = bytes(oracles.base_image(0, [(oracles.CODE, prog.code)]))
+    for limit in (3, 5, 7, 9, 11):
+        blocks, closures = _run_both(image, [0] * 8, [0x6000] * 7 + [0x6F00], 0,
+                                     {"max_instructions": limit, "stop_at_limit": True})
+        assert blocks == closures, limit
+    blocks, closures = _run_both(image, [0] * 8, [0x6000] * 7 + [0x6F00], 0, {})
+    assert blocks == closures
+    d = blocks[2]
+    assert blocks[0] == "ok" and blocks[1].reason == "trap"
+    # sub ran once unpatched (d2 += 1), then patched: once from the second BSR and once more when _run_both's
+    # second run goes on after the TRAP into sub (d3 += 1 each time)
+    assert d[1] == 3 and d[2] == 1 and d[3] == 2, d
