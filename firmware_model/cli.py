@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import re
 import sys
 from collections.abc import Sequence
 from typing import Any
@@ -32,6 +33,29 @@ COMMAND_MODULES: tuple[str, ...] = (
 )
 
 
+_ROLE = re.compile(r":[a-z]+:`~?(?:[\w.]*\.)?([^`<>]+?)`")
+_LITERAL = re.compile(r"``([^`]+)``")
+
+
+def plain(text: str | None) -> str | None:
+    """Help text without reST markup: ``x`` -> x, :func:`~a.b.f` -> f (docstrings double as --help)."""
+    if not text:
+        return text
+    return _LITERAL.sub(r"\1", _ROLE.sub(r"\1", text))
+
+
+def _clean_help(parser: argparse.ArgumentParser) -> None:
+    parser.description = plain(parser.description)
+    parser.epilog = plain(parser.epilog)
+    for action in parser._actions:
+        action.help = plain(action.help)
+        if isinstance(action, argparse._SubParsersAction):
+            for choice in action._choices_actions:
+                choice.help = plain(choice.help)
+            for sub in dict.fromkeys(action.choices.values()):
+                _clean_help(sub)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Build the ``fwemu`` argument parser from every module in :data:`COMMAND_MODULES`."""
     parser = argparse.ArgumentParser(prog="fwemu", description=__doc__.splitlines()[0] if __doc__ else None)
@@ -40,6 +64,7 @@ def build_parser() -> argparse.ArgumentParser:
     for name in COMMAND_MODULES:
         module = importlib.import_module(name)
         module.register(subparsers)
+    _clean_help(parser)
     return parser
 
 
@@ -129,10 +154,9 @@ def _run(argv: Sequence[str] | None, output: Any, user_errors: tuple[type[BaseEx
             parser = build_parser()
             args = parser.parse_args(argv)
             code = int(args.func(args) or 0)
-        except SystemExit as exc:  # argparse: --help, usage errors
-            code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
-            if not isinstance(exc.code, (int, type(None))):
-                _say(str(exc.code))
+        except SystemExit:  # argparse: --help, usage errors (exit 2); kept as SystemExit for callers of main()
+            sys.stdout.flush()
+            raise
         sys.stdout.flush()  # a full stdout (`> /dev/full`) fails here at the latest
         return code
     except user_errors as exc:

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from firmware_model.cli_args import nonnegative_int, positive_float
-from firmware_model.config import BuildConfig
+from firmware_model.config import load_config
 from firmware_model.errors import UserError
 
 #: Programs budgeted by default (the seed's literal listing is a counter-example, not firmware anyone ships).
@@ -42,14 +42,14 @@ def run_budget(args: argparse.Namespace) -> int:
     from firmware_model.build import build_firmware
 
     output.declare_output(args.out)
-    base = BuildConfig.from_file(args.config) if args.config else BuildConfig()
+    base = load_config(args.config, {"k": args.k, "rounding": args.rounding})
     programs = args.program or ([base.program] if args.config else list(DEFAULT_PROGRAMS))
-    changes = {key: value for key, value in (("k", args.k), ("rounding", args.rounding)) if value is not None}
+    configs = [load_config(args.config, {"program": name, "k": args.k, "rounding": args.rounding})
+               for name in programs]   # flags override the file; a program other than the file's is an error
     results = []
     builds = []
     show = sys.stderr.isatty()
-    for i, name in enumerate(programs, 1):
-        cfg = base.replace(program=name, **changes)
+    for i, (name, cfg) in enumerate(zip(programs, configs), 1):
         if show:
             print(f"\r[{i}/{len(programs)}] {name} k={cfg.k} {cfg.rounding} ...", end="", file=sys.stderr, flush=True)
         build = build_firmware(cfg)

@@ -4,8 +4,8 @@ Statistics per state word and per pair of variants: max |err|, RMS and bias (mea
 unit, unit = barometer count x BARO_SIGN) and in physical units (m, m/s, m/s^2 via ``units_per_metre``; the
 recursive VEL in counts x samples), plus the apogee sample index of each variant.
 
-``--bias-table`` prints the velocity bias that floor rounding puts into the Kalman filter vs half_up on a
-constant-acceleration input (docs/numerics.md, "Floor bias").
+``--bias-table [--program kalman_baro|kalman_accel]`` prints the bias that floor rounding puts into that Kalman
+filter's states vs half_up on a constant-acceleration input (docs/numerics.md, "Floor bias").
 """
 
 from __future__ import annotations
@@ -17,8 +17,9 @@ from typing import Any
 import numpy as np
 
 from firmware_model.cli_args import nonnegative_int
-from firmware_model.config import PROGRAMS, ROUNDINGS, BuildConfig
-from firmware_model.inputs import flight_params_for, read_stream_csv, synthetic_flight
+from firmware_model.config import PROGRAMS, ROUNDINGS, BuildConfig, load_config
+from firmware_model.errors import UserError
+from firmware_model.inputs import ACC_PROGRAMS, flight_params_for, read_stream_csv, synthetic_flight
 
 
 
@@ -26,15 +27,17 @@ def register(subparsers: Any) -> None:
     """Add the ``compare`` subcommand to an argparse ``subparsers`` object."""
     p = subparsers.add_parser("compare", help="integer model vs float mirror vs ideal filter error statistics",
                               description=__doc__.splitlines()[0])
-    p.add_argument("--config", type=Path, help="build config JSON (overrides --program/--k/--rounding)")
-    p.add_argument("--program", choices=PROGRAMS, default="kalman_baro")
-    p.add_argument("--k", type=int, default=7, help="sample period 2^-k s (0..10)")
-    p.add_argument("--rounding", choices=ROUNDINGS, default="floor")
+    p.add_argument("--config", type=Path, help="build config JSON (flags override its values; a different "
+                                               "--program is an error)")
+    p.add_argument("--program", choices=PROGRAMS, help="program (default: the config's, else kalman_baro)")
+    p.add_argument("--k", type=int, help="sample period 2^-k s (0..10; default: the config's, else 7)")
+    p.add_argument("--rounding", choices=ROUNDINGS, help="rounding (default: the config's, else floor)")
     src = p.add_mutually_exclusive_group()
     src.add_argument("--input", type=Path, help="CSV with an 'adc' column and optionally an 'acc' column")
     src.add_argument("--synthetic", type=nonnegative_int, metavar="SEED", help="a synthetic flight from this seed (default 0)")
     src.add_argument("--bias-table", action="store_true",
-                     help="print the floor-vs-half_up Kalman velocity bias table for k = 5..8 and exit")
+                     help="print the floor-vs-half_up bias table of --program (kalman_baro or kalman_accel) "
+                          "for k = 5..8 and exit")
     p.set_defaults(func=run)
 
 
@@ -98,37 +101,73 @@ def format_report(cfg: BuildConfig, result: dict[str, Any]) -> str:
 
 
 # ---------------------------------------------------------------------------------------------------- bias table
-def bias_table(ks: tuple[int, ...] = (5, 6, 7, 8), accel_units: float = 8.0, seconds: float = 40.0) -> str:
-    """Bias (mean of integer minus float mirror over the second half) of the kalman_baro states on a
+#: Programs the floor-bias table is defined for (the Kalman filters; the recursive filters have their own bound).
+BIAS_PROGRAMS: tuple[str, ...] = ("kalman_baro", "kalman_accel")
+
+
+def bias_table(program: str = "kalman_baro", ks: tuple[int, ...] = (5, 6, 7, 8), accel_units: float = 8.0,
+               seconds: float = 40.0) -> str:
+    """Bias (mean of integer minus float mirror over the second half) of the states of ``program`` on a
     constant-acceleration input ``z = a t^2 / 2`` (a = ``accel_units`` units/s^2) plus Gaussian noise of 2 counts
-    (8 streams, seed 0), for floor and half_up, next to the linear steady-state prediction ``(I - A)^-1 ((I - KH)
-    u + r)`` with uniform rounding errors (floor: mean -1/2 LSB per shift; half_up: 0) and DESIGN.md §6's
-    prediction for the velocity, ``1/2 * 2^k / 256`` units/s = ``2^(k-1)`` LSB."""
+    (8 streams, seed 0), for floor and half_up, next to the linear steady-state prediction ``(I - (I-KH)F)^-1
+    ((I-KH) u + r)`` with uniform rounding errors (floor: mean -1/2 LSB per shift; half_up: 0) and the design
+    brief's prediction for the velocity, ``1/2 * 2^k / 256`` units/s = ``2^(k-1)`` LSB.
+
+    ``kalman_accel`` also gets a consistent accelerometer stream: at rest (1 g) at sample 0, then 1 g + a, with
+    20 counts of noise (seed 1); its prediction adds the second rounded correction per state and the rounding of
+    the accelerometer term through the second gain column. The first line names the program and the input."""
     from firmware_model.constants import build_constants
+    from firmware_model.errors import UserError
+    from firmware_model.inputs import G0
     from firmware_model.model import run_model
     from firmware_model.reference import mirror
 
-    rows = ["| k | rounding | X1 bias (LSB) | X2 bias (LSB) | X2 bias (units/s) | X3 bias (LSB) "
-            "| linear prediction X1, X2, X3 (LSB) | DESIGN §6 X2 (LSB) |", "|---|---|---|---|---|---|---|---|"]
+    if program not in BIAS_PROGRAMS:
+        raise UserError(f"compare --bias-table: the floor-bias table is for {', '.join(BIAS_PROGRAMS)}, "
+                        f"not {program}")
+    accel = program == "kalman_accel"
+    first = BuildConfig(program=program, baro_sign=1)
+    rows = [f"{program}: z = {accel_units:g}/2 t^2 + 1000 counts + N(0, 2) noise"
+            + (f", acc = 1 g + {accel_units / first.units_per_metre:.4g} m/s^2 + N(0, 20) counts"
+               if accel else "")
+            + f", {seconds:g} s x 8 streams; bias = mean(integer - float mirror) over the second half",
+            "",
+            "| k | rounding | X1 bias (LSB) | X2 bias (LSB) | X2 bias (units/s) | X3 bias (LSB) "
+            "| linear prediction X1, X2, X3 (LSB) | design brief X2 (LSB) |", "|---|---|---|---|---|---|---|---|"]
     for k in ks:
         n = int(seconds * 2 ** k)
         t = np.arange(n) / 2 ** k
         rng = np.random.default_rng(0)
         z = np.round(0.5 * accel_units * t[None, :] ** 2 + 1000 + rng.normal(0, 2, (8, n))).astype(np.int64)
+        acc = None
+        if accel:
+            a_mps2 = accel_units / first.units_per_metre
+            rest = G0 * first.accel_counts_per_mps2
+            acc_f = rest + a_mps2 * first.accel_counts_per_mps2 + np.random.default_rng(1).normal(0, 20, (8, n))
+            acc_f[:, 0] = rest
+            acc = np.clip(np.round(acc_f), -32768, 32767).astype(np.int64)
         for rounding in ROUNDINGS:
-            cfg = BuildConfig(program="kalman_baro", k=k, rounding=rounding, baro_sign=1)
+            cfg = BuildConfig(program=program, k=k, rounding=rounding, baro_sign=1)
             consts = build_constants(cfg)
-            fx = run_model(consts, z)
-            fm = mirror(consts, z)
+            fx = run_model(consts, z, acc)
+            fm = mirror(consts, z, acc)
             half = slice(n // 2, n)
             b = [float(np.mean(fx.column(s)[:, half] - fm.column(s)[:, half])) for s in ("X1", "X2", "X3")]
             dt = 2.0 ** -k
             F = np.array([[1, dt, dt * dt / 2], [0, 1, dt], [0, 0, 1]])
-            Kf = np.array([[consts.float_gains[g]] for g in ("G11", "G21", "G31")])
-            IKH = np.eye(3) - Kf @ np.array([[1.0, 0.0, 0.0]])
             m = 0.5 if rounding == "floor" else 0.0
             u = -m * np.array([2.0, 1.0, 0.0])
-            r = -m * np.ones(3)
+            K1 = np.array([consts.float_gains[g] for g in ("G11", "G21", "G31")])
+            if accel:
+                K2 = np.array([consts.float_gains[g] for g in ("G12", "G22", "G32")])
+                Kf = np.stack([K1, K2], axis=1)
+                H = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+                r = -m * 2 * np.ones(3) + K2 * -m      # two rounded corrections per state; rounded acc term
+            else:
+                Kf = K1[:, None]
+                H = np.array([[1.0, 0.0, 0.0]])
+                r = -m * np.ones(3)
+            IKH = np.eye(3) - Kf @ H
             pred = np.linalg.solve(np.eye(3) - IKH @ F, IKH @ u + r)
             rows.append(f"| {k} | {rounding} | {b[0]:.1f} | {b[1]:.1f} | {b[1] / 256:.3f} | {b[2]:.1f} | "
                         f"{pred[0]:.1f}, {pred[1]:.1f}, {pred[2]:.1f} | {2 ** (k - 1)} |")
@@ -138,14 +177,14 @@ def bias_table(ks: tuple[int, ...] = (5, 6, 7, 8), accel_units: float = 8.0, sec
 def run(args: argparse.Namespace) -> int:
     """Entry point of ``fwemu compare``; prints the report to stdout and returns 0."""
     if args.bias_table:
-        print(bias_table())
+        if args.input is not None or args.config is not None:
+            raise UserError("compare: --bias-table uses its own constant-acceleration input and default builds; "
+                            "drop --input/--config")
+        print(bias_table(args.program or "kalman_baro"))
         return 0
-    if args.config is not None:
-        cfg = BuildConfig.from_file(args.config)
-    else:
-        cfg = BuildConfig(program=args.program, k=args.k, rounding=args.rounding)
+    cfg = load_config(args.config, {"program": args.program, "k": args.k, "rounding": args.rounding})
     if args.input is not None:
-        stream = read_stream_csv(args.input, cfg.baro_bits, cfg.k)
+        stream = read_stream_csv(args.input, cfg.baro_bits, cfg.k, require_acc=cfg.program in ACC_PROGRAMS)
         true_ap = None
     else:
         stream = synthetic_flight(cfg.k, cfg.baro_bits, 0 if args.synthetic is None else args.synthetic,

@@ -2,7 +2,7 @@
 
 Prints the float (design) gains, the quantized gains (mantissa m, shift s, represented value m/2^s, relative
 error), every assembler equate, and the closed-loop poles of the float and quantized filters; ``--json`` prints
-:func:`firmware_model.design.design_report` instead.
+:func:`firmware_model.design_report.design_report` instead.
 """
 
 from __future__ import annotations
@@ -12,8 +12,8 @@ import json
 import sys
 from typing import Any
 
-from firmware_model.config import NOISE_MODELS, PROGRAMS, ROUNDINGS, BuildConfig
-from firmware_model.design import design_report
+from firmware_model.config import NOISE_MODELS, PROGRAMS, ROUNDINGS, BuildConfig, load_config
+from firmware_model.design_report import design_report
 
 #: Units of each gain (multiplying a Q24.8 innovation gives a Q24.8 state).
 GAIN_UNITS: dict[str, str] = {
@@ -38,15 +38,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def config_from_args(args: argparse.Namespace) -> BuildConfig:
     """The build config named by ``--config`` (default config when absent) with the command-line overrides
-    applied; invalid values raise :class:`~firmware_model.errors.UserError` naming the field."""
-    cfg = BuildConfig.from_file(args.config) if args.config else BuildConfig()
-    overrides: dict[str, Any] = {}
-    for attr, field in (("program", "program"), ("k", "k"), ("rounding", "rounding"), ("ratio", "ratio"),
-                        ("noise_model", "noise_model")):
-        value = getattr(args, attr, None)
-        if value is not None:
-            overrides[field] = value
-    return cfg.replace(**overrides) if overrides else cfg
+    applied (flags override the file; a different program is an error: :func:`firmware_model.config.load_config`);
+    invalid values raise :class:`~firmware_model.errors.UserError` naming the field."""
+    overrides: dict[str, Any] = {field: getattr(args, attr, None) for attr, field in (
+        ("program", "program"), ("k", "k"), ("rounding", "rounding"), ("ratio", "ratio"),
+        ("noise_model", "noise_model"))}
+    return load_config(args.config, overrides)
 
 
 def _fmt_pole(p: dict[str, float]) -> str:

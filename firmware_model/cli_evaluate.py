@@ -38,6 +38,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     p.add_argument("--methods", action="append",
                    help="comma-separated methods (default all: rec_half, rec_quarter, rec_eighth, kalman_baro, "
                         "kalman_accel, ideal_kalman)")
+    p.add_argument("--tuning", choices=("default", "recommended"), default="default",
+                   help="default: the BuildConfig defaults; recommended: firmware_model.tuning.RECOMMENDED per "
+                        "program and k (k without an entry keeps the defaults)")
     p.add_argument("--out", type=Path, default=Path("out/evaluate"), help="output folder (default out/evaluate)")
     p.set_defaults(func=run_evaluate)
 
@@ -68,7 +71,8 @@ def run_evaluate(args: argparse.Namespace) -> int:
     methods = methods_named(args.methods)
     overrides = {"rounding": args.rounding} if args.rounding else {}
     command = "fwemu " + " ".join(shlex.quote(a) for a in sys.argv[1:]) if sys.argv[1:2] == ["evaluate"] else None
-    results = evaluate_many(specs, methods, overrides, jobs=args.jobs, progress=progress_printer("evaluate"))
+    results = evaluate_many(specs, methods, overrides, jobs=args.jobs, progress=progress_printer("evaluate"),
+                            tuning=args.tuning)
     files = table_files(results, command)
     with staged_folder(args.out) as stage:
         for name, data in files.items():

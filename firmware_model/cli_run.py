@@ -88,18 +88,19 @@ def resolve_firmware(name: str) -> Any:
 
 
 def burnout_time(record: Any, liftoff_s: float | None) -> float | None:
-    """First time after the peak of the axial specific force (after liftoff) at which it falls below 0 m/s^2
-    (drag decelerates the coasting rocket), or None without an accelerometer."""
+    """First time at or after liftoff at which the axial specific force, averaged over 5 log rows, falls below
+    0 m/s^2 (thrust gone, drag decelerating the coasting rocket), or None without an accelerometer. (Not "after the
+    peak": on real logs the largest reading can be the ejection charge's shock at apogee.)"""
     f = record.specific_force_mps2()
     if f is None or liftoff_s is None:
         return None
     t = np.asarray(record.time_s)
-    sel = np.nonzero((t >= liftoff_s - 1.0) & np.isfinite(f))[0]
-    if sel.size == 0:
+    f = np.where(np.isfinite(f), f, np.nan)
+    if f.size < 5:
         return None
-    peak = sel[int(np.argmax(f[sel]))]
-    after = np.nonzero((np.arange(t.size) > peak) & (f < 0.0))[0]
-    return float(t[after[0]]) if after.size else None
+    mean5 = np.convolve(np.nan_to_num(f, nan=1.0), np.ones(5) / 5.0, mode="valid")   # row i..i+4
+    hit = np.nonzero((t[: mean5.size] >= liftoff_s) & (mean5 < 0.0))[0]
+    return float(t[hit[0]]) if hit.size else None
 
 
 def run_run(args: argparse.Namespace) -> int:
@@ -163,7 +164,7 @@ def summary(table: Any, record: Any, inputs: Any, cfg: Any, engine: str, elapsed
     lines.append(f"liftoff: {at('LIFTOFF')}")
     burn = burnout_time(record, marks.get("LIFTOFF"))
     lines.append("burnout: " + ("— (no accelerometer, or no coast)" if burn is None else
-                                f"{burn:.3f} s (axial specific force below 0 after its peak)"))
+                                f"{burn:.3f} s (axial specific force below 0 after liftoff)"))
     apo = marks.get("APOGEE")
     if apo is None:
         lines.append("apogee: never declared")

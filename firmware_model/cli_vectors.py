@@ -30,6 +30,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--generator", choices=("emulation", "model"), default="emulation",
                    help="emulation: 68000 firmware on the emulated CPU, cross-checked against the integer model "
                         "(default); model: the integer model only (marked as such in every file)")
+    p.add_argument("--no-header", action="store_true",
+                   help="with --firmware: write the case JSON only, no C header (for streams longer than a C "
+                        "header may hold, see docs/vectors.md Limits)")
     p.add_argument("--jobs", type=positive_int, default=1, metavar="N",
                    help="worker processes for --all (default 1; output byte-identical to --jobs 1)")
     p.set_defaults(func=run)
@@ -49,14 +52,18 @@ def run(args: argparse.Namespace) -> int:
         raise UserError("vectors: --out DIR is required")
     output.declare_output(args.out)
     if args.all:
-        if args.input or args.config:
-            raise UserError("vectors: --input/--config go with --firmware, not --all (the committed matrix is fixed)")
+        if args.input or args.config or args.no_header:
+            raise UserError("vectors: --input/--config/--no-header go with --firmware, not --all (the committed "
+                            "matrix is fixed)")
         files = vectors.generate_all(args.out, args.generator, jobs=args.jobs)
     else:
         if not args.input:
             raise UserError("vectors: --firmware needs --input FILE.csv")
-        files = vectors.generate_user(args.firmware, args.input, args.out, args.config, args.generator)
+        from firmware_model import vectors_stream
+
+        files = vectors_stream.generate_user(args.firmware, args.input, args.out, args.config, args.generator,
+                                             header=not args.no_header)
     n_cases = sum(1 for name in files if name.endswith(".json") and name.startswith("cases/"))
-    size = sum(len(data) for data in files.values())
+    size = sum(data if isinstance(data, int) else len(data) for data in files.values())
     print(f"wrote {n_cases} case(s), {len(files)} files, {size / 1e6:.2f} MB to {args.out}", file=sys.stderr)
     return 0

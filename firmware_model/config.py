@@ -20,7 +20,7 @@ from firmware_model.errors import UserError
 PROGRAMS: tuple[str, ...] = ("recursive", "kalman_baro", "kalman_accel", "recursive_seed_literal")
 #: Rounding modes for every right shift (docs/firmware-spec.md §1).
 ROUNDINGS: tuple[str, ...] = ("floor", "half_up")
-#: Process-noise models for the gain design (DESIGN.md §6).
+#: Process-noise models for the gain design (docs/gain-design.md).
 NOISE_MODELS: tuple[str, ...] = ("accel_only", "jerk", "dwna")
 
 
@@ -96,15 +96,27 @@ class BuildConfig:
         def bad(name: str, why: str) -> UserError:
             return UserError(f"build config: {name}={getattr(self, name)!r}: {why}")
 
-        if self.program not in PROGRAMS:
+        for name in ("k", "baro_bits", "baro_sign", "shift", "threshold_q8", "baro_min", "baro_max"):
+            if isinstance(getattr(self, name), bool):
+                raise bad(name, "must be an integer, not true/false")
+        for name in ("units_per_metre", "accel_counts_per_mps2", "ratio", "baro_sigma", "accel_sigma", "gate_mps",
+                     "liftoff_mps", "mach_lo_mps", "mach_hi_mps", "mach_innov_m"):
+            if isinstance(getattr(self, name), bool):
+                raise bad(name, "must be a number, not true/false")
+        for name in ("baro_min", "baro_max"):
+            if getattr(self, name) is not None and not isinstance(getattr(self, name), int):
+                raise bad(name, "must be an integer ADC code or null")
+        if not isinstance(self.extra, dict):
+            raise bad("extra", "must be a JSON object (free-form notes carried into the vectors' build_config)")
+        if not isinstance(self.program, str) or self.program not in PROGRAMS:
             raise bad("program", f"must be one of {', '.join(PROGRAMS)}")
         if not isinstance(self.k, int) or not 0 <= self.k <= 10:
             raise bad("k", "sample period 2^-k needs an integer k in 0..10")
-        if self.rounding not in ROUNDINGS:
+        if not isinstance(self.rounding, str) or self.rounding not in ROUNDINGS:
             raise bad("rounding", f"must be one of {', '.join(ROUNDINGS)}")
         if not isinstance(self.baro_bits, int) or not 8 <= self.baro_bits <= 16:
             raise bad("baro_bits", "barometer ADC width must be 8..16 bits")
-        if self.baro_sign not in (1, -1):
+        if not isinstance(self.baro_sign, int) or self.baro_sign not in (1, -1):
             raise bad("baro_sign", "must be +1 or -1")
         for name in ("units_per_metre", "accel_counts_per_mps2", "ratio", "baro_sigma", "accel_sigma"):
             value = getattr(self, name)
@@ -114,7 +126,7 @@ class BuildConfig:
             raise bad("shift", "recursive filter shift S must be 1..8 (ADC << (8-S) must be a left shift)")
         if not isinstance(self.threshold_q8, int) or not 1 <= self.threshold_q8 <= 1 << 20:
             raise bad("threshold_q8", "apogee threshold must be 1..2^20 (Q24.8)")
-        if self.noise_model not in NOISE_MODELS:
+        if not isinstance(self.noise_model, str) or self.noise_model not in NOISE_MODELS:
             raise bad("noise_model", f"must be one of {', '.join(NOISE_MODELS)}")
         for name in ("gate_mps", "liftoff_mps", "mach_lo_mps", "mach_hi_mps", "mach_innov_m"):
             value = getattr(self, name)
@@ -208,14 +220,91 @@ class BuildConfig:
 
     @classmethod
     def from_file(cls, path: str | Path) -> BuildConfig:
-        """Read a config from a JSON file; errors name the file."""
-        path = Path(path)
-        try:
-            data = json.loads(path.read_text())
-        except FileNotFoundError:
-            raise UserError(f"{path}: no such build config file") from None
-        except json.JSONDecodeError as exc:
-            raise UserError(f"{path}:{exc.lineno}:{exc.colno}: invalid JSON: {exc.msg}") from None
-        if not isinstance(data, dict):
-            raise UserError(f"{path}: a build config must be a JSON object")
-        return cls.from_dict(data, where=str(path))
+        """Read a config from a JSON file (see :func:`read_config_file`); errors name the file."""
+        return cls.from_dict(read_config_file(path), where=str(path))
+
+
+#: Smallest tuning ratio R/q inside the documented input range (docs/numerics.md: no wrap-around above it).
+MIN_RATIO: dict[str, float] = {"kalman_baro": 1e3, "kalman_accel": 10.0}
+
+
+def check_documented_range(cfg: BuildConfig, where: str = "build config") -> None:
+    """Refuse user settings outside the documented input range (docs/numerics.md "No wrap-around"): a Kalman
+    tuning ratio R/q below :data:`MIN_RATIO` (gains so large that the states can wrap around int32)."""
+    low = MIN_RATIO.get(cfg.program)
+    if low is not None and cfg.ratio < low:
+        raise UserError(f"{where}: ratio={cfg.ratio!r} is below the documented range for {cfg.program} "
+                        f"(R/q >= {low:g}; below it the integer states can wrap around, docs/numerics.md)")
+
+
+def _line_of_key(text: str, key: str, occurrence: int) -> int:
+    """1-based line of the ``occurrence``-th ``"key":`` in ``text`` (0 when not found)."""
+    import re
+
+    hits = [m.start() for m in re.finditer(re.escape(json.dumps(key)) + r"\s*:", text)]
+    if len(hits) >= occurrence:
+        return text.count("\n", 0, hits[occurrence - 1]) + 1
+    return 0
+
+
+def read_config_file(path: str | Path) -> dict[str, Any]:
+    """The JSON object of a build-config file. UTF-8 (a byte-order mark is accepted); duplicate keys, a
+    non-object top level, invalid JSON or undecodable bytes raise :class:`UserError` naming the file (and line)."""
+    path = Path(path)
+    try:
+        raw = path.read_bytes()
+    except FileNotFoundError:
+        raise UserError(f"{path}: no such build config file") from None
+    except IsADirectoryError:
+        raise UserError(f"{path}: is a folder, not a build config file") from None
+    except OSError as exc:
+        raise UserError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = raw.count(b"\n", 0, exc.start) + 1
+        raise UserError(f"{path}:{line}: not UTF-8 text (byte 0x{raw[exc.start]:02x})") from None
+    dupes: list[str] = []
+
+    def pairs(items: list[tuple[str, Any]]) -> dict[str, Any]:
+        seen: dict[str, Any] = {}
+        for key, value in items:
+            if key in seen and not dupes:
+                dupes.append(key)
+            seen[key] = value
+        return seen
+
+    try:
+        data = json.loads(text, object_pairs_hook=pairs)
+    except json.JSONDecodeError as exc:
+        raise UserError(f"{path}:{exc.lineno}:{exc.colno}: invalid JSON: {exc.msg}") from None
+    except RecursionError:
+        raise UserError(f"{path}: invalid JSON: nested too deeply") from None
+    if dupes:
+        line = _line_of_key(text, dupes[0], 2)
+        raise UserError(f"{path}{f':{line}' if line else ''}: duplicate key {dupes[0]!r} (JSON keys must be unique)")
+    if not isinstance(data, dict):
+        raise UserError(f"{path}: a build config must be a JSON object")
+    return data
+
+
+def load_config(path: str | Path | None = None, overrides: dict[str, Any] | None = None,
+                flag_names: dict[str, str] | None = None) -> BuildConfig:
+    """The build config of a command: the file ``path`` (default: the :class:`BuildConfig` defaults), then the
+    command-line ``overrides`` (``None`` values = not given) on top. One rule for every command: **flags override
+    the file**, except that a flag naming a different ``program`` than the file is a contradiction and an error
+    (a config file is tuned for the program it names). ``flag_names`` maps a field to its flag for messages
+    (``{"program": "--firmware"}``). The result is validated and checked against the documented range
+    (:func:`check_documented_range`)."""
+    given = {key: value for key, value in (overrides or {}).items() if value is not None}
+    names = {"program": "--program"} | (flag_names or {})
+    where = str(path) if path is not None else "build config"
+    data: dict[str, Any] = {}
+    if path is not None:
+        data = read_config_file(path)
+        if "program" in data and "program" in given and data["program"] != given["program"]:
+            raise UserError(f"{path}: program={data['program']!r} contradicts {names['program']} "
+                            f"{given['program']}; a build config is tuned for one program: drop one of them")
+    cfg = BuildConfig.from_dict(data | given, where=where)
+    check_documented_range(cfg, where)
+    return cfg

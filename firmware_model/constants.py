@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 from fractions import Fraction
 
 from firmware_model.config import BuildConfig
+from firmware_model.design import describe, float_gains
 from firmware_model.errors import UserError
 
 #: Largest gain shift (docs/firmware-spec.md §1 mulg).
@@ -180,8 +181,6 @@ def build_constants(cfg: BuildConfig) -> FirmwareConstants:
 
     Raises :class:`UserError` naming the config and field for a degenerate design, an unrepresentable gain or a
     threshold that does not fit int32."""
-    from firmware_model.design import describe, float_gains  # local: design imports config only
-
     if not isinstance(cfg, BuildConfig):
         raise UserError(f"build_constants needs a BuildConfig, got {type(cfg).__name__}")
     where = describe(cfg)

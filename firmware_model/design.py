@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
@@ -297,36 +296,3 @@ def closed_loop_poles(ss: SteadyState, K: np.ndarray | None = None) -> np.ndarra
     K = ss.K if K is None else np.asarray(K, dtype=np.float64)
     poles = np.linalg.eigvals((np.eye(3) - K @ ss.H) @ ss.F)
     return poles[np.argsort(-np.abs(poles), kind="stable")]
-
-
-def _poles_json(poles: np.ndarray) -> list[dict[str, float]]:
-    return [{"re": float(p.real), "im": float(p.imag), "abs": float(abs(p))} for p in poles]
-
-
-def design_report(cfg: BuildConfig) -> dict[str, Any]:
-    """A JSON-ready report of the build: config, float gains, quantized gains (m, s, value, rel_error), equates,
-    the closed-loop poles of the float and of the quantized design, and the steady-state standard deviations
-    (a posteriori, in units, units/s, units/s^2)."""
-    from firmware_model.constants import build_constants  # local: constants imports this module
-
-    consts = build_constants(cfg)
-    report: dict[str, Any] = {
-        "config": cfg.to_dict(),
-        "dt": cfg.dt,
-        "float_gains": dict(consts.float_gains),
-        "gains": {name: {"m": g.m, "s": g.s, "value": g.value, "target": g.target, "rel_error": g.rel_error}
-                  for name, g in consts.gains.items()},
-        "equates": consts.equates(),
-    }
-    if cfg.program in ("kalman_baro", "kalman_accel"):
-        ss = design_config(cfg)
-        cols = [GAIN_NAMES_BARO] + ([GAIN_NAMES_ACCEL] if cfg.program == "kalman_accel" else [])
-        Kq = np.array([[consts.gains[col[i]].value for col in cols] for i in range(3)])
-        report["noise"] = {"model": cfg.noise_model, "q": cfg.baro_sigma**2 / cfg.ratio,
-                           "R": ss.R.tolist(), "Q": ss.Q.tolist()}
-        report["poles"] = _poles_json(ss.poles)
-        report["poles_quantized"] = _poles_json(closed_loop_poles(ss, Kq))
-        report["sigma_post"] = [float(math.sqrt(max(v, 0.0))) for v in np.diag(ss.P_post)]
-        report["doublings"] = ss.iterations
-        report["residual"] = ss.residual
-    return report

@@ -318,61 +318,142 @@ def flight_params_for(cfg: BuildConfig, fast: bool = False) -> FlightParams:
     return FlightParams(**sensors)
 
 
-def read_stream_csv(path: str | Path, bits: int, k: int) -> Stream:
-    """Read a user stream from CSV: a header row naming ``adc`` and optionally ``acc`` (other columns ignored),
-    then one integer sample per row. Errors name the file and line: missing columns, empty file, non-integer or
-    out-of-range values (adc 0..2^bits-1, acc -32768..32767)."""
+#: Programs whose firmware reads the accelerometer register (a user CSV for them must have an ``acc`` column).
+ACC_PROGRAMS: tuple[str, ...] = ("recursive", "kalman_accel")
+#: Samples per chunk when a CSV is read in chunks (:func:`iter_stream_csv`).
+CSV_CHUNK: int = 65536
+
+
+@dataclass
+class CsvInfo:
+    """What :func:`iter_stream_csv` learned about a user CSV: ``n`` samples, whether it has an ``acc`` column,
+    the SHA-256 of the file's bytes (filled in when the last chunk has been read) and its provenance dict."""
+
+    path: Path
+    bits: int
+    k: int
+    has_acc: bool = False
+    n: int = 0
+    sha256: str = ""
+
+    def provenance(self) -> dict[str, Any]:
+        return {"generator": "user CSV", "file": self.path.name, "sha256": self.sha256, "n": self.n,
+                "bits": self.bits, "k": self.k, "seed": None, "columns": "adc,acc" if self.has_acc else "adc"}
+
+
+def _file_sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with path.open("rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def iter_stream_csv(path: str | Path, bits: int, k: int, require_acc: bool = False, chunk: int = CSV_CHUNK,
+                    info: CsvInfo | None = None):  # -> Iterator[tuple[np.ndarray, np.ndarray]]
+    """Read a user stream from CSV in chunks of up to ``chunk`` samples, in constant memory: yields
+    ``(adc, acc)`` int64 arrays. The file: UTF-8 (a byte-order mark, as Excel writes, is accepted), ``#`` lines
+    and blank lines ignored, a header row naming ``adc`` and optionally ``acc`` (other columns ignored; each name
+    at most once), then one integer sample per row. ``require_acc``: the program reads the accelerometer, so a
+    missing ``acc`` column is an error (it would silently read zeros). Pass a :class:`CsvInfo` as ``info`` to
+    learn the count, columns and SHA-256. Errors (:class:`UserError`) name the file and line: missing or
+    duplicate columns, wrong field count, non-integer or out-of-range values (adc 0..2^bits-1, acc
+    -32768..32767), undecodable bytes, an empty file, no samples."""
     path = Path(path)
+    info = info if info is not None else CsvInfo(path, bits, k)
+    full = (1 << bits) - 1
     try:
-        text = path.read_text()
+        f = path.open("rb")
     except FileNotFoundError:
         raise UserError(f"{path}: no such input file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise UserError(f"{path}: cannot read ({exc})") from None
-    reader = csv.reader(text.splitlines())
+    except IsADirectoryError:
+        raise UserError(f"{path}: is a folder, not an input file") from None
+    except OSError as exc:
+        raise UserError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    lineno = 0
     header: list[str] | None = None
+    i_adc = 0
+    i_acc: int | None = None
     adc: list[int] = []
     acc: list[int] = []
-    full = (1 << bits) - 1
-    for lineno, row in enumerate(reader, start=1):
-        cells = [c.strip() for c in row]
-        if not cells or all(c == "" for c in cells) or cells[0].startswith("#"):
-            continue
-        if header is None:
-            header = [c.lower() for c in cells]
-            if "adc" not in header:
-                raise UserError(f"{path}:{lineno}: header must name an 'adc' column (and optionally 'acc'); "
-                                f"got {', '.join(cells)}")
-            i_adc = header.index("adc")
-            i_acc = header.index("acc") if "acc" in header else None
-            continue
-        if len(cells) != len(header):
-            raise UserError(f"{path}:{lineno}: expected {len(header)} fields, got {len(cells)}")
-        values = []
-        for col, lo, hi in (("adc", 0, full), ("acc", -32768, 32767)):
-            idx = i_adc if col == "adc" else i_acc
-            if idx is None:
-                values.append(0)
-                continue
-            cell = cells[idx]
+    def text_lines():  # decoded line by line, so an undecodable byte is reported with its line
+        for raw_no, raw in enumerate(f, start=1):
+            if raw_no == 1 and raw.startswith(b"\xef\xbb\xbf"):
+                raw = raw[3:]                      # UTF-8 byte-order mark (Excel's "CSV UTF-8")
             try:
-                v = int(cell, 10)
-            except ValueError:
-                raise UserError(f"{path}:{lineno}: {col}={cell!r} is not an integer") from None
-            if not lo <= v <= hi:
-                raise UserError(f"{path}:{lineno}: {col}={v} outside [{lo}, {hi}]"
-                                + (f" ({bits}-bit barometer ADC)" if col == "adc" else ""))
-            values.append(v)
-        adc.append(values[0])
-        acc.append(values[1])
+                yield raw.decode("utf-8")
+            except UnicodeDecodeError as exc:
+                raise UserError(f"{path}:{raw_no}: not UTF-8 text (byte 0x{raw[exc.start]:02x})") from None
+
+    try:
+        with f:
+            reader = csv.reader(text_lines())
+            while True:
+                try:
+                    row = next(reader)
+                except StopIteration:
+                    break
+                except csv.Error as exc:
+                    raise UserError(f"{path}:{reader.line_num}: malformed CSV: {exc}") from None
+                lineno = reader.line_num
+                cells = [c.strip() for c in row]
+                if not cells or all(c == "" for c in cells) or cells[0].startswith("#"):
+                    continue
+                if header is None:
+                    header = [c.lower() for c in cells]
+                    if "adc" not in header:
+                        shown = ", ".join(repr(c) for c in cells[:8]) + (", ..." if len(cells) > 8 else "")
+                        raise UserError(f"{path}:{lineno}: header must name an 'adc' column (and optionally "
+                                        f"'acc'); got {shown[:200]}")
+                    dupes = sorted({c for c in header if c and header.count(c) > 1})
+                    if dupes:
+                        raise UserError(f"{path}:{lineno}: duplicate column {dupes[0]!r} in the header")
+                    i_adc = header.index("adc")
+                    i_acc = header.index("acc") if "acc" in header else None
+                    info.has_acc = i_acc is not None
+                    if require_acc and i_acc is None:
+                        raise UserError(f"{path}:{lineno}: this program reads the accelerometer: the header needs "
+                                        f"an 'acc' column (counts, -32768..32767)")
+                    continue
+                if len(cells) != len(header):
+                    raise UserError(f"{path}:{lineno}: expected {len(header)} fields, got {len(cells)}")
+                for col, idx, lo, hi, dest in (("adc", i_adc, 0, full, adc), ("acc", i_acc, -32768, 32767, acc)):
+                    if idx is None:
+                        dest.append(0)
+                        continue
+                    cell = cells[idx]
+                    try:
+                        v = int(cell, 10)
+                    except ValueError:
+                        raise UserError(f"{path}:{lineno}: {col}={cell[:40]!r} is not an integer") from None
+                    if not lo <= v <= hi:
+                        raise UserError(f"{path}:{lineno}: {col}={v} outside [{lo}, {hi}]"
+                                        + (f" ({bits}-bit barometer ADC)" if col == "adc" else ""))
+                    dest.append(v)
+                if len(adc) >= chunk:
+                    info.n += len(adc)
+                    yield np.array(adc, np.int64), np.array(acc, np.int64)
+                    adc, acc = [], []
+    except OSError as exc:
+        raise UserError(f"{path}:{lineno + 1}: cannot read: {exc.strerror or exc}") from None
     if header is None:
         raise UserError(f"{path}: empty file (need a header row with 'adc' and at least one sample)")
-    if not adc:
+    if adc:
+        info.n += len(adc)
+        yield np.array(adc, np.int64), np.array(acc, np.int64)
+    if info.n == 0:
         raise UserError(f"{path}: no samples after the header")
-    prov = {"generator": "user CSV", "file": path.name, "sha256": hashlib.sha256(path.read_bytes()).hexdigest(), "n": len(adc),
-            "bits": bits, "k": k, "seed": None, "columns": "adc,acc" if i_acc is not None else "adc"}
-    return Stream(name=_identifier(path.stem), adc=np.array(adc, np.int64), acc=np.array(acc, np.int64), k=k,
-                  bits=bits, provenance=prov)
+    info.sha256 = _file_sha256(path)
+
+
+def read_stream_csv(path: str | Path, bits: int, k: int, require_acc: bool = False) -> Stream:
+    """The whole user CSV as one :class:`Stream` (see :func:`iter_stream_csv` for the format and the errors)."""
+    path = Path(path)
+    info = CsvInfo(path, bits, k)
+    parts = list(iter_stream_csv(path, bits, k, require_acc, info=info))
+    adc = np.concatenate([a for a, _ in parts])
+    acc = np.concatenate([b for _, b in parts])
+    return Stream(name=_identifier(path.stem), adc=adc, acc=acc, k=k, bits=bits, provenance=info.provenance())
 
 
 def _identifier(text: str) -> str:

@@ -54,8 +54,9 @@ API
 ``signals_deferred()`` (context manager)
     Blocks SIGINT/SIGTERM for a short critical section; a signal that arrives meanwhile is delivered at its end.
 
-``worker_init()``
-    Initializer for worker processes (``--jobs N``): they ignore SIGINT (the parent handles it and terminates
+``worker_signals_ignored()`` (context manager) and ``worker_init()``
+    Start worker processes inside the first (they begin with SIGINT ignored); pass the second as their
+    initializer (``--jobs N``): they ignore SIGINT (the parent handles it and terminates
     them) and die on SIGTERM without a traceback.
 
 Errors writing outputs are :class:`OutputError` (a :class:`~firmware_model.errors.UserError`): one line naming
@@ -181,6 +182,21 @@ def signals_deferred() -> Iterator[None]:
         yield
     finally:
         signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+@contextlib.contextmanager
+def worker_signals_ignored() -> Iterator[None]:
+    """Start worker processes inside this block: SIGINT is ignored meanwhile, so the children start with it
+    ignored (an ignored disposition survives exec, and Python keeps it) and a Ctrl-C to the process group during
+    their start-up does not reach them; the parent's handler is restored at the end (main thread only)."""
+    if not _is_main_thread():
+        yield
+        return
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old if old is not None else signal.SIG_DFL)
 
 
 def worker_init() -> None:
@@ -462,4 +478,5 @@ def leftovers(folder: str | Path) -> list[Path]:
 
 __all__ = ["TEMP_PREFIX", "Interrupted", "OutputError", "declare_output", "folder_lock", "interruptible", "interrupted_message",
            "leftovers", "open_atomic", "reset_run_state", "signals_deferred", "staged_folder", "worker_init",
+           "worker_signals_ignored",
            "write_file"]

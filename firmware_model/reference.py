@@ -1,6 +1,6 @@
 """Float64 references for the firmware programs.
 
-Two kinds (DESIGN.md §6): fixed vs **float mirror** isolates quantization; float mirror vs **ideal** isolates the
+Two kinds (docs/numerics.md): fixed vs **float mirror** isolates quantization; float mirror vs **ideal** isolates the
 algorithm's own approximations (steady-state gains, flight logic).
 
 * :func:`mirror`: the firmware's steps (docs/firmware-spec.md §5-§7) in float64, with the same flight logic and

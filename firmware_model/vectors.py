@@ -1,4 +1,4 @@
-"""Golden vectors for microcontroller ports (DESIGN.md §8, docs/vectors.md).
+"""Golden vectors for microcontroller ports (docs/vectors.md).
 
 A *vector set* is a directory::
 
@@ -22,16 +22,16 @@ import hashlib
 import json
 import math
 import sys
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from firmware_model.config import PROGRAMS, ROUNDINGS, BuildConfig
+from firmware_model.config import PROGRAMS, ROUNDINGS, BuildConfig, load_config
 from firmware_model.errors import UserError
-from firmware_model.inputs import (EDGE_KINDS, Stream, edge_stream, flight_params_for, read_stream_csv,
+from firmware_model.inputs import (ACC_PROGRAMS, EDGE_KINDS, Stream, edge_stream, flight_params_for, read_stream_csv,
                                    synthetic_flight)
 from firmware_model.trace import EVENT_BITS, STATE_WORDS, word_names
 
@@ -202,6 +202,8 @@ class CaseResult:
     cycles: dict[str, Any] | None
     first_wrap: int
     wrap_word: str
+    #: First sample of each event, when computed while streaming (None: derived from ``words``).
+    events_first: dict[str, int] | None = None
 
 
 def _sha256_file(path: Path) -> str | None:
@@ -322,7 +324,9 @@ def case_document(res: CaseResult) -> dict[str, Any]:
         gains[gname] = {"m": int(g.m), "s": int(g.s), "value": g.value, "target": g.target,
                         "rel_error": g.rel_error}
     words_first: dict[str, int] = {}
-    if "EVENTS" in names:
+    if res.events_first is not None:
+        words_first = dict(res.events_first)
+    elif "EVENTS" in names:
         col = names.index("EVENTS")
         for ev, bit in EVENT_BITS.items():
             idx = next((i for i, row in enumerate(res.words) if row[col] & bit), -1)
@@ -356,25 +360,57 @@ def case_document(res: CaseResult) -> dict[str, Any]:
     return _clean(doc)
 
 
-def case_json(res: CaseResult) -> str:
-    """The case JSON text: sorted keys, one line per key, the inputs and expected words one sample per line."""
+def _joined(chunks: Iterable[str], sep: str) -> Iterator[str]:
+    """The non-empty text ``chunks`` with ``sep`` between them."""
+    first = True
+    for chunk in chunks:
+        if not chunk:
+            continue
+        if not first:
+            yield sep
+        yield chunk
+        first = False
+
+
+def _json_values(values: Any) -> str:
+    return ", ".join(str(int(v)) for v in np.asarray(values).tolist())
+
+
+def _json_rows(rows: Any) -> str:
+    return ",\n  ".join("[" + ", ".join(str(v) for v in row) + "]" for row in rows)
+
+
+def case_json_parts(res: CaseResult, adc_chunks: Iterable[str], acc_chunks: Iterable[str],
+                    expected_chunks: Iterable[str]) -> Iterator[str]:
+    """The case JSON text in pieces (:func:`case_json`), the long arrays given as text chunks (``adc``/``acc``:
+    ``", "``-joined values; ``expected``: ``",\n  "``-joined rows), so a long case streams to a file."""
     doc = case_document(res)
     doc["adc"] = None
     doc["acc"] = None
     doc["expected"] = None
-    lines = []
     keys = sorted(doc)
+    yield "{\n"
     for n, key in enumerate(keys):
         comma = "," if n + 1 < len(keys) else ""
+        end = "\n" if n + 1 < len(keys) else ""
         if key in ("adc", "acc"):
-            values = getattr(res.spec.stream, key)
-            lines.append(f' "{key}": [{", ".join(str(int(v)) for v in values)}]{comma}')
+            yield f' "{key}": ['
+            yield from _joined(adc_chunks if key == "adc" else acc_chunks, ", ")
+            yield f"]{comma}{end}"
         elif key == "expected":
-            rows = ",\n  ".join("[" + ", ".join(str(v) for v in row) + "]" for row in res.words)
-            lines.append(f' "expected": [\n  {rows}\n ]{comma}')
+            yield ' "expected": [\n  '
+            yield from _joined(expected_chunks, ",\n  ")
+            yield f"\n ]{comma}{end}"
         else:
-            lines.append(f' "{key}": {_dumps(doc[key])}{comma}')
-    return "{\n" + "\n".join(lines) + "\n}\n"
+            yield f' "{key}": {_dumps(doc[key])}{comma}{end}'
+    yield "\n}\n"
+
+
+def case_json(res: CaseResult) -> str:
+    """The case JSON text: sorted keys, one line per key, the inputs and expected words one sample per line."""
+    stream = res.spec.stream
+    return "".join(case_json_parts(res, [_json_values(stream.adc)], [_json_values(stream.acc)],
+                                   [_json_rows(res.words)]))
 
 
 def _c_rows(values: Iterable[int], per_line: int = 16) -> str:
@@ -387,9 +423,14 @@ def _c_i32(v: int) -> str:
     return "(-2147483647 - 1)" if v == -(1 << 31) else str(v)
 
 
-def case_header(res: CaseResult) -> str:
-    """The C99 header of one case: ``FWV_<NAME>_*`` macros and ``fwv_<name>_*`` const arrays (FWV_ROM placement,
-    empty by default: define it to PROGMEM or a section attribute before including)."""
+def _c_expected(rows: Any) -> str:
+    return ",\n".join("    { " + ", ".join(_c_i32(v) for v in row) + " }" for row in rows)
+
+
+def case_header_parts(res: CaseResult, adc_chunks: Iterable[str], acc_chunks: Iterable[str],
+                      expected_chunks: Iterable[str]) -> Iterator[str]:
+    """The C99 header of one case in pieces (:func:`case_header`); the arrays as text chunks of :func:`_c_rows`
+    (a multiple of 16 values each, except the last) and of :func:`_c_expected` rows."""
     spec, consts = res.spec, res.consts
     cfg, stream = spec.cfg, spec.stream
     name = spec.name
@@ -421,17 +462,26 @@ def case_header(res: CaseResult) -> str:
     for j, wname in enumerate(names):
         out.append(f"#define FWV_{up}_W_{wname} {j} /* {Q_FORMATS[cfg.program][wname]} */")
     out += ["", f"/* barometer ADC counts (unsigned {stream.bits}-bit), sample 0 is also the init sample */",
-            f"static const uint16_t fwv_{name}_adc[{n}] FWV_ROM = {{", _c_rows(stream.adc), "};",
-            "/* accelerometer counts (signed 16-bit) */",
-            f"static const int16_t fwv_{name}_acc[{n}] FWV_ROM = {{",
-            _c_rows(stream.acc), "};",
-            "/* state words after init (.w words zero-extended) */",
-            f"static const int32_t fwv_{name}_init[{nw}] FWV_ROM = {{ {', '.join(_c_i32(v) for v in res.init)} }};",
-            f"/* state words after step i: {' '.join(names)} */",
-            f"static const int32_t fwv_{name}_expected[{n}][{nw}] FWV_ROM = {{"]
-    out.append(",\n".join("    { " + ", ".join(_c_i32(v) for v in row) + " }" for row in res.words))
-    out += ["};", "", f"#endif /* FWV_{up}_H */", ""]
-    return "\n".join(out)
+            f"static const uint16_t fwv_{name}_adc[{n}] FWV_ROM = {{", ""]
+    yield "\n".join(out)
+    yield from _joined(adc_chunks, ",\n")
+    yield "\n" + "\n".join(["};", "/* accelerometer counts (signed 16-bit) */",
+                             f"static const int16_t fwv_{name}_acc[{n}] FWV_ROM = {{", ""])
+    yield from _joined(acc_chunks, ",\n")
+    yield "\n" + "\n".join([
+        "};", "/* state words after init (.w words zero-extended) */",
+        f"static const int32_t fwv_{name}_init[{nw}] FWV_ROM = {{ {', '.join(_c_i32(v) for v in res.init)} }};",
+        f"/* state words after step i: {' '.join(names)} */",
+        f"static const int32_t fwv_{name}_expected[{n}][{nw}] FWV_ROM = {{", ""])
+    yield from _joined(expected_chunks, ",\n")
+    yield "\n" + "\n".join(["};", "", f"#endif /* FWV_{up}_H */", ""])
+
+
+def case_header(res: CaseResult) -> str:
+    """The C99 header of one case: ``FWV_<NAME>_*`` macros and ``fwv_<name>_*`` const arrays (FWV_ROM placement,
+    empty by default: define it to PROGMEM or a section attribute before including)."""
+    stream = res.spec.stream
+    return "".join(case_header_parts(res, [_c_rows(stream.adc)], [_c_rows(stream.acc)], [_c_expected(res.words)]))
 
 
 def alt_table_files(consts: Any) -> dict[str, bytes]:
@@ -652,12 +702,22 @@ def render_set(results: Sequence[CaseResult], kind: str, avr: Sequence[str] = ()
         if missing:
             raise UserError(f"vectors: AVR subset names unknown cases: {', '.join(missing)}")
         files["c/cases_avr.h"] = cases_table_header([by_name[n] for n in avr], "FWV_CASES_AVR_H").encode()
-    files["schema.json"] = (json.dumps(case_schema(), sort_keys=True, indent=1) + "\n").encode()
-    manifest = {"schema_version": SCHEMA_VERSION, "kind": kind, "tool": tool_version(),
-                "generators": sorted({r.generator for r in results}), "n_cases": len(results),
-                "files": {path: _sha256_bytes(data) for path, data in sorted(files.items())}}
-    files["manifest.json"] = (json.dumps(manifest, sort_keys=True, indent=1) + "\n").encode()
+    files["schema.json"] = schema_bytes()
+    files["manifest.json"] = manifest_bytes(kind, [r.generator for r in results], len(results),
+                                            {path: _sha256_bytes(data) for path, data in sorted(files.items())})
     return files
+
+
+def schema_bytes() -> bytes:
+    """The bytes of ``schema.json``."""
+    return (json.dumps(case_schema(), sort_keys=True, indent=1) + "\n").encode()
+
+
+def manifest_bytes(kind: str, generators: Iterable[str], n_cases: int, hashes: dict[str, str]) -> bytes:
+    """The bytes of ``manifest.json``: set kind, tool, generators, case count and {relative path: SHA-256}."""
+    manifest = {"schema_version": SCHEMA_VERSION, "kind": kind, "tool": tool_version(),
+                "generators": sorted(set(generators)), "n_cases": n_cases, "files": dict(sorted(hashes.items()))}
+    return (json.dumps(manifest, sort_keys=True, indent=1) + "\n").encode()
 
 
 def write_set(files: dict[str, bytes], out: str | Path, kind: str) -> None:
@@ -708,9 +768,13 @@ def generate(specs: Sequence[CaseSpec], generator: str = "emulation", progress: 
         if jobs > 1 and len(specs) > 1:
             import multiprocessing
 
-            from firmware_model.output import worker_init
+            from firmware_model.output import worker_init, worker_signals_ignored
 
-            pool = multiprocessing.get_context().Pool(min(jobs, len(specs)), initializer=worker_init)
+            # spawn, not fork: a forked child of a process whose numba thread pool already ran can deadlock.
+            # The workers are started with SIGINT ignored (inherited through exec, kept by Python): a Ctrl-C to
+            # the process group while they are still importing must not print their KeyboardInterrupt.
+            with worker_signals_ignored():
+                pool = multiprocessing.get_context("spawn").Pool(min(jobs, len(specs)), initializer=worker_init)
             try:
                 for res in pool.imap(_compute_job, [(spec, generator) for spec in specs], chunksize=2):
                     results.append(res)
@@ -777,13 +841,14 @@ def check_set(directory: str | Path) -> list[str]:
 def generate_user(program: str, input_csv: str | Path, out: str | Path, config: str | Path | None = None,
                   generator: str = "emulation") -> dict[str, bytes]:
     """A one-case vector set from a user CSV stream, built with ``config`` (JSON BuildConfig; default
-    :class:`BuildConfig`) and ``program`` (overrides the config's program)."""
+    :class:`BuildConfig`) and ``program`` (must agree with the config's program), computed in memory. The CLI
+    uses :func:`firmware_model.vectors_stream.generate_user`, which writes the same bytes in constant memory;
+    this one is its reference for short streams."""
     if program not in PROGRAMS:
         raise UserError(f"vectors: unknown firmware {program!r}; known: {', '.join(PROGRAMS)}")
     _set_guard("user")(Path(out))
-    cfg = BuildConfig.from_file(config) if config else BuildConfig()
-    cfg = cfg.replace(program=program)
-    stream = read_stream_csv(input_csv, cfg.baro_bits, cfg.k)
+    cfg = load_config(config, {"program": program}, {"program": "--firmware"})
+    stream = read_stream_csv(input_csv, cfg.baro_bits, cfg.k, require_acc=program in ACC_PROGRAMS)
     spec = CaseSpec(case_name(program, cfg.rounding, cfg.k, cfg.baro_bits, stream.name), cfg, stream)
     results = generate([spec], generator, progress=False)
     files = render_set(results, "user")

@@ -3,22 +3,28 @@
 Contract with :mod:`isa.cpu` (which decodes, caches and runs blocks):
 
 * Input: ``entries``, a list of ``(pc, instruction, handler name, condition or None, length)`` back to back in
-  memory, each accepted by :func:`_blockable`. :func:`compile_block` returns ``(make, info)``: ``make(R, MS, D,
-  rb, rw, rl, wb, ww, wl)`` binds the block to one CPU (``R`` its 17-register list, ``MS`` its one-element
-  ``min_sp`` list, ``D`` its one-element "compiled code was written" flag, ``rb..wl`` its memory accessors from
-  :class:`isa.memory.Memory`) and returns ``block(bn, bc, until) -> next_pc | instructions << 24 | clocks << 56``
-  where ``bn``/``bc`` are the instruction/clock budget left and ``until`` the ``until_pc`` (-1: none). ``info``
-  (:class:`_BlockInfo`) maps each line of the generated code back to its instruction, so that a fault inside the
-  block can be unwound exactly (:meth:`isa.cpu.CPU._unwind_block`). The generated source depends only on the
-  entries, so ``make`` may be shared by every CPU that holds the same code at the same address.
+  memory, each accepted by :func:`_blockable`, and the :class:`isa.memory.MapFacts` of the CPU's map.
+  :func:`compile_block` returns ``(bind, info)``: ``bind(R, MS, D, memory)`` binds the block to one CPU (``R``
+  its 17-register list, ``MS`` its one-element ``min_sp`` list, ``D`` its one-element "compiled code was
+  written" flag, ``memory`` its :class:`isa.memory.Memory`) and returns ``block(bn, bc, until) -> next_pc |
+  instructions << 24 | clocks << 56`` where ``bn``/``bc`` are the instruction/clock budget left and ``until``
+  the ``until_pc`` (-1: none). ``info`` (:class:`_BlockInfo`) maps each line of the generated code back to its
+  instruction, so that a fault inside the block can be unwound exactly (:meth:`isa.cpu.CPU._unwind_block`). The
+  generated source depends only on the entries and the map facts, so ``bind`` may be shared by every CPU that
+  holds the same code at the same address under the same map (:mod:`isa.codecache`).
+* Memory: reads of constant addresses the map guarantees go straight to ``memory.mem``; other reads are
+  span-checked inline; writes look at the aligned flag bytes once (``flags16``/``flags32``); anything else calls
+  the exact accessor, which raises the fault (docs/isa-internals.md, "Fast memory ...").
 * Semantics: registers live in locals (``d0..a7``, ``sr``), operands, addresses and clock constants are literals,
   CCR flags are computed only where a later instruction, a block exit or a possible fault can observe them
   (:func:`_liveness`). Control flow inside a block (:func:`_plan`): a Bcc forward inside the same region becomes
   an ``if`` (``if``/``else`` when the skipped code ends in a BRA forward), a BRA forward skips code, a branch back
   to the loop head becomes the ``continue`` of a ``while`` loop bounded by the remaining budget and ``until``;
   any other branch leaves the block. Clocks and instruction counts are folded per path (locals ``c``/``ni`` hold
-  what differs). A memory write that hits compiled code sets ``D[0]`` (in the memory accessor); the block then
-  leaves right after that instruction. Instructions the block compiler does not take (TRAP, ILLEGAL, constant
+  what differs); flags only a fault could see are assigned on the faulting slow paths only (:func:`_defer_flags`).
+  A memory write that hits compiled code sets ``D[0]`` (in the memory accessor); the block then leaves right
+  after that instruction, unless the write was to a constant address outside the block's own code
+  (:func:`_quiet_write`: this block's instructions did not change). Instructions the block compiler does not take (TRAP, ILLEGAL, constant
   odd branch targets) end the block; the CPU runs them through :mod:`isa.closures`.
 * The run loop starts a block only when ``bn >= info's most instructions`` and ``bc >`` the clock bound of one
   pass (:func:`_block_bound`) and ``until`` is not inside it: that keeps limits exact.

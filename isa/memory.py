@@ -11,8 +11,11 @@ Contract with :mod:`isa.cpu` (the only user; the public methods are re-exported 
 * Program access: ``rd[n](address) -> value`` and ``wr[n](address, value)`` for n = 1, 2, 4 mask the address to 24
   bits, raise :class:`isa.semantics._Fault` (AddressError for an odd word/long address, BusError for an unmapped
   byte or a write to ROM), and mark written bytes. A program write to a byte marked ``_CODE`` calls the hook
-  ``code_written(address)`` (the CPU drops the closures and blocks that hold it). The generated block code and
-  the closures reach memory only through these six functions.
+  ``code_written(address)`` (the CPU drops the closures and blocks that hold it). The closures reach memory only
+  through these six functions. Generated block code (:mod:`isa.blocks`) also reads ``mem`` directly where
+  :class:`MapFacts` or a span check guarantees the address is mapped, and writes ``mem`` directly where one look
+  at ``flags16``/``flags32`` says mapped, writable and no code (setting the written bits of a first write as
+  :meth:`Memory._slow_write` would); everything else goes through the accessors.
 * Host access (:meth:`Memory.read`, :meth:`Memory.write`, :meth:`Memory.read_bytes`, :meth:`Memory.write_bytes`):
   checks every byte is mapped (ROM may be written), raises :class:`isa.errors.CPUFault` subclasses with
   ``pc = pc_of()``, does not count as written; a host write to ``_CODE`` bytes calls ``host_code_written(address,

@@ -83,6 +83,11 @@ def test_run_cpu_and_model_agree_on_a_simulated_flight(tmp_path, capsys):
     apo = [line for line in out_cpu.splitlines() if line.startswith("apogee:")]
     assert apo and apo == [line for line in out_model.splitlines() if line.startswith("apogee:")]
     assert "worst step:" in out_cpu and "truth:" in out_cpu and "error:" in out_cpu
+    from firmware_model.flights.scenarios import simulate_scenario
+
+    burn = float(next(line for line in out_cpu.splitlines() if line.startswith("burnout:")).split()[1])
+    true_burn = simulate_scenario(SHORT_SIM[4:]).provenance["summary"]["burnout_s"]
+    assert true_burn - 0.3 < burn <= true_burn + 0.05      # thrust falls below drag just before the motor's end
 
 
 def test_run_errors_are_one_line(tmp_path, capsys):
@@ -124,6 +129,8 @@ def test_run_on_a_generic_csv_of_prometheus_matches_the_table_and_the_cpu(tmp_pa
     ref = row.reference
     assert abs(apo - ref.time_s) <= ref.uncertainty_s + abs(row.error("kalman_baro")) + 1e-9
     assert f"reference ({ref.source}, ±{ref.uncertainty_s:.3f} s): {ref.time_s:.3f} s" in out
+    burn = float(next(line for line in out.splitlines() if line.startswith("burnout:")).split()[1])
+    assert 4.0 < burn < 5.5          # not the ejection shock at apogee (the log's largest reading, 267 m/s^2)
     # the same words from the emulated 68000 and the model, on the generic file's inputs
     spec = FlightSpec(str(generic), k=6, noise=False)
     inputs = flight_inputs(read_flight(generic), spec)

@@ -21,6 +21,9 @@ from firmware_model import output, vectors
 from firmware_model.errors import UserError
 
 ROOT = Path(__file__).resolve().parents[1]
+SHARED = Path(os.environ.get("FWEMU_SHARED_FLIGHTS") or ROOT.parent / "shared" / "flights")
+#: `fwemu vectors --all` includes cases made from the shared flight logs (docs/vectors.md, "Flight cases").
+needs_logs = pytest.mark.skipif(not SHARED.is_dir(), reason=f"shared flight logs not at {SHARED}")
 SUBSET = ["recursive_floor_k4_b16_edge_step", "kalman_baro_half_up_k5_b12_edge_ties",
           "kalman_accel_floor_k6_b16_edge_ramp"]
 
@@ -46,6 +49,23 @@ def temp_names(*folders: Path) -> list[Path]:
             found += [p for p in folder.rglob("*") if p.name.startswith(".fwemu") or p.name.startswith(".old-")
                       or p.name.startswith(".budget-")]
     return found
+
+
+def wait_until_catching(pid: int, sig: int, timeout: float = 60.0) -> None:
+    """Wait until process ``pid`` has installed a handler for ``sig`` (Linux /proc SigCgt), i.e. fwemu's main() is
+    running: a signal before that (interpreter start-up, imports) would get the default action."""
+    status = Path(f"/proc/{pid}/status")
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            caught = next(int(line.split()[1], 16) for line in status.read_text().splitlines()
+                          if line.startswith("SigCgt:"))
+        except (OSError, StopIteration):
+            caught = 0
+        if caught >> (sig - 1) & 1:
+            return
+        time.sleep(0.02)
+    raise AssertionError(f"pid {pid} never caught signal {sig}")
 
 
 def snapshot(folder: Path) -> dict[str, bytes]:
@@ -151,7 +171,8 @@ def _writer(out: str, tag: int, rounds: int, queue: multiprocessing.Queue,  # ty
             go: multiprocessing.synchronize.Barrier) -> None:
     """Write a small vector set ``rounds`` times, each round with content unique to (tag, round)."""
     try:
-        base = vectors.render_set(vectors.generate([s for s in vectors.case_matrix() if s.name in SUBSET],
+        base = vectors.render_set(vectors.generate([s for s in vectors.case_matrix(require_logs=False)
+                                                    if s.name in SUBSET],
                                                    "model", progress=False), "subset")
         go.wait(120)   # both writers start together
         for r in range(rounds):
@@ -249,7 +270,7 @@ def test_read_only_and_full_file_systems_are_one_line(tmpfs, tmp_path: Path) -> 
     ro = tmpfs("ro", "ro,size=1m")
     full = tmpfs("full", "size=16k")
     csv = tmp_path / "s.csv"
-    csv.write_text("adc\n" + "\n".join(str(30000 + i) for i in range(300)) + "\n")
+    csv.write_text("adc,acc\n" + "\n".join(f"{30000 + i},2048" for i in range(300)) + "\n")
     for out, why in ((ro / "b", "Read-only file system"), (full / "b", "No space left on device")):
         r = fwemu("budget", "--program", "recursive", "--k", "4", "--out", str(out))
         assert r.returncode == 2 and why in one_clean_line(r.stderr) and str(out) in r.stderr
@@ -276,6 +297,7 @@ def test_enospc_during_commit_is_one_line_in_process(tmp_path: Path, monkeypatch
 
 
 # ------------------------------------------------------------------------------------------ signals (item 8)
+@needs_logs
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
 def test_interrupted_vectors_run_leaves_previous_outputs_and_no_temp(sig: int, tmp_path: Path) -> None:
     out = tmp_path / "vectors"
@@ -283,10 +305,11 @@ def test_interrupted_vectors_run_leaves_previous_outputs_and_no_temp(sig: int, t
     before = snapshot(out)
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     outcomes = []
-    for delay in (2.0, 4.0, 7.0):
+    for delay in (0.5, 3.0, 6.0):
         proc = subprocess.Popen([sys.executable, "-m", "firmware_model.cli", "vectors", "--all", "--generator",
                                  "model", "--out", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                 text=True, env=env)
+        wait_until_catching(proc.pid, sig)
         time.sleep(delay)
         proc.send_signal(sig)
         _, err = proc.communicate(timeout=120)
@@ -303,18 +326,26 @@ def test_interrupted_vectors_run_leaves_previous_outputs_and_no_temp(sig: int, t
     assert "interrupted" in outcomes
 
 
+@needs_logs
 def test_interrupted_jobs_run_terminates_its_workers(tmp_path: Path) -> None:
     out = tmp_path / "v"
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     proc = subprocess.Popen([sys.executable, "-m", "firmware_model.cli", "vectors", "--all", "--generator", "model",
                              "--jobs", "2", "--out", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True, env=env, start_new_session=True)
+    wait_until_catching(proc.pid, signal.SIGINT)
     time.sleep(3.0)
     os.killpg(proc.pid, signal.SIGINT)          # Ctrl-C reaches the whole process group, workers included
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err
     assert one_clean_line(err) == f"fwemu: interrupted; previous outputs in {out} left intact"
     assert not out.exists() and temp_names(tmp_path) == []
-    time.sleep(0.5)
-    left = subprocess.run(["pgrep", "-g", str(proc.pid)], capture_output=True, text=True).stdout.split()
+    deadline = time.monotonic() + 20   # the workers get SIGTERM; multiprocessing's resource tracker follows
+    while True:
+        left = subprocess.run(["ps", "-o", "pid=,stat=,args=", "-g", str(proc.pid)], capture_output=True,
+                              text=True).stdout.splitlines()
+        left = [line for line in left if " Z" not in f" {line.split()[1]}"]   # zombies are already dead
+        if not left or time.monotonic() > deadline:
+            break
+        time.sleep(0.2)
     assert left == [], f"workers still running: {left}"

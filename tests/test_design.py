@@ -21,8 +21,9 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from firmware_model.config import BuildConfig
-from firmware_model.design import (closed_loop_poles, design_config, design_kalman, design_report, measurement,
-                                   process_noise, steady_state, transition)
+from firmware_model.design import (closed_loop_poles, design_config, design_kalman, measurement, process_noise,
+                                   steady_state, transition)
+from firmware_model.design_report import design_report
 from firmware_model.errors import UserError
 
 scipy_linalg = pytest.importorskip("scipy.linalg", reason="scipy is the DARE oracle (test extra)")

@@ -237,3 +237,17 @@ def test_flight_vector_cases_carry_provenance_and_licence():
             assert abs(first["APOGEE"] - truth["apogee_sample"]) <= 64, name
     accel = [d for n, d in docs.items() if n.startswith("kalman_accel")]
     assert any(d["events_first_sample"]["MACH_LOCKOUT"] >= 0 for d in accel)
+
+
+def test_tuning_overrides():
+    from firmware_model.flights.evaluate import tuning_overrides
+    from firmware_model.tuning import RECOMMENDED
+
+    assert tuning_overrides(METHODS["kalman_accel"], 6) == {}
+    assert tuning_overrides(METHODS["kalman_accel"], 6, "recommended") == RECOMMENDED["kalman_accel"][6]
+    assert tuning_overrides(METHODS["ideal_kalman"], 5, "recommended") == RECOMMENDED["kalman_baro"][5]
+    assert tuning_overrides(METHODS["kalman_baro"], 8, "recommended") == {}          # no entry: the defaults
+    cfg = METHODS["kalman_accel"].config(6, {}, **tuning_overrides(METHODS["kalman_accel"], 6, "recommended"))
+    assert (cfg.ratio, cfg.rounding) == (1000.0, "half_up")
+    with pytest.raises(UserError, match="--tuning 'best'"):
+        tuning_overrides(METHODS["kalman_baro"], 6, "best")

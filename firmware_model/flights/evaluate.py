@@ -237,22 +237,13 @@ def sensors_for(spec: FlightSpec) -> tuple[Any, Any]:
 
 def sensor_config(inputs: Any) -> dict[str, Any]:
     """BuildConfig fields of a flight's sensing: ``inputs.config_overrides()`` (ADC width, sign, counts per metre,
-    accelerometer scale), the barometer's transfer function for the Kalman programs' altitude table
-    (``baro_pa_per_count``, ``baro_pa_at_zero``), plus the noise the Kalman design assumes, **measured on the pad part of the stream** (the
+    accelerometer scale, and the barometer's transfer function from which the Kalman programs' altitude table is
+    generated: ``baro_pa_per_count``, ``baro_pa_at_zero``), plus the noise the Kalman design assumes, **measured on the pad part of the stream** (the
     samples before ``inputs.liftoff_s``, as a designer measures a sensor on the bench): ``baro_sigma`` = standard
     deviation of the barometer words, at least 0.5 count (quantization); ``accel_sigma`` likewise for the
     accelerometer, at least 1 count. Barometer-only gains depend on R/q alone, so this matters only for
     kalman_accel (the weight of the barometer against the accelerometer)."""
-    import dataclasses
-
     out = dict(inputs.config_overrides())
-    names = {f.name for f in dataclasses.fields(BuildConfig)}
-    baro = getattr(inputs, "baro", None)
-    if baro is not None and getattr(baro, "kind", "adc") == "adc" and "baro_pa_per_count" in names:
-        # the field-ready Kalman programs' altitude table is generated from the sensor's transfer function
-        # P(c) = baro_pa_at_zero - baro_sign * baro_pa_per_count * c (BuildConfig): here (c - offset) / counts_per_pa
-        out["baro_pa_per_count"] = 1.0 / abs(float(baro.counts_per_pa))
-        out["baro_pa_at_zero"] = -float(baro.offset_counts) / float(baro.counts_per_pa)
     t = np.asarray(inputs.time_s, dtype=np.float64)
     lift = getattr(inputs, "liftoff_s", None)
     pad = t < (lift if lift is not None else t[0] + 1.0) - 0.05
@@ -345,18 +336,36 @@ def _sensor_text(inputs: Any, spec: FlightSpec) -> str:
 
 
 def evaluate_flight(spec: FlightSpec, methods: Sequence[Method] | None = None,
-                    overrides: dict[str, Any] | None = None, record: FlightRecord | None = None) -> FlightResult:
+                    overrides: dict[str, Any] | None = None, record: FlightRecord | None = None,
+                    tuning: str = "default") -> FlightResult:
     """Evaluate one flight: read/simulate it, make its firmware inputs, run every method, compare with the
     reference. ``overrides``: BuildConfig fields applied to every method (e.g. ``rounding``)."""
     methods = list(methods or METHODS.values())
     record = record if record is not None else load_record(spec.source, spec.format)
     inputs = flight_inputs(record, spec)
-    return evaluate_inputs(record, inputs, spec, methods, overrides)
+    return evaluate_inputs(record, inputs, spec, methods, overrides, tuning)
+
+
+#: Tunings ``fwemu evaluate --tuning`` knows: the BuildConfig defaults, or ``firmware_model.tuning.RECOMMENDED``
+#: (per program and k; a k it has no entry for keeps the defaults; ideal_kalman takes kalman_baro's).
+TUNINGS: tuple[str, ...] = ("default", "recommended")
+
+
+def tuning_overrides(method: Method, k: int, tuning: str = "default") -> dict[str, Any]:
+    """BuildConfig fields ``tuning`` sets for ``method`` at ``k`` (empty for ``default``)."""
+    if tuning == "default":
+        return {}
+    if tuning != "recommended":
+        raise UserError(f"--tuning {tuning!r}: known: {', '.join(TUNINGS)}")
+    from firmware_model.tuning import RECOMMENDED
+
+    return dict(RECOMMENDED.get(method.program, {}).get(k, {}))
 
 
 def evaluate_inputs(record: FlightRecord, inputs: Any, spec: FlightSpec, methods: Sequence[Method],
-                    overrides: dict[str, Any] | None = None) -> FlightResult:
-    """:func:`evaluate_flight` on inputs already made (``inputs``: adc, acc, time_s, config_overrides())."""
+                    overrides: dict[str, Any] | None = None, tuning: str = "default") -> FlightResult:
+    """:func:`evaluate_flight` on inputs already made (``inputs``: adc, acc, time_s, config_overrides()).
+    ``tuning``: see :data:`TUNINGS`; ``overrides`` apply after it."""
     sensor = sensor_config(inputs)
     adc = np.asarray(inputs.adc)
     acc = None if getattr(inputs, "acc", None) is None else np.asarray(inputs.acc)
@@ -365,7 +374,7 @@ def evaluate_inputs(record: FlightRecord, inputs: Any, spec: FlightSpec, methods
     notes: list[str] = []
     for method in methods:
         try:
-            cfg = method.config(spec.k, sensor, **(overrides or {}))
+            cfg = method.config(spec.k, sensor, **{**tuning_overrides(method, spec.k, tuning), **(overrides or {})})
             det = run_method(method, cfg, adc, acc, time_s)
         except UserError as exc:   # e.g. a gain below 2^-33 at this k and ADC: say so in the row, go on
             det = Detection(method.name, -1, None, failed=str(exc))
@@ -379,9 +388,9 @@ def evaluate_inputs(record: FlightRecord, inputs: Any, spec: FlightSpec, methods
                         _report_text(getattr(inputs, "report", None)), notes)
 
 
-def _evaluate_job(job: tuple[FlightSpec, tuple[str, ...], tuple[tuple[str, Any], ...]]) -> FlightResult:
-    spec, names, overrides = job
-    return evaluate_flight(spec, methods_named(names), dict(overrides))
+def _evaluate_job(job: tuple[FlightSpec, tuple[str, ...], tuple[tuple[str, Any], ...], str]) -> FlightResult:
+    spec, names, overrides, tuning = job
+    return evaluate_flight(spec, methods_named(names), dict(overrides), tuning=tuning)
 
 
 def ordered_map(fn: Callable[[Any], Any], items: Sequence[Any], jobs: int = 1,
@@ -420,7 +429,8 @@ def ordered_map(fn: Callable[[Any], Any], items: Sequence[Any], jobs: int = 1,
 
 def evaluate_many(specs: Sequence[FlightSpec], methods: Sequence[Method] | None = None,
                   overrides: dict[str, Any] | None = None, jobs: int = 1,
-                  progress: Callable[[int, int, str], None] | None = None) -> list[FlightResult]:
+                  progress: Callable[[int, int, str], None] | None = None,
+                  tuning: str = "default") -> list[FlightResult]:
     """Evaluate every flight (``jobs`` > 1: that many processes); results in the order of ``specs`` whatever the
     order of completion, so the table is byte-identical to ``jobs=1``."""
     methods = list(methods or METHODS.values())
@@ -434,7 +444,9 @@ def evaluate_many(specs: Sequence[FlightSpec], methods: Sequence[Method] | None 
         if progress:
             progress(i + 1, n, res.name)
 
-    return ordered_map(_evaluate_job, [(spec, names, ov) for spec in specs], jobs, done)
+    if tuning not in TUNINGS:
+        raise UserError(f"--tuning {tuning!r}: known: {', '.join(TUNINGS)}")
+    return ordered_map(_evaluate_job, [(spec, names, ov, tuning) for spec in specs], jobs, done)
 
 
 # ---------------------------------------------------------------------------------------------------- the table

@@ -1,0 +1,142 @@
+"""Structure and documentation of the CLI (issue 8 items 13 and 14): no import cycles in firmware_model, --help
+without reST markup, no citation of a file the repository does not have, the input-register addressing the spec
+documents is what the assembler accepts."""
+
+from __future__ import annotations
+
+import ast
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import isa
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGE = ROOT / "firmware_model"
+
+
+def _module_name(path: Path) -> str:
+    rel = path.relative_to(ROOT).with_suffix("")
+    parts = list(rel.parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def import_graph() -> dict[str, set[str]]:
+    """firmware_model module -> the firmware_model modules it imports anywhere at run time (top level or inside
+    functions; not the annotation-only imports under ``if TYPE_CHECKING:``)."""
+    modules = {_module_name(p): p for p in PACKAGE.rglob("*.py")}
+    graph: dict[str, set[str]] = {}
+    for name, path in modules.items():
+        deps: set[str] = set()
+        tree = ast.parse(path.read_text(), str(path))
+        typing_only = {id(n) for block in ast.walk(tree) if isinstance(block, ast.If)
+                       and "TYPE_CHECKING" in ast.unparse(block.test) for n in ast.walk(block)}
+        for node in ast.walk(tree):
+            if id(node) in typing_only:   # `if TYPE_CHECKING:` imports are for annotations, never executed
+                continue
+            if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+                targets = [node.module] + [f"{node.module}.{a.name}" for a in node.names]
+            elif isinstance(node, ast.Import):
+                targets = [a.name for a in node.names]
+            else:
+                continue
+            deps |= {t for t in targets if t in modules and t != name}
+        graph[name] = deps
+    return graph
+
+
+def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
+    state: dict[str, int] = {}
+    stack: list[str] = []
+
+    def visit(node: str) -> list[str] | None:
+        state[node] = 1
+        stack.append(node)
+        for dep in sorted(graph[node]):
+            if state.get(dep) == 1:
+                return stack[stack.index(dep):] + [dep]
+            if dep not in state and (found := visit(dep)):
+                return found
+        stack.pop()
+        state[node] = 2
+        return None
+
+    for node in sorted(graph):
+        if node not in state and (found := visit(node)):
+            return found
+    return None
+
+
+def test_firmware_model_has_no_import_cycle() -> None:
+    graph = import_graph()
+    assert "firmware_model.constants" in graph and "firmware_model.design" in graph
+    # packages import their submodules' names through __init__; only module-to-module cycles count
+    graph = {m: {d for d in deps if not (PACKAGE / Path(*d.split(".")[1:]) / "__init__.py").exists()}
+             for m, deps in graph.items()}
+    assert find_cycle(graph) is None, " -> ".join(find_cycle(graph) or [])
+
+
+def test_the_cycle_finder_finds_cycles() -> None:
+    assert find_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
+    assert find_cycle({"a": {"b"}, "b": set()}) is None
+
+
+def test_budget_command_lives_in_cli_budget() -> None:
+    from firmware_model import cli
+
+    assert "firmware_model.cli_budget" in cli.COMMAND_MODULES
+    parser = cli.build_parser()
+    sub = next(a for a in parser._actions if a.__class__.__name__ == "_SubParsersAction")
+    assert sub.choices["budget"].get_default("func").__module__ == "firmware_model.cli_budget"
+
+
+def _help_texts() -> dict[str, str]:
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    texts = {}
+    for command in ([], ["asm"], ["exec"], ["design"], ["compare"], ["budget"], ["vectors"]):
+        r = subprocess.run([sys.executable, "-m", "firmware_model.cli", *command, "--help"], capture_output=True,
+                           text=True, env=env, timeout=120, check=True)
+        texts[" ".join(command) or "fwemu"] = r.stdout
+    return texts
+
+
+def test_help_shows_no_rest_markup() -> None:
+    for command, text in _help_texts().items():
+        bad = re.findall(r"``|:(?:func|class|mod|data|meth|attr):`", text)
+        assert not bad, f"fwemu {command} --help shows reST markup: {bad}\n{text}"
+        assert "DESIGN.md" not in text, command
+
+
+def test_plain_strips_roles_and_literals() -> None:
+    from firmware_model.cli import plain
+
+    assert plain("``fwemu vectors``: see :func:`~firmware_model.vectors.check_set` and :class:`UserError`") == \
+        "fwemu vectors: see check_set and UserError"
+
+
+def test_docs_cite_no_file_missing_from_the_repository() -> None:
+    # the README and the docs of the emulator, firmware, numerics and vectors (docs/flights*.md: the flights work)
+    texts = [ROOT / "README.md"] + [ROOT / "docs" / f"{name}.md" for name in (
+        "firmware-spec", "firmware-asm", "gain-design", "numerics", "vectors", "isa-internals", "isa-oracles")]
+    for path in texts:
+        assert "DESIGN.md" not in path.read_text(), f"{path.name} cites DESIGN.md, which is not in the repository"
+    from firmware_model.cli_compare import bias_table
+
+    assert "DESIGN" not in bias_table("kalman_baro", ks=(5,), seconds=2.0)
+
+
+def test_input_registers_addressing_as_the_spec_says() -> None:
+    spec = (ROOT / "docs" / "firmware-spec.md").read_text()
+    assert "`$F000.w`, `$F002.w`)" not in spec      # the old claim
+    assert "BARO_ADC.w" in spec and "($FFF000).w" in spec
+    for operand in ("BARO_ADC.w", "($FFF000).w"):
+        program = isa.assemble(f"BARO_ADC EQU $FFF000\n move.w {operand},d0\n trap #0\n", origin=0x1000)
+        assert program.code[:4] == bytes.fromhex("3038F000"), operand
+    with pytest.raises(isa.errors.IsaError, match="does not fit abs.w"):
+        isa.assemble(" move.w $F000.w,d0\n", origin=0x1000)
