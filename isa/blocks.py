@@ -889,6 +889,7 @@ class _BlockGen:
                 self.emit(f"{r} = (({self.load(nb, a)} ^ 0x8000) - 0x8000) & 0xFFFFFFFF")
         if post:
             self.emit(f"{self.wg(an)} = (ea + {len(regs) * nb}) & 0xFFFFFFFF")
+        self.emit(self.load(2, f"ea + {len(regs) * nb}" if regs else "ea"))  # the 68000's extra word read
 
 
 class _BlockInfo:

@@ -1032,7 +1032,9 @@ def h_movem(ctx: _Ctx) -> Callable[[], int]:
     """MOVEM: registers to memory in order D0..D7,A0..A7 at increasing addresses, or for -(An) A7..D0 at
     decreasing addresses with An written back to the last address (the 68000 stores An's *initial* value when An
     is in the list); memory to registers D0..A7, words sign-extended to 32 bits, (An)+ written back after the
-    loads (overriding a loaded An). Flags unaffected. Clocks 8/12+4n (.W) / +8n (.L) + mode (UM 8-9)."""
+    loads (overriding a loaded An), then the one extra word read the 68000 makes after the last register (its
+    value is discarded; it faults like any read, so an empty list at an odd address address-errors as on the chip).
+    Flags unaffected. Clocks 8/12+4n (.W) / +8n (.L) + mode (UM 8-9; the extra read is in the 12)."""
     ins = ctx.instr
     nb = _nb(ins)
     R = ctx.R
@@ -1070,6 +1072,7 @@ def h_movem(ctx: _Ctx) -> Callable[[], int]:
     post = ea.mode is _M.APOSTINC
     an = 8 + ea.reg
     addr = (lambda: R[an]) if post else _addr_fn(ctx, ea, nb)
+    rw = ctx.rd[2]
 
     def movem_m2r() -> int:
         a = addr()
@@ -1079,6 +1082,7 @@ def h_movem(ctx: _Ctx) -> Callable[[], int]:
             a += nb
         if post:
             R[an] = a & M32
+        rw(a)  # the extra word read after the last register
         return K
 
     return movem_m2r

@@ -95,38 +95,10 @@ def descending_long(instr) -> bool:  # noqa: ANN001
     return False
 
 
-def movem_extra_read(case: oracles.Case) -> int | None:
-    """For MOVEM memory->registers: the address of the word after the last register, which the 68000 reads and
-    discards (ours does not model that read; docs/isa-oracles.md). None for other instructions."""
-    from isa.operands import Mode, Size
-
-    ins = case.instruction
-    if ins.mnemonic != "movem" or ins.operands[1].mode is not Mode.REGLIST:
-        return None
-    op, m = ins.operands[0], case.machine
-    if op.mode in (Mode.AIND, Mode.APOSTINC):
-        ea = m.a[op.reg]
-    elif op.mode is Mode.ADISP:
-        ea = m.a[op.reg] + op.value
-    elif op.mode is Mode.AINDEX:
-        assert op.index is not None
-        x = (m.a if op.index.is_areg else m.d)[op.index.num]
-        x = x if op.index.long else ((x & 0xFFFF) ^ 0x8000) - 0x8000
-        ea = m.a[op.reg] + x + op.value
-    elif op.mode in (Mode.ABSW, Mode.ABSL):
-        ea = op.value
-    else:
-        return None
-    return (ea + bin(ins.operands[1].value).count("1") * (4 if ins.size is Size.L else 2)) & 0xFFFFFF
-
-
 def check_bus(case: oracles.Case) -> oracles.State:
     """``check`` plus: when both take a bus error, ours names the address of the access the chip faulted on."""
     ours = oracles.ours_run(case.machine)
     theirs = ref().run(case.machine)
-    extra = movem_extra_read(case)
-    if extra is not None and ours.fault is None and theirs.fault == "bus" and theirs.fault_address == extra:
-        return theirs  # the chip's extra MOVEM read ran off the RAM; every register read before it was mapped
     diffs = oracles.compare(ours, theirs, cycles=True)
     assert not diffs, oracles.failure(case, "m68000-python", diffs, ours, theirs)
     if theirs.fault == "bus":
@@ -154,6 +126,8 @@ def test_bus_errors_name_the_faulting_access(combo, data) -> None:  # noqa: ANN0
     (" move.l $1fffe,d1", {}, 0x20000),
     (" movem.l $1fffc,d1-d2", {}, 0x20000),
     (" movem.l (a0)+,d1-d3", {"a0": 0x1FFF8}, 0x20000),
+    (" movem.l (a0)+,d1-d2", {"a0": 0x1FFF8}, 0x20000),  # the 68000's extra word read after the last register
+    (" movem.w $1fffe,d1", {}, 0x20000),
     (" move.l d1,$1fffe", {}, 0x20000),
     (" add.l $1fffe,d1", {}, 0x20000),
     (" rts", {"a7": 0x1FFFE}, 0x20000),
@@ -174,6 +148,18 @@ def test_bus_error_address_cases(src: str, regs: dict[str, int], address: int) -
     assert ours.fault == theirs.fault == "bus" and theirs.fault_address == address, (ours.detail, theirs.detail)
     expect = address - 2 if "-(a0)" in src and address == 0x20002 else address
     assert ours.fault_address == expect, ours.detail
+
+
+@pytest.mark.parametrize("a0", [0x6001, 0x1FFFF, 0x20000])
+def test_movem_empty_list_makes_the_extra_read(a0: int) -> None:
+    """MOVEM memory->registers with an empty mask still makes its extra word read: an address error at an odd
+    EA, a bus error past the RAM (encoded by hand: the assembler needs a register)."""
+    code = bytes.fromhex("4C900000")  # movem.w (a0),<none>
+    image = bytes(oracles.base_image(3, [(oracles.CODE, code)]))
+    machine = oracles.Machine([0] * 8, [a0] + [oracles.DATA_LO] * 7, 0, oracles.CODE, image)
+    ours, theirs = oracles.ours_run(machine), ref().run(machine)
+    assert theirs.fault == ("address" if a0 & 1 else "bus")
+    assert not oracles.compare(ours, theirs, cycles=True), (ours.detail, theirs.detail)
 
 
 def test_zero_divide_is_recognised_by_both() -> None:
