@@ -154,6 +154,7 @@ def _run(argv: Sequence[str] | None, output: Any, user_errors: tuple[type[BaseEx
             parser = build_parser()
             args = parser.parse_args(argv)
             code = int(args.func(args) or 0)
+            output.raise_if_interrupted()  # a signal whose exception a finalizer swallowed still ends the run
         except SystemExit:  # argparse: --help, usage errors (exit 2); kept as SystemExit for callers of main()
             sys.stdout.flush()
             raise
@@ -178,7 +179,31 @@ def _run(argv: Sequence[str] | None, output: Any, user_errors: tuple[type[BaseEx
     except OSError as exc:
         _say(_os_error_line(exc))
         return 2
+    except Exception:
+        # A signal that lands inside a library (e.g. numba compiling a kernel) can surface as some other error
+        # (numba: "RuntimeError: no compiled object yet"): after a signal, any failure is the interruption.
+        pending = output.pending_signal()
+        if pending is None:
+            raise
+        _say(output.interrupted_message())
+        return 128 + pending
+
+
+def entry() -> None:
+    """The ``fwemu`` console script: :func:`main`, then exit with its code. Once main has returned the outputs are
+    settled, so SIGINT/SIGTERM are ignored from then on (a Ctrl-C during interpreter shutdown would otherwise raise
+    inside library finalizers). After an interrupt, errors that library finalizers raise at shutdown are not
+    printed: the one line has said what happened, and numba/llvmlite objects half-built when the signal landed
+    print "Exception ignored ... AttributeError" tracebacks from their ``__del__`` (seen in a fresh clone's CI)."""
+    import signal
+
+    code = main()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, signal.SIG_IGN)
+    if code in (130, 143):
+        sys.unraisablehook = lambda unraisable: None
+    sys.exit(code)
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    entry()

@@ -196,11 +196,16 @@ def _run_kernels(kern: ModuleType, consts: "FirmwareConstants", adc: np.ndarray,
     args = (prog, adc_k, acc_k, c, cols, state, init_out, out, first, word)
     if not kern.COMPILED:
         kern.run_streams(*args)
-    elif n_streams * n < PARALLEL_MIN_SAMPLES:
-        kern.run_streams_serial(*args)
     else:
-        with _KERNEL_LOCK:
-            kern.run_streams(*args)
+        # a compiled call may compile first (seconds): an interrupt waits for it rather than tear numba apart
+        from firmware_model.output import interrupts_deferred
+
+        with interrupts_deferred():
+            if n_streams * n < PARALLEL_MIN_SAMPLES:
+                kern.run_streams_serial(*args)
+            else:
+                with _KERNEL_LOCK:
+                    kern.run_streams(*args)
     if not kern.COMPILED:
         init_out, out = init_out.astype(np.int64), out.astype(np.int64)
     return init_out, out, first, word

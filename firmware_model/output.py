@@ -113,6 +113,13 @@ class Interrupted(KeyboardInterrupt):
 
 # --------------------------------------------------------------------------------------------- run state
 _state: dict[str, list[str]] = {"active": [], "aborted": [], "committed": [], "planned": []}
+#: Signals received during this run. Python runs a signal handler between bytecodes of the main thread, also
+#: inside a finalizer (``__del__``) or a callback whose exceptions are ignored: an :class:`Interrupted` raised
+#: there is swallowed ("Exception ignored in ...") and the run would go on and commit as if never interrupted.
+#: The commit points and the CLI therefore check this record too (:func:`raise_if_interrupted`).
+_pending: list[int] = []
+#: Depth of :func:`interrupts_deferred` sections: while > 0 the handler records a signal but does not raise.
+_deferring: list[int] = [0]
 
 
 def declare_output(*targets: str | Path) -> None:
@@ -125,6 +132,18 @@ def reset_run_state() -> None:
     """Forget the targets of a previous run (called by the CLI at the start of each command)."""
     for value in _state.values():
         value.clear()
+    _pending.clear()
+
+
+def pending_signal() -> int | None:
+    """The first SIGINT/SIGTERM received during this run, or None."""
+    return _pending[0] if _pending else None
+
+
+def raise_if_interrupted() -> None:
+    """Raise :class:`Interrupted` if a signal arrived during this run, even one whose exception was swallowed."""
+    if _pending:
+        raise Interrupted(_pending[0])
 
 
 def interrupted_message(exc: BaseException | None = None) -> str:
@@ -158,7 +177,8 @@ def interruptible() -> Iterator[None]:
 
     def handler(signum: int, frame: Any) -> None:
         fired["n"] += 1
-        if fired["n"] == 1:
+        _pending.append(signum)
+        if fired["n"] == 1 and not _deferring[0]:
             raise Interrupted(signum)
 
     old = {s: signal.getsignal(s) for s in SIGNALS}
@@ -169,6 +189,21 @@ def interruptible() -> Iterator[None]:
     finally:
         for s, h in old.items():
             signal.signal(s, h if h is not None else signal.SIG_DFL)
+
+
+@contextlib.contextmanager
+def interrupts_deferred() -> Iterator[None]:
+    """Let a library call finish before an interrupt takes effect: inside this block SIGINT/SIGTERM are only
+    recorded; at its end (normal or not) a recorded signal raises :class:`Interrupted`. For calls that must not be
+    torn apart by an exception raised between two of their bytecodes, e.g. numba compiling a kernel (an interrupt
+    there surfaced as numba's "RuntimeError: no compiled object yet", and once as a segmentation fault)."""
+    _deferring[0] += 1
+    try:
+        yield
+    finally:
+        _deferring[0] -= 1
+        if not _deferring[0]:
+            raise_if_interrupted()
 
 
 @contextlib.contextmanager
@@ -267,6 +302,7 @@ def open_atomic(path: str | Path, mode: str = "w", encoding: str = "utf-8") -> I
         with os.fdopen(fd, mode, **({} if "b" in mode else {"encoding": encoding, "newline": ""})) as f:
             yield f
         with signals_deferred():
+            raise_if_interrupted()
             os.replace(tmp, path)
             done = True
         _state["committed"].append(key)
@@ -446,6 +482,7 @@ def staged_folder(target: str | Path, owned: Sequence[str] = (), whole: bool = F
             if guard is not None:
                 guard(target)
             with signals_deferred():
+                raise_if_interrupted()
                 if whole:
                     # gather the staged files into one folder inside the stage, then swap it with the target
                     content = stage / f"{TEMP_PREFIX}content"
@@ -476,7 +513,7 @@ def leftovers(folder: str | Path) -> list[Path]:
     return sorted(p for p in folder.iterdir() if p.name.startswith(TEMP_PREFIX))
 
 
-__all__ = ["TEMP_PREFIX", "Interrupted", "OutputError", "declare_output", "folder_lock", "interruptible", "interrupted_message",
-           "leftovers", "open_atomic", "reset_run_state", "signals_deferred", "staged_folder", "worker_init",
-           "worker_signals_ignored",
-           "write_file"]
+__all__ = ["TEMP_PREFIX", "Interrupted", "OutputError", "declare_output", "folder_lock", "interruptible",
+           "interrupts_deferred", "interrupted_message", "leftovers", "open_atomic", "pending_signal",
+           "raise_if_interrupted", "reset_run_state", "signals_deferred", "staged_folder", "worker_init",
+           "worker_signals_ignored", "write_file"]

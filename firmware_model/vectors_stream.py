@@ -165,13 +165,19 @@ class ModelStepper:
 
     def init(self, adc0: int, acc0: int) -> list[int]:
         adc, acc = self._arr([adc0]), self._arr([acc0])
-        self.kern._init(self.prog, self.state, adc[0], acc[0], self.c)
+        from firmware_model.output import interrupts_deferred
+
+        with interrupts_deferred():  # the first call compiles (seconds): an interrupt waits for it
+            self.kern._init(self.prog, self.state, adc[0], acc[0], self.c)
         return [int(self.state[j]) for j in self.cols]
 
     def run(self, adc: np.ndarray, acc: np.ndarray, start: int) -> np.ndarray:
         out = np.empty((len(adc), len(self.cols)), dtype=self.dtype)
         args = (self.state, self._arr(adc), self._arr(acc), self.c) + ((self.cols,) if self._pass_cols else ())
-        f, w = self.loop(*args, out)
+        from firmware_model.output import interrupts_deferred
+
+        with interrupts_deferred():
+            f, w = self.loop(*args, out)
         if f >= 0 and self.first_wrap < 0:
             self.first_wrap, self.wrap_word = start + int(f), str(self.kern.WRAP_NAMES[int(w)])
         return out.astype(np.int64)

@@ -477,7 +477,10 @@ def simulate_1dof(rockets: Sequence[Rocket] | Rocket, launch: Launch | Sequence[
     elif engine == "kernel":
         if _kernel is None:
             raise UserError("1-DOF: engine 'kernel' needs numba (install the 'fast' extra) or use engine='numpy'")
-        res = _integrate_kernel(b, _kernel)
+        from firmware_model.output import interrupts_deferred
+
+        with interrupts_deferred():  # the first call compiles (seconds): an interrupt waits for it
+            res = _integrate_kernel(b, _kernel)
     elif engine == "python":
         res = _integrate_kernel(b, _kernel_py)
     else:
