@@ -103,6 +103,8 @@ class McuBudget:
     config: dict[str, Any]
     sample_rate_hz: float
     streams: list[str]
+    #: the build's altitude table (int32 nodes, docs/firmware-spec.md §2a): flash data beside the constants
+    table_bytes: int = 0
     sizes: dict[str, dict[str, Any]] = field(default_factory=dict)
     steps: dict[str, Measured] = field(default_factory=dict)
     skipped: dict[str, str] = field(default_factory=dict)
@@ -116,7 +118,7 @@ class McuBudget:
 
     def to_json(self) -> dict[str, Any]:
         return {"program": self.program, "config": self.config, "sample_rate_hz": self.sample_rate_hz,
-                "streams": self.streams, "sizes": self.sizes, "skipped": self.skipped,
+                "streams": self.streams, "table_bytes": self.table_bytes, "sizes": self.sizes, "skipped": self.skipped,
                 "steps": {k: {**v.__dict__, "load": self.load(*k.split("-"))} for k, v in self.steps.items()}}
 
 
@@ -232,8 +234,10 @@ def measure(builds: Sequence[tuple[Any, Sequence[Any]]], work: Path | None = Non
     try:
         vec = work / "vectors"
         programs = _write_vector_set(builds, vec)
-        out = [McuBudget(cfg.program, cfg.to_dict(), 2.0 ** cfg.k, [s.name for s in streams])
-               for cfg, streams in builds]
+        from firmware_model.constants import build_constants
+
+        out = [McuBudget(cfg.program, cfg.to_dict(), 2.0 ** cfg.k, [s.name for s in streams],
+                         table_bytes=4 * build_constants(cfg).ALT_N) for cfg, streams in builds]
         by_program_id = {}
         for b in out:
             by_program_id.setdefault(PROGRAM_IDS[b.program], []).append(b)
@@ -279,7 +283,8 @@ def render_markdown(budgets: Sequence[McuBudget], m68k: Sequence[Any] = ()) -> s
              "Worst step over the budget inputs of each build (the same streams as the 68000 rows), with the input "
              "that gave it. AVR: cycles (Timer1 under simavr, exact). Cortex-M: **instructions** per step counted "
              "by QEMU (`-icount shift=0`), not cycles; the Cortex-M load assumes one cycle per instruction and is a "
-             "lower bound. Code/const: `fw.c` alone (all programs). RAM: state struct + static stack of `fw_step`.",
+             "lower bound. Code/const: `fw.c` alone (all programs), then the constants struct and the build's altitude table "
+             "(flash data). RAM: state struct + static stack of `fw_step`.",
              "Typical = the median on the 68000, the mean on the MCUs. The static worst-case bound is the 68000's "
              "(in brackets); the MCU maxima are measured.",
              "", "| build | target | clock | code B | const B | RAM B (state+stack) | step min / typical / max | "
@@ -303,7 +308,7 @@ def render_markdown(budgets: Sequence[McuBudget], m68k: Sequence[Any] = ()) -> s
                 s, m = b.sizes[key], b.steps[key]
                 load = b.load(target.key, opt)
                 lines.append(f"| {build} | {target.name} -{opt} | {target.clock_hz / 1e6:g} MHz | {s['code_bytes']} | "
-                             f"{s['const_bytes']} + {s['consts_struct_bytes']} | {s['state_bytes']}+{s['stack_bytes']} | "
+                             f"{s['const_bytes']} + {s['consts_struct_bytes']} + {b.table_bytes} | {s['state_bytes']}+{s['stack_bytes']} | "
                              f"{m.min} / {m.mean:.0f} / {m.max} {target.unit} | {m.max_at} | "
                              f"{'' if load is None else f'{100 * load:.2f} %'}{' (lower bound)' if target.unit == 'instructions' else ''} |")
     lines.append("")
