@@ -49,14 +49,21 @@ class _Machine:
     """One emulated board: CPU with the spec's memory map and the program loaded."""
 
     def __init__(self, build: FirmwareBuild) -> None:
-        import isa
+        self.cpu = firmware_cpu(build)
 
-        self.cpu = cpu = isa.CPU(mapped=False)
-        cpu.map(ROM_START, ROM_SIZE, "rom", writable=False)
-        cpu.map(RAM_START, RAM_SIZE, "ram", writable=True)
-        cpu.map(IO_START, IO_SIZE, "io", writable=True)
-        cpu.load(build.program)
-        cpu.a[7] = STACK_TOP
+
+def firmware_cpu(build: FirmwareBuild) -> Any:
+    """A CPU with the firmware memory map of docs/firmware-spec.md §2 (ROM, RAM, input registers; nothing else
+    mapped), ``build``'s program loaded and the stack pointer at the top of RAM."""
+    import isa
+
+    cpu = isa.CPU(mapped=False)
+    cpu.map(ROM_START, ROM_SIZE, "rom", writable=False)
+    cpu.map(RAM_START, RAM_SIZE, "ram", writable=True)
+    cpu.map(IO_START, IO_SIZE, "io", writable=True)
+    cpu.load(build.program)
+    cpu.a[7] = STACK_TOP
+    return cpu
 
 
 def _fault(build: FirmwareBuild, exc: Exception, where: str) -> Exception:

@@ -48,19 +48,12 @@ class FirmwareStepper:
     :func:`firmware_model.harness.run_firmware` on the whole stream (tested)."""
 
     def __init__(self, build: Any, max_cycles_per_call: int | None = None) -> None:
-        import isa
-        from firmware_model.build import (IO_SIZE, IO_START, RAM_SIZE, RAM_START, ROM_SIZE, ROM_START,
-                                          STACK_TOP)
-        from firmware_model.harness import DEFAULT_MAX_CYCLES_PER_CALL
+        from firmware_model.build import STACK_TOP
+        from firmware_model.harness import DEFAULT_MAX_CYCLES_PER_CALL, firmware_cpu
 
         self.build = build
         self.max_cycles = max_cycles_per_call or DEFAULT_MAX_CYCLES_PER_CALL
-        self.cpu = cpu = isa.CPU(mapped=False)
-        cpu.map(ROM_START, ROM_SIZE, "rom", writable=False)
-        cpu.map(RAM_START, RAM_SIZE, "ram", writable=True)
-        cpu.map(IO_START, IO_SIZE, "io", writable=True)
-        cpu.load(build.program)
-        cpu.a[7] = STACK_TOP
+        self.cpu = cpu = firmware_cpu(build)
         self._stack_top = STACK_TOP
         names = tuple(build.variables)
         addr_size = [build.variables[w] for w in names]
