@@ -206,22 +206,20 @@ def _callgraph_stack(ci: Path, root: str) -> tuple[int | None, list[str]]:
     return deepest(root, frozenset()), sorted(reach & builtin)
 
 
-def _write_vector_set(builds: Sequence[tuple[Any, Sequence[Any]]], out: Path) -> dict[str, str]:
-    """A vector set (integer model words) of every build's budget streams; {case name: program}."""
+def _write_vector_set(builds: Sequence[tuple[Any, Sequence[Any]]], out: Path) -> None:
+    """Write a vector set (integer model words) of every build's budget streams into ``out``."""
     from firmware_model import vectors
 
-    specs, programs = [], {}
+    specs = []
     for cfg, streams in builds:
         for stream in streams:
             name = vectors.case_name(cfg.program, cfg.rounding, cfg.k, cfg.baro_bits, "budget_" + stream.name)
             specs.append(vectors.CaseSpec(name, cfg, stream))
-            programs[name] = cfg.program
     results = vectors.generate(specs, "model", progress=False)
     for rel, data in vectors.render_set(results, "budget").items():
         path = out / rel
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_bytes(data)
-    return programs
 
 
 def measure(builds: Sequence[tuple[Any, Sequence[Any]]], work: Path | None = None,
@@ -229,11 +227,13 @@ def measure(builds: Sequence[tuple[Any, Sequence[Any]]], work: Path | None = Non
     """Budgets of ``builds`` ((BuildConfig, streams) pairs) on every available target."""
     if not (C_DIR / "mcu" / "check.sh").is_file():
         raise UserError(f"budget --mcu: the C port is not here ({C_DIR}); run from a source checkout")
+    if len({cfg.program for cfg, _ in builds}) != len(builds):
+        raise UserError("budget --mcu: one build per program (the port's statistics are per program)")
     own = work is None
     work = Path(tempfile.mkdtemp(prefix="fwemu-mcu-")) if own else Path(work)
     try:
         vec = work / "vectors"
-        programs = _write_vector_set(builds, vec)
+        _write_vector_set(builds, vec)
         from firmware_model.constants import build_constants
 
         out = [McuBudget(cfg.program, cfg.to_dict(), 2.0 ** cfg.k, [s.name for s in streams],
@@ -269,8 +269,6 @@ def measure(builds: Sequence[tuple[Any, Sequence[Any]]], work: Path | None = Non
                     for b in by_program_id.get(int(m.group(1)), []):
                         b.steps[key].add(int(m.group(2)), int(m.group(3)), int(m.group(4)), int(m.group(5)),
                                          f"{m.group(6)} sample {m.group(7)}", bool(m.group(8)))
-        if len({(b.program) for b in out}) != len(out):
-            raise UserError("budget --mcu: one build per program (the port's statistics are per program)")
         return out
     finally:
         if own:
