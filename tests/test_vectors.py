@@ -343,3 +343,18 @@ def test_jobs_give_byte_identical_files_in_case_order() -> None:
     for rel, data in a.items():
         if rel.startswith("cases/"):
             assert (VECTORS / rel).read_bytes() == data, rel
+
+
+def test_job_batches_keep_each_build_in_one_batch() -> None:
+    """--jobs batches: every case exactly once, in order within a batch, all cases of a build in the same batch."""
+    specs = vectors.case_matrix(require_logs=False)
+    for jobs in (2, 3):
+        batches = vectors._job_batches(specs, jobs)
+        flat = [i for b in batches for i in b]
+        assert sorted(flat) == list(range(len(specs)))
+        assert all(b == sorted(b) for b in batches)
+        where = {}
+        for n, b in enumerate(batches):
+            for i in b:
+                assert where.setdefault(specs[i].cfg, n) == n, specs[i].name
+        assert 1 < len(batches) <= 4 * jobs
