@@ -270,14 +270,23 @@ def synthetic_flight(k: int, bits: int = 16, seed: int = 0, params: FlightParams
 
 
 # ------------------------------------------------------------------------------------ validation and user files
-def as_input_streams(adc: Any, acc: Any = None) -> tuple[np.ndarray, np.ndarray]:
-    """Validate barometer and accelerometer samples as the firmware's 16-bit input registers hold them and return
+#: What the barometer input register holds (docs/firmware-spec.md §2): ``BARO_ADC`` an unsigned 16-bit word,
+#: ``BARO_PA`` (the pascal kind) a signed 32-bit word.
+BARO_WORD_RANGE: dict[bool, tuple[int, int, str]] = {False: (0, 0xFFFF, "16-bit input register BARO_ADC"),
+                                                     True: (-(1 << 31), (1 << 31) - 1,
+                                                            "signed 32-bit pascal register BARO_PA")}
+
+
+def as_input_streams(adc: Any, acc: Any = None, pascal: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Validate barometer and accelerometer samples as the firmware's input registers hold them and return
     them as int64 arrays of shape ``(streams, n)``.
 
-    ``adc``: integers 0..65535 (raw counts), shape ``(n,)`` or ``(streams, n)``; ``acc``: integers -32768..32767
-    (counts), the same shape, ``None`` = all zero. Raises :class:`UserError` naming the array, the (stream and)
-    sample and the value: wrong shape, empty stream, non-integer or out-of-range samples."""
-    adc2 = _as_streams(adc, "adc", 0, 0xFFFF)
+    ``adc``: integers 0..65535 (raw counts; ``pascal``: the signed 32-bit pascal word, -2^31..2^31-1), shape
+    ``(n,)`` or ``(streams, n)``; ``acc``: integers -32768..32767 (counts), the same shape, ``None`` = all zero.
+    Raises :class:`UserError` naming the array, the (stream and) sample and the value: wrong shape, empty stream,
+    non-integer or out-of-range samples."""
+    lo, hi, what = BARO_WORD_RANGE[bool(pascal)]
+    adc2 = _as_streams(adc, "adc", lo, hi, what)
     if acc is None:
         return adc2, np.zeros_like(adc2)
     acc2 = _as_streams(acc, "acc", -0x8000, 0x7FFF)
@@ -286,7 +295,7 @@ def as_input_streams(adc: Any, acc: Any = None) -> tuple[np.ndarray, np.ndarray]
     return adc2, acc2
 
 
-def _as_streams(values: Any, name: str, lo: int, hi: int) -> np.ndarray:
+def _as_streams(values: Any, name: str, lo: int, hi: int, what: str = "16-bit input register") -> np.ndarray:
     arr = np.asarray(values)
     if arr.ndim not in (1, 2):
         raise UserError(f"{name}: expected shape (n,) or (streams, n), got {arr.shape}")
@@ -296,14 +305,29 @@ def _as_streams(values: Any, name: str, lo: int, hi: int) -> np.ndarray:
         if not np.all(np.isfinite(arr)) or not np.all(arr == np.round(arr)):
             bad = np.argwhere(~np.isfinite(arr) | (arr != np.round(arr)))[0]
             raise UserError(f"{name}: sample {tuple(int(i) for i in bad)} = {arr[tuple(bad)]!r} is not an integer")
+    elif arr.dtype.kind == "O":
+        try:
+            ints = [int(v) for v in arr.ravel()]
+        except (TypeError, ValueError):
+            raise UserError(f"{name}: expected integer samples, got dtype {arr.dtype}") from None
+        for j, v in enumerate(ints):
+            if not lo <= v <= hi:
+                where = np.unravel_index(j, arr.shape)
+                raise UserError(f"{name}: sample {tuple(int(i) for i in where)} = {v} outside {lo}..{hi} ({what})")
+        arr = np.array(ints, dtype=np.int64).reshape(arr.shape)
     elif arr.dtype.kind not in "iub":
         raise UserError(f"{name}: expected integer samples, got dtype {arr.dtype}")
+    if arr.dtype.kind == "u" and arr.dtype.itemsize == 8 and arr.size and int(arr.max()) > hi:
+        j = int(np.argmax(arr.ravel() > hi))
+        where = np.unravel_index(j, arr.shape)
+        raise UserError(f"{name}: sample {tuple(int(i) for i in where)} = {int(arr.ravel()[j])} outside "
+                        f"{lo}..{hi} ({what})")
     out = np.atleast_2d(arr.astype(np.int64))
     outside = (out < lo) | (out > hi)
     if outside.any():
         s, i = (int(v) for v in np.argwhere(outside)[0])
         where = f"sample {i}" if arr.ndim == 1 else f"stream {s} sample {i}"
-        raise UserError(f"{name}: {where} = {int(out[s, i])} outside {lo}..{hi} (16-bit input register)")
+        raise UserError(f"{name}: {where} = {int(out[s, i])} outside {lo}..{hi} ({what})")
     return out
 
 

@@ -87,12 +87,11 @@ class FirmwareStepper:
 
     def init(self, adc0: int, acc0: int) -> tuple[list[int], int]:
         """Run ``init`` on sample 0; returns (init words, init clocks)."""
-        from firmware_model.build import ACCEL_ADC, BARO_ADC
+        from firmware_model.build import write_inputs
 
         cpu = self.cpu
         try:
-            cpu.write(BARO_ADC, int(adc0), 2)
-            cpu.write(ACCEL_ADC, int(acc0) & 0xFFFF, 2)
+            write_inputs(cpu, bool(self.build.consts.PASCAL), int(adc0), int(acc0))
             clocks = cpu.call(self.build.init_address, max_cycles=self.max_cycles)
         except Exception as exc:
             raise self._fault(exc, "init") from exc
@@ -100,9 +99,11 @@ class FirmwareStepper:
 
     def run(self, adc: np.ndarray, acc: np.ndarray, start: int) -> tuple[np.ndarray, np.ndarray]:
         """``step`` on each sample of the chunk (global index ``start`` ...); returns (words (m, n_words), cycles)."""
-        from firmware_model.build import ACCEL_ADC, BARO_ADC
+        from firmware_model.build import ACCEL_ADC, BARO_ADC, BARO_PA
 
         write, call, read_state = self.cpu.write, self.cpu.call, self._read_state
+        baro_reg, baro_size, baro_mask = ((BARO_PA, 4, 0xFFFFFFFF) if self.build.consts.PASCAL
+                                          else (BARO_ADC, 2, 0xFFFF))
         step, limit = self.build.step_address, self.max_cycles
         adc_l, acc_l = adc.tolist(), (np.asarray(acc) & 0xFFFF).tolist()
         out: list[tuple[int, ...]] = [()] * len(adc_l)
@@ -110,7 +111,7 @@ class FirmwareStepper:
         i = 0
         try:
             for i in range(len(adc_l)):
-                write(BARO_ADC, adc_l[i], 2)
+                write(baro_reg, adc_l[i] & baro_mask, baro_size)
                 write(ACCEL_ADC, acc_l[i], 2)
                 cyc[i] = call(step, max_cycles=limit)
                 out[i] = read_state()
