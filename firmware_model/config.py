@@ -167,9 +167,11 @@ class BuildConfig:
                 if getattr(self, name) is not None:
                     raise bad(name, "a pascal barometer reports pascals (identity transfer function): must be null")
         tb = self.table_bits
+        lo_shift = 6 if self.pascal else 1      # pascal: 2^(17-6)+1 nodes = 8,196 bytes, the most the 16 KB ROM holds
         if self.alt_shift is not None and (isinstance(self.alt_shift, bool) or not isinstance(self.alt_shift, int)
-                                           or not 1 <= self.alt_shift <= min(15, tb - 1)):
-            raise bad("alt_shift", f"altitude-table segment shift must be 1..{min(15, tb - 1)} or null")
+                                           or not lo_shift <= self.alt_shift <= min(15, tb - 1)):
+            raise bad("alt_shift", f"altitude-table segment shift must be {lo_shift}..{min(15, tb - 1)} or null"
+                      + (" (a pascal table of 2^(17-alt_shift)+1 nodes must fit the 16 KB ROM)" if self.pascal else ""))
         if self.cal_p is not None and (isinstance(self.cal_p, bool) or not isinstance(self.cal_p, int)
                                        or not 0 <= self.cal_p <= 8):
             raise bad("cal_p", "pad calibration over 2^cal_p samples needs cal_p in 0..8 (or null)")

@@ -269,6 +269,37 @@ def synthetic_flight(k: int, bits: int = 16, seed: int = 0, params: FlightParams
     return Stream(name=name, adc=adc, acc=acc, k=k, bits=bits, provenance=prov, truth=truth)
 
 
+def synthetic_pascal_flight(k: int, seed: int = 0, params: FlightParams | None = None, noise_pa: float = 3.0,
+                            name: str = "flight") -> Stream:
+    """:func:`synthetic_flight` for a digital barometer (``baro_kind`` pascal, docs/firmware-spec.md §2): the same
+    trajectory and accelerometer, the barometer word = the ISA pressure at ``pad_altitude_m`` + height (+ the
+    transonic error) in integer pascals plus Gaussian noise ``noise_pa`` (Pa rms), rounded to the nearest pascal
+    and clipped to the MS5607's 1,000..120,000 Pa. ``units_per_metre``/``baro_sigma``/``pad_fraction`` of
+    ``params`` are not used. Noise from ``numpy.random.default_rng(seed)`` (barometer first, then accelerometer)."""
+    _check_common(k, 16)
+    p = params or FlightParams()
+    if not (math.isfinite(noise_pa) and noise_pa >= 0):
+        raise UserError(f"synthetic pascal flight: noise_pa={noise_pa!r} must be a finite number >= 0")
+    dt = 2.0 ** -k
+    h, a, apogee_t = _trajectory(p, dt, 8)
+    speed = np.abs(np.gradient(h, dt)) if h.shape[0] > 1 else np.zeros_like(h)
+    rng = np.random.default_rng(seed)
+    baro_noise = rng.standard_normal(h.shape[0]) * noise_pa
+    acc_noise = rng.standard_normal(h.shape[0]) * p.accel_sigma
+    lo, hi = p.transonic_band_mps
+    h_baro = h + np.where((speed > lo) & (speed < hi), p.transonic_error_m, 0.0)
+    pa = np.clip(np.rint(pressure_pa(p.pad_altitude_m + h_baro) + baro_noise), 1000, 120000).astype(np.int64)
+    acc_f = p.accel_offset + (a + G0) * p.accel_counts_per_mps2 + acc_noise
+    acc = np.clip(np.rint(acc_f), ACC_MIN, ACC_MAX).astype(np.int64)
+    prov = {"generator": "fwemu.inputs.synthetic_pascal_flight", "k": k, "baro_kind": "pascal", "seed": seed,
+            "noise_pa": noise_pa, "params": p.to_dict(),
+            "rng": "numpy.random.default_rng(seed) PCG64, baro noise then accel noise"}
+    v = np.diff(h) / dt
+    truth = {"apogee_s": round(apogee_t, 6), "apogee_sample": int(math.floor(apogee_t / dt)),
+             "apogee_height_m": round(float(h.max()), 3), "max_speed_mps": round(float(v.max()), 3) if v.size else 0.0}
+    return Stream(name=name, adc=pa, acc=acc, k=k, bits=32, provenance=prov, truth=truth)
+
+
 # ------------------------------------------------------------------------------------ validation and user files
 #: What the barometer input register holds (docs/firmware-spec.md §2): ``BARO_ADC`` an unsigned 16-bit word,
 #: ``BARO_PA`` (the pascal kind) a signed 32-bit word.
