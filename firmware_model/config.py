@@ -205,6 +205,11 @@ class BuildConfig:
         return PA_TABLE_BITS if self.pascal else self.baro_bits
 
     @property
+    def baro_word_bits(self) -> int:
+        """Width of the barometer register: ``baro_bits`` (ADC) or 32 (the pascal word)."""
+        return 32 if self.pascal else self.baro_bits
+
+    @property
     def baro_word_range(self) -> tuple[int, int]:
         """What the barometer input register can hold: 0..2^bits-1 (ADC) or the signed 32-bit range (pascal)."""
         return (-(1 << 31), (1 << 31) - 1) if self.pascal else (0, (1 << self.baro_bits) - 1)

@@ -127,6 +127,27 @@ def edge_stream(kind: str, n: int, bits: int, k: int) -> Stream:
                               "seed": None})
 
 
+#: The pascal kind's edge values (Pa): sea level, the MS5607's range.
+PA_SEA, PA_LO, PA_HI = 101325, 1000, 120000
+
+
+def pascal_edge_stream(kind: str, n: int, k: int) -> Stream:
+    """:func:`edge_stream` for a pascal build (the signed 32-bit word ``BARO_PA``): the same kinds and
+    accelerometer, the barometer in pascals: ``constant`` 101,325; ``step`` 101,325 then 86,325 (~1.3 km up);
+    ``ramp`` falling 12 Pa per sample (~1 m) from 101,325, clamped at 1,000; ``adc_min``/``adc_max`` the register's
+    extremes -2^31 / 2^31-1 (invalid words); ``alternating`` 120,000 / 1,000 (the valid range's ends: the worst
+    innovation); ``ties`` 101,325 + 0,1,1,0. No randomness."""
+    base = edge_stream(kind, n, 16, k)
+    i = np.arange(n, dtype=np.int64)
+    pa = {"constant": np.full(n, PA_SEA), "step": np.where(i < n // 4, PA_SEA, PA_SEA - 15000),
+          "ramp": np.clip(PA_SEA - 12 * i, PA_LO, PA_HI), "adc_min": np.full(n, -(1 << 31)),
+          "adc_max": np.full(n, (1 << 31) - 1), "alternating": np.where(i % 2 == 0, PA_HI, PA_LO),
+          "ties": PA_SEA + np.array([0, 1, 1, 0], np.int64)[i % 4]}[kind]
+    return Stream(name=base.name, adc=np.asarray(pa, dtype=np.int64), acc=base.acc, k=k, bits=32,
+                  provenance={"generator": "fwemu.inputs.pascal_edge_stream", "kind": kind, "n": n,
+                              "baro_kind": "pascal", "k": k, "seed": None})
+
+
 @dataclass(frozen=True)
 class FlightParams:
     """A simple vertical flight and its sensors (SI units unless stated).
@@ -412,11 +433,13 @@ def iter_stream_csv(path: str | Path, bits: int, k: int, require_acc: bool = Fal
     at most once), then one integer sample per row. ``require_acc``: the program reads the accelerometer, so a
     missing ``acc`` column is an error (it would silently read zeros). Pass a :class:`CsvInfo` as ``info`` to
     learn the count, columns and SHA-256. Errors (:class:`UserError`) name the file and line: missing or
-    duplicate columns, wrong field count, non-integer or out-of-range values (adc 0..2^bits-1, acc
-    -32768..32767), undecodable bytes, an empty file, no samples."""
+    duplicate columns, wrong field count, non-integer or out-of-range values (adc 0..2^bits-1, or for ``bits`` =
+    32, a pascal build's word, -2^31..2^31-1; acc -32768..32767), undecodable bytes, an empty file, no samples."""
     path = Path(path)
     info = info if info is not None else CsvInfo(path, bits, k)
-    full = (1 << bits) - 1
+    # bits = 32: the pascal kind's signed 32-bit word (BuildConfig.baro_word_bits)
+    adc_lo, full = (-(1 << 31), (1 << 31) - 1) if bits == 32 else (0, (1 << bits) - 1)
+    what = " (signed 32-bit pascal word)" if bits == 32 else f" ({bits}-bit barometer ADC)"
     try:
         f = path.open("rb")
     except FileNotFoundError:
@@ -472,7 +495,7 @@ def iter_stream_csv(path: str | Path, bits: int, k: int, require_acc: bool = Fal
                     continue
                 if len(cells) != len(header):
                     raise UserError(f"{path}:{lineno}: expected {len(header)} fields, got {len(cells)}")
-                for col, idx, lo, hi, dest in (("adc", i_adc, 0, full, adc), ("acc", i_acc, -32768, 32767, acc)):
+                for col, idx, lo, hi, dest in (("adc", i_adc, adc_lo, full, adc), ("acc", i_acc, -32768, 32767, acc)):
                     if idx is None:
                         dest.append(0)
                         continue
@@ -483,7 +506,7 @@ def iter_stream_csv(path: str | Path, bits: int, k: int, require_acc: bool = Fal
                         raise UserError(f"{path}:{lineno}: {col}={cell[:40]!r} is not an integer") from None
                     if not lo <= v <= hi:
                         raise UserError(f"{path}:{lineno}: {col}={v} outside [{lo}, {hi}]"
-                                        + (f" ({bits}-bit barometer ADC)" if col == "adc" else ""))
+                                        + (what if col == "adc" else ""))
                     dest.append(v)
                 if len(adc) >= chunk:
                     info.n += len(adc)

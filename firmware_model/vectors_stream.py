@@ -246,20 +246,21 @@ def generate_user(program: str, input_csv: str | Path, out: str | Path, config: 
     guard(Path(out))
     cfg = load_config(config, {"program": program}, {"program": "--firmware"})
     path = Path(input_csv)
-    info = CsvInfo(path, cfg.baro_bits, cfg.k)
+    info = CsvInfo(path, cfg.baro_word_bits, cfg.k)
+    adc_dtype = "<i4" if cfg.pascal else "<u2"          # the barometer register: 32-bit pascal word or 16-bit ADC
     sizes: dict[str, int] = {}
     with output.staged_folder(out, owned=("cases", "tables"), guard=guard, last=("manifest.json",)) as stage:
         # 1. validate and spool the inputs
         adc_path, acc_path = _spool_path(stage, "adc"), _spool_path(stage, "acc")
         with adc_path.open("wb") as fa, acc_path.open("wb") as fb:
-            for a, b in iter_stream_csv(path, cfg.baro_bits, cfg.k, program in ACC_PROGRAMS, chunk, info):
-                a.astype("<u2").tofile(fa)
+            for a, b in iter_stream_csv(path, cfg.baro_word_bits, cfg.k, program in ACC_PROGRAMS, chunk, info):
+                a.astype(adc_dtype).tofile(fa)
                 b.astype("<i2").tofile(fb)
         n = info.n
         if header and n > HEADER_MAX_SAMPLES:
             raise UserError(f"vectors: {path} has {n:,} samples; a C header holds at most {HEADER_MAX_SAMPLES:,} "
                             f"(docs/vectors.md, Limits): cut the stream, or pass --no-header for JSON only")
-        adc, acc = _Spooled(adc_path, "<u2", n), _Spooled(acc_path, "<i2", n)
+        adc, acc = _Spooled(adc_path, adc_dtype, n), _Spooled(acc_path, "<i2", n)
         stream = Stream(name=_identifier(path.stem), adc=adc, acc=acc, k=cfg.k, bits=cfg.baro_bits,
                         provenance=info.provenance())
         name = vectors.case_name(program, cfg.rounding, cfg.k, cfg.baro_bits, stream.name)
