@@ -332,7 +332,9 @@ def test_cli_check_and_user_set(tmp_path: Path, capsys: pytest.CaptureFixture[st
 
 def test_jobs_give_byte_identical_files_in_case_order() -> None:
     """--jobs N: worker processes, results in matrix order, the same bytes as --jobs 1 and as the committed set."""
-    specs = vectors.case_matrix()[::16]          # 40 cases across programs, roundings, k, widths and streams
+    # 40 cases across programs, roundings, k, widths and streams (none of them a real-log case: those come last,
+    # so the pick is the same with or without ../shared/flights)
+    specs = vectors.case_matrix(require_logs=False)[::16]
     one = vectors.generate(specs, "emulation", progress=False, jobs=1)
     two = vectors.generate(specs, "emulation", progress=False, jobs=2)
     assert [r.spec.name for r in two] == [s.name for s in specs]
