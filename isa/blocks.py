@@ -399,7 +399,7 @@ class _BlockGen:
 
     # ---- flag fragments
     def nz(self, v: str, nb: int) -> str:
-        return f"(8 if {v} & {SIGN[nb]} else (0 if {v} else 4))"
+        return f"({v} >> {BITS[nb] - 4} & 8 if {v} else 4)"  # N = the sign bit moved to bit 3; Z
 
     def logic_flags(self, v: str, nb: int, need: int) -> None:
         if need & _FLAGS_NZVC:
@@ -425,7 +425,7 @@ class _BlockGen:
             keep &= ~(NF | ZF)
         if need & VF:
             v = f"({s} ^ rm) & ({d} ^ rm)" if kind == "add" else f"({s} ^ {d}) & ({d} ^ rm)"
-            parts.append(f"(2 if {v} & {S} else 0)")
+            parts.append(f"(({v}) >> {BITS[nb] - 2} & 2)")  # the sign bit of the overflow test moved to bit 1
             keep &= ~VF
         if kind == "cmp":
             keep |= XF
