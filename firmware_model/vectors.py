@@ -223,10 +223,11 @@ def _constants(cfg: BuildConfig) -> Any:
     return build_constants(cfg)
 
 
-def compute_case(spec: CaseSpec, generator: str = "emulation") -> CaseResult:
+def compute_case(spec: CaseSpec, generator: str = "emulation", builds: dict[Any, Any] | None = None) -> CaseResult:
     """Run one case. ``generator="emulation"``: the 68000 firmware on the emulated CPU, then the integer model on
     the same inputs; any differing word raises :class:`UserError` naming case, sample and word.
-    ``generator="model"``: the integer model only (bootstrap; marked in the output)."""
+    ``generator="model"``: the integer model only (bootstrap; marked in the output). ``builds``: a dict the
+    caller keeps over one run of many cases, so each build config is built (loaded) once in that run."""
     from firmware_model.build import source_sha256
     from firmware_model.model import run_model
 
@@ -238,7 +239,11 @@ def compute_case(spec: CaseSpec, generator: str = "emulation") -> CaseResult:
         from firmware_model.build import build_firmware
         from firmware_model.harness import run_firmware
 
-        build = build_firmware(_constants(cfg))
+        build = builds.get(cfg) if builds is not None else None
+        if build is None:
+            build = build_firmware(_constants(cfg))
+            if builds is not None:
+                builds[cfg] = build
         consts = build.consts
         trace = run_firmware(build, adc, acc)
         model = run_model(consts, adc, acc)
@@ -262,8 +267,8 @@ def compute_case(spec: CaseSpec, generator: str = "emulation") -> CaseResult:
     words = np.asarray(trace.words, dtype=np.int64)
     return CaseResult(spec=spec, generator=label, source=f"firmware_model/asm/{cfg.program}.s",
                       source_sha256=source_sha, consts=consts,
-                      init=[int(v) for v in np.asarray(trace.init_words).tolist()],
-                      words=[[int(v) for v in row] for row in words.tolist()], cycles=cycles,
+                      init=np.asarray(trace.init_words, dtype=np.int64).tolist(),
+                      words=words.tolist(), cycles=cycles,  # int64 -> Python ints
                       first_wrap=int(model.first_wrap), wrap_word=str(model.wrap_word))
 
 
@@ -765,7 +770,8 @@ def _set_guard(kind: str) -> Any:
 
 def _compute_job(job: tuple[Sequence[CaseSpec], str]) -> list[CaseResult]:
     specs, generator = job
-    return [compute_case(spec, generator) for spec in specs]
+    builds: dict[Any, Any] = {}
+    return [compute_case(spec, generator, builds) for spec in specs]
 
 
 def _job_batches(specs: Sequence[CaseSpec], jobs: int) -> list[list[int]]:
@@ -820,8 +826,9 @@ def generate(specs: Sequence[CaseSpec], generator: str = "emulation", progress: 
                 pool.join()
             results = [r for r in slots if r is not None]
         else:
+            builds: dict[Any, Any] = {}
             for spec in specs:
-                results.append(compute_case(spec, generator))
+                results.append(compute_case(spec, generator, builds))
                 bar.step(spec.name, len(spec.stream))
     finally:
         bar.close()

@@ -287,11 +287,11 @@ def test_failed_generation_writes_nothing(tmp_path: Path, monkeypatch: pytest.Mo
     calls = {"n": 0}
     real = vectors.compute_case
 
-    def flaky(spec, generator="emulation"):
+    def flaky(spec, generator="emulation", builds=None):
         calls["n"] += 1
         if calls["n"] == 3:
             raise UserError("boom")
-        return real(spec, generator)
+        return real(spec, generator, builds)
 
     monkeypatch.setattr(vectors, "compute_case", flaky)
     with pytest.raises(UserError, match="boom"):
