@@ -262,10 +262,11 @@ def _constants(cfg: BuildConfig) -> Any:
     return build_constants(cfg)
 
 
-def compute_case(spec: CaseSpec, generator: str = "emulation") -> CaseResult:
+def compute_case(spec: CaseSpec, generator: str = "emulation", builds: dict[Any, Any] | None = None) -> CaseResult:
     """Run one case. ``generator="emulation"``: the 68000 firmware on the emulated CPU, then the integer model on
     the same inputs; any differing word raises :class:`UserError` naming case, sample and word.
-    ``generator="model"``: the integer model only (bootstrap; marked in the output)."""
+    ``generator="model"``: the integer model only (bootstrap; marked in the output). ``builds``: a dict the
+    caller keeps over one run of many cases, so each build config is built (loaded) once in that run."""
     from firmware_model.build import source_sha256
     from firmware_model.model import run_model
 
@@ -277,7 +278,11 @@ def compute_case(spec: CaseSpec, generator: str = "emulation") -> CaseResult:
         from firmware_model.build import build_firmware
         from firmware_model.harness import run_firmware
 
-        build = build_firmware(_constants(cfg))
+        build = builds.get(cfg) if builds is not None else None
+        if build is None:
+            build = build_firmware(_constants(cfg))
+            if builds is not None:
+                builds[cfg] = build
         consts = build.consts
         trace = run_firmware(build, adc, acc)
         model = run_model(consts, adc, acc)
@@ -301,8 +306,8 @@ def compute_case(spec: CaseSpec, generator: str = "emulation") -> CaseResult:
     words = np.asarray(trace.words, dtype=np.int64)
     return CaseResult(spec=spec, generator=label, source=f"firmware_model/asm/{cfg.program}.s",
                       source_sha256=source_sha, consts=consts,
-                      init=[int(v) for v in np.asarray(trace.init_words).tolist()],
-                      words=[[int(v) for v in row] for row in words.tolist()], cycles=cycles,
+                      init=np.asarray(trace.init_words, dtype=np.int64).tolist(),
+                      words=words.tolist(), cycles=cycles,  # int64 -> Python ints
                       first_wrap=int(model.first_wrap), wrap_word=str(model.wrap_word))
 
 
@@ -812,7 +817,8 @@ def _set_guard(kind: str) -> Any:
 
 def _compute_job(job: tuple[Sequence[CaseSpec], str]) -> list[CaseResult]:
     specs, generator = job
-    return [compute_case(spec, generator) for spec in specs]
+    builds: dict[Any, Any] = {}
+    return [compute_case(spec, generator, builds) for spec in specs]
 
 
 def _job_batches(specs: Sequence[CaseSpec], jobs: int) -> list[list[int]]:
@@ -834,27 +840,42 @@ def _job_batches(specs: Sequence[CaseSpec], jobs: int) -> list[list[int]]:
     return [sorted(batches[b]) for b in order if batches[b]]
 
 
+def _worker_start() -> None:
+    """Initializer of a ``--jobs`` worker: SIGINT ignored, SIGTERM quiet (:func:`firmware_model.output.worker_init`),
+    then the modules every case needs imported, while the parent is still building the case matrix."""
+    from firmware_model.output import worker_init
+
+    worker_init()
+    import firmware_model.harness  # noqa: F401
+    import firmware_model.model  # noqa: F401
+
+
+def _start_pool(n: int) -> Any:
+    import multiprocessing
+
+    from firmware_model.output import worker_signals_ignored
+
+    # spawn, not fork: a forked child of a process whose numba thread pool already ran can deadlock.
+    # The workers are started with SIGINT ignored (inherited through exec, kept by Python): a Ctrl-C to
+    # the process group while they are still importing must not print their KeyboardInterrupt.
+    with worker_signals_ignored():
+        return multiprocessing.get_context("spawn").Pool(n, initializer=_worker_start)
+
+
 def generate(specs: Sequence[CaseSpec], generator: str = "emulation", progress: bool | None = None,
-             jobs: int = 1) -> list[CaseResult]:
+             jobs: int = 1, pool: Any = None) -> list[CaseResult]:
     """Run every case (in order); ``jobs`` > 1 runs them in that many worker processes, the cases of one build in
     one worker (:func:`_job_batches`). The results come back in the order of ``specs`` whatever the workers'
     timing, so the files written are byte-identical to ``jobs=1``. An error or interrupt terminates the workers
-    at once."""
+    at once. ``pool``: workers the caller started already (:func:`_start_pool`; terminated here)."""
     bar = _Progress(sum(len(s.stream) for s in specs), "vectors", progress, unit="samples")
     results: list[CaseResult] = []
     try:
         if jobs > 1 and len(specs) > 1:
-            import multiprocessing
-
-            from firmware_model.output import worker_init, worker_signals_ignored
-
             batches = _job_batches(specs, jobs)
             slots: list[CaseResult | None] = [None] * len(specs)
-            # spawn, not fork: a forked child of a process whose numba thread pool already ran can deadlock.
-            # The workers are started with SIGINT ignored (inherited through exec, kept by Python): a Ctrl-C to
-            # the process group while they are still importing must not print their KeyboardInterrupt.
-            with worker_signals_ignored():
-                pool = multiprocessing.get_context("spawn").Pool(min(jobs, len(batches)), initializer=worker_init)
+            if pool is None:
+                pool = _start_pool(min(jobs, len(batches)))
             try:
                 jobs_in = [([specs[i] for i in b], generator) for b in batches]
                 for b, batch in zip(batches, pool.imap(_compute_job, jobs_in)):
@@ -867,18 +888,31 @@ def generate(specs: Sequence[CaseSpec], generator: str = "emulation", progress: 
                 pool.join()
             results = [r for r in slots if r is not None]
         else:
+            builds: dict[Any, Any] = {}
             for spec in specs:
-                results.append(compute_case(spec, generator))
+                results.append(compute_case(spec, generator, builds))
                 bar.step(spec.name, len(spec.stream))
     finally:
+        if pool is not None:  # an error before the workers got their jobs
+            pool.terminate()
+            pool.join()
         bar.close()
     return results
 
 
 def generate_all(out: str | Path, generator: str = "emulation", progress: bool | None = None,
                  jobs: int = 1) -> dict[str, bytes]:
-    """Regenerate the whole committed set (:func:`case_matrix`) into ``out``; returns the files written."""
-    results = generate(case_matrix(), generator, progress, jobs)
+    """Regenerate the whole committed set (:func:`case_matrix`) into ``out``; returns the files written. With
+    ``jobs`` > 1 the workers start first, so their start-up overlaps the building of the case matrix."""
+    pool = _start_pool(jobs) if jobs > 1 else None
+    try:
+        specs = case_matrix()
+    except BaseException:
+        if pool is not None:
+            pool.terminate()
+            pool.join()
+        raise
+    results = generate(specs, generator, progress, jobs, pool=pool)
     files = render_set(results, "all", AVR_CASES)
     write_set(files, out, "all")
     return files
