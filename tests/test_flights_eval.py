@@ -166,6 +166,21 @@ def test_summary_median_worst_misses():
     assert doc["flights"][1]["methods"]["rec_half"]["time_s"] is None
 
 
+def test_summary_leaves_flagged_references_out_of_the_usable_worst_only():
+    flagged = FlightResult("cato", "log", 7, "test", Reference(3.0, 100.0, 0.9, "baro_parabola", "not ballistic",
+                                                               usable=False), None,
+                           {"kalman_baro": Detection("kalman_baro", 0, 6.0)}, 10)
+    rs = [_result("a", 10.0, {"kalman_baro": 9.6}), _result("b", 20.0, {"kalman_baro": 20.2}), flagged]
+    s = summarize(rs, "kalman_baro", "kb")
+    assert (s.worst_abs_s, s.worst_flight) == (3.0, "cato")            # the plain worst keeps every flight
+    assert (s.worst_usable_abs_s, s.worst_usable_flight, s.unusable) == (pytest.approx(0.4), "a", 1)
+    assert (s.most_early_s, s.most_early_flight) == (pytest.approx(-0.4), "a")
+    md = render_markdown(rs)
+    assert "(baro_parabola) ⚠" in md and "1 on flagged references left out" in md
+    late = summarize([_result("a", 10.0, {"kalman_baro": 10.5})], "kalman_baro", "kb")
+    assert late.most_early_s is None and late.unusable == 0
+
+
 # ---------------------------------------------------------------------------------------------------- subsonic flights
 #: The stated window for kalman_baro (default build: k = 7, R/q = 50,000, floor) on subsonic 1-DOF flights sensed by a
 #: noisy 16-bit MPX4115-class barometer: error = detection - true apogee in [-3.5, +0.6] s, and never before burnout.
