@@ -56,3 +56,12 @@ def test_rescore_recomputes_a_logs_reference() -> None:
     assert out[0]["reference"]["time_s"] == pytest.approx(18.246, abs=0.01) and out[0]["reference"]["usable"]
     assert out[0]["methods"]["kalman_baro"]["error_s"] == pytest.approx(18.2 - out[0]["reference"]["time_s"])
     assert out[1] == json.loads(json.dumps(sim))                          # truth is kept
+
+
+def test_sim_all_is_every_scenario_as_a_flight_argument() -> None:
+    from firmware_model.flights.evalset import resolve_flights
+    from firmware_model.flights.scenarios import scenario_names
+
+    specs = resolve_flights(["sim:all"], ks=(5, 6), baro="telemetrum_v1")
+    assert [s.source for s in specs] == [f"sim:{n}" for n in scenario_names() for _ in (5, 6)]
+    assert {s.k for s in specs} == {5, 6} and {s.baro for s in specs} == {"telemetrum_v1"}
