@@ -193,7 +193,7 @@ def run(args: argparse.Namespace) -> int:
         return 0
     cfg = load_config(args.config, {"program": args.program, "k": args.k, "rounding": args.rounding})
     if args.input is not None:
-        stream = read_stream_csv(args.input, cfg.baro_bits, cfg.k, require_acc=cfg.program in ACC_PROGRAMS)
+        stream = read_stream_csv(args.input, cfg.baro_word_bits, cfg.k, require_acc=cfg.program in ACC_PROGRAMS)
         true_ap = None
     else:
         stream = synthetic_flight(cfg.k, cfg.baro_bits, 0 if args.synthetic is None else args.synthetic,

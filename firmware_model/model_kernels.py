@@ -26,7 +26,8 @@ Layout, chosen so that a program is easy to change or add:
 
 Exactness. Compiled, every integer is an ``int64``; uncompiled, :func:`firmware_model.model.run_model` passes
 object arrays, so every value is an exact Python ``int``. The int64 arithmetic is exact because no intermediate
-leaves int64: state words and constants are int32, inputs 16-bit, so sums of a few int32 values stay below 2^34,
+leaves int64: state words and constants are int32, inputs 16-bit (or the pascal kind's signed 32-bit word, whose
+``z << 8`` stays below 2^40 in the recursive programs), so sums of a few int32 values stay below 2^34,
 the gain products ``e * m`` (``e`` a wrapped int32 or ``acc - ACC0`` with ``|.| <= 65535``, ``|m| <= 2^15``) below
 2^46, and ``v << 16`` in the apogee prediction below 2^31 (``0 < v < d < 2^15`` there). Hence the exact values
 used for wrap detection are the int64 values themselves. tests/test_model_kernels.py checks this by running the
@@ -249,8 +250,8 @@ def _note(w, x, wid):  # type: ignore[no-untyped-def]
 def recursive_init(st, adc, acc, c):  # type: ignore[no-untyped-def]
     """EST = EXT = z << 8; VEL = 0; ACC0 = acc; EVENTS = 0."""
     z = adc * c[C_BARO_SIGN]
-    st[EST] = z << 8
-    st[EXT] = z << 8
+    st[EST] = _w32(z << 8)       # exact for |z| < 2^23: every ADC word; a pascal word wraps as LSL.L does
+    st[EXT] = _w32(z << 8)
     st[VEL] = 0
     st[ACC0_R] = acc
     st[EVENTS_R] = 0
@@ -298,7 +299,7 @@ def recursive_step(st, adc, acc, c):  # type: ignore[no-untyped-def]
 @njit(cache=True)
 def seed_literal_init(st, adc, acc, c):  # type: ignore[no-untyped-def]
     """EST = z << 8."""
-    st[EST] = (adc * c[C_BARO_SIGN]) << 8
+    st[EST] = _w32((adc * c[C_BARO_SIGN]) << 8)
 
 
 @njit(cache=True, inline="always")

@@ -136,8 +136,45 @@ class CaseSpec:
 
 
 def case_name(program: str, rounding: str, k: int, bits: int, stream: str) -> str:
-    """``<program>_<rounding>_k<k>_b<bits>_<stream>`` (a C identifier)."""
-    return f"{program}_{rounding}_k{k}_b{bits}_{stream}"
+    """``<program>_<rounding>_k<k>_b<bits>_<stream>`` (a C identifier); ``bits`` = 32, the pascal kind's word:
+    ``<program>_<rounding>_k<k>_pa_<stream>``."""
+    return f"{program}_{rounding}_k{k}_{'pa' if bits == 32 else f'b{bits}'}_{stream}"
+
+
+#: Pascal cases of the committed set (docs/vectors.md, "Pascal cases"): every program and rounding at this k, the
+#: pascal edge streams of these kinds, and the pascal synthetic flight for (program, rounding) in
+#: :data:`PASCAL_FLIGHTS`. Kept small: the whole set must stay under 20 MB.
+PASCAL_K: int = 4
+PASCAL_EDGE_KINDS: tuple[str, ...] = ("adc_min", "alternating", "ties", "ramp")
+PASCAL_FLIGHTS: tuple[tuple[str, str], ...] = (("recursive", "floor"), ("kalman_baro", "half_up"),
+                                               ("kalman_accel", "floor"))
+#: Pascals per metre of the pascal cases' builds (rho g at sea level) and their barometer noise (Pa rms).
+PASCAL_PA_PER_M: float = 12.0
+PASCAL_SIGMA_PA: float = 3.0
+
+
+def pascal_case_config(program: str, rounding: str, k: int) -> BuildConfig:
+    """The build of a pascal case: ``baro_kind`` pascal (MS5607 range 1,000..120,000 Pa, the default table),
+    12 Pa/m, 3 Pa noise, otherwise the defaults."""
+    return BuildConfig(program=program, rounding=rounding, k=k, baro_kind="pascal", units_per_metre=PASCAL_PA_PER_M,
+                       baro_sigma=PASCAL_SIGMA_PA)
+
+
+def pascal_case_specs() -> list[CaseSpec]:
+    """The pascal cases (:data:`PASCAL_K`, :data:`PASCAL_EDGE_KINDS`, :data:`PASCAL_FLIGHTS`), in a fixed order."""
+    from firmware_model.inputs import pascal_edge_stream, synthetic_pascal_flight
+
+    specs: list[CaseSpec] = []
+    flight = synthetic_pascal_flight(PASCAL_K, seed=FLIGHT_SEED, noise_pa=PASCAL_SIGMA_PA)
+    for program in PROGRAMS:
+        for rounding in ROUNDINGS:
+            cfg = pascal_case_config(program, rounding, PASCAL_K)
+            for kind in PASCAL_EDGE_KINDS:
+                stream = pascal_edge_stream(kind, EDGE_SAMPLES, PASCAL_K)
+                specs.append(CaseSpec(case_name(program, rounding, PASCAL_K, 32, stream.name), cfg, stream))
+            if (program, rounding) in PASCAL_FLIGHTS:
+                specs.append(CaseSpec(case_name(program, rounding, PASCAL_K, 32, flight.name), cfg, flight))
+    return specs
 
 
 def case_matrix(require_logs: bool = True) -> list[CaseSpec]:
@@ -175,6 +212,7 @@ def case_matrix(require_logs: bool = True) -> list[CaseSpec]:
     from firmware_model.flights.vectorcases import flight_case_specs
 
     specs += flight_case_specs(case_name, CaseSpec, Stream, require_logs)
+    specs += pascal_case_specs()
     return specs
 
 
@@ -183,6 +221,7 @@ def case_matrix(require_logs: bool = True) -> list[CaseSpec]:
 #: one rounding each and the long transonic flight is left to the host).
 AVR_CASES: tuple[str, ...] = tuple(
     [case_name("recursive", r, 4, 16, "flight") for r in ROUNDINGS]
+    + [case_name(p, "floor", PASCAL_K, 32, "edge_ties") for p in ("recursive", "kalman_accel")]
     + [case_name(p, r, 4, 16, "flight") for p, r in (("kalman_baro", "floor"), ("kalman_accel", "half_up"))]
     + [case_name(p, r, 4, 16, "edge_" + kind) for p in PROGRAMS for r in ROUNDINGS for kind in ("ties", "step")]
 )
@@ -223,10 +262,11 @@ def _constants(cfg: BuildConfig) -> Any:
     return build_constants(cfg)
 
 
-def compute_case(spec: CaseSpec, generator: str = "emulation") -> CaseResult:
+def compute_case(spec: CaseSpec, generator: str = "emulation", builds: dict[Any, Any] | None = None) -> CaseResult:
     """Run one case. ``generator="emulation"``: the 68000 firmware on the emulated CPU, then the integer model on
     the same inputs; any differing word raises :class:`UserError` naming case, sample and word.
-    ``generator="model"``: the integer model only (bootstrap; marked in the output)."""
+    ``generator="model"``: the integer model only (bootstrap; marked in the output). ``builds``: a dict the
+    caller keeps over one run of many cases, so each build config is built (loaded) once in that run."""
     from firmware_model.build import source_sha256
     from firmware_model.model import run_model
 
@@ -238,7 +278,11 @@ def compute_case(spec: CaseSpec, generator: str = "emulation") -> CaseResult:
         from firmware_model.build import build_firmware
         from firmware_model.harness import run_firmware
 
-        build = build_firmware(_constants(cfg))
+        build = builds.get(cfg) if builds is not None else None
+        if build is None:
+            build = build_firmware(_constants(cfg))
+            if builds is not None:
+                builds[cfg] = build
         consts = build.consts
         trace = run_firmware(build, adc, acc)
         model = run_model(consts, adc, acc)
@@ -262,8 +306,8 @@ def compute_case(spec: CaseSpec, generator: str = "emulation") -> CaseResult:
     words = np.asarray(trace.words, dtype=np.int64)
     return CaseResult(spec=spec, generator=label, source=f"firmware_model/asm/{cfg.program}.s",
                       source_sha256=source_sha, consts=consts,
-                      init=[int(v) for v in np.asarray(trace.init_words).tolist()],
-                      words=[[int(v) for v in row] for row in words.tolist()], cycles=cycles,
+                      init=np.asarray(trace.init_words, dtype=np.int64).tolist(),
+                      words=words.tolist(), cycles=cycles,  # int64 -> Python ints
                       first_wrap=int(model.first_wrap), wrap_word=str(model.wrap_word))
 
 
@@ -424,7 +468,7 @@ def case_json(res: CaseResult) -> str:
 
 
 def _c_rows(values: Iterable[int], per_line: int = 16) -> str:
-    vals = [str(int(v)) for v in values]
+    vals = [_c_i32(int(v)) for v in values]
     return ",\n".join("    " + ", ".join(vals[i:i + per_line]) for i in range(0, len(vals), per_line))
 
 
@@ -449,7 +493,8 @@ def case_header_parts(res: CaseResult, adc_chunks: Iterable[str], acc_chunks: It
     n, nw = len(stream), len(names)
     out = [f"/* Golden vectors: case {name}. Generated by {tool_version()}; do not edit (fwemu vectors). */",
            f"/* generator: {res.generator} */",
-           f"/* program {cfg.program}, rounding {cfg.rounding}, dt = 2^-{cfg.k} s, {stream.bits}-bit barometer, "
+           f"/* program {cfg.program}, rounding {cfg.rounding}, dt = 2^-{cfg.k} s, "
+           f"{'32-bit pascal' if cfg.pascal else f'{stream.bits}-bit'} barometer, "
            f"input {stream.name} ({n} samples) */",
            f"/* firmware source sha256: {res.source_sha256} */",
            f"#ifndef FWV_{up}_H", f"#define FWV_{up}_H", "", "#include <stdint.h>", "",
@@ -471,8 +516,13 @@ def case_header_parts(res: CaseResult, adc_chunks: Iterable[str], acc_chunks: It
     out.append("/* column index of each state word in fwv_" + name + "_expected (and _init) */")
     for j, wname in enumerate(names):
         out.append(f"#define FWV_{up}_W_{wname} {j} /* {Q_FORMATS[cfg.program][wname]} */")
-    out += ["", f"/* barometer ADC counts (unsigned {stream.bits}-bit), sample 0 is also the init sample */",
-            f"static const uint16_t fwv_{name}_adc[{n}] FWV_ROM = {{", ""]
+    if cfg.pascal:
+        out += ["", f"#define FWV_{up}_PASCAL (1)",
+                "/* barometer: the pascal kind's signed 32-bit word (Pa), sample 0 is also the init sample */",
+                f"static const int32_t fwv_{name}_pa[{n}] FWV_ROM = {{", ""]
+    else:
+        out += ["", f"/* barometer ADC counts (unsigned {stream.bits}-bit), sample 0 is also the init sample */",
+                f"static const uint16_t fwv_{name}_adc[{n}] FWV_ROM = {{", ""]
     yield "\n".join(out)
     yield from _joined(adc_chunks, ",\n")
     yield "\n" + "\n".join(["};", "/* accelerometer counts (signed 16-bit) */",
@@ -492,6 +542,7 @@ def case_header(res: CaseResult) -> str:
     empty by default: define it to PROGMEM or a section attribute before including)."""
     stream = res.spec.stream
     return "".join(case_header_parts(res, [_c_rows(stream.adc)], [_c_rows(stream.acc)], [_c_expected(res.words)]))
+
 
 
 def alt_table_files(consts: Any) -> dict[str, bytes]:
@@ -536,9 +587,10 @@ def cases_table_header(results: Sequence[CaseResult], guard: str) -> str:
                   + ", ".join(scal[c] for c in ("MACH_VLO", "MACH_VHI", "MACH_E", "BARO_MIN", "BARO_MAX",
                                                 "ALT_SHIFT", "ALT_N", "CAL_P", "E_GATE", "GATE_N", "APO_N"))
                   + ", " + (f"fwv_{_alt_tag(res.consts)}" if res.consts.ALT_TABLE else "0") + "}")
+        adc_ptr, pa_ptr = ("0", f"fwv_{name}_pa") if res.spec.cfg.pascal else (f"fwv_{name}_adc", "0")
         rows.append(f'    {{"{name}", {C_PROGRAM_ENUM[program]}, {consts},\n'
-                    f"     FWV_{up}_N_SAMPLES, FWV_{up}_N_WORDS, fwv_{name}_adc, fwv_{name}_acc, fwv_{name}_init,\n"
-                    f"     &fwv_{name}_expected[0][0]}}")
+                    f"     FWV_{up}_N_SAMPLES, FWV_{up}_N_WORDS, {adc_ptr}, fwv_{name}_acc, fwv_{name}_init,\n"
+                    f"     &fwv_{name}_expected[0][0], {pa_ptr}}}")
     out.append(",\n".join(rows))
     out += ["};", "", f"#endif /* {guard} */", ""]
     return "\n".join(out)
@@ -594,12 +646,12 @@ def case_schema() -> dict[str, Any]:
             "events_first_sample": {"type": "object", "additionalProperties": {"type": "integer", "minimum": -1}},
             "input": {"type": "object", "required": ["name", "n_samples", "adc_bits", "provenance", "truth"],
                       "properties": {"n_samples": {"type": "integer", "minimum": 1},
-                                     "adc_bits": {"type": "integer", "minimum": 8, "maximum": 16}}},
+                                     "adc_bits": {"type": "integer", "minimum": 8, "maximum": 32}}},
             "int32_wrap": {"type": "object", "required": ["first_sample", "quantity"]},
             "cycles_68000": {"type": ["object", "null"]},
             "sequencing": {"type": "string"},
             "init": int_array,
-            "adc": {"type": "array", "items": {"type": "integer", "minimum": 0, "maximum": 65535}},
+            "adc": {"type": "array", "items": {"type": "integer", "minimum": -2147483648, "maximum": 2147483647}},
             "acc": {"type": "array", "items": {"type": "integer", "minimum": -32768, "maximum": 32767}},
             "expected": {"type": "array", "items": {"type": "array", "items": {
                 "type": "integer", "minimum": -2147483648, "maximum": 2147483647}}},
@@ -765,7 +817,8 @@ def _set_guard(kind: str) -> Any:
 
 def _compute_job(job: tuple[Sequence[CaseSpec], str]) -> list[CaseResult]:
     specs, generator = job
-    return [compute_case(spec, generator) for spec in specs]
+    builds: dict[Any, Any] = {}
+    return [compute_case(spec, generator, builds) for spec in specs]
 
 
 def _job_batches(specs: Sequence[CaseSpec], jobs: int) -> list[list[int]]:
@@ -787,27 +840,42 @@ def _job_batches(specs: Sequence[CaseSpec], jobs: int) -> list[list[int]]:
     return [sorted(batches[b]) for b in order if batches[b]]
 
 
+def _worker_start() -> None:
+    """Initializer of a ``--jobs`` worker: SIGINT ignored, SIGTERM quiet (:func:`firmware_model.output.worker_init`),
+    then the modules every case needs imported, while the parent is still building the case matrix."""
+    from firmware_model.output import worker_init
+
+    worker_init()
+    import firmware_model.harness  # noqa: F401
+    import firmware_model.model  # noqa: F401
+
+
+def _start_pool(n: int) -> Any:
+    import multiprocessing
+
+    from firmware_model.output import worker_signals_ignored
+
+    # spawn, not fork: a forked child of a process whose numba thread pool already ran can deadlock.
+    # The workers are started with SIGINT ignored (inherited through exec, kept by Python): a Ctrl-C to
+    # the process group while they are still importing must not print their KeyboardInterrupt.
+    with worker_signals_ignored():
+        return multiprocessing.get_context("spawn").Pool(n, initializer=_worker_start)
+
+
 def generate(specs: Sequence[CaseSpec], generator: str = "emulation", progress: bool | None = None,
-             jobs: int = 1) -> list[CaseResult]:
+             jobs: int = 1, pool: Any = None) -> list[CaseResult]:
     """Run every case (in order); ``jobs`` > 1 runs them in that many worker processes, the cases of one build in
     one worker (:func:`_job_batches`). The results come back in the order of ``specs`` whatever the workers'
     timing, so the files written are byte-identical to ``jobs=1``. An error or interrupt terminates the workers
-    at once."""
+    at once. ``pool``: workers the caller started already (:func:`_start_pool`; terminated here)."""
     bar = _Progress(sum(len(s.stream) for s in specs), "vectors", progress, unit="samples")
     results: list[CaseResult] = []
     try:
         if jobs > 1 and len(specs) > 1:
-            import multiprocessing
-
-            from firmware_model.output import worker_init, worker_signals_ignored
-
             batches = _job_batches(specs, jobs)
             slots: list[CaseResult | None] = [None] * len(specs)
-            # spawn, not fork: a forked child of a process whose numba thread pool already ran can deadlock.
-            # The workers are started with SIGINT ignored (inherited through exec, kept by Python): a Ctrl-C to
-            # the process group while they are still importing must not print their KeyboardInterrupt.
-            with worker_signals_ignored():
-                pool = multiprocessing.get_context("spawn").Pool(min(jobs, len(batches)), initializer=worker_init)
+            if pool is None:
+                pool = _start_pool(min(jobs, len(batches)))
             try:
                 jobs_in = [([specs[i] for i in b], generator) for b in batches]
                 for b, batch in zip(batches, pool.imap(_compute_job, jobs_in)):
@@ -820,18 +888,31 @@ def generate(specs: Sequence[CaseSpec], generator: str = "emulation", progress: 
                 pool.join()
             results = [r for r in slots if r is not None]
         else:
+            builds: dict[Any, Any] = {}
             for spec in specs:
-                results.append(compute_case(spec, generator))
+                results.append(compute_case(spec, generator, builds))
                 bar.step(spec.name, len(spec.stream))
     finally:
+        if pool is not None:  # an error before the workers got their jobs
+            pool.terminate()
+            pool.join()
         bar.close()
     return results
 
 
 def generate_all(out: str | Path, generator: str = "emulation", progress: bool | None = None,
                  jobs: int = 1) -> dict[str, bytes]:
-    """Regenerate the whole committed set (:func:`case_matrix`) into ``out``; returns the files written."""
-    results = generate(case_matrix(), generator, progress, jobs)
+    """Regenerate the whole committed set (:func:`case_matrix`) into ``out``; returns the files written. With
+    ``jobs`` > 1 the workers start first, so their start-up overlaps the building of the case matrix."""
+    pool = _start_pool(jobs) if jobs > 1 else None
+    try:
+        specs = case_matrix()
+    except BaseException:
+        if pool is not None:
+            pool.terminate()
+            pool.join()
+        raise
+    results = generate(specs, generator, progress, jobs, pool=pool)
     files = render_set(results, "all", AVR_CASES)
     write_set(files, out, "all")
     return files
@@ -884,8 +965,8 @@ def generate_user(program: str, input_csv: str | Path, out: str | Path, config: 
         raise UserError(f"vectors: unknown firmware {program!r}; known: {', '.join(PROGRAMS)}")
     _set_guard("user")(Path(out))
     cfg = load_config(config, {"program": program}, {"program": "--firmware"})
-    stream = read_stream_csv(input_csv, cfg.baro_bits, cfg.k, require_acc=program in ACC_PROGRAMS)
-    spec = CaseSpec(case_name(program, cfg.rounding, cfg.k, cfg.baro_bits, stream.name), cfg, stream)
+    stream = read_stream_csv(input_csv, cfg.baro_word_bits, cfg.k, require_acc=program in ACC_PROGRAMS)
+    spec = CaseSpec(case_name(program, cfg.rounding, cfg.k, cfg.baro_word_bits, stream.name), cfg, stream)
     results = generate([spec], generator, progress=False)
     files = render_set(results, "user")
     write_set(files, out, "user")

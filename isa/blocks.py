@@ -32,10 +32,11 @@ Contract with :mod:`isa.cpu` (which decodes, caches and runs blocks):
 
 from __future__ import annotations
 
+import re
 import struct
 from typing import Any
 
-from isa import timing
+from isa import codecache, timing
 from isa.errors import AddressError, DivideByZero
 from isa.operands import Instruction, Operand, Size
 from isa.memory import MapFacts
@@ -46,6 +47,8 @@ __all__ = ["BLOCK_MAX", "block_entries", "compile_block"]
 
 _UL, _PL = struct.Struct(">L").unpack_from, struct.Struct(">L").pack_into
 _UW, _PW = struct.Struct(">H").unpack_from, struct.Struct(">H").pack_into
+#: An address expression ``(<register local> + <displacement >= 0>)`` (d16(An) with d16 >= 0): never negative.
+_REG_PLUS_DISP = re.compile(r"\([ad][0-7] \+ \d+\)\Z")
 
 
 #: Most instructions in one compiled block.
@@ -197,6 +200,7 @@ class _BlockGen:
         self.used: set[int] = set()
         self.dirty: set[int] = set()
         self.consts: dict[str, object] = {}
+        self.recipes: dict[str, tuple[Any, ...]] = {}
         self.dyn = False
 
     # ---- emission helpers
@@ -205,12 +209,15 @@ class _BlockGen:
             self.pending = None  # the next instruction sets all the flags the deferred ones were (see gen)
         self.items.append((self.ind, line))
 
-    def const(self, obj: object, hint: str) -> str:
+    def const(self, obj: object, hint: str, recipe: tuple[Any, ...]) -> str:
+        """The name under which the generated code sees ``obj``; ``recipe`` makes it again (:func:`_make_const`:
+        the disk cache of compiled blocks stores recipes, not objects)."""
         for k, v in self.consts.items():
             if v is obj:
                 return k
         name = f"{hint}_{len(self.consts)}"
         self.consts[name] = obj
+        self.recipes[name] = recipe
         return name
 
     def rg(self, i: int) -> str:
@@ -318,10 +325,17 @@ class _BlockGen:
             rng = f"{a} <= {hi - nb}" if lo == 0 else f"{lo} <= {a} <= {hi - nb}"
             val = (f"m[{a}]", f"(m[{a}] << 8 | m[{a} + 1])", "", f"UL(m, {a})[0]")[nb - 1]
             return f"({val} if {odd}{rng} else {slow})"
-        rng = f"(_t := ({a}) & 0xFFFFFF) <= {hi - nb}" if lo == 0 else f"{lo} <= (_t := ({a}) & 0xFFFFFF) <= {hi - nb}"
-        odd = "" if nb == 1 else f"not ({a}) & 1 and "
+        # Any other address (d16(An), d8(An,Xn), d8(PC,Xn)) is computed once, unmasked, into _t: inside the span
+        # it is the 24-bit address itself (the span lies in 0..2^24-1); outside (negative, or at/above 2^24, where
+        # the 68000 wraps) it takes the accessor, which masks. Only a register plus a displacement >= 0 cannot
+        # be negative, so only it may skip the lower bound when the span starts at 0.
+        nonneg = lo == 0 and _REG_PLUS_DISP.match(a) is not None
+        if nb == 1:
+            rng = f"(_t := {a}) <= {hi - nb}" if nonneg else f"{lo} <= (_t := {a}) <= {hi - nb}"
+        else:
+            rng = f"not (_t := {a}) & 1 and " + (f"_t <= {hi - nb}" if nonneg else f"{lo} <= _t <= {hi - nb}")
         val = ("m[_t]", "(m[_t] << 8 | m[_t + 1])", "", "UL(m, _t)[0]")[nb - 1]
-        return f"({val} if {odd}{rng} else {slow})"
+        return f"({val} if {rng} else {slow})"
 
     def write(self, nb: int, a: str, v: str, last: bool = False) -> None:
         """Emit a write of the ``nb``-byte value ``v`` (already masked) at address expression ``a``: straight
@@ -349,9 +363,9 @@ class _BlockGen:
             fast = f"(f := F16[{i16}]) == 1799"
             first, store = "f == 771", f"PW(m, {t}, {v})"
             setf = f"F16[{int(t) >> 1 if const else '_t >> 1'}] = 1799"
-            if not const:
-                fast = f"not ({a}) & 1 and " + fast
-                first = f"not ({a}) & 1 and " + first
+            if not const:  # the address once, masked, into _t (the parity is that of the unmasked address)
+                fast = f"not (_t := ({a}) & 0xFFFFFF) & 1 and (f := F16[_t >> 1]) == 1799"
+                first = "not _t & 1 and " + first
         else:
             aligned = (int(a) & 3) == 0 if const else True
             i32 = str(int(t) >> 2) if const else f"{ta} >> 2"
@@ -359,8 +373,8 @@ class _BlockGen:
             first, store = "f == 50529027", f"PL(m, {t}, {v})"
             setf = f"F32[{int(t) >> 2 if const else '_t >> 2'}] = 117901063"
             if not const:
-                fast = f"not ({a}) & 3 and " + fast
-                first = f"not ({a}) & 3 and " + first
+                fast = f"not (_t := ({a}) & 0xFFFFFF) & 3 and (f := F32[_t >> 2]) == 117901063"
+                first = "not _t & 3 and " + first
             elif not aligned:
                 fast = f"UL(fl, {t})[0] == 117901063"
                 first = None
@@ -389,7 +403,7 @@ class _BlockGen:
 
     # ---- flag fragments
     def nz(self, v: str, nb: int) -> str:
-        return f"(8 if {v} & {SIGN[nb]} else (0 if {v} else 4))"
+        return f"({v} >> {BITS[nb] - 4} & 8 if {v} else 4)"  # N = the sign bit moved to bit 3; Z
 
     def logic_flags(self, v: str, nb: int, need: int) -> None:
         if need & _FLAGS_NZVC:
@@ -415,7 +429,7 @@ class _BlockGen:
             keep &= ~(NF | ZF)
         if need & VF:
             v = f"({s} ^ rm) & ({d} ^ rm)" if kind == "add" else f"({s} ^ {d}) & ({d} ^ rm)"
-            parts.append(f"(2 if {v} & {S} else 0)")
+            parts.append(f"(({v}) >> {BITS[nb] - 2} & 2)")  # the sign bit of the overflow test moved to bit 1
             keep &= ~VF
         if kind == "cmp":
             keep |= XF
@@ -572,7 +586,7 @@ class _BlockGen:
                 self.emit(f"rm = r & {M}")
                 self.arith_flags("sub", nb, "x", "0", need)
             else:
-                k = self.const(_k_subx(nb), f"negx{nb}")
+                k = self.const(_k_subx(nb), f"negx{nb}", ("subx", nb))
                 self.emit(f"rm, sr = {k}(x, 0, sr)")
             if dst.mode is _M.DREG:
                 self.set_dreg(dst.reg, nb, "rm")
@@ -592,7 +606,7 @@ class _BlockGen:
             return base, False
         if h in ("addx", "subx"):
             s_op, d_op = ops
-            k = self.const((_k_subx if h == "subx" else _k_addx)(nb), f"{h}{nb}")
+            k = self.const((_k_subx if h == "subx" else _k_addx)(nb), f"{h}{nb}", (h, nb))
             if s_op.mode is _M.DREG:
                 s = self.read(s_op, nb, pc, "s")
                 dn = self.rg(d_op.reg)
@@ -713,8 +727,8 @@ class _BlockGen:
             return 12, False
         if h in ("jmp", "jsr"):
             a = self.addr(ops[0], 4, pc, "ea")
-            fault = self.const(_Fault, "Fault")
-            ae = self.const(AddressError, "AddressError")
+            fault = self.const(_Fault, "Fault", ("Fault",))
+            ae = self.const(AddressError, "AddressError", ("AddressError",))
             self.emit(f"t = {a} & 0xFFFFFF")
             self.emit("if t & 1:")
             self.emit(f"    raise {fault}({ae}, f\"jump to odd address ${{t:06X}}\")")
@@ -724,8 +738,8 @@ class _BlockGen:
             return base, True
         if h == "rts":
             sp = self.wg(15)
-            fault = self.const(_Fault, "Fault")
-            ae = self.const(AddressError, "AddressError")
+            fault = self.const(_Fault, "Fault", ("Fault",))
+            ae = self.const(AddressError, "AddressError", ("AddressError",))
             self.emit(f"v = {self.load(4, sp)}")
             self.emit(f"{sp} = ({sp} + 4) & 0xFFFFFFFF")
             self.emit(f"if v & 1 and (v & 0xFFFFFF) != {CALL_SENTINEL}:")
@@ -752,8 +766,8 @@ class _BlockGen:
         dn = self.wg(dst.reg)
         name = "DIVS" if h == "divs" else "DIVU"
         if not const or sv == 0:
-            fault = self.const(_Fault, "Fault")
-            dz = self.const(DivideByZero, "DivideByZero")
+            fault = self.const(_Fault, "Fault", ("Fault",))
+            dz = self.const(DivideByZero, "DivideByZero", ("DivideByZero",))
             if const:
                 self.emit(f"raise {fault}({dz}, f\"{name} by zero (dividend ${{{dn}:08X}})\")")
                 return timing.EA_TIME[src.mode][0]
@@ -769,7 +783,7 @@ class _BlockGen:
             self.emit(f"    q, rem = divmod(d, {s})")
             self.emit(f"    {dn} = (rem << 16) | q")
             self.emit(f"    sr = (sr & 0xFF10) | {self.nz('q', 2)}")
-            tc = self.const(timing.divu_cycles, "divc")
+            tc = self.const(timing.divu_cycles, "divc", ("divc",))
             if const and sv <= 0x8000:
                 self.emit("    c += 136 - 2 * (q >> 1).bit_count()")
             elif const:
@@ -809,7 +823,7 @@ class _BlockGen:
         ops = ins.operands
         M, S, W = MASK[nb], SIGN[nb], BITS[nb]
         if len(ops) == 1:  # memory word by 1
-            k = self.const(_k_shift(h, 2), f"{h}2")
+            k = self.const(_k_shift(h, 2), f"{h}2", ("shift", h, 2))
             a = self.addr_tmp(ops[0], 2, pc, "eb")
             self.emit(f"x = {self.load(2, a)}")
             self.emit(f"rm, sr = {k}(x, 1, sr)")
@@ -842,7 +856,7 @@ class _BlockGen:
                 self.emit(f"sr = (sr & 0xFF00) | (0x11 if {cexpr} else 0) | {self.nz('rm', nb)}")
             self.set_dreg(dst.reg, nb, "rm")
             return base
-        k = self.const(_k_shift(h, nb), f"{h}{nb}")
+        k = self.const(_k_shift(h, nb), f"{h}{nb}", ("shift", h, nb))
         if fixed is not None:
             self.emit(f"rm, sr = {k}({x}, {fixed}, sr)")
             self.set_dreg(dst.reg, nb, "rm")
@@ -1045,10 +1059,12 @@ def _liveness(entries: list[_Entry], role: dict[int, tuple[Any, ...]], reach: li
 
 
 def _block_source(entries: list[_Entry], facts: MapFacts
-                  ) -> tuple[str, dict[str, object], list[int], list[int], list[int], list[int], bool]:
+                  ) -> tuple[str, dict[str, object], list[int], list[int], list[int], list[int], bool,
+                             list[tuple[Any, ...]]]:
     """Python source of the block function for ``entries`` ((pc, instruction, handler, cond, length) each, back to
     back in memory). Returns (source, constants, first generated line per entry, constant clocks and constant
-    instruction count before each entry on the path that reaches it, registers used, whether it loops)."""
+    instruction count before each entry on the path that reaches it, registers used, whether it loops, the
+    recipe of each constant in order)."""
     k = len(entries)
     role, reach, head = _plan(entries)
     need = _liveness(entries, role, reach, head, facts)
@@ -1085,7 +1101,7 @@ def _block_source(entries: list[_Entry], facts: MapFacts
             g.emit(f"ni += {n - n_head}")
         if cy != c_head:
             g.emit(f"c += {cy - c_head}")
-        g.emit("if ni <= ln and c < lc:")
+        g.emit("if ni <= ln:")  # implies c < lc (see the cap before the loop)
         g.emit("    continue")
         g.exit(head_pc, n_head, c_head)
 
@@ -1232,6 +1248,14 @@ def _block_source(entries: list[_Entry], facts: MapFacts
     else:
         head_pc = entries[head][0]
         _, n_head, c_head = gen(0, head, 0, 0)  # the entries before the loop head (never all leave: see _plan)
+        # One test per pass instead of two (loopback): p more passes take at most p * C clocks (C: every entry of
+        # the loop once, at its worst) and at least p instructions, so capping ln at ni + (lc - c - 1) // C here
+        # makes `ni <= ln` imply the clock test `c < lc`. The cap only binds near a small max_cycles, where the
+        # block then leaves earlier than it had to (exact either way: CPU.run goes on from the head).
+        worst_pass = sum(timing.cycle_range(e[1])[1] for e in entries[head:])
+        g.emit(f"lx = ni + (lc - c - 1) // {worst_pass}")
+        g.emit("if lx < ln:")
+        g.emit("    ln = lx")
         g.emit("while True:")
         g.ind += 1
         ended, n_end, c_end = gen(head, k, n_head, c_head)
@@ -1290,7 +1314,7 @@ def _block_source(entries: list[_Entry], facts: MapFacts
         lines.append(nxt_line)
     lines.reverse()
     src = "\n".join(lines_ + body + ["    return __block", ""])
-    return src, g.consts, lines, prefix, ncount, used, loops
+    return src, g.consts, lines, prefix, ncount, used, loops, [g.recipes[name] for name in g.consts]
 
 
 def _block_bound(entries: list[_Entry]) -> int:
@@ -1300,18 +1324,44 @@ def _block_bound(entries: list[_Entry]) -> int:
     return sum(worst) - min(worst)
 
 
+def _make_const(recipe: tuple[Any, ...]) -> object:
+    """The block constant of ``recipe`` (see :meth:`_BlockGen.const`)."""
+    kind = recipe[0]
+    fixed = {"Fault": _Fault, "AddressError": AddressError, "DivideByZero": DivideByZero, "divc": timing.divu_cycles}
+    if kind in fixed:
+        return fixed[kind]
+    if kind in ("subx", "negx"):
+        return _k_subx(recipe[1])
+    if kind == "addx":
+        return _k_addx(recipe[1])
+    if kind == "shift":
+        return _k_shift(recipe[1], recipe[2])
+    raise KeyError(recipe)
+
+
 def compile_block(entries: list[_Entry], facts: MapFacts) -> tuple[Any, _BlockInfo]:
     """Generate and compile the block of ``entries`` for an address space with map ``facts`` (see the module
-    docstring); returns ``(bind, info)``, ``bind(R, MS, D, memory)`` giving the block function of one CPU."""
+    docstring); returns ``(bind, info)``, ``bind(R, MS, D, memory)`` giving the block function of one CPU. With
+    :func:`isa.codecache.use_disk`, the compiled code is read from / written to disk, keyed by the entries, the
+    map and the ``isa`` sources (the same code the generator would make, without generating it)."""
     start = entries[0][0]
-    src, consts, lines, prefix, ncount, regs, _ = _block_source(entries, facts)
+    key = codecache.block_code_key(entries, facts.regions, facts.span)
+    hit = codecache.load_block_code(key) if key is not None else None
+    if hit is not None:
+        code, recipes, lines, prefix, ncount, regs = hit
+        values = tuple(_make_const(r) for r in recipes)
+    else:
+        src, consts, lines, prefix, ncount, regs, _, recipes = _block_source(entries, facts)
+        code = compile(src, f"<block ${start:06X}>", "exec")
+        values = tuple(consts.values())
+        if key is not None:
+            codecache.store_block_code(key, (code, recipes, lines, prefix, ncount, regs))
     ns: dict[str, Any] = {}
-    exec(compile(src, f"<block ${start:06X}>", "exec"), ns)  # noqa: S102 - our own generated source
+    exec(code, ns)  # noqa: S102 - our own generated code
     make = ns["__make"]
-    values = tuple(consts.values())
     last_pc, _, _, _, last_len = entries[-1]
-    info = _BlockInfo(start, [e[0] for e in entries], lines, prefix, ncount, regs, _block_bound(entries),
-                      last_pc + last_len)
+    info = _BlockInfo(start, [e[0] for e in entries], list(lines), list(prefix), list(ncount), list(regs),
+                      _block_bound(entries), last_pc + last_len)
 
     def bind(R: list[int], MS: list[int], D: list[int], memory: Any) -> Any:
         rd, wr = memory.rd, memory.wr
