@@ -19,9 +19,9 @@ RECOMMENDED: dict[str, dict[int, dict[str, Any]]] = {
     "kalman_baro": {k: {"ratio": 1000.0} for k in (5, 6, 7)},
     # half_up: floor biases the metres state (X2 -1.9 m/s at k = 7 on a still pad, docs/numerics.md); R/q 1,000
     "kalman_accel": {k: {"ratio": 1000.0, "rounding": "half_up"} for k in (5, 6, 7)},
-    # unchanged: S = 5, THR = 1/4 LSB (a smaller S lowers the median but fires 25 s early on one supersonic
-    # scenario, README)
-    "recursive": {k: {} for k in (5, 6, 7)},
+    # S = k - 2 (a lag of 8 samples at every k), THR = 1/4 LSB; after an accelerometer clip apogee needs 0.1 s of
+    # evidence (README "Field-ready firmware": the clipped sup-m6400-m167 fired 25 s early without it at S < 5)
+    "recursive": {k: {"shift": k - 2, "apogee_hold_s": 0.1} for k in (5, 6, 7)},
 }
 
 
