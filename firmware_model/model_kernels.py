@@ -173,7 +173,7 @@ _SCALARS2 = ("ALT_SHIFT", "CAL_P", "E_GATE", "GATE_N", "APO_N")
 WRAP_NAMES: tuple[str, ...] = ("", "EST", "VEL", "X1", "X2", "X3", "e1", "e2", "mulg(acc,ACC_G)",
                                "mulg(e1,G11)", "mulg(e1,G21)", "mulg(e1,G31)",
                                "mulg(e2,G12)", "mulg(e2,G22)", "mulg(e2,G32)", "SUMZ", "SUMA",
-                               "mulg(e1,G11T)", "mulg(e1,G21T)", "mulg(e1,G31T)")
+                               "mulg(e1,G11T)", "mulg(e1,G21T)", "mulg(e1,G31T)", "EXT")
 W_NONE = 0
 W_EST = 1
 W_VEL = 2
@@ -194,6 +194,7 @@ W_SUMA = 16
 W_E1G11T = 17
 W_E1G21T = 18
 W_E1G31T = 19
+W_EXT = 20
 
 #: Event bits (docs/firmware-spec.md §4; equal to firmware_model.trace.EVENT_BITS, checked by a test).
 LIFTOFF = 1
@@ -303,20 +304,28 @@ def recursive_step(st, adc, acc, c):  # type: ignore[no-untyped-def]
     # 5. barometer rate gate, then the filter
     d = z - st[ZL_R]
     use = True
+    est = st[EST]
+    ext = st[EXT]
     if -c[C_E_GATE] <= d <= c[C_E_GATE]:
         st[REJ_R] = 0
     elif st[REJ_R] < c[C_GATE_N]:
         st[REJ_R] = st[REJ_R] + 1
         ev |= BARO_REJECT
         use = False
-    est = st[EST]
+    else:
+        # the gate opens on a lasting shift: EST and EXT move with it (re-base)
+        est = est + (d << 8)
+        w = _note(w, est, W_EST)
+        est = _w32(est)
+        ext = ext + (d << 8)
+        w = _note(w, ext, W_EXT)
+        ext = _w32(ext)
     if use:
         st[ZL_R] = z
         est = est + (z << (8 - S)) - rs(est, S, rnd)
         w = _note(w, est, W_EST)
         est = _w32(est)
     # 6. extreme and apogee (after an accelerometer clip, APO_N samples of evidence)
-    ext = st[EXT]
     if est > ext:
         ext = est
         st[NEG_R] = 0

@@ -142,8 +142,12 @@ def _run_recursive(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc:
         d = z - zl
         inside = (d >= -d_gate) & (d <= d_gate)
         reject = ~inside & (rej < gate_n)
+        rebase = ~inside & ~reject                   # the gate opens on a lasting shift: EST, EXT move with it
         rej = np.where(inside, 0, np.where(reject, rej + 1, rej))
         ev = np.where(reject, ev | _BARO_REJECT, ev)
+        if rebase.any():
+            est = np.where(rebase, tr.w32(np.where(rebase, est + (d << np.int64(8)), est), i, "EST"), est)
+            ext = np.where(rebase, tr.w32(np.where(rebase, ext + (d << np.int64(8)), ext), i, "EXT"), ext)
         use = ~reject
         zl = np.where(use, z, zl)
         est = np.where(use, tr.w32(np.where(use, est + zin[:, i] - rs(est, S, mode), est), i, "EST"), est)

@@ -169,8 +169,11 @@ def _mirror_recursive(consts: "FirmwareConstants", adc: np.ndarray, acc: np.ndar
         d = z[:, i] - zl
         inside = (d >= -consts.E_GATE) & (d <= consts.E_GATE)
         reject = ~inside & (rej < consts.GATE_N)
+        rebase = ~inside & ~reject
         rej = np.where(inside, 0, np.where(reject, rej + 1, rej))
         ev = np.where(reject, ev | _BARO_REJECT, ev)
+        est = np.where(rebase, est + d * 256.0, est)
+        ext = np.where(rebase, ext + d * 256.0, ext)
         use = ~reject
         zl = np.where(use, z[:, i], zl)
         est = np.where(use, est + z[:, i] * 256.0 * x - est * x, est)

@@ -326,17 +326,19 @@ def spec_recursive_step(c: object, st: dict[str, int], adc: int, acc: int) -> di
         if ev & LIFTOFF and vel > c.V_GATE:                          # 4b
             ev |= GATE_HIGH
     z = c.BARO_SIGN * adc
-    est, zl, rej = st["EST"], st["ZL"], st["REJ"]
+    est, ext, zl, rej = st["EST"], st["EXT"], st["ZL"], st["REJ"]
     use = True                                                       # 5. rate gate
     if -c.E_GATE <= z - zl <= c.E_GATE:
         rej = 0
     elif rej < c.GATE_N:
         rej, use = rej + 1, False
         ev |= REJECT
+    else:                                                            # re-base on a lasting shift
+        est, ext = wrap32(est + (z - zl) * 256), wrap32(ext + (z - zl) * 256)
     if use:
         zl = z
         est = wrap32(est + (z << (8 - c.S)) - rs_exact(est, c.S, h))
-    ext, neg = st["EXT"], st["NEG"]
+    neg = st["NEG"]
     if est > ext:                                                    # 6.
         ext, neg = est, 0
     elif ev & ARMED and not ev & APOGEE:

@@ -62,7 +62,7 @@ def test_kernel_numbering_matches_the_trace_contract():
     for name, bit in EVENT_BITS.items():
         assert getattr(KC, name) == bit
     assert KC.LATCHED == LATCHED_EVENTS
-    assert len(KC.WRAP_NAMES) == 20 and len(set(KC.WRAP_NAMES)) == 20 and KC.WRAP_NAMES[0] == ""
+    assert len(KC.WRAP_NAMES) == 21 and len(set(KC.WRAP_NAMES)) == 21 and KC.WRAP_NAMES[0] == ""
     assert KP.COMPILED is False
 
 
@@ -182,6 +182,9 @@ def test_wrap_ids_are_reached_at_the_extremes():
     assert KP.WRAP_NAMES[KP.seed_literal_step(st, 65535, 0, c)] == "EST"
     st = np.array([0, 0, 2 ** 31 - 1, -5, 0, 0, 0, 1, 0, 0, 0, 0], dtype=object)   # calibrated: CAL = 2^0
     assert KP.WRAP_NAMES[KP.recursive_step(st, 0, 0, c)] == "VEL"
+    c[KP.C_E_GATE] = 1                                   # re-base after GATE_N = 1 held sample: EXT wraps
+    st = np.array([0, 2 ** 31 - 100, 0, 0, 0, 0, 0, 1, 1, 0, 0, 0], dtype=object)
+    assert KP.WRAP_NAMES[KP.recursive_step(st, 1000, 0, c)] == "EXT"
 
 
 # ---------------------------------------------------------------------------------------------------- whole runs

@@ -224,3 +224,24 @@ def test_after_a_clip_a_short_dip_does_not_fire_apogee(k):
     assert clipped.column("EVENTS")[lift + 1] & CLIP
     assert clipped.first_event("APOGEE") >= at + n
     assert clipped.first_event("APOGEE") <= apogee + 2 * consts.APO_N
+
+
+@pytest.mark.parametrize("k", [5, 6, 7])
+def test_lasting_pressure_step_after_arming_is_a_re_base_not_an_apogee(k):
+    """A lasting pressure step (+300 counts, altitude down ~86 m, as a transonic step) between ARMED and the true
+    apogee: without the gate it fires APOGEE at the step; with it the step is held out for GATE_N samples, then EST
+    and EXT are re-based by it, and APOGEE comes within GATE_N + 2 samples of the step-free stream's."""
+    s = _flight(k)
+    consts = _consts(k=k)
+    clean = run_model(consts, s.adc, s.acc)
+    armed, apogee = clean.first_event("ARMED"), clean.first_event("APOGEE")
+    at = (armed + s.truth["apogee_sample"]) // 2
+    adc = s.adc.copy()
+    adc[at:] += 300
+    assert 300 > consts.E_GATE
+    stepped = run_model(consts, adc, s.acc)
+    open_ = run_model(_consts(k=k, gate_sigmas=0.0), adc, s.acc)
+    assert at <= open_.first_event("APOGEE") <= at + 2
+    ev = stepped.column("EVENTS")
+    assert (ev[at:at + consts.GATE_N] & REJECT).all() and not ev[at + consts.GATE_N] & REJECT
+    assert abs(stepped.first_event("APOGEE") - apogee) <= consts.GATE_N + 2

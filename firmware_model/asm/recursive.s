@@ -10,7 +10,8 @@
 *   A flight whose VEL never exceeds V_GATE is never armed: this program then never declares apogee.
 *
 * Field-ready logic (spec section 5): ACC0 averaged over 2^CAL_P pad samples; a barometer rate gate (a sample
-* more than E_GATE counts from the last used one is not used, for up to GATE_N samples: BARO_REJECT); ACC_CLIP
+* more than E_GATE counts from the last used one is not used, for up to GATE_N samples: BARO_REJECT; then EST
+* and EXT are re-based by the shift and it is used); ACC_CLIP
 * latched when the accelerometer reads its rail (32767) before ARMED, after which APOGEE needs APO_N samples.
 *
 * Contract: docs/firmware-spec.md section 5.  Constants (S, THR, V_LIFT, V_GATE, ROUND, BARO_SIGN, CAL_P, E_GATE,
@@ -122,12 +123,15 @@ step    move.w  (EVENTS).w,d7
         bra.s   .use
 .out    move.w  (REJ).w,d5
         cmpi.w  #GATE_N,d5
-        bcc.s   .use                    ; closed for GATE_N samples in a row: the change is real
+        bcc.s   .rebase                 ; closed for GATE_N samples in a row: a lasting shift
         addq.w  #1,d5
         move.w  d5,(REJ).w
         ori.w   #EV_BARO_REJECT,d7
         move.l  (EST).w,d2              ; not used: EST unchanged
         bra.s   .ext
+.rebase lsl.l   #8,d3                   ; d << 8 (exact: |d| < 2^16)
+        add.l   d3,(EST).w              ; re-base: EST and EXT move with the shift (wrap)
+        add.l   d3,(EXT).w
 *---- EST = EST + (z << (8-S)) - rs(EST, S) -----------------------------------------------------------------------
 .use    move.l  d0,(ZL).w
         if      8-S>0

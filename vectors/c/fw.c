@@ -142,6 +142,10 @@ static void step_recursive(const fw_consts *c, fw_state *st, uint16_t adc, int16
         st->REJ = (uint16_t)(st->REJ + 1u);
         st->EVENTS |= FW_EV_BARO_REJECT;
         use = 0;
+    } else {
+        /* the gate opens on a lasting shift: EST and EXT move with it (re-base) */
+        st->EST = fw_wrap32((int64_t)st->EST + ls(d, 8));
+        st->EXT = fw_wrap32((int64_t)st->EXT + ls(d, 8));
     }
     if (use) {
         st->ZL = (int32_t)z;
