@@ -32,6 +32,9 @@ from firmware_model.errors import UserError
 
 #: Pressure floor of the table (Pa): counts whose transfer-function pressure is below it read as this pressure.
 P_FLOOR_PA: float = 1000.0
+#: Pressure floor of a pascal word's table (Pa): the fit follows the atmosphere below the MS5607's 1,000 Pa down to
+#: here, so the segment holding 1,000 Pa has no kink (with the ADC floor it had one: 82 m of error at 1,000 Pa).
+P_FLOOR_PASCAL_PA: float = 500.0
 #: Default segment width: 2^ALT_SHIFT counts per segment (measured in docs/numerics.md, "Altitude table").
 DEFAULT_ALT_SHIFT: int = 10
 #: TeleMetrum v1 (MP3H6115A through a 16-bit-scaled ADC; shared/flights/README): raw = (P/1000*0.009 - 0.095)*32752,
@@ -53,10 +56,11 @@ def linear_transfer(pa_per_count: float, pa_at_zero: float, baro_sign: int = -1)
     return pressure_of_counts
 
 
-def exact_altitude_m(pressure_of_counts: Callable[[np.ndarray], np.ndarray], counts: np.ndarray) -> np.ndarray:
+def exact_altitude_m(pressure_of_counts: Callable[[np.ndarray], np.ndarray], counts: np.ndarray,
+                     p_floor: float = P_FLOOR_PA) -> np.ndarray:
     """The standard-atmosphere altitude (m) the table approximates at ``counts`` (pressure clamped at
-    ``P_FLOOR_PA``)."""
-    p = np.maximum(np.asarray(pressure_of_counts(counts), dtype=np.float64), P_FLOOR_PA)
+    ``p_floor``, default ``P_FLOOR_PA``)."""
+    p = np.maximum(np.asarray(pressure_of_counts(counts), dtype=np.float64), p_floor)
     return np.asarray(altitude_m(p), dtype=np.float64)
 
 
@@ -102,19 +106,20 @@ class AltTable:
 
 
 def fit_table(pressure_of_counts: Callable[[np.ndarray], np.ndarray], bits: int,
-              shift: int = DEFAULT_ALT_SHIFT) -> AltTable:
+              shift: int = DEFAULT_ALT_SHIFT, p_floor: float = P_FLOOR_PA) -> AltTable:
     """Least-squares nodes of the continuous piecewise-linear altitude (m -> Q24.8 LSB, nearest) over every count
-    ``0..2^bits-1`` for segments of ``2^shift`` counts. Raises :class:`UserError` for a shift outside 1..15 or
+    ``0..2^bits-1`` for segments of ``2^shift`` counts (``bits`` 17: a pascal word's table over 0..131071 Pa;
+    pressures below ``p_floor`` read as ``p_floor``). Raises :class:`UserError` for a shift outside 1..15 or
     above ``bits`` - 1, or a transfer function that gives non-finite pressures."""
-    if not isinstance(bits, int) or not 8 <= bits <= 16:
-        raise UserError(f"altitude table: bits={bits!r} must be 8..16")
+    if not isinstance(bits, int) or not 8 <= bits <= 17:
+        raise UserError(f"altitude table: bits={bits!r} must be 8..16 (ADC) or 17 (pascal word)")
     if not isinstance(shift, int) or not 1 <= shift <= min(15, bits - 1):
         raise UserError(f"altitude table: alt_shift={shift!r} must be 1..{min(15, bits - 1)} for a {bits}-bit input")
     counts = np.arange(1 << bits, dtype=np.int64)
     p = np.asarray(pressure_of_counts(counts), dtype=np.float64)
     if not np.all(np.isfinite(p)):
         raise UserError("altitude table: the barometer transfer function gives non-finite pressures")
-    y = exact_altitude_m(pressure_of_counts, counts) * 256.0
+    y = exact_altitude_m(pressure_of_counts, counts, p_floor) * 256.0
     n_nodes = (1 << (bits - shift)) + 1
     i = counts >> shift
     w = (counts & ((1 << shift) - 1)) / float(1 << shift)     # weight of node i+1
@@ -144,14 +149,25 @@ def table_error_m(table: AltTable, pressure_of_counts: Callable[[np.ndarray], np
 
 
 @functools.lru_cache(maxsize=64)
-def _cached(pa_per_count: float, pa_at_zero: float, baro_sign: int, bits: int, shift: int) -> AltTable:
-    return fit_table(linear_transfer(pa_per_count, pa_at_zero, baro_sign), bits, shift)
+def _cached(pa_per_count: float, pa_at_zero: float, baro_sign: int, bits: int, shift: int,
+            p_floor: float) -> AltTable:
+    return fit_table(linear_transfer(pa_per_count, pa_at_zero, baro_sign), bits, shift, p_floor)
 
 
-def table_for(pa_per_count: float, pa_at_zero: float, baro_sign: int, bits: int, shift: int) -> AltTable:
+def table_for(pa_per_count: float, pa_at_zero: float, baro_sign: int, bits: int, shift: int,
+              p_floor: float = P_FLOOR_PA) -> AltTable:
     """The (cached) table of a linear sensor (see :func:`linear_transfer`)."""
-    return _cached(float(pa_per_count), float(pa_at_zero), int(baro_sign), int(bits), int(shift))
+    return _cached(float(pa_per_count), float(pa_at_zero), int(baro_sign), int(bits), int(shift), float(p_floor))
+
+
+def table_of_config(cfg) -> AltTable:  # type: ignore[no-untyped-def]
+    """The altitude table of a :class:`~firmware_model.config.BuildConfig`: its barometer transfer function
+    (the pascal kind's identity over ``table_bits`` = 17, floor :data:`P_FLOOR_PASCAL_PA`; an ADC's linear
+    function over ``baro_bits``, floor :data:`P_FLOOR_PA`) and segment shift."""
+    a, b = cfg.baro_transfer
+    return table_for(a, b, cfg.baro_sign, cfg.table_bits, cfg.alt_shift_bits,
+                     P_FLOOR_PASCAL_PA if cfg.pascal else P_FLOOR_PA)
 
 
 __all__ = ["AltTable", "fit_table", "linear_transfer", "exact_altitude_m", "table_error_m", "table_for",
-           "P_FLOOR_PA", "DEFAULT_ALT_SHIFT", "TELEMETRUM_PA_PER_COUNT", "TELEMETRUM_PA_AT_ZERO"]
+           "table_of_config", "P_FLOOR_PA", "P_FLOOR_PASCAL_PA", "DEFAULT_ALT_SHIFT", "TELEMETRUM_PA_PER_COUNT", "TELEMETRUM_PA_AT_ZERO"]

@@ -240,9 +240,16 @@ def _target(dec: Any, pc: int, where: Any) -> int:
                     f"the analysis needs a static target")
 
 
-def default_streams(k: int, bits: int, seed: int = 0, edge_samples: int = 512) -> list[Stream]:
+def default_streams(k: int, bits: int, seed: int = 0, edge_samples: int = 512, pascal: bool = False) -> list[Stream]:
     """The budget's input set: the seeded synthetic flight at dt = 2^-k plus every edge stream
-    (:data:`firmware_model.inputs.EDGE_KINDS`) of ``edge_samples`` samples."""
+    (:data:`firmware_model.inputs.EDGE_KINDS`) of ``edge_samples`` samples (``pascal``: the pascal-word flight and
+    edge streams, :func:`~firmware_model.inputs.synthetic_pascal_flight`,
+    :func:`~firmware_model.inputs.pascal_edge_stream`)."""
+    if pascal:
+        from firmware_model.inputs import pascal_edge_stream, synthetic_pascal_flight
+
+        return [synthetic_pascal_flight(k, seed=seed)] + [pascal_edge_stream(kind, edge_samples, k)
+                                                          for kind in EDGE_KINDS]
     streams = [synthetic_flight(k, bits, seed=seed)]
     streams += [edge_stream(kind, edge_samples, bits, k) for kind in EDGE_KINDS]
     return streams

@@ -39,8 +39,10 @@ SOURCES: Mapping[str, str] = MappingProxyType({name: f"{name}.s" for name in PRO
 ROM_START, ROM_SIZE = 0x000000, 0x4000
 RAM_START, RAM_SIZE = 0x004000, 0x4000
 STACK_TOP = RAM_START + RAM_SIZE
-IO_START, IO_SIZE = 0xFFF000, 4
+IO_START, IO_SIZE = 0xFFF000, 8
 BARO_ADC, ACCEL_ADC = 0xFFF000, 0xFFF002
+#: The pascal kind's barometer register (signed 32-bit long; docs/firmware-spec.md §2).
+BARO_PA = 0xFFF004
 
 _INCLUDE_RE = re.compile(r"""^[ \t]*(?:[A-Za-z_.][\w.]*:?[ \t]+)?include[ \t]+["']?([^"'\s;]+)""",
                          re.IGNORECASE | re.MULTILINE)
@@ -297,4 +299,14 @@ def clear_cache() -> None:
 __all__ = ["ASM_DIR", "SOURCES", "FirmwareBuild", "build_firmware", "source_files", "clear_cache", "cache_dir",
            "build_key",
            "ROM_START", "ROM_SIZE", "RAM_START", "RAM_SIZE", "STACK_TOP", "IO_START", "IO_SIZE", "BARO_ADC",
-           "ACCEL_ADC"]
+           "ACCEL_ADC", "BARO_PA", "write_inputs"]
+
+
+def write_inputs(cpu: object, pascal: bool, baro: int, acc: int) -> None:
+    """Write one sample into the input registers of docs/firmware-spec.md §2: ``baro`` into ``BARO_ADC`` (16-bit
+    word) or, for a pascal build, into ``BARO_PA`` (32-bit long, two's complement); ``acc`` into ``ACCEL_ADC``."""
+    if pascal:
+        cpu.write(BARO_PA, int(baro) & 0xFFFFFFFF, 4)  # type: ignore[attr-defined]
+    else:
+        cpu.write(BARO_ADC, int(baro), 2)  # type: ignore[attr-defined]
+    cpu.write(ACCEL_ADC, int(acc) & 0xFFFF, 2)  # type: ignore[attr-defined]

@@ -78,6 +78,8 @@ class _GuardedStdout:
 
     def __init__(self, stream: object) -> None:
         self._stream = stream
+        #: the first write failure, kept because argparse's ``--help`` swallows the OSError of its own write
+        self.failure: _StdoutError | None = None
 
     def write(self, text: str) -> int:
         try:
@@ -85,6 +87,7 @@ class _GuardedStdout:
         except BrokenPipeError:
             raise
         except OSError as exc:
+            self.failure = self.failure or _StdoutError(exc.errno, exc.strerror or str(exc))
             raise _StdoutError(exc.errno, exc.strerror or str(exc)) from None
 
     def flush(self) -> None:
@@ -157,6 +160,9 @@ def _run(argv: Sequence[str] | None, output: Any, user_errors: tuple[type[BaseEx
             output.raise_if_interrupted()  # a signal whose exception a finalizer swallowed still ends the run
         except SystemExit:  # argparse: --help, usage errors (exit 2); kept as SystemExit for callers of main()
             sys.stdout.flush()
+            failure = getattr(sys.stdout, "failure", None)
+            if failure is not None:       # `fwemu --help > /dev/full`: argparse swallowed the write error
+                raise failure from None
             raise
         sys.stdout.flush()  # a full stdout (`> /dev/full`) fails here at the latest
         return code

@@ -53,7 +53,7 @@ def run_budget(args: argparse.Namespace) -> int:
         if show:
             print(f"\r[{i}/{len(programs)}] {name} k={cfg.k} {cfg.rounding} ...", end="", file=sys.stderr, flush=True)
         build = build_firmware(cfg)
-        streams = budget.default_streams(cfg.k, cfg.baro_bits, seed=args.seed)
+        streams = budget.default_streams(cfg.k, cfg.baro_bits, seed=args.seed, pascal=cfg.pascal)
         results.append(budget.measure(build, streams, clock_hz=args.clock_mhz * 1e6))
         builds.append((cfg, streams))
     if show:

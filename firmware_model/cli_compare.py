@@ -108,10 +108,16 @@ BIAS_PROGRAMS: tuple[str, ...] = ("kalman_baro", "kalman_accel")
 def bias_table(program: str = "kalman_baro", ks: tuple[int, ...] = (5, 6, 7, 8), accel_units: float = 8.0,
                seconds: float = 40.0) -> str:
     """Bias (mean of integer minus float mirror over the second half) of the states of ``program`` on a
-    constant-acceleration input ``z = a t^2 / 2`` (a = ``accel_units`` units/s^2) plus Gaussian noise of 2 counts
+    constant-acceleration climb ``h = a t^2 / 2`` metres above a sea-level pad (a = ``accel_units /
+    units_per_metre`` m/s^2, the default sensor's counts per metre at the pad) read through the build's sensor
+    transfer function (the one its altitude table inverts; default pressure ADC) plus Gaussian noise of 2 counts
     (8 streams, seed 0), for floor and half_up, next to the linear steady-state prediction ``(I - (I-KH)F)^-1
     ((I-KH) u + r)`` with uniform rounding errors (floor: mean -1/2 LSB per shift; half_up: 0) and the design
     brief's prediction for the velocity, ``1/2 * 2^k / 256`` units/s = ``2^(k-1)`` LSB.
+
+    (Until this was written the input was ``z = a t^2 / 2 + 1000`` counts into a ``baro_sign = +1`` build, whose
+    table maps every count to a pressure below zero, i.e. to one clamped altitude: kalman_baro then tracked a
+    constant, and kalman_accel an accelerometer that contradicted it.)
 
     ``kalman_accel`` also gets a consistent accelerometer stream: at rest (1 g) at sample 0, then 1 g + a, with
     20 counts of noise (seed 1); its prediction adds the second rounded correction per state and the rounding of
@@ -126,28 +132,31 @@ def bias_table(program: str = "kalman_baro", ks: tuple[int, ...] = (5, 6, 7, 8),
         raise UserError(f"compare --bias-table: the floor-bias table is for {', '.join(BIAS_PROGRAMS)}, "
                         f"not {program}")
     accel = program == "kalman_accel"
-    first = BuildConfig(program=program, baro_sign=1)
-    rows = [f"{program}: z = {accel_units:g}/2 t^2 + 1000 counts + N(0, 2) noise"
-            + (f", acc = 1 g + {accel_units / first.units_per_metre:.4g} m/s^2 + N(0, 20) counts"
-               if accel else "")
+    from firmware_model.atmosphere import pressure_pa
+
+    first = BuildConfig(program=program)
+    a_mps2 = accel_units / first.units_per_metre
+    rows = [f"{program}: h = {a_mps2:.4g}/2 t^2 m above a sea-level pad through the sensor + N(0, 2) counts"
+            + (f", acc = 1 g + {a_mps2:.4g} m/s^2 + N(0, 20) counts" if accel else "")
             + f", {seconds:g} s x 8 streams; bias = mean(integer - float mirror) over the second half",
             "",
-            "| k | rounding | X1 bias (LSB) | X2 bias (LSB) | X2 bias (units/s) | X3 bias (LSB) "
+            "| k | rounding | X1 bias (LSB) | X2 bias (LSB) | X2 bias (m/s) | X3 bias (LSB) "
             "| linear prediction X1, X2, X3 (LSB) | design brief X2 (LSB) |", "|---|---|---|---|---|---|---|---|"]
     for k in ks:
         n = int(seconds * 2 ** k)
         t = np.arange(n) / 2 ** k
         rng = np.random.default_rng(0)
-        z = np.round(0.5 * accel_units * t[None, :] ** 2 + 1000 + rng.normal(0, 2, (8, n))).astype(np.int64)
+        pa_per_count, pa_at_zero = first.baro_transfer           # P = pa_at_zero + pa_per_count * counts
+        counts = (np.asarray(pressure_pa(0.5 * a_mps2 * t ** 2)) - pa_at_zero) / pa_per_count
+        z = np.clip(np.round(counts[None, :] + rng.normal(0, 2, (8, n))), 0, 65535).astype(np.int64)
         acc = None
         if accel:
-            a_mps2 = accel_units / first.units_per_metre
             rest = G0 * first.accel_counts_per_mps2
             acc_f = rest + a_mps2 * first.accel_counts_per_mps2 + np.random.default_rng(1).normal(0, 20, (8, n))
             acc_f[:, 0] = rest
             acc = np.clip(np.round(acc_f), -32768, 32767).astype(np.int64)
         for rounding in ROUNDINGS:
-            cfg = BuildConfig(program=program, k=k, rounding=rounding, baro_sign=1)
+            cfg = BuildConfig(program=program, k=k, rounding=rounding)
             consts = build_constants(cfg)
             fx = run_model(consts, z, acc)
             fm = mirror(consts, z, acc)
@@ -184,7 +193,7 @@ def run(args: argparse.Namespace) -> int:
         return 0
     cfg = load_config(args.config, {"program": args.program, "k": args.k, "rounding": args.rounding})
     if args.input is not None:
-        stream = read_stream_csv(args.input, cfg.baro_bits, cfg.k, require_acc=cfg.program in ACC_PROGRAMS)
+        stream = read_stream_csv(args.input, cfg.baro_word_bits, cfg.k, require_acc=cfg.program in ACC_PROGRAMS)
         true_ap = None
     else:
         stream = synthetic_flight(cfg.k, cfg.baro_bits, 0 if args.synthetic is None else args.synthetic,

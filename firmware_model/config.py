@@ -22,6 +22,14 @@ PROGRAMS: tuple[str, ...] = ("recursive", "kalman_baro", "kalman_accel", "recurs
 ROUNDINGS: tuple[str, ...] = ("floor", "half_up")
 #: Process-noise models for the gain design (docs/gain-design.md).
 NOISE_MODELS: tuple[str, ...] = ("accel_only", "jerk", "dwna")
+#: Barometer input kinds (docs/firmware-spec.md §2): a 16-bit ADC word, or a digital sensor's 32-bit pascal word.
+BARO_KINDS: tuple[str, ...] = ("adc", "pascal")
+#: The pascal kind's table covers words 0..2^PA_TABLE_BITS - 1 Pa (docs/firmware-spec.md §2a).
+PA_TABLE_BITS: int = 17
+#: Default valid range of a pascal word (the MS5607's 10..1200 mbar).
+PA_DEFAULT_RANGE: tuple[int, int] = (1000, 120000)
+#: Default table segment shift of the pascal kind: nodes every 2^7 = 128 Pa (1,025 nodes; docs/numerics.md).
+PA_DEFAULT_ALT_SHIFT: int = 7
 
 
 @dataclass(frozen=True)
@@ -29,6 +37,12 @@ class BuildConfig:
     """One firmware build.
 
     Sensor description:
+      * ``baro_kind``: ``adc`` (an analog sensor through an ADC: the 16-bit register ``BARO_ADC``) or ``pascal`` (a
+        digital sensor, MS5607-like, reporting integer pascals in the signed 32-bit register ``BARO_PA``;
+        docs/firmware-spec.md §2). For ``pascal``: ``baro_bits`` is ignored (the word is 32-bit), the transfer
+        function is the identity (``baro_pa_per_count``/``baro_pa_at_zero`` must be null), ``baro_min``/``baro_max``
+        are pascals (default 1,000..120,000, inside 0..2^17-1), ``baro_sign`` -1 (pressure falls as the rocket
+        climbs), ``units_per_metre`` is pascals per metre at the pad, ``baro_sigma`` pascals.
       * ``baro_bits``: barometer ADC width (bits, 8..16); ``baro_sign``: -1 for a pressure ADC (falls as the rocket
         climbs), +1 for a reading that grows with altitude.
       * ``units_per_metre``: barometer counts per metre of altitude near the pad (> 0). For a pressure ADC this is
@@ -89,6 +103,7 @@ class BuildConfig:
     gate_hold_s: float = 0.1
     apogee_hold_s: float = 0.06
     transonic_r_factor: float = 100.0
+    baro_kind: str = "adc"
     baro_rate_mps: float = 400.0
     extra: dict[str, Any] = field(default_factory=dict, compare=False, hash=False)
 
@@ -120,6 +135,8 @@ class BuildConfig:
             raise bad("k", "sample period 2^-k needs an integer k in 0..10")
         if not isinstance(self.rounding, str) or self.rounding not in ROUNDINGS:
             raise bad("rounding", f"must be one of {', '.join(ROUNDINGS)}")
+        if not isinstance(self.baro_kind, str) or self.baro_kind not in BARO_KINDS:
+            raise bad("baro_kind", f"must be one of {', '.join(BARO_KINDS)}")
         if not isinstance(self.baro_bits, int) or not 8 <= self.baro_bits <= 16:
             raise bad("baro_bits", "barometer ADC width must be 8..16 bits")
         if not isinstance(self.baro_sign, int) or self.baro_sign not in (1, -1):
@@ -149,9 +166,18 @@ class BuildConfig:
                                                  or isinstance(self.baro_pa_at_zero, bool)
                                                  or not math.isfinite(self.baro_pa_at_zero)):
             raise bad("baro_pa_at_zero", "must be a finite number (Pa) or null")
+        if self.pascal:
+            if self.baro_sign != -1:
+                raise bad("baro_sign", "a pascal word falls as the rocket climbs: baro_sign must be -1")
+            for name in ("baro_pa_per_count", "baro_pa_at_zero"):
+                if getattr(self, name) is not None:
+                    raise bad(name, "a pascal barometer reports pascals (identity transfer function): must be null")
+        tb = self.table_bits
+        lo_shift = 6 if self.pascal else 1      # pascal: 2^(17-6)+1 nodes = 8,196 bytes, the most the 16 KB ROM holds
         if self.alt_shift is not None and (isinstance(self.alt_shift, bool) or not isinstance(self.alt_shift, int)
-                                           or not 1 <= self.alt_shift <= min(15, self.baro_bits - 1)):
-            raise bad("alt_shift", f"altitude-table segment shift must be 1..{min(15, self.baro_bits - 1)} or null")
+                                           or not lo_shift <= self.alt_shift <= min(15, tb - 1)):
+            raise bad("alt_shift", f"altitude-table segment shift must be {lo_shift}..{min(15, tb - 1)} or null"
+                      + (" (a pascal table of 2^(17-alt_shift)+1 nodes must fit the 16 KB ROM)" if self.pascal else ""))
         if self.cal_p is not None and (isinstance(self.cal_p, bool) or not isinstance(self.cal_p, int)
                                        or not 0 <= self.cal_p <= 8):
             raise bad("cal_p", "pad calibration over 2^cal_p samples needs cal_p in 0..8 (or null)")
@@ -162,10 +188,11 @@ class BuildConfig:
         if (isinstance(self.transonic_r_factor, bool) or not isinstance(self.transonic_r_factor, (int, float))
                 or not math.isfinite(self.transonic_r_factor) or self.transonic_r_factor < 1):
             raise bad("transonic_r_factor", "must be a finite number >= 1")
-        full = (1 << self.baro_bits) - 1
+        full = (1 << tb) - 1
         lo, hi = self.baro_range
         if not 0 <= lo <= hi <= full:
-            raise bad("baro_min", f"valid ADC range [{lo}, {hi}] must lie inside [0, {full}]")
+            raise bad("baro_min", f"valid {'pascal' if self.pascal else 'ADC'} range [{lo}, {hi}] must lie inside "
+                                  f"[0, {full}]")
 
     # ------------------------------------------------------------------ derived
     @property
@@ -174,18 +201,43 @@ class BuildConfig:
         return 2.0 ** -self.k
 
     @property
+    def pascal(self) -> bool:
+        """True for the pascal barometer kind (a digital sensor's 32-bit word, docs/firmware-spec.md §2)."""
+        return self.baro_kind == "pascal"
+
+    @property
+    def table_bits(self) -> int:
+        """Width of the words the altitude table covers: ``baro_bits`` (ADC) or :data:`PA_TABLE_BITS` (pascal)."""
+        return PA_TABLE_BITS if self.pascal else self.baro_bits
+
+    @property
+    def baro_word_bits(self) -> int:
+        """Width of the barometer register: ``baro_bits`` (ADC) or 32 (the pascal word)."""
+        return 32 if self.pascal else self.baro_bits
+
+    @property
+    def baro_word_range(self) -> tuple[int, int]:
+        """What the barometer input register can hold: 0..2^bits-1 (ADC) or the signed 32-bit range (pascal)."""
+        return (-(1 << 31), (1 << 31) - 1) if self.pascal else (0, (1 << self.baro_bits) - 1)
+
+    @property
     def baro_range(self) -> tuple[int, int]:
-        """Valid raw barometer range (inclusive), with ``None`` bounds replaced by the ADC's full range."""
+        """Valid raw barometer range (inclusive), with ``None`` bounds replaced by the ADC's full range (pascal:
+        :data:`PA_DEFAULT_RANGE`)."""
         full = (1 << self.baro_bits) - 1
-        lo = 0 if self.baro_min is None else self.baro_min
-        hi = full if self.baro_max is None else self.baro_max
+        dlo, dhi = PA_DEFAULT_RANGE if self.pascal else (0, full)
+        lo = dlo if self.baro_min is None else self.baro_min
+        hi = dhi if self.baro_max is None else self.baro_max
         return lo, hi
 
     @property
     def baro_transfer(self) -> tuple[float, float]:
-        """``(pa_per_count, pa_at_zero)`` of the barometer with the TeleMetrum defaults filled in."""
+        """``(pa_per_count, pa_at_zero)`` of the barometer with the TeleMetrum defaults filled in; the pascal
+        kind's identity (1 Pa per count, 0 Pa at word 0: with ``baro_sign`` -1, ``P(c) = c``)."""
         from firmware_model.alt_table import TELEMETRUM_PA_AT_ZERO, TELEMETRUM_PA_PER_COUNT
 
+        if self.pascal:
+            return 1.0, 0.0
         a = (TELEMETRUM_PA_PER_COUNT * 2.0 ** (16 - self.baro_bits) if self.baro_pa_per_count is None
              else float(self.baro_pa_per_count))
         b = TELEMETRUM_PA_AT_ZERO if self.baro_pa_at_zero is None else float(self.baro_pa_at_zero)
@@ -198,18 +250,24 @@ class BuildConfig:
 
     @property
     def alt_shift_bits(self) -> int:
-        """The altitude-table segment shift with the default (bits - 9, at least 1) filled in."""
-        return max(1, self.baro_bits - 9) if self.alt_shift is None else int(self.alt_shift)
+        """The altitude-table segment shift with the default (ADC: bits - 9, at least 1; pascal:
+        :data:`PA_DEFAULT_ALT_SHIFT`) filled in."""
+        if self.alt_shift is not None:
+            return int(self.alt_shift)
+        return PA_DEFAULT_ALT_SHIFT if self.pascal else max(1, self.baro_bits - 9)
 
     def replace(self, **changes: Any) -> BuildConfig:
         """Return a copy with ``changes`` applied (validated)."""
         return dataclasses.replace(self, **changes)
 
     def to_dict(self) -> dict[str, Any]:
-        """The config as a JSON-ready dict (``extra`` omitted when empty)."""
+        """The config as a JSON-ready dict (``extra`` omitted when empty, ``baro_kind`` when ``adc``: the ADC
+        builds' configs read as before the pascal kind existed)."""
         data = dataclasses.asdict(self)
         if not data["extra"]:
             del data["extra"]
+        if data["baro_kind"] == "adc":
+            del data["baro_kind"]
         return data
 
     @classmethod

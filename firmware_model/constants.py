@@ -13,7 +13,8 @@ from :func:`build_constants`. Conversions (documented in docs/gain-design.md), a
   ``APO_N`` = max(1, round(seconds * 2^k)).
 * Recursive velocities (``V_LIFT`` for recursive programs, ``V_GATE``): ``v_mps * accel_counts_per_mps2 * 2^K``
   (accelerometer counts x samples: VEL is the running sum of ``acc - ACC0``).
-* ``THR = threshold_q8``; ``BARO_MIN``/``BARO_MAX`` = ``cfg.baro_range``; ``ROUND`` 0 floor / 1 half_up.
+* ``THR = threshold_q8``; ``BARO_MIN``/``BARO_MAX`` = ``cfg.baro_range`` (ADC counts, or pascals for the pascal
+  kind); ``ROUND`` 0 floor / 1 half_up; ``PASCAL`` = 1 for ``baro_kind`` pascal, else 0.
 * Gains: :func:`quantize_gain` (16-bit mantissa, >= 15 significant bits).
 """
 
@@ -136,6 +137,7 @@ class FirmwareConstants:
     E_GATE: int = INT32_MAX
     GATE_N: int = 1
     APO_N: int = 1
+    PASCAL: int = 0
 
     @property
     def ALT_N(self) -> int:
@@ -162,11 +164,12 @@ class FirmwareConstants:
 
     def equates(self) -> dict[str, int]:
         """Assembler symbols (all int32): K ROUND BARO_SIGN S THR V_LIFT V_GATE MACH_VLO MACH_VHI MACH_E BARO_MIN
-        BARO_MAX ALT_SHIFT ALT_N CAL_P E_GATE GATE_N APO_N and, per gain, ``<NAME>_M`` and ``<NAME>_S``. (The
+        BARO_MAX ALT_SHIFT ALT_N CAL_P E_GATE GATE_N APO_N PASCAL (1: the barometer is the 32-bit pascal word
+        ``BARO_PA``) and, per gain, ``<NAME>_M`` and ``<NAME>_S``. (The
         table nodes themselves are ROM data: :meth:`data_source`.)"""
         eq = {name: int(getattr(self, name)) for name in
               ("K", "ROUND", "BARO_SIGN", "S", "THR", "V_LIFT", "V_GATE", "MACH_VLO", "MACH_VHI", "MACH_E",
-               "BARO_MIN", "BARO_MAX", "ALT_SHIFT", "ALT_N", "CAL_P", "E_GATE", "GATE_N", "APO_N")}
+               "BARO_MIN", "BARO_MAX", "ALT_SHIFT", "ALT_N", "CAL_P", "E_GATE", "GATE_N", "APO_N", "PASCAL")}
         for name, g in self.gains.items():
             eq[f"{name}_M"] = int(g.m)
             eq[f"{name}_S"] = int(g.s)
@@ -211,11 +214,10 @@ def build_constants(cfg: BuildConfig) -> FirmwareConstants:
                       GATE_N=min(32767, max(1, _round_int("GATE_N", cfg.gate_hold_s * 2.0**cfg.k, where))),
                       APO_N=min(32767, max(1, _round_int("APO_N", cfg.apogee_hold_s * 2.0**cfg.k, where))))
     if not recursive:
-        from firmware_model.alt_table import table_for
+        from firmware_model.alt_table import table_of_config
         from firmware_model.design import innovation_sigma_m
 
-        a, b = cfg.baro_transfer
-        table = table_for(a, b, cfg.baro_sign, cfg.baro_bits, cfg.alt_shift_bits)
+        table = table_of_config(cfg)
         e_gate = INT32_MAX if cfg.gate_sigmas == 0 else _round_int(
             "E_GATE", cfg.gate_sigmas * innovation_sigma_m(cfg) * 256.0, where)
         kalman = dict(ALT_SHIFT=table.shift, ALT_TABLE=table.nodes, CAL_P=cfg.cal_p_bits, E_GATE=e_gate,
@@ -237,5 +239,6 @@ def build_constants(cfg: BuildConfig) -> FirmwareConstants:
         BARO_MIN=lo,
         BARO_MAX=hi,
         float_gains=fg,
+        PASCAL=1 if cfg.pascal else 0,
         **kalman,
     )

@@ -3,7 +3,8 @@
 Sequencing per docs/firmware-spec.md §7: write sample 0 into the input registers and ``JSR init``; then for each
 sample i write ``adc[i]``/``acc[i]`` into ``BARO_ADC``/``ACCEL_ADC`` and ``JSR step``; after each call read every
 state word through the symbol table. Memory map per §2: ROM ``$000000-$003FFF`` mapped read-only, RAM
-``$004000-$007FFF``, the two input registers at ``$FFF000``/``$FFF002``; everything else unmapped (a bus error).
+``$004000-$007FFF``, the input registers at ``$FFF000``/``$FFF002`` (and the pascal kind's long at ``$FFF004``);
+everything else unmapped (a bus error).
 
 Usage::
 
@@ -21,8 +22,8 @@ from typing import Any, Callable
 
 import numpy as np
 
-from firmware_model.build import (ACCEL_ADC, BARO_ADC, IO_SIZE, IO_START, RAM_SIZE, RAM_START, ROM_SIZE, ROM_START,
-                                  STACK_TOP, FirmwareBuild)
+from firmware_model.build import (ACCEL_ADC, BARO_ADC, BARO_PA, IO_SIZE, IO_START, RAM_SIZE, RAM_START, ROM_SIZE,
+                                  ROM_START, STACK_TOP, FirmwareBuild, write_inputs)
 from firmware_model.errors import UserError
 from firmware_model.inputs import as_input_streams
 from firmware_model.trace import Trace
@@ -83,7 +84,8 @@ def run_firmware(build: FirmwareBuild, adc: Any, acc: Any = None, *,
                  progress: Callable[[int, int], None] | None = None) -> FirmwareTrace:
     """Run ``build`` on the emulated 68000 over one stream (``adc`` shape ``(n,)``) or many (``(streams, n)``).
 
-    ``adc``: barometer ADC samples, integers 0..65535 (raw counts, written to ``BARO_ADC``); ``acc``:
+    ``adc``: barometer ADC samples, integers 0..65535 (raw counts, written to ``BARO_ADC``; a pascal build: signed
+    32-bit pascal words, written as a long to ``BARO_PA``); ``acc``:
     accelerometer samples, integers -32768..32767 (counts, written to ``ACCEL_ADC``), same shape, ``None`` = all
     zero. Returns a :class:`FirmwareTrace`: ``words`` (int64, ``.l`` words signed, ``.w`` words unsigned) after
     every ``step``, ``init_words`` after ``init``, ``cycles`` per step and ``init_cycles`` (68000 clocks from the
@@ -95,7 +97,7 @@ def run_firmware(build: FirmwareBuild, adc: Any, acc: Any = None, *,
     """
     if not isinstance(build, FirmwareBuild):
         raise UserError(f"run_firmware needs a FirmwareBuild (from build_firmware), got {type(build).__name__}")
-    adc2, acc2 = as_input_streams(adc, acc)
+    adc2, acc2 = as_input_streams(adc, acc, bool(build.consts.PASCAL))
     if not isinstance(max_cycles_per_call, int) or max_cycles_per_call <= 0:
         raise UserError(f"max_cycles_per_call={max_cycles_per_call!r} must be a positive integer")
     n_streams, n = adc2.shape
@@ -131,9 +133,11 @@ def _run_stream(build: FirmwareBuild, adc: np.ndarray, acc: np.ndarray, addr_siz
     # have to drop compiled code: then cpu.write does it); the state words are unpacked straight from memory
     # after one checked host read (mapping never shrinks, reading changes nothing).
     mem, flags32 = cpu.memory.mem, cpu.memory.flags32
-    lean = ACCEL_ADC == BARO_ADC + 2 and not BARO_ADC & 3
+    pascal = bool(build.consts.PASCAL)
+    lean = ACCEL_ADC == BARO_ADC + 2 and BARO_PA == BARO_ADC + 4 and not BARO_ADC & 3
     io_word = BARO_ADC >> 2
     pack_io = struct.Struct(">HH").pack_into
+    pack_io_pa = struct.Struct(">HHi").pack_into       # BARO_ADC (0), ACCEL_ADC, BARO_PA
     init_addr, step_addr = build.init_address, build.step_address
     adc_l = adc.tolist()
     acc_l = acc.tolist()
@@ -168,14 +172,18 @@ def _run_stream(build: FirmwareBuild, adc: np.ndarray, acc: np.ndarray, addr_siz
 
     i = -1  # the sample being run (-1: init); named in a fault's message
     try:
-        write(BARO_ADC, adc_l[0], 2)
-        write(ACCEL_ADC, acc_l[0], 2)
+        write_inputs(cpu, pascal, adc_l[0], acc_l[0])
         init_clocks = call(init_addr, max_cycles=max_cycles)
         init_words[:] = read_state()
         out = [None] * len(adc_l)
         cyc = [0] * len(adc_l)
         for i in range(len(adc_l)):
-            if lean and not flags32[io_word] & 0x08080808:
+            if pascal:
+                if lean and not (flags32[io_word] | flags32[io_word + 1]) & 0x08080808:
+                    pack_io_pa(mem, BARO_ADC, 0, acc_l[i], adc_l[i])
+                else:
+                    write_inputs(cpu, True, adc_l[i], acc_l[i])
+            elif lean and not flags32[io_word] & 0x08080808:
                 pack_io(mem, BARO_ADC, adc_l[i], acc_l[i])
             else:
                 write(BARO_ADC, adc_l[i], 2)

@@ -127,6 +127,27 @@ def edge_stream(kind: str, n: int, bits: int, k: int) -> Stream:
                               "seed": None})
 
 
+#: The pascal kind's edge values (Pa): sea level, the MS5607's range.
+PA_SEA, PA_LO, PA_HI = 101325, 1000, 120000
+
+
+def pascal_edge_stream(kind: str, n: int, k: int) -> Stream:
+    """:func:`edge_stream` for a pascal build (the signed 32-bit word ``BARO_PA``): the same kinds and
+    accelerometer, the barometer in pascals: ``constant`` 101,325; ``step`` 101,325 then 86,325 (~1.3 km up);
+    ``ramp`` falling 12 Pa per sample (~1 m) from 101,325, clamped at 1,000; ``adc_min``/``adc_max`` the register's
+    extremes -2^31 / 2^31-1 (invalid words); ``alternating`` 120,000 / 1,000 (the valid range's ends: the worst
+    innovation); ``ties`` 101,325 + 0,1,1,0. No randomness."""
+    base = edge_stream(kind, n, 16, k)
+    i = np.arange(n, dtype=np.int64)
+    pa = {"constant": np.full(n, PA_SEA), "step": np.where(i < n // 4, PA_SEA, PA_SEA - 15000),
+          "ramp": np.clip(PA_SEA - 12 * i, PA_LO, PA_HI), "adc_min": np.full(n, -(1 << 31)),
+          "adc_max": np.full(n, (1 << 31) - 1), "alternating": np.where(i % 2 == 0, PA_HI, PA_LO),
+          "ties": PA_SEA + np.array([0, 1, 1, 0], np.int64)[i % 4]}[kind]
+    return Stream(name=base.name, adc=np.asarray(pa, dtype=np.int64), acc=base.acc, k=k, bits=32,
+                  provenance={"generator": "fwemu.inputs.pascal_edge_stream", "kind": kind, "n": n,
+                              "baro_kind": "pascal", "k": k, "seed": None})
+
+
 @dataclass(frozen=True)
 class FlightParams:
     """A simple vertical flight and its sensors (SI units unless stated).
@@ -269,15 +290,55 @@ def synthetic_flight(k: int, bits: int = 16, seed: int = 0, params: FlightParams
     return Stream(name=name, adc=adc, acc=acc, k=k, bits=bits, provenance=prov, truth=truth)
 
 
+def synthetic_pascal_flight(k: int, seed: int = 0, params: FlightParams | None = None, noise_pa: float = 3.0,
+                            name: str = "flight") -> Stream:
+    """:func:`synthetic_flight` for a digital barometer (``baro_kind`` pascal, docs/firmware-spec.md §2): the same
+    trajectory and accelerometer, the barometer word = the ISA pressure at ``pad_altitude_m`` + height (+ the
+    transonic error) in integer pascals plus Gaussian noise ``noise_pa`` (Pa rms), rounded to the nearest pascal
+    and clipped to the MS5607's 1,000..120,000 Pa. ``units_per_metre``/``baro_sigma``/``pad_fraction`` of
+    ``params`` are not used. Noise from ``numpy.random.default_rng(seed)`` (barometer first, then accelerometer)."""
+    _check_common(k, 16)
+    p = params or FlightParams()
+    if not (math.isfinite(noise_pa) and noise_pa >= 0):
+        raise UserError(f"synthetic pascal flight: noise_pa={noise_pa!r} must be a finite number >= 0")
+    dt = 2.0 ** -k
+    h, a, apogee_t = _trajectory(p, dt, 8)
+    speed = np.abs(np.gradient(h, dt)) if h.shape[0] > 1 else np.zeros_like(h)
+    rng = np.random.default_rng(seed)
+    baro_noise = rng.standard_normal(h.shape[0]) * noise_pa
+    acc_noise = rng.standard_normal(h.shape[0]) * p.accel_sigma
+    lo, hi = p.transonic_band_mps
+    h_baro = h + np.where((speed > lo) & (speed < hi), p.transonic_error_m, 0.0)
+    pa = np.clip(np.rint(pressure_pa(p.pad_altitude_m + h_baro) + baro_noise), 1000, 120000).astype(np.int64)
+    acc_f = p.accel_offset + (a + G0) * p.accel_counts_per_mps2 + acc_noise
+    acc = np.clip(np.rint(acc_f), ACC_MIN, ACC_MAX).astype(np.int64)
+    prov = {"generator": "fwemu.inputs.synthetic_pascal_flight", "k": k, "baro_kind": "pascal", "seed": seed,
+            "noise_pa": noise_pa, "params": p.to_dict(),
+            "rng": "numpy.random.default_rng(seed) PCG64, baro noise then accel noise"}
+    v = np.diff(h) / dt
+    truth = {"apogee_s": round(apogee_t, 6), "apogee_sample": int(math.floor(apogee_t / dt)),
+             "apogee_height_m": round(float(h.max()), 3), "max_speed_mps": round(float(v.max()), 3) if v.size else 0.0}
+    return Stream(name=name, adc=pa, acc=acc, k=k, bits=32, provenance=prov, truth=truth)
+
+
 # ------------------------------------------------------------------------------------ validation and user files
-def as_input_streams(adc: Any, acc: Any = None) -> tuple[np.ndarray, np.ndarray]:
-    """Validate barometer and accelerometer samples as the firmware's 16-bit input registers hold them and return
+#: What the barometer input register holds (docs/firmware-spec.md §2): ``BARO_ADC`` an unsigned 16-bit word,
+#: ``BARO_PA`` (the pascal kind) a signed 32-bit word.
+BARO_WORD_RANGE: dict[bool, tuple[int, int, str]] = {False: (0, 0xFFFF, "16-bit input register BARO_ADC"),
+                                                     True: (-(1 << 31), (1 << 31) - 1,
+                                                            "signed 32-bit pascal register BARO_PA")}
+
+
+def as_input_streams(adc: Any, acc: Any = None, pascal: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Validate barometer and accelerometer samples as the firmware's input registers hold them and return
     them as int64 arrays of shape ``(streams, n)``.
 
-    ``adc``: integers 0..65535 (raw counts), shape ``(n,)`` or ``(streams, n)``; ``acc``: integers -32768..32767
-    (counts), the same shape, ``None`` = all zero. Raises :class:`UserError` naming the array, the (stream and)
-    sample and the value: wrong shape, empty stream, non-integer or out-of-range samples."""
-    adc2 = _as_streams(adc, "adc", 0, 0xFFFF)
+    ``adc``: integers 0..65535 (raw counts; ``pascal``: the signed 32-bit pascal word, -2^31..2^31-1), shape
+    ``(n,)`` or ``(streams, n)``; ``acc``: integers -32768..32767 (counts), the same shape, ``None`` = all zero.
+    Raises :class:`UserError` naming the array, the (stream and) sample and the value: wrong shape, empty stream,
+    non-integer or out-of-range samples."""
+    lo, hi, what = BARO_WORD_RANGE[bool(pascal)]
+    adc2 = _as_streams(adc, "adc", lo, hi, what)
     if acc is None:
         return adc2, np.zeros_like(adc2)
     acc2 = _as_streams(acc, "acc", -0x8000, 0x7FFF)
@@ -286,7 +347,7 @@ def as_input_streams(adc: Any, acc: Any = None) -> tuple[np.ndarray, np.ndarray]
     return adc2, acc2
 
 
-def _as_streams(values: Any, name: str, lo: int, hi: int) -> np.ndarray:
+def _as_streams(values: Any, name: str, lo: int, hi: int, what: str = "16-bit input register") -> np.ndarray:
     arr = np.asarray(values)
     if arr.ndim not in (1, 2):
         raise UserError(f"{name}: expected shape (n,) or (streams, n), got {arr.shape}")
@@ -296,14 +357,29 @@ def _as_streams(values: Any, name: str, lo: int, hi: int) -> np.ndarray:
         if not np.all(np.isfinite(arr)) or not np.all(arr == np.round(arr)):
             bad = np.argwhere(~np.isfinite(arr) | (arr != np.round(arr)))[0]
             raise UserError(f"{name}: sample {tuple(int(i) for i in bad)} = {arr[tuple(bad)]!r} is not an integer")
+    elif arr.dtype.kind == "O":
+        try:
+            ints = [int(v) for v in arr.ravel()]
+        except (TypeError, ValueError):
+            raise UserError(f"{name}: expected integer samples, got dtype {arr.dtype}") from None
+        for j, v in enumerate(ints):
+            if not lo <= v <= hi:
+                where = np.unravel_index(j, arr.shape)
+                raise UserError(f"{name}: sample {tuple(int(i) for i in where)} = {v} outside {lo}..{hi} ({what})")
+        arr = np.array(ints, dtype=np.int64).reshape(arr.shape)
     elif arr.dtype.kind not in "iub":
         raise UserError(f"{name}: expected integer samples, got dtype {arr.dtype}")
+    if arr.dtype.kind == "u" and arr.dtype.itemsize == 8 and arr.size and int(arr.max()) > hi:
+        j = int(np.argmax(arr.ravel() > hi))
+        where = np.unravel_index(j, arr.shape)
+        raise UserError(f"{name}: sample {tuple(int(i) for i in where)} = {int(arr.ravel()[j])} outside "
+                        f"{lo}..{hi} ({what})")
     out = np.atleast_2d(arr.astype(np.int64))
     outside = (out < lo) | (out > hi)
     if outside.any():
         s, i = (int(v) for v in np.argwhere(outside)[0])
         where = f"sample {i}" if arr.ndim == 1 else f"stream {s} sample {i}"
-        raise UserError(f"{name}: {where} = {int(out[s, i])} outside {lo}..{hi} (16-bit input register)")
+        raise UserError(f"{name}: {where} = {int(out[s, i])} outside {lo}..{hi} ({what})")
     return out
 
 
@@ -357,11 +433,13 @@ def iter_stream_csv(path: str | Path, bits: int, k: int, require_acc: bool = Fal
     at most once), then one integer sample per row. ``require_acc``: the program reads the accelerometer, so a
     missing ``acc`` column is an error (it would silently read zeros). Pass a :class:`CsvInfo` as ``info`` to
     learn the count, columns and SHA-256. Errors (:class:`UserError`) name the file and line: missing or
-    duplicate columns, wrong field count, non-integer or out-of-range values (adc 0..2^bits-1, acc
-    -32768..32767), undecodable bytes, an empty file, no samples."""
+    duplicate columns, wrong field count, non-integer or out-of-range values (adc 0..2^bits-1, or for ``bits`` =
+    32, a pascal build's word, -2^31..2^31-1; acc -32768..32767), undecodable bytes, an empty file, no samples."""
     path = Path(path)
     info = info if info is not None else CsvInfo(path, bits, k)
-    full = (1 << bits) - 1
+    # bits = 32: the pascal kind's signed 32-bit word (BuildConfig.baro_word_bits)
+    adc_lo, full = (-(1 << 31), (1 << 31) - 1) if bits == 32 else (0, (1 << bits) - 1)
+    what = " (signed 32-bit pascal word)" if bits == 32 else f" ({bits}-bit barometer ADC)"
     try:
         f = path.open("rb")
     except FileNotFoundError:
@@ -417,7 +495,7 @@ def iter_stream_csv(path: str | Path, bits: int, k: int, require_acc: bool = Fal
                     continue
                 if len(cells) != len(header):
                     raise UserError(f"{path}:{lineno}: expected {len(header)} fields, got {len(cells)}")
-                for col, idx, lo, hi, dest in (("adc", i_adc, 0, full, adc), ("acc", i_acc, -32768, 32767, acc)):
+                for col, idx, lo, hi, dest in (("adc", i_adc, adc_lo, full, adc), ("acc", i_acc, -32768, 32767, acc)):
                     if idx is None:
                         dest.append(0)
                         continue
@@ -428,7 +506,7 @@ def iter_stream_csv(path: str | Path, bits: int, k: int, require_acc: bool = Fal
                         raise UserError(f"{path}:{lineno}: {col}={cell[:40]!r} is not an integer") from None
                     if not lo <= v <= hi:
                         raise UserError(f"{path}:{lineno}: {col}={v} outside [{lo}, {hi}]"
-                                        + (f" ({bits}-bit barometer ADC)" if col == "adc" else ""))
+                                        + (what if col == "adc" else ""))
                     dest.append(v)
                 if len(adc) >= chunk:
                     info.n += len(adc)

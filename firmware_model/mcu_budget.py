@@ -213,7 +213,7 @@ def _write_vector_set(builds: Sequence[tuple[Any, Sequence[Any]]], out: Path) ->
     specs = []
     for cfg, streams in builds:
         for stream in streams:
-            name = vectors.case_name(cfg.program, cfg.rounding, cfg.k, cfg.baro_bits, "budget_" + stream.name)
+            name = vectors.case_name(cfg.program, cfg.rounding, cfg.k, cfg.baro_word_bits, "budget_" + stream.name)
             specs.append(vectors.CaseSpec(name, cfg, stream))
     results = vectors.generate(specs, "model", progress=False)
     for rel, data in vectors.render_set(results, "budget").items():

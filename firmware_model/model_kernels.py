@@ -26,7 +26,8 @@ Layout, chosen so that a program is easy to change or add:
 
 Exactness. Compiled, every integer is an ``int64``; uncompiled, :func:`firmware_model.model.run_model` passes
 object arrays, so every value is an exact Python ``int``. The int64 arithmetic is exact because no intermediate
-leaves int64: state words and constants are int32, inputs 16-bit, so sums of a few int32 values stay below 2^34,
+leaves int64: state words and constants are int32, inputs 16-bit (or the pascal kind's signed 32-bit word, whose
+``z << 8`` stays below 2^40 in the recursive programs), so sums of a few int32 values stay below 2^34,
 the gain products ``e * m`` (``e`` a wrapped int32 or ``acc - ACC0`` with ``|.| <= 65535``, ``|m| <= 2^15``) below
 2^46, and ``v << 16`` in the apogee prediction below 2^31 (``0 < v < d < 2^15`` there). Hence the exact values
 used for wrap detection are the int64 values themselves. tests/test_model_kernels.py checks this by running the
@@ -254,14 +255,14 @@ def _note(w, x, wid):  # type: ignore[no-untyped-def]
 # ------------------------------------------------------------------------------------------- recursive (§5)
 @njit(cache=True)
 def recursive_init(st, adc, acc, c):  # type: ignore[no-untyped-def]
-    """EST = EXT = z << 8; VEL = 0; ACC0 = acc; EVENTS = 0; ZL = z; SUMA = CAL = REJ = NEG = 0."""
+    """EST = EXT = wrap32(z << 8); VEL = 0; ACC0 = acc; EVENTS = 0; ZL = wrap32(z); SUMA = CAL = REJ = NEG = 0."""
     z = adc * c[C_BARO_SIGN]
-    st[EST] = z << 8
-    st[EXT] = z << 8
+    st[EST] = _w32(z << 8)       # exact for |z| < 2^23: every ADC word; a pascal word wraps as LSL.L does
+    st[EXT] = _w32(z << 8)
     st[VEL] = 0
     st[ACC0_R] = acc
     st[EVENTS_R] = 0
-    st[ZL_R] = z
+    st[ZL_R] = _w32(z)
     st[SUMA_R] = 0
     st[CAL_R] = 0
     st[REJ_R] = 0
@@ -302,7 +303,8 @@ def recursive_step(st, adc, acc, c):  # type: ignore[no-untyped-def]
         if (ev & LIFTOFF) != 0 and vel > c[C_V_GATE]:
             ev |= GATE_HIGH
     # 5. barometer rate gate, then the filter
-    d = z - st[ZL_R]
+    zw = _w32(z)
+    d = _w32(zw - st[ZL_R])         # SUB.L: exact for every ADC word and sane pascal word
     use = True
     est = st[EST]
     ext = st[EXT]
@@ -321,7 +323,7 @@ def recursive_step(st, adc, acc, c):  # type: ignore[no-untyped-def]
         w = _note(w, ext, W_EXT)
         ext = _w32(ext)
     if use:
-        st[ZL_R] = z
+        st[ZL_R] = zw
         est = est + (z << (8 - S)) - rs(est, S, rnd)
         w = _note(w, est, W_EST)
         est = _w32(est)
@@ -347,7 +349,7 @@ def recursive_step(st, adc, acc, c):  # type: ignore[no-untyped-def]
 @njit(cache=True)
 def seed_literal_init(st, adc, acc, c):  # type: ignore[no-untyped-def]
     """EST = z << 8."""
-    st[EST] = (adc * c[C_BARO_SIGN]) << 8
+    st[EST] = _w32((adc * c[C_BARO_SIGN]) << 8)
 
 
 @njit(cache=True, inline="always")

@@ -63,7 +63,8 @@ def run_model_numpy(consts: "FirmwareConstants", adc: np.ndarray, acc: np.ndarra
     integer model of ``consts.program`` over one or many input streams, bit-exact per
     docs/firmware-spec.md §5-§7.
 
-    * ``adc``: barometer ADC counts (unsigned 16-bit register, 0..65535), shape ``(n,)`` or ``(streams, n)``.
+    * ``adc``: barometer ADC counts (unsigned 16-bit register, 0..65535; a pascal build: the signed 32-bit pascal
+      word), shape ``(n,)`` or ``(streams, n)``.
     * ``acc``: accelerometer counts (signed 16-bit register, -32768..32767), same shape, or ``None`` (all zero;
       only ``recursive`` and ``kalman_accel`` read it).
 
@@ -78,7 +79,7 @@ def run_model_numpy(consts: "FirmwareConstants", adc: np.ndarray, acc: np.ndarra
         raise UserError(f"build constants: unknown program {program!r}; known: {', '.join(STATE_WORDS)}")
     mode = rounding_mode(consts)
     one_stream = np.ndim(adc) == 1
-    adc2, acc2 = as_input_streams(adc, acc)
+    adc2, acc2 = as_input_streams(adc, acc, bool(getattr(consts, "PASCAL", 0)))
     if consts.BARO_SIGN not in (1, -1):
         raise UserError(f"build constants: BARO_SIGN={consts.BARO_SIGN!r} must be +1 or -1")
     runner = {"recursive": _run_recursive, "recursive_seed_literal": _run_seed_literal,
@@ -99,13 +100,13 @@ def _run_recursive(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc:
     n_streams, n = adc.shape
     S = int(consts.S)
     z_all = adc * np.int64(consts.BARO_SIGN)
-    zin = z_all << np.int64(8 - S)                  # exact: |z| < 2^16, so |z << 7| < 2^23
-    est = z_all[:, 0] << np.int64(8)
+    zin = z_all << np.int64(8 - S)                  # exact: |z| <= 2^31 (pascal word), so |z << 7| <= 2^38
+    est = wrap32(z_all[:, 0] << np.int64(8))        # exact for |z| < 2^23 (every ADC word, every sane pascal)
     ext = est.copy()
     vel = np.zeros(n_streams, dtype=np.int64)
     acc0 = acc[:, 0].copy()
     ev = np.zeros(n_streams, dtype=np.int64)
-    zl = z_all[:, 0].copy()
+    zl = wrap32(z_all[:, 0])
     suma = np.zeros(n_streams, dtype=np.int64)
     cal = np.zeros(n_streams, dtype=np.int64)
     rej = np.zeros(n_streams, dtype=np.int64)
@@ -139,7 +140,8 @@ def _run_recursive(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc:
         # 4b. the accelerometer velocity has exceeded the gate since liftoff
         ev = np.where(run & ((ev & _LIFTOFF) != 0) & (vel > v_gate), ev | _GATE_HIGH, ev)
         # 5. barometer rate gate, then the filter
-        d = z - zl
+        zw = wrap32(z)
+        d = wrap32(zw - zl)                          # SUB.L
         inside = (d >= -d_gate) & (d <= d_gate)
         reject = ~inside & (rej < gate_n)
         rebase = ~inside & ~reject                   # the gate opens on a lasting shift: EST, EXT move with it
@@ -149,7 +151,7 @@ def _run_recursive(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc:
             est = np.where(rebase, tr.w32(np.where(rebase, est + (d << np.int64(8)), est), i, "EST"), est)
             ext = np.where(rebase, tr.w32(np.where(rebase, ext + (d << np.int64(8)), ext), i, "EXT"), ext)
         use = ~reject
-        zl = np.where(use, z, zl)
+        zl = np.where(use, zw, zl)
         est = np.where(use, tr.w32(np.where(use, est + zin[:, i] - rs(est, S, mode), est), i, "EST"), est)
         # 6. extreme and apogee (after a clip: APO_N samples of evidence)
         up = est > ext
@@ -171,7 +173,7 @@ def _run_seed_literal(consts: "FirmwareConstants", mode: str, adc: np.ndarray, a
     S = int(consts.S)
     z = adc * np.int64(consts.BARO_SIGN)
     zin = z << np.int64(8 - S)
-    est = z[:, 0] << np.int64(8)
+    est = wrap32(z[:, 0] << np.int64(8))
     init = est[:, None].copy()
     out = np.empty((n_streams, n, 1), dtype=np.int64)
     for i in range(n):

@@ -342,12 +342,11 @@ def ideal_kalman(cfg: "BuildConfig", adc: np.ndarray, acc: np.ndarray | None = N
     n_streams, n = a.shape
     F, H, Q, R = kalman_matrices(cfg)
     m = H.shape[0]
-    from firmware_model.alt_table import table_for
+    from firmware_model.alt_table import table_of_config
 
-    tf = cfg.baro_transfer
-    table = table_for(tf[0], tf[1], cfg.baro_sign, cfg.baro_bits, cfg.alt_shift_bits)
+    table = table_of_config(cfg)
     y = np.empty((n_streams, n, m))
-    y[..., 0] = table.lookup_float(np.clip(a, 0, (1 << cfg.baro_bits) - 1))
+    y[..., 0] = table.lookup_float(np.clip(a, 0, (1 << cfg.table_bits) - 1))
     if m == 2:
         y[..., 1] = (b - b[:, :1]) * 256.0 / cfg.accel_counts_per_mps2
     v_lift = cfg.liftoff_mps * 256.0

@@ -24,7 +24,8 @@ from hypothesis import strategies as st
 
 from firmware_model.config import PROGRAMS, ROUNDINGS, BuildConfig
 
-__all__ = ["build_configs", "adc_streams", "accel_streams", "edge_streams", "flight_like_streams", "flights"]
+__all__ = ["build_configs", "adc_streams", "accel_streams", "edge_streams", "flight_like_streams", "flights",
+           "pascal_streams", "pascal_flight_streams"]
 
 
 def build_configs(programs: Sequence[str] = PROGRAMS, k: Iterable[int] = range(4, 9),
@@ -206,5 +207,65 @@ def flights(mach: tuple[float, float] = (0.15, 0.8), motors: Sequence[str] = ("K
                                            record_hz=record_hz, internal_hz=internal_hz))[0]
         assume(mach[0] <= rec.provenance["summary"]["max_mach"] <= mach[1])
         return rec
+
+    return _flight()
+
+
+#: Pascal words worth hitting on purpose: the default valid range's edges and one past them, the table's ends,
+#: 0, the z << 8 exactness limit (2^23) and the int32 extremes.
+PASCAL_EDGES: tuple[int, ...] = (0, 1, 999, 1000, 1001, 120000, 120001, 131071, 131072, (1 << 23) - 1, 1 << 23,
+                                 -1, -1000, (1 << 31) - 1, -(1 << 31))
+
+
+def pascal_streams(min_len: int = 1, max_len: int = 200, lo: int = 1000,
+                   hi: int = 120000) -> st.SearchStrategy[np.ndarray]:
+    """Pascal-word streams (``baro_kind`` pascal, docs/firmware-spec.md §2: a signed 32-bit register) over the
+    whole word range: each sample a valid pascal in ``lo..hi``, a word inside the table (0..2^17-1), an edge of
+    :data:`PASCAL_EDGES` or any 32-bit word (invalid: negative, huge); or a random walk inside ``lo..hi`` with
+    such words mixed in."""
+    word = st.one_of(st.integers(lo, hi), st.integers(0, (1 << 17) - 1), st.sampled_from(PASCAL_EDGES),
+                     st.integers(-(1 << 31), (1 << 31) - 1))
+    uniform = st.lists(word, min_size=min_len, max_size=max_len).map(_array)
+
+    @st.composite
+    def walk(draw: st.DrawFn) -> np.ndarray:
+        n = draw(st.integers(max(min_len, 1), max_len))
+        start = draw(st.integers(lo, hi))
+        steps = draw(st.lists(st.integers(-400, 400), min_size=n, max_size=n))
+        out = np.clip(start + np.cumsum(np.asarray(steps, dtype=np.int64)), lo, hi)
+        for _ in range(draw(st.integers(0, 4))):
+            out[draw(st.integers(0, n - 1))] = draw(word)
+        return out
+
+    return st.one_of(uniform, walk())
+
+
+def pascal_flight_streams(cfg: BuildConfig | None = None, max_len: int = 400,
+                          ) -> st.SearchStrategy[tuple[np.ndarray, np.ndarray]]:
+    """Quick flights as :func:`flight_like_streams` for a pascal build: the same trajectory shape, scaled to an
+    apogee of 30 m..12 km above a pad at 0..3 km, barometer = ISA pressure in integer pascals plus 0..8 Pa of
+    noise, clipped to the MS5607's 1,000..120,000 Pa, with up to two single-sample spikes of +-2 kPa."""
+    from firmware_model.atmosphere import pressure_pa
+
+    cfg = cfg or BuildConfig(baro_kind="pascal")
+    shape = BuildConfig(k=cfg.k, accel_counts_per_mps2=cfg.accel_counts_per_mps2, units_per_metre=1.0, baro_sign=1)
+    base = flight_like_streams(shape, max_len=max_len, noise_counts=0.0)
+
+    @st.composite
+    def _flight(draw: st.DrawFn) -> tuple[np.ndarray, np.ndarray]:
+        h_counts, acc = draw(base)
+        h = h_counts.astype(np.float64) - float(h_counts.min())
+        top = float(h.max())
+        apogee = draw(st.floats(30.0, 12_000.0))
+        h = h * (apogee / top) if top > 0 else h
+        pad = draw(st.floats(0.0, 3000.0))
+        noise = draw(st.floats(0.0, 8.0))
+        rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
+        pa = np.rint(np.asarray(pressure_pa(pad + h)) + rng.normal(0.0, noise, h.shape[0]))
+        pa = np.clip(pa, 1000, 120000).astype(np.int64)
+        for _ in range(draw(st.integers(0, 2))):
+            i = draw(st.integers(0, len(pa) - 1))
+            pa[i] = min(120000, max(1000, int(pa[i]) + draw(st.sampled_from((-2000, 2000)))))
+        return pa, acc
 
     return _flight()

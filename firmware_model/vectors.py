@@ -18,6 +18,7 @@ Files are written into a temporary directory first and moved into place only whe
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import math
@@ -138,8 +139,45 @@ class CaseSpec:
 
 
 def case_name(program: str, rounding: str, k: int, bits: int, stream: str) -> str:
-    """``<program>_<rounding>_k<k>_b<bits>_<stream>`` (a C identifier)."""
-    return f"{program}_{rounding}_k{k}_b{bits}_{stream}"
+    """``<program>_<rounding>_k<k>_b<bits>_<stream>`` (a C identifier); ``bits`` = 32, the pascal kind's word:
+    ``<program>_<rounding>_k<k>_pa_<stream>``."""
+    return f"{program}_{rounding}_k{k}_{'pa' if bits == 32 else f'b{bits}'}_{stream}"
+
+
+#: Pascal cases of the committed set (docs/vectors.md, "Pascal cases"): every program and rounding at this k, the
+#: pascal edge streams of these kinds, and the pascal synthetic flight for (program, rounding) in
+#: :data:`PASCAL_FLIGHTS`. Kept small: the whole set must stay under 20 MB.
+PASCAL_K: int = 4
+PASCAL_EDGE_KINDS: tuple[str, ...] = ("adc_min", "alternating", "ties", "ramp")
+PASCAL_FLIGHTS: tuple[tuple[str, str], ...] = (("recursive", "floor"), ("kalman_baro", "half_up"),
+                                               ("kalman_accel", "floor"))
+#: Pascals per metre of the pascal cases' builds (rho g at sea level) and their barometer noise (Pa rms).
+PASCAL_PA_PER_M: float = 12.0
+PASCAL_SIGMA_PA: float = 3.0
+
+
+def pascal_case_config(program: str, rounding: str, k: int) -> BuildConfig:
+    """The build of a pascal case: ``baro_kind`` pascal (MS5607 range 1,000..120,000 Pa, the default table),
+    12 Pa/m, 3 Pa noise, otherwise the defaults."""
+    return BuildConfig(program=program, rounding=rounding, k=k, baro_kind="pascal", units_per_metre=PASCAL_PA_PER_M,
+                       baro_sigma=PASCAL_SIGMA_PA)
+
+
+def pascal_case_specs() -> list[CaseSpec]:
+    """The pascal cases (:data:`PASCAL_K`, :data:`PASCAL_EDGE_KINDS`, :data:`PASCAL_FLIGHTS`), in a fixed order."""
+    from firmware_model.inputs import pascal_edge_stream, synthetic_pascal_flight
+
+    specs: list[CaseSpec] = []
+    flight = synthetic_pascal_flight(PASCAL_K, seed=FLIGHT_SEED, noise_pa=PASCAL_SIGMA_PA)
+    for program in PROGRAMS:
+        for rounding in ROUNDINGS:
+            cfg = pascal_case_config(program, rounding, PASCAL_K)
+            for kind in PASCAL_EDGE_KINDS:
+                stream = pascal_edge_stream(kind, EDGE_SAMPLES, PASCAL_K)
+                specs.append(CaseSpec(case_name(program, rounding, PASCAL_K, 32, stream.name), cfg, stream))
+            if (program, rounding) in PASCAL_FLIGHTS:
+                specs.append(CaseSpec(case_name(program, rounding, PASCAL_K, 32, flight.name), cfg, flight))
+    return specs
 
 
 def case_matrix(require_logs: bool = True) -> list[CaseSpec]:
@@ -177,6 +215,7 @@ def case_matrix(require_logs: bool = True) -> list[CaseSpec]:
     from firmware_model.flights.vectorcases import flight_case_specs
 
     specs += flight_case_specs(case_name, CaseSpec, Stream, require_logs)
+    specs += pascal_case_specs()
     return specs
 
 
@@ -185,6 +224,7 @@ def case_matrix(require_logs: bool = True) -> list[CaseSpec]:
 #: one rounding each and the long transonic flight is left to the host).
 AVR_CASES: tuple[str, ...] = tuple(
     [case_name("recursive", r, 4, 16, "flight") for r in ROUNDINGS]
+    + [case_name(p, "floor", PASCAL_K, 32, "edge_ties") for p in ("recursive", "kalman_accel")]
     + [case_name(p, r, 4, 16, "flight") for p, r in (("kalman_baro", "floor"), ("kalman_accel", "half_up"))]
     + [case_name(p, r, 4, 16, "edge_" + kind) for p in PROGRAMS for r in ROUNDINGS for kind in ("ties", "step")]
 )
@@ -216,12 +256,21 @@ def _sha256_file(path: Path) -> str | None:
         return None
 
 
-def compute_case(spec: CaseSpec, generator: str = "emulation") -> CaseResult:
+@functools.lru_cache(maxsize=256)
+def _constants(cfg: BuildConfig) -> Any:
+    """:func:`firmware_model.constants.build_constants` of ``cfg``, once per process (a pure function of the frozen
+    config; the gain design costs about 2 ms and the committed matrix has 637 cases over 80 builds)."""
+    from firmware_model.constants import build_constants
+
+    return build_constants(cfg)
+
+
+def compute_case(spec: CaseSpec, generator: str = "emulation", builds: dict[Any, Any] | None = None) -> CaseResult:
     """Run one case. ``generator="emulation"``: the 68000 firmware on the emulated CPU, then the integer model on
     the same inputs; any differing word raises :class:`UserError` naming case, sample and word.
-    ``generator="model"``: the integer model only (bootstrap; marked in the output)."""
+    ``generator="model"``: the integer model only (bootstrap; marked in the output). ``builds``: a dict the
+    caller keeps over one run of many cases, so each build config is built (loaded) once in that run."""
     from firmware_model.build import source_sha256
-    from firmware_model.constants import build_constants
     from firmware_model.model import run_model
 
     cfg, stream = spec.cfg, spec.stream
@@ -232,7 +281,11 @@ def compute_case(spec: CaseSpec, generator: str = "emulation") -> CaseResult:
         from firmware_model.build import build_firmware
         from firmware_model.harness import run_firmware
 
-        build = build_firmware(cfg)
+        build = builds.get(cfg) if builds is not None else None
+        if build is None:
+            build = build_firmware(_constants(cfg))
+            if builds is not None:
+                builds[cfg] = build
         consts = build.consts
         trace = run_firmware(build, adc, acc)
         model = run_model(consts, adc, acc)
@@ -246,7 +299,7 @@ def compute_case(spec: CaseSpec, generator: str = "emulation") -> CaseResult:
                       "step_max_sample": worst, "step_mean": round(float(cyc.mean()), 3),
                       "init": None if trace.init_cycles is None else int(trace.init_cycles)}
     elif generator == "model":
-        consts = build_constants(cfg)
+        consts = _constants(cfg)
         model = run_model(consts, adc, acc)
         trace = model
         label = GENERATOR_MODEL
@@ -256,8 +309,8 @@ def compute_case(spec: CaseSpec, generator: str = "emulation") -> CaseResult:
     words = np.asarray(trace.words, dtype=np.int64)
     return CaseResult(spec=spec, generator=label, source=f"firmware_model/asm/{cfg.program}.s",
                       source_sha256=source_sha, consts=consts,
-                      init=[int(v) for v in np.asarray(trace.init_words).tolist()],
-                      words=[[int(v) for v in row] for row in words.tolist()], cycles=cycles,
+                      init=np.asarray(trace.init_words, dtype=np.int64).tolist(),
+                      words=words.tolist(), cycles=cycles,  # int64 -> Python ints
                       first_wrap=int(model.first_wrap), wrap_word=str(model.wrap_word))
 
 
@@ -306,6 +359,7 @@ def _dumps(value: Any) -> str:
     return json.dumps(value, sort_keys=True, separators=(", ", ": "), ensure_ascii=True, allow_nan=False)
 
 
+@functools.lru_cache(maxsize=None)
 def tool_version() -> str:
     """The fwemu package version (``fwemu <version>``)."""
     try:
@@ -417,7 +471,7 @@ def case_json(res: CaseResult) -> str:
 
 
 def _c_rows(values: Iterable[int], per_line: int = 16) -> str:
-    vals = [str(int(v)) for v in values]
+    vals = [_c_i32(int(v)) for v in values]
     return ",\n".join("    " + ", ".join(vals[i:i + per_line]) for i in range(0, len(vals), per_line))
 
 
@@ -442,7 +496,8 @@ def case_header_parts(res: CaseResult, adc_chunks: Iterable[str], acc_chunks: It
     n, nw = len(stream), len(names)
     out = [f"/* Golden vectors: case {name}. Generated by {tool_version()}; do not edit (fwemu vectors). */",
            f"/* generator: {res.generator} */",
-           f"/* program {cfg.program}, rounding {cfg.rounding}, dt = 2^-{cfg.k} s, {stream.bits}-bit barometer, "
+           f"/* program {cfg.program}, rounding {cfg.rounding}, dt = 2^-{cfg.k} s, "
+           f"{'32-bit pascal' if cfg.pascal else f'{stream.bits}-bit'} barometer, "
            f"input {stream.name} ({n} samples) */",
            f"/* firmware source sha256: {res.source_sha256} */",
            f"#ifndef FWV_{up}_H", f"#define FWV_{up}_H", "", "#include <stdint.h>", "",
@@ -464,8 +519,13 @@ def case_header_parts(res: CaseResult, adc_chunks: Iterable[str], acc_chunks: It
     out.append("/* column index of each state word in fwv_" + name + "_expected (and _init) */")
     for j, wname in enumerate(names):
         out.append(f"#define FWV_{up}_W_{wname} {j} /* {Q_FORMATS[cfg.program][wname]} */")
-    out += ["", f"/* barometer ADC counts (unsigned {stream.bits}-bit), sample 0 is also the init sample */",
-            f"static const uint16_t fwv_{name}_adc[{n}] FWV_ROM = {{", ""]
+    if cfg.pascal:
+        out += ["", f"#define FWV_{up}_PASCAL (1)",
+                "/* barometer: the pascal kind's signed 32-bit word (Pa), sample 0 is also the init sample */",
+                f"static const int32_t fwv_{name}_pa[{n}] FWV_ROM = {{", ""]
+    else:
+        out += ["", f"/* barometer ADC counts (unsigned {stream.bits}-bit), sample 0 is also the init sample */",
+                f"static const uint16_t fwv_{name}_adc[{n}] FWV_ROM = {{", ""]
     yield "\n".join(out)
     yield from _joined(adc_chunks, ",\n")
     yield "\n" + "\n".join(["};", "/* accelerometer counts (signed 16-bit) */",
@@ -485,6 +545,7 @@ def case_header(res: CaseResult) -> str:
     empty by default: define it to PROGMEM or a section attribute before including)."""
     stream = res.spec.stream
     return "".join(case_header_parts(res, [_c_rows(stream.adc)], [_c_rows(stream.acc)], [_c_expected(res.words)]))
+
 
 
 def alt_table_files(consts: Any) -> dict[str, bytes]:
@@ -529,9 +590,10 @@ def cases_table_header(results: Sequence[CaseResult], guard: str) -> str:
                   + ", ".join(scal[c] for c in ("MACH_VLO", "MACH_VHI", "MACH_E", "BARO_MIN", "BARO_MAX",
                                                 "ALT_SHIFT", "ALT_N", "CAL_P", "E_GATE", "GATE_N", "APO_N"))
                   + ", " + (f"fwv_{_alt_tag(res.consts)}" if res.consts.ALT_TABLE else "0") + "}")
+        adc_ptr, pa_ptr = ("0", f"fwv_{name}_pa") if res.spec.cfg.pascal else (f"fwv_{name}_adc", "0")
         rows.append(f'    {{"{name}", {C_PROGRAM_ENUM[program]}, {consts},\n'
-                    f"     FWV_{up}_N_SAMPLES, FWV_{up}_N_WORDS, fwv_{name}_adc, fwv_{name}_acc, fwv_{name}_init,\n"
-                    f"     &fwv_{name}_expected[0][0]}}")
+                    f"     FWV_{up}_N_SAMPLES, FWV_{up}_N_WORDS, {adc_ptr}, fwv_{name}_acc, fwv_{name}_init,\n"
+                    f"     &fwv_{name}_expected[0][0], {pa_ptr}}}")
     out.append(",\n".join(rows))
     out += ["};", "", f"#endif /* {guard} */", ""]
     return "\n".join(out)
@@ -587,12 +649,12 @@ def case_schema() -> dict[str, Any]:
             "events_first_sample": {"type": "object", "additionalProperties": {"type": "integer", "minimum": -1}},
             "input": {"type": "object", "required": ["name", "n_samples", "adc_bits", "provenance", "truth"],
                       "properties": {"n_samples": {"type": "integer", "minimum": 1},
-                                     "adc_bits": {"type": "integer", "minimum": 8, "maximum": 16}}},
+                                     "adc_bits": {"type": "integer", "minimum": 8, "maximum": 32}}},
             "int32_wrap": {"type": "object", "required": ["first_sample", "quantity"]},
             "cycles_68000": {"type": ["object", "null"]},
             "sequencing": {"type": "string"},
             "init": int_array,
-            "adc": {"type": "array", "items": {"type": "integer", "minimum": 0, "maximum": 65535}},
+            "adc": {"type": "array", "items": {"type": "integer", "minimum": -2147483648, "maximum": 2147483647}},
             "acc": {"type": "array", "items": {"type": "integer", "minimum": -32768, "maximum": 32767}},
             "expected": {"type": "array", "items": {"type": "array", "items": {
                 "type": "integer", "minimum": -2147483648, "maximum": 2147483647}}},
@@ -756,15 +818,37 @@ def _set_guard(kind: str) -> Any:
     return guard
 
 
-def _compute_job(job: tuple[CaseSpec, str]) -> CaseResult:
-    return compute_case(*job)
+def _compute_job(job: tuple[Sequence[CaseSpec], str]) -> list[CaseResult]:
+    specs, generator = job
+    builds: dict[Any, Any] = {}
+    return [compute_case(spec, generator, builds) for spec in specs]
+
+
+def _job_batches(specs: Sequence[CaseSpec], jobs: int) -> list[list[int]]:
+    """Indices of ``specs`` in batches for ``jobs`` workers: the cases of one build stay together (a worker then
+    assembles or loads each build and compiles its blocks once), about ``4 * jobs`` batches of similar sample
+    counts, largest first (so the last batch to finish is a short one)."""
+    by_cfg: dict[Any, list[int]] = {}
+    for i, spec in enumerate(specs):
+        by_cfg.setdefault(spec.cfg, []).append(i)
+    groups = sorted(by_cfg.values(), key=lambda g: -sum(len(specs[i].stream) for i in g))
+    n_batches = min(len(groups), 4 * jobs)
+    batches: list[list[int]] = [[] for _ in range(n_batches)]
+    load = [0] * n_batches
+    for g in groups:  # greedy: each build to the lightest batch so far
+        b = load.index(min(load))
+        batches[b] += g
+        load[b] += sum(len(specs[i].stream) for i in g) + 2000  # + a build's fixed cost, in samples
+    order = sorted(range(n_batches), key=lambda b: -load[b])
+    return [sorted(batches[b]) for b in order if batches[b]]
 
 
 def generate(specs: Sequence[CaseSpec], generator: str = "emulation", progress: bool | None = None,
              jobs: int = 1) -> list[CaseResult]:
-    """Run every case (in order); ``jobs`` > 1 runs them in that many worker processes. The results come back in
-    the order of ``specs`` whatever the workers' timing, so the files written are byte-identical to ``jobs=1``.
-    An error or interrupt terminates the workers at once."""
+    """Run every case (in order); ``jobs`` > 1 runs them in that many worker processes, the cases of one build in
+    one worker (:func:`_job_batches`). The results come back in the order of ``specs`` whatever the workers'
+    timing, so the files written are byte-identical to ``jobs=1``. An error or interrupt terminates the workers
+    at once."""
     bar = _Progress(sum(len(s.stream) for s in specs), "vectors", progress, unit="samples")
     results: list[CaseResult] = []
     try:
@@ -773,22 +857,28 @@ def generate(specs: Sequence[CaseSpec], generator: str = "emulation", progress: 
 
             from firmware_model.output import worker_init, worker_signals_ignored
 
+            batches = _job_batches(specs, jobs)
+            slots: list[CaseResult | None] = [None] * len(specs)
             # spawn, not fork: a forked child of a process whose numba thread pool already ran can deadlock.
             # The workers are started with SIGINT ignored (inherited through exec, kept by Python): a Ctrl-C to
             # the process group while they are still importing must not print their KeyboardInterrupt.
             with worker_signals_ignored():
-                pool = multiprocessing.get_context("spawn").Pool(min(jobs, len(specs)), initializer=worker_init)
+                pool = multiprocessing.get_context("spawn").Pool(min(jobs, len(batches)), initializer=worker_init)
             try:
-                for res in pool.imap(_compute_job, [(spec, generator) for spec in specs], chunksize=2):
-                    results.append(res)
-                    bar.step(res.spec.name, len(res.spec.stream))
+                jobs_in = [([specs[i] for i in b], generator) for b in batches]
+                for b, batch in zip(batches, pool.imap(_compute_job, jobs_in)):
+                    for i, res in zip(b, batch):
+                        slots[i] = res
+                        bar.step(res.spec.name, len(res.spec.stream))
                 pool.close()
             finally:
                 pool.terminate()
                 pool.join()
+            results = [r for r in slots if r is not None]
         else:
+            builds: dict[Any, Any] = {}
             for spec in specs:
-                results.append(compute_case(spec, generator))
+                results.append(compute_case(spec, generator, builds))
                 bar.step(spec.name, len(spec.stream))
     finally:
         bar.close()
@@ -851,7 +941,7 @@ def generate_user(program: str, input_csv: str | Path, out: str | Path, config: 
         raise UserError(f"vectors: unknown firmware {program!r}; known: {', '.join(PROGRAMS)}")
     _set_guard("user")(Path(out))
     cfg = load_config(config, {"program": program}, {"program": "--firmware"})
-    stream = read_stream_csv(input_csv, cfg.baro_bits, cfg.k, require_acc=program in ACC_PROGRAMS)
+    stream = read_stream_csv(input_csv, cfg.baro_word_bits, cfg.k, require_acc=program in ACC_PROGRAMS)
     spec = CaseSpec(case_name(program, cfg.rounding, cfg.k, cfg.baro_bits, stream.name), cfg, stream)
     results = generate([spec], generator, progress=False)
     files = render_set(results, "user")

@@ -87,12 +87,11 @@ class FirmwareStepper:
 
     def init(self, adc0: int, acc0: int) -> tuple[list[int], int]:
         """Run ``init`` on sample 0; returns (init words, init clocks)."""
-        from firmware_model.build import ACCEL_ADC, BARO_ADC
+        from firmware_model.build import write_inputs
 
         cpu = self.cpu
         try:
-            cpu.write(BARO_ADC, int(adc0), 2)
-            cpu.write(ACCEL_ADC, int(acc0) & 0xFFFF, 2)
+            write_inputs(cpu, bool(self.build.consts.PASCAL), int(adc0), int(acc0))
             clocks = cpu.call(self.build.init_address, max_cycles=self.max_cycles)
         except Exception as exc:
             raise self._fault(exc, "init") from exc
@@ -100,9 +99,11 @@ class FirmwareStepper:
 
     def run(self, adc: np.ndarray, acc: np.ndarray, start: int) -> tuple[np.ndarray, np.ndarray]:
         """``step`` on each sample of the chunk (global index ``start`` ...); returns (words (m, n_words), cycles)."""
-        from firmware_model.build import ACCEL_ADC, BARO_ADC
+        from firmware_model.build import ACCEL_ADC, BARO_ADC, BARO_PA
 
         write, call, read_state = self.cpu.write, self.cpu.call, self._read_state
+        baro_reg, baro_size, baro_mask = ((BARO_PA, 4, 0xFFFFFFFF) if self.build.consts.PASCAL
+                                          else (BARO_ADC, 2, 0xFFFF))
         step, limit = self.build.step_address, self.max_cycles
         adc_l, acc_l = adc.tolist(), (np.asarray(acc) & 0xFFFF).tolist()
         out: list[tuple[int, ...]] = [()] * len(adc_l)
@@ -110,7 +111,7 @@ class FirmwareStepper:
         i = 0
         try:
             for i in range(len(adc_l)):
-                write(BARO_ADC, adc_l[i], 2)
+                write(baro_reg, adc_l[i] & baro_mask, baro_size)
                 write(ACCEL_ADC, acc_l[i], 2)
                 cyc[i] = call(step, max_cycles=limit)
                 out[i] = read_state()
@@ -245,20 +246,21 @@ def generate_user(program: str, input_csv: str | Path, out: str | Path, config: 
     guard(Path(out))
     cfg = load_config(config, {"program": program}, {"program": "--firmware"})
     path = Path(input_csv)
-    info = CsvInfo(path, cfg.baro_bits, cfg.k)
+    info = CsvInfo(path, cfg.baro_word_bits, cfg.k)
+    adc_dtype = "<i4" if cfg.pascal else "<u2"          # the barometer register: 32-bit pascal word or 16-bit ADC
     sizes: dict[str, int] = {}
     with output.staged_folder(out, owned=("cases", "tables"), guard=guard, last=("manifest.json",)) as stage:
         # 1. validate and spool the inputs
         adc_path, acc_path = _spool_path(stage, "adc"), _spool_path(stage, "acc")
         with adc_path.open("wb") as fa, acc_path.open("wb") as fb:
-            for a, b in iter_stream_csv(path, cfg.baro_bits, cfg.k, program in ACC_PROGRAMS, chunk, info):
-                a.astype("<u2").tofile(fa)
+            for a, b in iter_stream_csv(path, cfg.baro_word_bits, cfg.k, program in ACC_PROGRAMS, chunk, info):
+                a.astype(adc_dtype).tofile(fa)
                 b.astype("<i2").tofile(fb)
         n = info.n
         if header and n > HEADER_MAX_SAMPLES:
             raise UserError(f"vectors: {path} has {n:,} samples; a C header holds at most {HEADER_MAX_SAMPLES:,} "
                             f"(docs/vectors.md, Limits): cut the stream, or pass --no-header for JSON only")
-        adc, acc = _Spooled(adc_path, "<u2", n), _Spooled(acc_path, "<i2", n)
+        adc, acc = _Spooled(adc_path, adc_dtype, n), _Spooled(acc_path, "<i2", n)
         stream = Stream(name=_identifier(path.stem), adc=adc, acc=acc, k=cfg.k, bits=cfg.baro_bits,
                         provenance=info.provenance())
         name = vectors.case_name(program, cfg.rounding, cfg.k, cfg.baro_bits, stream.name)

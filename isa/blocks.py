@@ -32,6 +32,7 @@ Contract with :mod:`isa.cpu` (which decodes, caches and runs blocks):
 
 from __future__ import annotations
 
+import re
 import struct
 from typing import Any
 
@@ -46,6 +47,8 @@ __all__ = ["BLOCK_MAX", "block_entries", "compile_block"]
 
 _UL, _PL = struct.Struct(">L").unpack_from, struct.Struct(">L").pack_into
 _UW, _PW = struct.Struct(">H").unpack_from, struct.Struct(">H").pack_into
+#: An address expression ``(<register local> + <displacement >= 0>)`` (d16(An) with d16 >= 0): never negative.
+_REG_PLUS_DISP = re.compile(r"\([ad][0-7] \+ \d+\)\Z")
 
 
 #: Most instructions in one compiled block.
@@ -318,10 +321,17 @@ class _BlockGen:
             rng = f"{a} <= {hi - nb}" if lo == 0 else f"{lo} <= {a} <= {hi - nb}"
             val = (f"m[{a}]", f"(m[{a}] << 8 | m[{a} + 1])", "", f"UL(m, {a})[0]")[nb - 1]
             return f"({val} if {odd}{rng} else {slow})"
-        rng = f"(_t := ({a}) & 0xFFFFFF) <= {hi - nb}" if lo == 0 else f"{lo} <= (_t := ({a}) & 0xFFFFFF) <= {hi - nb}"
-        odd = "" if nb == 1 else f"not ({a}) & 1 and "
+        # Any other address (d16(An), d8(An,Xn), d8(PC,Xn)) is computed once, unmasked, into _t: inside the span
+        # it is the 24-bit address itself (the span lies in 0..2^24-1); outside (negative, or at/above 2^24, where
+        # the 68000 wraps) it takes the accessor, which masks. Only a register plus a displacement >= 0 cannot
+        # be negative, so only it may skip the lower bound when the span starts at 0.
+        nonneg = lo == 0 and _REG_PLUS_DISP.match(a) is not None
+        if nb == 1:
+            rng = f"(_t := {a}) <= {hi - nb}" if nonneg else f"{lo} <= (_t := {a}) <= {hi - nb}"
+        else:
+            rng = f"not (_t := {a}) & 1 and " + (f"_t <= {hi - nb}" if nonneg else f"{lo} <= _t <= {hi - nb}")
         val = ("m[_t]", "(m[_t] << 8 | m[_t + 1])", "", "UL(m, _t)[0]")[nb - 1]
-        return f"({val} if {odd}{rng} else {slow})"
+        return f"({val} if {rng} else {slow})"
 
     def write(self, nb: int, a: str, v: str, last: bool = False) -> None:
         """Emit a write of the ``nb``-byte value ``v`` (already masked) at address expression ``a``: straight
@@ -349,9 +359,9 @@ class _BlockGen:
             fast = f"(f := F16[{i16}]) == 1799"
             first, store = "f == 771", f"PW(m, {t}, {v})"
             setf = f"F16[{int(t) >> 1 if const else '_t >> 1'}] = 1799"
-            if not const:
-                fast = f"not ({a}) & 1 and " + fast
-                first = f"not ({a}) & 1 and " + first
+            if not const:  # the address once, masked, into _t (the parity is that of the unmasked address)
+                fast = f"not (_t := ({a}) & 0xFFFFFF) & 1 and (f := F16[_t >> 1]) == 1799"
+                first = "not _t & 1 and " + first
         else:
             aligned = (int(a) & 3) == 0 if const else True
             i32 = str(int(t) >> 2) if const else f"{ta} >> 2"
@@ -359,8 +369,8 @@ class _BlockGen:
             first, store = "f == 50529027", f"PL(m, {t}, {v})"
             setf = f"F32[{int(t) >> 2 if const else '_t >> 2'}] = 117901063"
             if not const:
-                fast = f"not ({a}) & 3 and " + fast
-                first = f"not ({a}) & 3 and " + first
+                fast = f"not (_t := ({a}) & 0xFFFFFF) & 3 and (f := F32[_t >> 2]) == 117901063"
+                first = "not _t & 3 and " + first
             elif not aligned:
                 fast = f"UL(fl, {t})[0] == 117901063"
                 first = None
@@ -389,7 +399,7 @@ class _BlockGen:
 
     # ---- flag fragments
     def nz(self, v: str, nb: int) -> str:
-        return f"(8 if {v} & {SIGN[nb]} else (0 if {v} else 4))"
+        return f"({v} >> {BITS[nb] - 4} & 8 if {v} else 4)"  # N = the sign bit moved to bit 3; Z
 
     def logic_flags(self, v: str, nb: int, need: int) -> None:
         if need & _FLAGS_NZVC:
@@ -415,7 +425,7 @@ class _BlockGen:
             keep &= ~(NF | ZF)
         if need & VF:
             v = f"({s} ^ rm) & ({d} ^ rm)" if kind == "add" else f"({s} ^ {d}) & ({d} ^ rm)"
-            parts.append(f"(2 if {v} & {S} else 0)")
+            parts.append(f"(({v}) >> {BITS[nb] - 2} & 2)")  # the sign bit of the overflow test moved to bit 1
             keep &= ~VF
         if kind == "cmp":
             keep |= XF
@@ -1085,7 +1095,7 @@ def _block_source(entries: list[_Entry], facts: MapFacts
             g.emit(f"ni += {n - n_head}")
         if cy != c_head:
             g.emit(f"c += {cy - c_head}")
-        g.emit("if ni <= ln and c < lc:")
+        g.emit("if ni <= ln:")  # implies c < lc (see the cap before the loop)
         g.emit("    continue")
         g.exit(head_pc, n_head, c_head)
 
@@ -1232,6 +1242,14 @@ def _block_source(entries: list[_Entry], facts: MapFacts
     else:
         head_pc = entries[head][0]
         _, n_head, c_head = gen(0, head, 0, 0)  # the entries before the loop head (never all leave: see _plan)
+        # One test per pass instead of two (loopback): p more passes take at most p * C clocks (C: every entry of
+        # the loop once, at its worst) and at least p instructions, so capping ln at ni + (lc - c - 1) // C here
+        # makes `ni <= ln` imply the clock test `c < lc`. The cap only binds near a small max_cycles, where the
+        # block then leaves earlier than it had to (exact either way: CPU.run goes on from the head).
+        worst_pass = sum(timing.cycle_range(e[1])[1] for e in entries[head:])
+        g.emit(f"lx = ni + (lc - c - 1) // {worst_pass}")
+        g.emit("if lx < ln:")
+        g.emit("    ln = lx")
         g.emit("while True:")
         g.ind += 1
         ended, n_end, c_end = gen(head, k, n_head, c_head)

@@ -133,13 +133,35 @@ def _assemble(args: argparse.Namespace) -> Program:
 
 
 def _write(path: str, data: bytes | str) -> None:
+    """Write ``data`` to ``path`` atomically: a temporary file beside it, then ``os.replace``, so that a full disk
+    or an interrupt leaves the previous file intact and no temporary file (``isa`` does not import
+    ``firmware_model.output``, which does the same for the firmware CLI)."""
+    import os
+    import tempfile
+
+    raw = data.encode("ascii") if isinstance(data, str) else data
+    target = Path(path)
+    tmp = None
     try:
-        if isinstance(data, str):
-            Path(path).write_text(data, encoding="ascii")
-        else:
-            Path(path).write_bytes(data)
+        fd, name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+        tmp = Path(name)
+        with os.fdopen(fd, "wb") as f:
+            f.write(raw)
+            f.flush()
+            os.fsync(f.fileno())
+        mask = os.umask(0)
+        os.umask(mask)
+        os.chmod(tmp, 0o666 & ~mask)
+        os.replace(tmp, target)
+        tmp = None
     except OSError as exc:
         raise IsaError(f"cannot write {path}: {exc.strerror or exc}") from None
+    finally:
+        if tmp is not None:
+            try:
+                tmp.unlink()
+            except OSError:
+                pass
 
 
 def cmd_asm(args: argparse.Namespace) -> int:

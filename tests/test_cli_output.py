@@ -229,7 +229,7 @@ def test_negative_seeds_are_usage_errors(argv: list[str], tmp_path: Path) -> Non
 @pytest.mark.skipif(not Path("/dev/full").exists(), reason="no /dev/full")
 @pytest.mark.parametrize("argv", [["design"], ["design", "--json"], ["compare", "--bias-table"],
                                   ["asm", str(ROOT / "isa" / "demo" / "demo.s")],
-                                  ["vectors", "--check", str(ROOT / "vectors")]])
+                                  ["vectors", "--check", str(ROOT / "vectors")], ["--help"], ["asm", "--help"]])
 def test_full_stdout_is_one_line(argv: list[str]) -> None:
     with open("/dev/full", "w") as full:
         r = fwemu(*argv, stdout=full)

@@ -328,15 +328,16 @@ def spec_recursive_step(c: object, st: dict[str, int], adc: int, acc: int) -> di
     z = c.BARO_SIGN * adc
     est, ext, zl, rej = st["EST"], st["EXT"], st["ZL"], st["REJ"]
     use = True                                                       # 5. rate gate
-    if -c.E_GATE <= z - zl <= c.E_GATE:
+    d = wrap32(wrap32(z) - zl)                                       # SUB.L
+    if -c.E_GATE <= d <= c.E_GATE:
         rej = 0
     elif rej < c.GATE_N:
         rej, use = rej + 1, False
         ev |= REJECT
     else:                                                            # re-base on a lasting shift
-        est, ext = wrap32(est + (z - zl) * 256), wrap32(ext + (z - zl) * 256)
+        est, ext = wrap32(est + d * 256), wrap32(ext + d * 256)
     if use:
-        zl = z
+        zl = wrap32(z)
         est = wrap32(est + (z << (8 - c.S)) - rs_exact(est, c.S, h))
     neg = st["NEG"]
     if est > ext:                                                    # 6.

@@ -809,3 +809,19 @@ patch:  addq.l  #1,d2
     # sub ran once unpatched (d2 += 1), then patched: once from the second BSR and once more when _run_both's
     # second run goes on after the TRAP into sub (d3 += 1 each time)
     assert d[1] == 3 and d[2] == 1 and d[3] == 2, d
+
+
+@pytest.mark.parametrize("text", ["move.l 8(a0),d0", "move.l -8(a0),d0", "move.w 6(a0),d0", "move.b 3(a0),d0",
+                                  "move.w -2(a0,d1.w),d2", "move.l 4(a0,d1.l),d2", "add.l d1,4(a0)",
+                                  "move.l d1,8(a0)", "move.w d1,-2(a0)", "move.w d1,2(a0,d1.w)", "addq.w #1,-6(a0)"])
+@pytest.mark.parametrize("a0", [0, 2, 6, 0x3FFA, 0x4000, 0x7FFA, 0xFFFFFFFC, 0xFFFFFFF8, 0x00FFFFFC, 0x00FFEFFC,
+                                0xFFFFF000 - 6])
+@pytest.mark.parametrize("d1", [0, 4, 0xFFFC, 0xFFFFFFF8, 0x10000])
+def test_displacement_addresses_that_go_negative_or_wrap(text: str, a0: int, d1: int) -> None:
+    """d16(An) / d8(An,Xn) addresses computed once inside blocks (unmasked, into _t): a sum below 0 or at/above
+    2^24 (the 68000 wraps it) takes the exact accessor; blocks and closures agree on registers, memory, faults."""
+    code = isa.assemble(f" {text}\n trap #0\n", origin=FW_CODE).code
+    d = [0x11223344, d1, 0, 0, 0, 0, 0, 0]
+    a = [a0, 0, 0, 0, 0, 0, 0, 0x7F00]
+    blocks, closures = _run_map(code, d, a, 0, True, 5)
+    assert blocks == closures

@@ -260,3 +260,35 @@ def test_demo_bytes_equal_gnu_as(tmp_path: Path) -> None:
         assert (tmp_path / f"{name}.bin").read_bytes() == segs[name].data, section
     base, image = to_binary(prog)
     assert base == 0x1000 and image == segs["code"].data + segs["data"].data
+
+
+def test_asm_outputs_are_atomic(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                monkeypatch: pytest.MonkeyPatch) -> None:
+    """-o / --srec write a temporary file beside the target and rename it: a write that fails before the rename
+    (here fsync reports a full disk) leaves the previous file's bytes and no temporary file."""
+    import errno
+
+    src = tmp_path / "p.s"
+    src.write_text("start: moveq #1,d0\n rts\n", encoding="ascii")
+    binf, srecf = tmp_path / "p.bin", tmp_path / "p.s19"
+    binf.write_bytes(b"old")
+    srecf.write_text("old", encoding="ascii")
+
+    def full(fd: int) -> None:
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(os, "fsync", full)
+    assert fwemu(["asm", str(src), "-q", "-o", str(binf), "--srec", str(srecf)]) == 2
+    assert "cannot write" in capsys.readouterr().err
+    assert binf.read_bytes() == b"old" and srecf.read_text(encoding="ascii") == "old"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["p.bin", "p.s", "p.s19"]
+    monkeypatch.undo()
+    assert fwemu(["asm", str(src), "-q", "-o", str(binf), "--srec", str(srecf)]) == 0
+    assert binf.read_bytes() != b"old" and srecf.read_text(encoding="ascii").startswith("S0")
+    assert (binf.stat().st_mode & 0o777) == 0o666 & ~_umask()
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask

@@ -114,7 +114,7 @@ step    move.w  (EVENTS).w,d7
 *---- 5. rate gate: d = z - ZL inside [-E_GATE, E_GATE] -> use; else reject for up to GATE_N samples --------------
 .baro   READZS  d0,0                    ; z
         move.l  d0,d3
-        sub.l   (ZL).w,d3               ; d = z - ZL (exact: |d| <= 65535)
+        sub.l   (ZL).w,d3               ; d = z - ZL (32-bit; exact for every ADC word and sane pascal word)
         cmpi.l  #E_GATE,d3
         bgt.s   .out
         cmpi.l  #-E_GATE,d3
@@ -129,7 +129,7 @@ step    move.w  (EVENTS).w,d7
         ori.w   #EV_BARO_REJECT,d7
         move.l  (EST).w,d2              ; not used: EST unchanged
         bra.s   .ext
-.rebase lsl.l   #8,d3                   ; d << 8 (exact: |d| < 2^16)
+.rebase lsl.l   #8,d3                   ; d << 8 (wraps as the spec's wrap32 sum does)
         add.l   d3,(EST).w              ; re-base: EST and EXT move with the shift (wrap)
         add.l   d3,(EXT).w
 *---- EST = EST + (z << (8-S)) - rs(EST, S) -----------------------------------------------------------------------

@@ -49,9 +49,10 @@ static int64_t ls(int64_t x, int32_t s)
     return x * ((int64_t)1 << s);
 }
 
-int32_t fw_alt(const fw_consts *c, uint16_t adc)
+int32_t fw_alt(const fw_consts *c, int32_t adc)
 {
-    /* docs/firmware-spec.md 2a: ALT[i] + rs((ALT[i+1] - ALT[i]) * f, ALT_SHIFT, mode), product exact in int64 */
+    /* docs/firmware-spec.md 2a: ALT[i] + rs((ALT[i+1] - ALT[i]) * f, ALT_SHIFT, mode), product exact in int64;
+       called for a valid word only (0 <= adc <= BARO_MAX < 2^17) */
     int32_t s = c->ALT_SHIFT;
     int32_t i = (int32_t)((uint32_t)adc >> s);
     int64_t f = (int64_t)((uint32_t)adc & ((UINT32_C(1) << s) - 1u));
@@ -60,17 +61,19 @@ int32_t fw_alt(const fw_consts *c, uint16_t adc)
     return fw_wrap32(lo + fw_rs((hi - lo) * f, s, c->ROUND));
 }
 
-static int baro_valid(const fw_consts *c, uint16_t adc)
+static int baro_valid(const fw_consts *c, int32_t adc)
 {
-    return (int32_t)adc >= c->BARO_MIN && (int32_t)adc <= c->BARO_MAX;
+    return adc >= c->BARO_MIN && adc <= c->BARO_MAX;
 }
 
-static int32_t baro_z(const fw_consts *c, uint16_t adc)
+static int64_t baro_z(const fw_consts *c, int32_t adc)
 {
-    return c->BARO_SIGN * (int32_t)adc;
+    /* int64: the pascal kind's word may be -2^31, whose negation does not fit int32 (a negation, not a 64-bit
+       multiplication, which costs an 8-bit MCU ~150 cycles) */
+    return c->BARO_SIGN < 0 ? -(int64_t)adc : (int64_t)adc;
 }
 
-void fw_init(fw_program prog, const fw_consts *c, fw_state *st, uint16_t adc, int16_t acc)
+void fw_init(fw_program prog, const fw_consts *c, fw_state *st, int32_t adc, int16_t acc)
 {
     int32_t z8 = fw_wrap32(ls(baro_z(c, adc), 8));
     st->EST = st->EXT = st->VEL = 0;
@@ -87,7 +90,7 @@ void fw_init(fw_program prog, const fw_consts *c, fw_state *st, uint16_t adc, in
         st->EXT = z8;
         st->VEL = 0;
         st->ACC0 = acc;
-        st->ZL = (int32_t)baro_z(c, adc);
+        st->ZL = fw_wrap32(baro_z(c, adc));
         break;
     case FW_RECURSIVE_SEED_LITERAL:
         st->EST = z8;
@@ -102,10 +105,11 @@ void fw_init(fw_program prog, const fw_consts *c, fw_state *st, uint16_t adc, in
     }
 }
 
-static void step_recursive(const fw_consts *c, fw_state *st, uint16_t adc, int16_t acc)
+static void step_recursive(const fw_consts *c, fw_state *st, int32_t adc, int16_t acc)
 {
     int64_t z = baro_z(c, adc);
-    int64_t d;
+    int32_t zw = fw_wrap32(z);
+    int32_t d;
     int use = 1;
     st->EVENTS &= (uint16_t)~FW_EV_PER_SAMPLE;
     if ((int32_t)st->CAL < (1 << c->CAL_P)) {
@@ -135,7 +139,7 @@ static void step_recursive(const fw_consts *c, fw_state *st, uint16_t adc, int16
         }
     }
     /* 5. barometer rate gate; EST += (z << (8 - S)) - rs(EST, S) for a used sample */
-    d = z - (int64_t)st->ZL;
+    d = fw_wrap32((int64_t)zw - (int64_t)st->ZL); /* SUB.L */
     if (d >= -(int64_t)c->E_GATE && d <= (int64_t)c->E_GATE) {
         st->REJ = 0;
     } else if ((int32_t)st->REJ < c->GATE_N) {
@@ -148,7 +152,7 @@ static void step_recursive(const fw_consts *c, fw_state *st, uint16_t adc, int16
         st->EXT = fw_wrap32((int64_t)st->EXT + ls(d, 8));
     }
     if (use) {
-        st->ZL = (int32_t)z;
+        st->ZL = zw;
         st->EST = fw_wrap32((int64_t)st->EST + ls(z, 8 - c->S) - fw_rs(st->EST, c->S, c->ROUND));
     }
     /* 6. extreme and apogee (after ACC_CLIP: APO_N samples of evidence) */
@@ -168,14 +172,14 @@ static void step_recursive(const fw_consts *c, fw_state *st, uint16_t adc, int16
     }
 }
 
-static void step_seed_literal(const fw_consts *c, fw_state *st, uint16_t adc)
+static void step_seed_literal(const fw_consts *c, fw_state *st, int32_t adc)
 {
     int64_t z = baro_z(c, adc);
     /* seed 000's listing, subtraction backwards: EST += rs(EST, S) - (z << (8 - S)) */
     st->EST = fw_wrap32((int64_t)st->EST + fw_rs(st->EST, c->S, c->ROUND) - ls(z, 8 - c->S));
 }
 
-static void step_kalman(const fw_consts *c, fw_state *st, uint16_t adc, int16_t acc, int with_accel)
+static void step_kalman(const fw_consts *c, fw_state *st, int32_t adc, int16_t acc, int with_accel)
 {
     const int32_t mode = c->ROUND;
     const int32_t K = c->K;
@@ -289,7 +293,7 @@ static void step_kalman(const fw_consts *c, fw_state *st, uint16_t adc, int16_t 
     }
 }
 
-void fw_step(fw_program prog, const fw_consts *c, fw_state *st, uint16_t adc, int16_t acc)
+void fw_step(fw_program prog, const fw_consts *c, fw_state *st, int32_t adc, int16_t acc)
 {
     switch (prog) {
     case FW_RECURSIVE:

@@ -52,7 +52,7 @@ typedef struct {
 typedef struct {
     int32_t K;          /* sample period dt = 2^-K s, 0..10 */
     int32_t ROUND;      /* 0 = floor, 1 = half_up (every right shift) */
-    int32_t BARO_SIGN;  /* +1 or -1: z = BARO_SIGN * adc */
+    int32_t BARO_SIGN;  /* +1 or -1: z = BARO_SIGN * adc (the pascal kind: -1) */
     int32_t S;          /* recursive weight 2^-S, 1..8 */
     int32_t THR;        /* recursive apogee threshold, Q24.8 units */
     int32_t V_LIFT;     /* liftoff velocity: recursive accel counts x samples; Kalman Q24.8 units/s */
@@ -64,9 +64,9 @@ typedef struct {
     int32_t MACH_VLO;   /* kalman_accel: above it (after liftoff) the transonic gains are used, Q24.8 m/s */
     int32_t MACH_VHI;   /* unused since the field-ready change (seed-002 lockout window) */
     int32_t MACH_E;     /* unused since the field-ready change */
-    int32_t BARO_MIN;   /* valid raw ADC range, inclusive */
+    int32_t BARO_MIN;   /* valid raw range, inclusive: ADC counts, or pascals (the pascal kind) */
     int32_t BARO_MAX;
-    int32_t ALT_SHIFT;  /* Kalman: altitude-table segment width 2^ALT_SHIFT counts (1..15) */
+    int32_t ALT_SHIFT;  /* Kalman: altitude-table segment width 2^ALT_SHIFT counts or Pa (1..15) */
     int32_t ALT_N;      /* number of table nodes */
     int32_t CAL_P;      /* pad calibration over 2^CAL_P valid samples (0..8) */
     int32_t E_GATE;     /* Kalman: innovation gate, Q24.8 m; recursive: barometer rate gate, counts */
@@ -94,12 +94,13 @@ typedef struct {
 int32_t fw_wrap32(int64_t x);                      /* x reduced to int32 two's complement */
 int64_t fw_rs(int64_t x, int32_t s, int32_t mode); /* rounding right shift, mode 0 floor / 1 half_up */
 int32_t fw_mulg(int64_t e, fw_gain g, int32_t mode); /* wrap32(rs(e * m, s, mode)), exact 48-bit product */
-int32_t fw_alt(const fw_consts *c, uint16_t adc);    /* alt(adc): table lookup + interpolation, Q24.8 m */
+int32_t fw_alt(const fw_consts *c, int32_t adc);     /* alt(adc) of a valid word: table + interpolation, Q24.8 m */
 
-/* init: state after the first sample (adc unsigned 16-bit raw, acc signed 16-bit counts). */
-void fw_init(fw_program prog, const fw_consts *c, fw_state *st, uint16_t adc, int16_t acc);
+/* init: state after the first sample.  adc: the barometer word of the build's kind (docs/firmware-spec.md 2):
+   an ADC's unsigned 16-bit count (zero-extended) or the pascal kind's signed 32-bit word; acc signed 16-bit. */
+void fw_init(fw_program prog, const fw_consts *c, fw_state *st, int32_t adc, int16_t acc);
 /* step: one sample through the program. */
-void fw_step(fw_program prog, const fw_consts *c, fw_state *st, uint16_t adc, int16_t acc);
+void fw_step(fw_program prog, const fw_consts *c, fw_state *st, int32_t adc, int16_t acc);
 /* The output words of prog in docs/firmware-spec.md section 7 order (.w words zero-extended); returns the count. */
 int fw_words(fw_program prog, const fw_state *st, int32_t out[FW_MAX_WORDS]);
 /* Name of output word i of prog ("EST", "X1", ...), or "?" when out of range. */

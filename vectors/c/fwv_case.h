@@ -34,10 +34,11 @@ typedef struct {
     fw_consts consts;
     int32_t n_samples;
     int32_t n_words;
-    const uint16_t *adc;      /* [n_samples] raw barometer ADC */
+    const uint16_t *adc;      /* [n_samples] raw barometer ADC (NULL for a pascal case) */
     const int16_t *acc;       /* [n_samples] accelerometer counts */
     const int32_t *init;      /* [n_words] state after init */
     const int32_t *expected;  /* [n_samples * n_words] state after each step, row-major */
+    const int32_t *pa;        /* [n_samples] the pascal kind's signed 32-bit barometer word (NULL for an ADC case) */
 } fwv_case;
 
 #endif /* FWV_CASE_H */

@@ -91,16 +91,16 @@ static void stats_add(cyc_stats *cy, uint32_t t, uint8_t ovf, const char *name, 
 #define SYST_CSR (*(volatile uint32_t *)0xE000E010u)
 #define SYST_RVR (*(volatile uint32_t *)0xE000E014u)
 #define SYST_CVR (*(volatile uint32_t *)0xE000E018u)
-typedef void (*fwv_step_fn)(fw_program, const fw_consts *, fw_state *, uint16_t, int16_t);
+typedef void (*fwv_step_fn)(fw_program, const fw_consts *, fw_state *, int32_t, int16_t);
 
-static void empty_step(fw_program prog, const fw_consts *c, fw_state *st, uint16_t adc, int16_t acc)
+static void empty_step(fw_program prog, const fw_consts *c, fw_state *st, int32_t adc, int16_t acc)
 {
     (void)prog; (void)c; (void)st; (void)adc; (void)acc;
 }
 
 /* 100 NOPs and the return: 101 instructions, to check the counting itself. */
 __attribute__((naked, noinline)) static void known_101(fw_program prog, const fw_consts *c, fw_state *st,
-                                                        uint16_t adc, int16_t acc)
+                                                        int32_t adc, int16_t acc)
 {
     (void)prog; (void)c; (void)st; (void)adc; (void)acc;
     __asm__ volatile(".rept 100\n\tnop\n\t.endr\n\tbx lr\n");
@@ -109,7 +109,7 @@ __attribute__((naked, noinline)) static void known_101(fw_program prog, const fw
 static fwv_step_fn volatile step_fn = fw_step, empty_fn = empty_step, known_fn = known_101;
 
 /* SysTick ticks of FWV_REPS calls of f, each on a fresh copy of *st; *st gets the result. */
-static uint32_t ticks_of(fwv_step_fn f, fw_program prog, const fw_consts *c, fw_state *st, uint16_t adc,
+static uint32_t ticks_of(fwv_step_fn f, fw_program prog, const fw_consts *c, fw_state *st, int32_t adc,
                          int16_t acc)
 {
     fw_state tmp = *st;
@@ -129,7 +129,7 @@ static uint8_t icount_inexact;
 /* Instructions of one call of f: (ticks(f) - ticks(empty)) / FWV_TICKS_PER_INSN + 1, rounded to the nearest
  * (QEMU's timer may land one tick either side when a tick is not a whole number of ns: with the oversampling a
  * count stays exact while each reading is within a tick; a larger residual is reported); *st advanced by f. */
-static uint32_t instructions_of(fwv_step_fn f, fw_program prog, const fw_consts *c, fw_state *st, uint16_t adc,
+static uint32_t instructions_of(fwv_step_fn f, fw_program prog, const fw_consts *c, fw_state *st, int32_t adc,
                                 int16_t acc)
 {
     fw_state scratch = *st;
@@ -150,12 +150,15 @@ static uint32_t instructions_of(fwv_step_fn f, fw_program prog, const fw_consts 
 
 /* Run case cs; check (and time) the samples from `from` on (0 = all, and the state after init); the expected
  * rows start at sample `from` (a slice of a case split to fit a small MCU, see mcu/batches.py). */
+/* The barometer word of sample i: the pascal word, or the ADC count zero-extended. */
+#define FWV_BARO(cs, i) ((cs)->pa ? FWV_RD_I32(&(cs)->pa[(i)]) : (int32_t)FWV_RD_U16(&(cs)->adc[(i)]))
+
 static int run_case(const fwv_case *cs, int32_t from)
 {
     fw_state st;
     int32_t got[FW_MAX_WORDS];
     int32_t i, j, nw;
-    uint16_t adc0 = FWV_RD_U16(&cs->adc[0]);
+    int32_t adc0 = FWV_BARO(cs, 0);
     int16_t acc0 = FWV_RD_I16(&cs->acc[0]);
 
     fw_init(cs->program, &cs->consts, &st, adc0, acc0);
@@ -173,7 +176,7 @@ static int run_case(const fwv_case *cs, int32_t from)
         }
     }
     for (i = 0; i < cs->n_samples; i++) {
-        uint16_t adc = FWV_RD_U16(&cs->adc[i]);
+        int32_t adc = FWV_BARO(cs, i);
         int16_t acc = FWV_RD_I16(&cs->acc[i]);
         if (i < from) {
             fw_step(cs->program, &cs->consts, &st, adc, acc);

@@ -43,13 +43,18 @@ def case_shape(header: Path) -> tuple[int, int]:
     return (int(re.search(r"_N_SAMPLES (\d+)", text).group(1)), int(re.search(r"_N_WORDS (\d+)", text).group(1)))
 
 
+def input_bytes(header: Path) -> int:
+    """Bytes of input per sample: 2 (ADC word) or 4 (pascal word) + 2 (accelerometer)."""
+    return 6 if re.search(r"int32_t fwv_\w+_pa\[", header.read_text()) else 4
+
+
 def case_bytes(header: Path) -> int:
     n, w = case_shape(header)
-    return n * 4 + (n + 1) * w * 4 + OVERHEAD
+    return n * input_bytes(header) + (n + 1) * w * 4 + OVERHEAD
 
 
-def slice_bytes(a: int, b: int, w: int) -> int:
-    return b * 4 + (b - a + 1) * w * 4 + OVERHEAD
+def slice_bytes(a: int, b: int, w: int, per_input: int = 4) -> int:
+    return b * per_input + (b - a + 1) * w * 4 + OVERHEAD
 
 
 def _rename(text: str, name: str, tag: str) -> str:
@@ -65,7 +70,7 @@ def slice_header(text: str, name: str, tag: str, a: int, b: int) -> str:
         rows = [", ".join(values[i:i + 16]) for i in range(0, b, 16)]
         return f"{m.group(1)}[{b}]{m.group(2)}\n    " + ",\n    ".join(rows) + "\n};"
 
-    text = re.sub(r"(static const \w+ fwv_\w+_(?:adc|acc))\[\d+\]( FWV_ROM = \{)(.*?)\};", cut_inputs, text,
+    text = re.sub(r"(static const \w+ fwv_\w+_(?:adc|acc|pa))\[\d+\]( FWV_ROM = \{)(.*?)\};", cut_inputs, text,
                   flags=re.S)
 
     def cut_expected(m: re.Match) -> str:
@@ -108,7 +113,8 @@ def main(argv: list[str]) -> int:
         if not too_big:
             units.append((f"{name}.h", entries[i], 0, case_bytes(header), name))
             continue
-        rows = (budget - OVERHEAD - n * 4) // (w * 4) - 1
+        per_input = input_bytes(header)
+        rows = (budget - OVERHEAD - n * per_input) // (w * 4) - 1
         if max_object is not None:
             rows = min(rows, (max_object - 1) // (w * 4))
         if rows < 1:
@@ -121,7 +127,7 @@ def main(argv: list[str]) -> int:
             fname = f"slices/{name}_{tag}.h"
             (out_dir / fname).write_text(slice_header(text, name, tag, a, b))
             entry = _rename(entries[i], name, tag).replace(f'{{"{name}"', f'{{"{name}[{a}:{b})"', 1)
-            units.append((fname, entry, a, slice_bytes(a, b, w), name))
+            units.append((fname, entry, a, slice_bytes(a, b, w, per_input), name))
     batches: list[list[int]] = [[]]
     used = 0
     for u, (_, _, _, size, _) in enumerate(units):

@@ -37,13 +37,31 @@ python3 "$here/batches.py" "${args[@]}" || exit 2
 all_cases="$out/all.txt"; bad_cases="$out/failed.txt"
 : > "$all_cases"; : > "$bad_cases"
 extra=0
+# fw.c and startup.c do not depend on the batch: compile them once per target with the very flags of the per-batch
+# command, which then compiles only harness.c (the batch's data) and links in the same order (startup, fw, harness),
+# so each ELF is the one a single all-sources command makes. If they do not compile, the sources are passed
+# instead and every batch fails to build as before.
+if [ "$core" = avr ]; then
+  fw_o="$out/fw.o"
+  $AVR_CC -mmcu=atmega2560 -DF_CPU=16000000UL -std=c99 -Wall -Wextra -Werror -pedantic -$opt -I"$src" \
+      -I"$vec/cases" -c "$src/fw.c" -o "$fw_o" || fw_o="$src/fw.c"
+  objs=("$fw_o")
+else
+  start_o="$out/startup.o"; fw_o="$out/fw.o"
+  # shellcheck disable=SC2086
+  cm_c() { $ARM_CC -mcpu=$cpu -mthumb -$opt -std=c99 -Wall -Wextra -Werror -pedantic --specs=nano.specs \
+               --specs=rdimon.specs ${CM_DEFS:-} $tick -I"$src" -I"$vec/cases" -c "$1" -o "$2"; }
+  cm_c "$here/startup.c" "$start_o" || start_o="$here/startup.c"
+  cm_c "$src/fw.c" "$fw_o" || fw_o="$src/fw.c"
+  objs=("$start_o" "$fw_o")
+fi
 while read -r batch bytes names; do
   count=$(echo $names | wc -w)
   printf '%s\n' $names >> "$all_cases"
   elf="$out/${batch%.h}.elf"
   if [ "$core" = avr ]; then
     if ! $AVR_CC -mmcu=atmega2560 -DF_CPU=16000000UL -std=c99 -Wall -Wextra -Werror -pedantic -$opt -I"$src" \
-          -I"$vec/cases" -DFWV_CASES_FILE="\"$out/batches/$batch\"" "$src/fw.c" "$src/harness.c" -o "$elf"; then
+          -I"$vec/cases" -DFWV_CASES_FILE="\"$out/batches/$batch\"" "${objs[@]}" "$src/harness.c" -o "$elf"; then
       echo "$target: $batch ($count cases, ~$bytes bytes) does not build or does not fit the board"
       printf '%s\n' $names >> "$bad_cases"; continue
     fi
@@ -54,7 +72,7 @@ while read -r batch bytes names; do
   # shellcheck disable=SC2086
   elif ! $ARM_CC -mcpu=$cpu -mthumb -$opt -std=c99 -Wall -Wextra -Werror -pedantic --specs=nano.specs \
         --specs=rdimon.specs -T "$out/board.ld" -Wl,--gc-sections ${CM_DEFS:-} $tick -I"$src" -I"$vec/cases" \
-        -DFWV_CASES_FILE="\"$out/batches/$batch\"" "$here/startup.c" "$src/fw.c" "$src/harness.c" -o "$elf"; then
+        -DFWV_CASES_FILE="\"$out/batches/$batch\"" "${objs[@]}" "$src/harness.c" -o "$elf"; then
     echo "$target: $batch ($count cases, ~$bytes bytes) does not build or does not fit the board"
     printf '%s\n' $names >> "$bad_cases"; continue
   else
