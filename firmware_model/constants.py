@@ -207,9 +207,9 @@ def build_constants(cfg: BuildConfig) -> FirmwareConstants:
     if cfg.program == "recursive":
         # §5 steps 1, 5, 6: pad calibration of ACC0, the barometer rate gate (raw counts per sample), the apogee
         # evidence after an accelerometer clip
-        d_gate = 65535 if cfg.gate_sigmas == 0 else min(65535, max(1, _round_int(
+        d_gate = INT32_MAX if cfg.gate_sigmas == 0 else max(1, _round_int(
             "E_GATE", cfg.baro_rate_mps * cfg.units_per_metre * cfg.dt
-            + cfg.gate_sigmas * math.sqrt(2.0) * cfg.baro_sigma, where)))
+            + cfg.gate_sigmas * math.sqrt(2.0) * cfg.baro_sigma, where))
         kalman = dict(CAL_P=cfg.cal_p_bits, E_GATE=d_gate,
                       GATE_N=min(32767, max(1, _round_int("GATE_N", cfg.gate_hold_s * 2.0**cfg.k, where))),
                       APO_N=min(32767, max(1, _round_int("APO_N", cfg.apogee_hold_s * 2.0**cfg.k, where))))
