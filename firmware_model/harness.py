@@ -57,7 +57,12 @@ def firmware_cpu(build: FirmwareBuild) -> Any:
     """A CPU with the firmware memory map of docs/firmware-spec.md §2 (ROM, RAM, input registers; nothing else
     mapped), ``build``'s program loaded and the stack pointer at the top of RAM."""
     import isa
+    from isa import codecache
 
+    from firmware_model.build import cache_dir
+
+    folder = cache_dir()  # compiled block code is kept beside the assembled builds (isa.codecache.use_disk)
+    codecache.use_disk(folder / "blocks" if folder is not None else None)
     cpu = isa.CPU(mapped=False)
     cpu.map(ROM_START, ROM_SIZE, "rom", writable=False)
     cpu.map(RAM_START, RAM_SIZE, "ram", writable=True)

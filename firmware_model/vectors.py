@@ -843,27 +843,42 @@ def _job_batches(specs: Sequence[CaseSpec], jobs: int) -> list[list[int]]:
     return [sorted(batches[b]) for b in order if batches[b]]
 
 
+def _worker_start() -> None:
+    """Initializer of a ``--jobs`` worker: SIGINT ignored, SIGTERM quiet (:func:`firmware_model.output.worker_init`),
+    then the modules every case needs imported, while the parent is still building the case matrix."""
+    from firmware_model.output import worker_init
+
+    worker_init()
+    import firmware_model.harness  # noqa: F401
+    import firmware_model.model  # noqa: F401
+
+
+def _start_pool(n: int) -> Any:
+    import multiprocessing
+
+    from firmware_model.output import worker_signals_ignored
+
+    # spawn, not fork: a forked child of a process whose numba thread pool already ran can deadlock.
+    # The workers are started with SIGINT ignored (inherited through exec, kept by Python): a Ctrl-C to
+    # the process group while they are still importing must not print their KeyboardInterrupt.
+    with worker_signals_ignored():
+        return multiprocessing.get_context("spawn").Pool(n, initializer=_worker_start)
+
+
 def generate(specs: Sequence[CaseSpec], generator: str = "emulation", progress: bool | None = None,
-             jobs: int = 1) -> list[CaseResult]:
+             jobs: int = 1, pool: Any = None) -> list[CaseResult]:
     """Run every case (in order); ``jobs`` > 1 runs them in that many worker processes, the cases of one build in
     one worker (:func:`_job_batches`). The results come back in the order of ``specs`` whatever the workers'
     timing, so the files written are byte-identical to ``jobs=1``. An error or interrupt terminates the workers
-    at once."""
+    at once. ``pool``: workers the caller started already (:func:`_start_pool`; terminated here)."""
     bar = _Progress(sum(len(s.stream) for s in specs), "vectors", progress, unit="samples")
     results: list[CaseResult] = []
     try:
         if jobs > 1 and len(specs) > 1:
-            import multiprocessing
-
-            from firmware_model.output import worker_init, worker_signals_ignored
-
             batches = _job_batches(specs, jobs)
             slots: list[CaseResult | None] = [None] * len(specs)
-            # spawn, not fork: a forked child of a process whose numba thread pool already ran can deadlock.
-            # The workers are started with SIGINT ignored (inherited through exec, kept by Python): a Ctrl-C to
-            # the process group while they are still importing must not print their KeyboardInterrupt.
-            with worker_signals_ignored():
-                pool = multiprocessing.get_context("spawn").Pool(min(jobs, len(batches)), initializer=worker_init)
+            if pool is None:
+                pool = _start_pool(min(jobs, len(batches)))
             try:
                 jobs_in = [([specs[i] for i in b], generator) for b in batches]
                 for b, batch in zip(batches, pool.imap(_compute_job, jobs_in)):
@@ -881,14 +896,26 @@ def generate(specs: Sequence[CaseSpec], generator: str = "emulation", progress: 
                 results.append(compute_case(spec, generator, builds))
                 bar.step(spec.name, len(spec.stream))
     finally:
+        if pool is not None:  # an error before the workers got their jobs
+            pool.terminate()
+            pool.join()
         bar.close()
     return results
 
 
 def generate_all(out: str | Path, generator: str = "emulation", progress: bool | None = None,
                  jobs: int = 1) -> dict[str, bytes]:
-    """Regenerate the whole committed set (:func:`case_matrix`) into ``out``; returns the files written."""
-    results = generate(case_matrix(), generator, progress, jobs)
+    """Regenerate the whole committed set (:func:`case_matrix`) into ``out``; returns the files written. With
+    ``jobs`` > 1 the workers start first, so their start-up overlaps the building of the case matrix."""
+    pool = _start_pool(jobs) if jobs > 1 else None
+    try:
+        specs = case_matrix()
+    except BaseException:
+        if pool is not None:
+            pool.terminate()
+            pool.join()
+        raise
+    results = generate(specs, generator, progress, jobs, pool=pool)
     files = render_set(results, "all", AVR_CASES)
     write_set(files, out, "all")
     return files
@@ -942,7 +969,7 @@ def generate_user(program: str, input_csv: str | Path, out: str | Path, config: 
     _set_guard("user")(Path(out))
     cfg = load_config(config, {"program": program}, {"program": "--firmware"})
     stream = read_stream_csv(input_csv, cfg.baro_word_bits, cfg.k, require_acc=program in ACC_PROGRAMS)
-    spec = CaseSpec(case_name(program, cfg.rounding, cfg.k, cfg.baro_bits, stream.name), cfg, stream)
+    spec = CaseSpec(case_name(program, cfg.rounding, cfg.k, cfg.baro_word_bits, stream.name), cfg, stream)
     results = generate([spec], generator, progress=False)
     files = render_set(results, "user")
     write_set(files, out, "user")

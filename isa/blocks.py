@@ -36,7 +36,7 @@ import re
 import struct
 from typing import Any
 
-from isa import timing
+from isa import codecache, timing
 from isa.errors import AddressError, DivideByZero
 from isa.operands import Instruction, Operand, Size
 from isa.memory import MapFacts
@@ -200,6 +200,7 @@ class _BlockGen:
         self.used: set[int] = set()
         self.dirty: set[int] = set()
         self.consts: dict[str, object] = {}
+        self.recipes: dict[str, tuple[Any, ...]] = {}
         self.dyn = False
 
     # ---- emission helpers
@@ -208,12 +209,15 @@ class _BlockGen:
             self.pending = None  # the next instruction sets all the flags the deferred ones were (see gen)
         self.items.append((self.ind, line))
 
-    def const(self, obj: object, hint: str) -> str:
+    def const(self, obj: object, hint: str, recipe: tuple[Any, ...]) -> str:
+        """The name under which the generated code sees ``obj``; ``recipe`` makes it again (:func:`_make_const`:
+        the disk cache of compiled blocks stores recipes, not objects)."""
         for k, v in self.consts.items():
             if v is obj:
                 return k
         name = f"{hint}_{len(self.consts)}"
         self.consts[name] = obj
+        self.recipes[name] = recipe
         return name
 
     def rg(self, i: int) -> str:
@@ -582,7 +586,7 @@ class _BlockGen:
                 self.emit(f"rm = r & {M}")
                 self.arith_flags("sub", nb, "x", "0", need)
             else:
-                k = self.const(_k_subx(nb), f"negx{nb}")
+                k = self.const(_k_subx(nb), f"negx{nb}", ("subx", nb))
                 self.emit(f"rm, sr = {k}(x, 0, sr)")
             if dst.mode is _M.DREG:
                 self.set_dreg(dst.reg, nb, "rm")
@@ -602,7 +606,7 @@ class _BlockGen:
             return base, False
         if h in ("addx", "subx"):
             s_op, d_op = ops
-            k = self.const((_k_subx if h == "subx" else _k_addx)(nb), f"{h}{nb}")
+            k = self.const((_k_subx if h == "subx" else _k_addx)(nb), f"{h}{nb}", (h, nb))
             if s_op.mode is _M.DREG:
                 s = self.read(s_op, nb, pc, "s")
                 dn = self.rg(d_op.reg)
@@ -723,8 +727,8 @@ class _BlockGen:
             return 12, False
         if h in ("jmp", "jsr"):
             a = self.addr(ops[0], 4, pc, "ea")
-            fault = self.const(_Fault, "Fault")
-            ae = self.const(AddressError, "AddressError")
+            fault = self.const(_Fault, "Fault", ("Fault",))
+            ae = self.const(AddressError, "AddressError", ("AddressError",))
             self.emit(f"t = {a} & 0xFFFFFF")
             self.emit("if t & 1:")
             self.emit(f"    raise {fault}({ae}, f\"jump to odd address ${{t:06X}}\")")
@@ -734,8 +738,8 @@ class _BlockGen:
             return base, True
         if h == "rts":
             sp = self.wg(15)
-            fault = self.const(_Fault, "Fault")
-            ae = self.const(AddressError, "AddressError")
+            fault = self.const(_Fault, "Fault", ("Fault",))
+            ae = self.const(AddressError, "AddressError", ("AddressError",))
             self.emit(f"v = {self.load(4, sp)}")
             self.emit(f"{sp} = ({sp} + 4) & 0xFFFFFFFF")
             self.emit(f"if v & 1 and (v & 0xFFFFFF) != {CALL_SENTINEL}:")
@@ -762,8 +766,8 @@ class _BlockGen:
         dn = self.wg(dst.reg)
         name = "DIVS" if h == "divs" else "DIVU"
         if not const or sv == 0:
-            fault = self.const(_Fault, "Fault")
-            dz = self.const(DivideByZero, "DivideByZero")
+            fault = self.const(_Fault, "Fault", ("Fault",))
+            dz = self.const(DivideByZero, "DivideByZero", ("DivideByZero",))
             if const:
                 self.emit(f"raise {fault}({dz}, f\"{name} by zero (dividend ${{{dn}:08X}})\")")
                 return timing.EA_TIME[src.mode][0]
@@ -779,7 +783,7 @@ class _BlockGen:
             self.emit(f"    q, rem = divmod(d, {s})")
             self.emit(f"    {dn} = (rem << 16) | q")
             self.emit(f"    sr = (sr & 0xFF10) | {self.nz('q', 2)}")
-            tc = self.const(timing.divu_cycles, "divc")
+            tc = self.const(timing.divu_cycles, "divc", ("divc",))
             if const and sv <= 0x8000:
                 self.emit("    c += 136 - 2 * (q >> 1).bit_count()")
             elif const:
@@ -819,7 +823,7 @@ class _BlockGen:
         ops = ins.operands
         M, S, W = MASK[nb], SIGN[nb], BITS[nb]
         if len(ops) == 1:  # memory word by 1
-            k = self.const(_k_shift(h, 2), f"{h}2")
+            k = self.const(_k_shift(h, 2), f"{h}2", ("shift", h, 2))
             a = self.addr_tmp(ops[0], 2, pc, "eb")
             self.emit(f"x = {self.load(2, a)}")
             self.emit(f"rm, sr = {k}(x, 1, sr)")
@@ -852,7 +856,7 @@ class _BlockGen:
                 self.emit(f"sr = (sr & 0xFF00) | (0x11 if {cexpr} else 0) | {self.nz('rm', nb)}")
             self.set_dreg(dst.reg, nb, "rm")
             return base
-        k = self.const(_k_shift(h, nb), f"{h}{nb}")
+        k = self.const(_k_shift(h, nb), f"{h}{nb}", ("shift", h, nb))
         if fixed is not None:
             self.emit(f"rm, sr = {k}({x}, {fixed}, sr)")
             self.set_dreg(dst.reg, nb, "rm")
@@ -1055,10 +1059,12 @@ def _liveness(entries: list[_Entry], role: dict[int, tuple[Any, ...]], reach: li
 
 
 def _block_source(entries: list[_Entry], facts: MapFacts
-                  ) -> tuple[str, dict[str, object], list[int], list[int], list[int], list[int], bool]:
+                  ) -> tuple[str, dict[str, object], list[int], list[int], list[int], list[int], bool,
+                             list[tuple[Any, ...]]]:
     """Python source of the block function for ``entries`` ((pc, instruction, handler, cond, length) each, back to
     back in memory). Returns (source, constants, first generated line per entry, constant clocks and constant
-    instruction count before each entry on the path that reaches it, registers used, whether it loops)."""
+    instruction count before each entry on the path that reaches it, registers used, whether it loops, the
+    recipe of each constant in order)."""
     k = len(entries)
     role, reach, head = _plan(entries)
     need = _liveness(entries, role, reach, head, facts)
@@ -1308,7 +1314,7 @@ def _block_source(entries: list[_Entry], facts: MapFacts
         lines.append(nxt_line)
     lines.reverse()
     src = "\n".join(lines_ + body + ["    return __block", ""])
-    return src, g.consts, lines, prefix, ncount, used, loops
+    return src, g.consts, lines, prefix, ncount, used, loops, [g.recipes[name] for name in g.consts]
 
 
 def _block_bound(entries: list[_Entry]) -> int:
@@ -1318,18 +1324,44 @@ def _block_bound(entries: list[_Entry]) -> int:
     return sum(worst) - min(worst)
 
 
+def _make_const(recipe: tuple[Any, ...]) -> object:
+    """The block constant of ``recipe`` (see :meth:`_BlockGen.const`)."""
+    kind = recipe[0]
+    fixed = {"Fault": _Fault, "AddressError": AddressError, "DivideByZero": DivideByZero, "divc": timing.divu_cycles}
+    if kind in fixed:
+        return fixed[kind]
+    if kind in ("subx", "negx"):
+        return _k_subx(recipe[1])
+    if kind == "addx":
+        return _k_addx(recipe[1])
+    if kind == "shift":
+        return _k_shift(recipe[1], recipe[2])
+    raise KeyError(recipe)
+
+
 def compile_block(entries: list[_Entry], facts: MapFacts) -> tuple[Any, _BlockInfo]:
     """Generate and compile the block of ``entries`` for an address space with map ``facts`` (see the module
-    docstring); returns ``(bind, info)``, ``bind(R, MS, D, memory)`` giving the block function of one CPU."""
+    docstring); returns ``(bind, info)``, ``bind(R, MS, D, memory)`` giving the block function of one CPU. With
+    :func:`isa.codecache.use_disk`, the compiled code is read from / written to disk, keyed by the entries, the
+    map and the ``isa`` sources (the same code the generator would make, without generating it)."""
     start = entries[0][0]
-    src, consts, lines, prefix, ncount, regs, _ = _block_source(entries, facts)
+    key = codecache.block_code_key(entries, facts.regions, facts.span)
+    hit = codecache.load_block_code(key) if key is not None else None
+    if hit is not None:
+        code, recipes, lines, prefix, ncount, regs = hit
+        values = tuple(_make_const(r) for r in recipes)
+    else:
+        src, consts, lines, prefix, ncount, regs, _, recipes = _block_source(entries, facts)
+        code = compile(src, f"<block ${start:06X}>", "exec")
+        values = tuple(consts.values())
+        if key is not None:
+            codecache.store_block_code(key, (code, recipes, lines, prefix, ncount, regs))
     ns: dict[str, Any] = {}
-    exec(compile(src, f"<block ${start:06X}>", "exec"), ns)  # noqa: S102 - our own generated source
+    exec(code, ns)  # noqa: S102 - our own generated code
     make = ns["__make"]
-    values = tuple(consts.values())
     last_pc, _, _, _, last_len = entries[-1]
-    info = _BlockInfo(start, [e[0] for e in entries], lines, prefix, ncount, regs, _block_bound(entries),
-                      last_pc + last_len)
+    info = _BlockInfo(start, [e[0] for e in entries], list(lines), list(prefix), list(ncount), list(regs),
+                      _block_bound(entries), last_pc + last_len)
 
     def bind(R: list[int], MS: list[int], D: list[int], memory: Any) -> Any:
         rd, wr = memory.rd, memory.wr

@@ -20,16 +20,30 @@ Contract with :mod:`isa.cpu` (the only user):
 * Memory stays bounded: each cache holds at most :data:`MAX_DECODED` / :data:`MAX_BLOCKS` entries and drops the
   least recently used beyond that (a program running off its end into zero-filled RAM compiles a new block
   every few hundred bytes; without the cap that would grow without bound).
+* **Compiled block code on disk** (optional, :func:`use_disk`; the firmware harness turns it on in the build
+  cache folder): :func:`isa.blocks.compile_block` looks up the marshalled code object of the block's generated
+  module, its constants' recipes and its line/clock maps under :func:`block_code_key` = SHA-256 of the cache
+  format, the Python version, the source of every ``isa`` module, the entries (address, instruction, handler,
+  condition, length) and the map (regions, span): exactly what the generated source depends on. A hit skips
+  generating and compiling (about 4 ms a block); the code is the same. Files are written to a temp name in the
+  same folder and ``os.replace``d; an unreadable or foreign file is a miss (and is rewritten); an unwritable
+  folder only costs the cache. ``stats["disk_hits"]`` / ``stats["disk_stores"]`` count them.
 * :data:`stats` counts decodes and block compilations (misses) and hits, for tests and the benchmark;
   :func:`clear` empties both caches; ``enabled = False`` turns both off (every CPU decodes and compiles alone).
 """
 
 from __future__ import annotations
 
+import hashlib
+import marshal
+import os
+import sys
+import tempfile
 from collections import OrderedDict
+from pathlib import Path
 from typing import Any
 
-__all__ = ["MAX_BLOCKS", "MAX_DECODED", "clear", "enabled", "map_key", "stats"]
+__all__ = ["MAX_BLOCKS", "MAX_DECODED", "clear", "enabled", "map_key", "stats", "use_disk"]
 
 #: Most decoded instructions kept (about 300 bytes each).
 MAX_DECODED = 65536
@@ -38,7 +52,12 @@ MAX_BLOCKS = 4096
 #: Set to False to turn both caches off (for tests and the benchmark's "uncached" runs).
 enabled = True
 #: Counters: ``decodes`` / ``decode_hits``, ``compiles`` / ``block_hits``, ``evicted``.
-stats: dict[str, int] = {"decodes": 0, "decode_hits": 0, "compiles": 0, "block_hits": 0, "evicted": 0}
+stats: dict[str, int] = {"decodes": 0, "decode_hits": 0, "compiles": 0, "block_hits": 0, "evicted": 0,
+                         "disk_hits": 0, "disk_stores": 0}
+#: Folder of the on-disk block code cache (None: off); see :func:`use_disk`.
+disk_dir: Path | None = None
+_DISK_FORMAT = 1
+_isa_digest: list[str] = []
 
 _decoded: OrderedDict[tuple[int, bytes], tuple[Any, ...]] = OrderedDict()
 _blocks: OrderedDict[tuple[int, tuple[tuple[int, int, bool], ...]], list[tuple[Any, ...]]] = OrderedDict()
@@ -116,3 +135,67 @@ def store_block(mem: Any, start: int, mkey: tuple[tuple[int, int, bool], ...], e
         _, dropped = _blocks.popitem(last=False)
         _n_blocks[0] -= len(dropped)
         stats["evicted"] += len(dropped)
+
+
+# ------------------------------------------------------------------------------------------------ block code on disk
+def use_disk(folder: str | os.PathLike[str] | None) -> None:
+    """Keep compiled block code in ``folder`` (created mode 0700 when first written; None turns it off)."""
+    global disk_dir
+    disk_dir = Path(folder) if folder is not None else None
+
+
+def _digest() -> str:
+    if not _isa_digest:
+        h = hashlib.sha256()
+        for path in sorted(Path(__file__).resolve().parent.glob("*.py")):
+            h.update(path.name.encode() + b"\0" + path.read_bytes() + b"\0")
+        _isa_digest.append(h.hexdigest())
+    return _isa_digest[0]
+
+
+def block_code_key(entries: list[Any], regions: Any, span: tuple[int, int]) -> str | None:
+    """The disk key of one block's code (None when the disk cache is off or not enabled)."""
+    if disk_dir is None or not enabled:
+        return None
+    text = repr((_DISK_FORMAT, sys.version_info[:3], _digest(), [tuple(e) for e in entries],
+                 map_key(regions), span))
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def load_block_code(key: str) -> tuple[Any, ...] | None:
+    """``(code, recipes, lines, prefix, ncount, regs)`` stored under ``key``, or None."""
+    if disk_dir is None:
+        return None
+    try:
+        data = (disk_dir / key[:2] / f"{key}.marshal").read_bytes()
+        value = marshal.loads(data)
+    except (OSError, EOFError, ValueError, TypeError):
+        return None
+    if not (isinstance(value, tuple) and len(value) == 6 and type(value[0]).__name__ == "code"):
+        return None
+    stats["disk_hits"] += 1
+    return value
+
+
+def store_block_code(key: str, value: tuple[Any, ...]) -> None:
+    """Write ``value`` under ``key`` (temp file + os.replace; any OSError only costs the cache)."""
+    if disk_dir is None:
+        return
+    folder = disk_dir / key[:2]
+    tmp = None
+    try:
+        folder.mkdir(parents=True, exist_ok=True, mode=0o700)
+        fd, tmp = tempfile.mkstemp(prefix=".tmp-", dir=folder)
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(marshal.dumps(value))
+        os.replace(tmp, folder / f"{key}.marshal")
+        tmp = None
+        stats["disk_stores"] += 1
+    except (OSError, ValueError):
+        pass
+    finally:
+        if tmp is not None:
+            try:
+                os.unlink(tmp)
+            except OSError:
+                pass

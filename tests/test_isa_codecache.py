@@ -141,3 +141,80 @@ def test_running_off_into_zero_filled_ram_keeps_the_cache_bounded(monkeypatch: p
     assert len(codecache._decoded) <= 500
     assert codecache.stats["evicted"] > 0
     codecache.clear()
+
+
+# ------------------------------------------------------------------------------------------ block code on disk
+FAULTING = """
+        moveq   #5,d0
+        lea     $6000,a0
+        move.w  #20,d7
+loop:   addx.l  d0,d1
+        lsl.l   d0,d1
+        roxr.w  #3,d2
+        divu.w  d0,d3
+        move.l  d1,(a0)+
+        dbra    d7,loop
+        move.l  $A00000,d4
+        trap    #0
+"""
+
+
+def _fault_run(code: bytes) -> tuple[object, ...]:
+    cpu = isa.CPU(mapped=False)
+    cpu.map(0, 0x10000, "ram")
+    cpu.write_bytes(0x1000, code)
+    cpu.pc = 0x1000
+    cpu.a[7] = 0x8000
+    cpu.d[3] = 0x12345
+    try:
+        cpu.run()
+        outcome: tuple[object, ...] = ("ok", "", None)
+    except BusError as exc:
+        outcome = ("bus", str(exc), exc.pc)
+    return outcome + (tuple(cpu.d), tuple(cpu.a), cpu.sr, cpu.instructions, cpu.cycles,
+                      cpu.read_bytes(0x6000, 0x100))
+
+
+@pytest.mark.parametrize("text", [LOOP, FAULTING])
+def test_block_code_from_disk_runs_like_generated_code(tmp_path, text: str) -> None:
+    """Blocks compiled once and stored (use_disk), then loaded in a cleared process cache: the same registers,
+    memory, counters and fault (PC, message: the line map survives marshal) as generated code and as closures;
+    a corrupt file is a miss and is rewritten."""
+    code = isa.assemble(text, origin=0x1000).code
+    codecache.clear()
+    plain = _fault_run(code)
+    try:
+        codecache.use_disk(tmp_path)
+        before = dict(codecache.stats)
+        codecache.clear()
+        stored = _fault_run(code)
+        d = _delta(before)
+        assert d["disk_stores"] >= 1 and d["disk_hits"] == 0
+        codecache.clear()
+        loaded = _fault_run(code)
+        d = _delta(before)
+        assert d["disk_hits"] >= 1 and d["disk_hits"] == d["disk_stores"]
+        assert plain == stored == loaded
+        files = sorted(tmp_path.rglob("*.marshal"))
+        assert files and not list(tmp_path.rglob(".tmp-*"))
+        for f in files:
+            f.write_bytes(b"not marshal data")
+        codecache.clear()
+        hits = codecache.stats["disk_hits"]
+        assert _fault_run(code) == plain and codecache.stats["disk_hits"] == hits
+        assert all(f.read_bytes() != b"not marshal data" for f in files)
+    finally:
+        codecache.use_disk(None)
+        codecache.clear()
+    closures = isa.CPU(mapped=False)
+    closures.block_compile = False
+    closures.map(0, 0x10000, "ram")
+    closures.write_bytes(0x1000, code)
+    closures.pc, closures.a[7], closures.d[3] = 0x1000, 0x8000, 0x12345
+    try:
+        closures.run()
+        assert plain[:3] == ("ok", "", None)
+    except BusError as exc:
+        assert plain[:3] == ("bus", str(exc), exc.pc)
+    assert plain[3:] == (tuple(closures.d), tuple(closures.a), closures.sr, closures.instructions,
+                         closures.cycles, closures.read_bytes(0x6000, 0x100))

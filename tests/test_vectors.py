@@ -360,3 +360,15 @@ def test_job_batches_keep_each_build_in_one_batch() -> None:
             for i in b:
                 assert where.setdefault(specs[i].cfg, n) == n, specs[i].name
         assert 1 < len(batches) <= 4 * jobs
+
+
+def test_jobs_pool_started_early_is_ended_when_the_matrix_fails(tmp_path, monkeypatch) -> None:
+    """generate_all --jobs 2 starts its workers before building the case matrix: a matrix that fails (the shared
+    logs absent) raises the one-line UserError and leaves no worker process behind."""
+    import multiprocessing
+
+    monkeypatch.setenv("FWEMU_SHARED_FLIGHTS", str(tmp_path / "absent"))
+    with pytest.raises(UserError, match="shared logs"):
+        vectors.generate_all(tmp_path / "out", jobs=2, progress=False)
+    assert not multiprocessing.active_children()
+    assert not (tmp_path / "out").exists()
