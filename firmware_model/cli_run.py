@@ -150,8 +150,10 @@ def summary(table: Any, record: Any, inputs: Any, cfg: Any, engine: str, elapsed
             out: Path | None) -> str:
     """The text summary of a run."""
     marks = table.event_times()
-    lines = [f"{record.name}: {cfg.program} (k={cfg.k}, dt={cfg.dt:g} s, {cfg.rounding}, baro {cfg.baro_bits}-bit, "
-             f"{cfg.units_per_metre:.4g} counts/m) on the {engine}: {table.time_s.size} samples in {elapsed:.2f} s"]
+    baro = (f"baro 32-bit pascal word, {cfg.units_per_metre:.4g} Pa/m" if getattr(cfg, "pascal", False)
+            else f"baro {cfg.baro_bits}-bit, {cfg.units_per_metre:.4g} counts/m")
+    lines = [f"{record.name}: {cfg.program} (k={cfg.k}, dt={cfg.dt:g} s, {cfg.rounding}, {baro}) on the {engine}: "
+             f"{table.time_s.size} samples in {elapsed:.2f} s"]
     report = getattr(inputs, "report", None)
     if report is not None:
         text = report.summary() if callable(getattr(report, "summary", None)) else str(report)

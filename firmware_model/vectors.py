@@ -966,7 +966,7 @@ def generate_user(program: str, input_csv: str | Path, out: str | Path, config: 
     _set_guard("user")(Path(out))
     cfg = load_config(config, {"program": program}, {"program": "--firmware"})
     stream = read_stream_csv(input_csv, cfg.baro_word_bits, cfg.k, require_acc=program in ACC_PROGRAMS)
-    spec = CaseSpec(case_name(program, cfg.rounding, cfg.k, cfg.baro_bits, stream.name), cfg, stream)
+    spec = CaseSpec(case_name(program, cfg.rounding, cfg.k, cfg.baro_word_bits, stream.name), cfg, stream)
     results = generate([spec], generator, progress=False)
     files = render_set(results, "user")
     write_set(files, out, "user")

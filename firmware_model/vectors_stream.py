@@ -261,9 +261,9 @@ def generate_user(program: str, input_csv: str | Path, out: str | Path, config: 
             raise UserError(f"vectors: {path} has {n:,} samples; a C header holds at most {HEADER_MAX_SAMPLES:,} "
                             f"(docs/vectors.md, Limits): cut the stream, or pass --no-header for JSON only")
         adc, acc = _Spooled(adc_path, adc_dtype, n), _Spooled(acc_path, "<i2", n)
-        stream = Stream(name=_identifier(path.stem), adc=adc, acc=acc, k=cfg.k, bits=cfg.baro_bits,
+        stream = Stream(name=_identifier(path.stem), adc=adc, acc=acc, k=cfg.k, bits=cfg.baro_word_bits,
                         provenance=info.provenance())
-        name = vectors.case_name(program, cfg.rounding, cfg.k, cfg.baro_bits, stream.name)
+        name = vectors.case_name(program, cfg.rounding, cfg.k, cfg.baro_word_bits, stream.name)
         spec = vectors.CaseSpec(name, cfg, stream)
         # 2. run chunk by chunk, cross-check, spool the rows
         if generator == "emulation":

@@ -278,3 +278,59 @@ def test_pascal_inputs_and_configs_are_user_errors() -> None:
     cfg = pascal_cfg("kalman_accel")
     assert cfg.to_dict()["baro_kind"] == "pascal" and "baro_kind" not in BuildConfig().to_dict()
     assert BuildConfig.from_dict(cfg.to_dict()) == cfg
+
+
+# ---------------------------------------------------------------------------------------------------- CLI
+def _fwemu(*argv: str):  # type: ignore[no-untyped-def]
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    env = {**os.environ, "PYTHONPATH": str(root)}
+    return subprocess.run([sys.executable, "-m", "firmware_model.cli", *argv], capture_output=True, text=True,
+                          env=env, cwd=root)
+
+
+def test_cli_vectors_input_takes_pascal_words_and_refuses_bad_ones(tmp_path) -> None:
+    """``fwemu vectors --input`` with a pascal build config: a 32-bit word (negative, invalid for the Kalman
+    range) is accepted and marked BARO_INVALID; a word beyond int32 is one line naming file:line, exit 2; the same
+    pascals against an ADC build are refused as outside the 16-bit register."""
+    import json
+
+    cfg = tmp_path / "pa.json"
+    cfg.write_text(json.dumps({"baro_kind": "pascal", "units_per_metre": 12.0}))
+    ok = tmp_path / "ok.csv"
+    ok.write_text("adc,acc\n101325,2048\n101320,2050\n-5,2048\n99000,2100\n")
+    r = _fwemu("vectors", "--firmware", "kalman_accel", "--input", str(ok), "--config", str(cfg), "--out",
+               str(tmp_path / "v"), "--generator", "model")
+    assert r.returncode == 0, r.stderr
+    doc = json.loads((tmp_path / "v" / "cases" / "kalman_accel_floor_k7_pa_ok.json").read_text())
+    assert doc["adc"] == [101325, 101320, -5, 99000] and doc["input"]["adc_bits"] == 32
+    assert doc["events_first_sample"]["BARO_INVALID"] == 2
+    assert "int32_t fwv_kalman_accel_floor_k7_pa_ok_pa[4]" in (tmp_path / "v" / "cases" /
+                                                              "kalman_accel_floor_k7_pa_ok.h").read_text()
+    bad = tmp_path / "bad.csv"
+    bad.write_text("adc,acc\n101325,2048\n2147483648,2048\n")
+    r = _fwemu("vectors", "--firmware", "kalman_accel", "--input", str(bad), "--config", str(cfg), "--out",
+               str(tmp_path / "w"))
+    assert r.returncode == 2 and r.stderr.strip().count("\n") == 0, r.stderr
+    assert "bad.csv:3: adc=2147483648 outside [-2147483648, 2147483647] (signed 32-bit pascal word)" in r.stderr
+    r = _fwemu("vectors", "--firmware", "kalman_accel", "--input", str(ok), "--out", str(tmp_path / "x"))
+    assert r.returncode == 2 and "ok.csv:2: adc=101325 outside [0, 65535] (16-bit barometer ADC)" in r.stderr
+
+
+def test_cli_budget_pascal_build(tmp_path) -> None:
+    """``fwemu budget`` on a pascal build runs the pascal flight and edge streams (invalid words included) under
+    the static bound and reports the 1,025-node table's ROM."""
+    import json
+
+    cfg = tmp_path / "pa.json"
+    cfg.write_text(json.dumps({"baro_kind": "pascal", "units_per_metre": 12.0, "program": "kalman_baro"}))
+    r = _fwemu("budget", "--config", str(cfg), "--k", "5", "--out", str(tmp_path / "b"))
+    assert r.returncode == 0, r.stderr
+    data = json.loads((tmp_path / "b" / "budget.json").read_text())
+    b = data[0] if isinstance(data, list) else data
+    assert b["rom_bytes"] > 4100 and b["cycles_max"] <= b["static_bound"]
+    assert {s["name"] for s in b["streams"]} >= {"flight", "edge_adc_min", "edge_alternating"}
