@@ -40,7 +40,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``fwemu vectors``; returns the exit code."""
-    from firmware_model import output, vectors
+    from firmware_model import output
+
+    if args.out and not args.check:
+        # named before the heavy imports: an interrupt during them also says "previous outputs ... left intact"
+        output.declare_output(args.out)
+    from firmware_model import vectors
 
     if args.check:
         problems = vectors.check_set(args.check)
@@ -50,7 +55,6 @@ def run(args: argparse.Namespace) -> int:
         return 1 if problems else 0
     if not args.out:
         raise UserError("vectors: --out DIR is required")
-    output.declare_output(args.out)
     if args.all:
         if args.input or args.config or args.no_header:
             raise UserError("vectors: --input/--config/--no-header go with --firmware, not --all (the committed "

@@ -1,9 +1,45 @@
-"""pytest configuration: load the hypothesis profile named by ``HYPOTHESIS_PROFILE`` (default ``ci``)."""
+"""pytest configuration: load the hypothesis profile named by ``HYPOTHESIS_PROFILE`` (default ``ci``), and keep
+hypothesis's per-test overhead constant (docs/testing.md "How the suite is kept fast").
+
+Two overheads of hypothesis 6.1xx grow with the suite, not with what a test checks:
+
+* For every parametrized invocation its pytest plugin wraps the test function's settings in a new
+  ``settings(parent=<the previous wrapper>, suppress_health_check=...)``, so the wrappers chain up (one level per
+  invocation: 675 levels by the end of ``test_bus_errors_name_the_faulting_access``), and ``settings.database``
+  walks the whole chain twice per test. :func:`pytest_runtest_call` below puts the function's own settings back
+  after each test, so every invocation gets the same one-level wrapper that the first one got: the same
+  effective settings, the same derandomized examples.
+* With ``derandomize`` the seed is a digest of the test's cleaned source, and hypothesis re-tokenizes the source
+  for every test (about 3 ms); the cleaning is a pure function of the source text, memoized here.
+"""
 
 from __future__ import annotations
 
+import functools
+
+import pytest
 from hypothesis import settings
 
 from profiles import PROFILE
 
 settings.load_profile(PROFILE)
+
+try:  # a private helper of hypothesis: memoize it only where it is what we expect (a pure str -> bytes function)
+    from hypothesis.internal import reflection as _reflection
+
+    if callable(getattr(_reflection, "_clean_source", None)) and callable(getattr(_reflection, "function_digest",
+                                                                                  None)):
+        _reflection._clean_source = functools.lru_cache(maxsize=4096)(_reflection._clean_source)
+except ImportError:  # pragma: no cover - another hypothesis layout: nothing to memoize
+    pass
+
+
+@pytest.hookimpl(hookwrapper=True, tryfirst=True)
+def pytest_runtest_call(item: pytest.Item):  # type: ignore[no-untyped-def]
+    fn = getattr(getattr(item, "obj", None), "__func__", getattr(item, "obj", None))
+    own = getattr(fn, "_hypothesis_internal_use_settings", None)
+    try:
+        yield
+    finally:
+        if own is not None:
+            fn._hypothesis_internal_use_settings = own

@@ -22,6 +22,7 @@ Faults are normalised to strings: ``"address"``, ``"bus"``, ``"illegal"``, ``"ze
 from __future__ import annotations
 
 import random
+import functools
 from dataclasses import dataclass, field
 from typing import Sequence
 
@@ -508,11 +509,16 @@ EDGE16 = (0, 1, 0xFFFF, 0x7FFF, 0x8000, 0x7F, 0x80, 0xFF, 0x5555, 0xAAAA, 2, 0xF
 EDGE8 = (0, 1, 0xFF, 0x7F, 0x80, 0x55, 0xAA, 0xFE, 0x81)
 
 
+# The strategy builders below are memoized: hypothesis strategies are immutable, and one object per argument set
+# draws exactly what a fresh one would, without hypothesis validating a new strategy tree at every draw (that was
+# most of the data-generation time of the isa_vs_* tests: tests/conftest.py, docs/testing.md).
+@functools.lru_cache(maxsize=None)
 def u32() -> st.SearchStrategy[int]:
     """A 32-bit value, about half the time one of :data:`EDGE32`."""
     return st.one_of(st.sampled_from(EDGE32), st.integers(0, MASK32))
 
 
+@functools.lru_cache(maxsize=None)
 def value_of(nbytes: int) -> st.SearchStrategy[int]:
     """An unsigned value of ``nbytes`` (1, 2 or 4) biased to that size's edge values."""
     edges = {1: EDGE8, 2: EDGE16, 4: EDGE32}[nbytes]
@@ -542,6 +548,23 @@ def size_bytes(row, size: Size | None) -> int:  # noqa: ANN001
     return size.bytes
 
 
+@functools.lru_cache(maxsize=None)
+def _sampled(values: tuple) -> st.SearchStrategy:
+    return st.sampled_from(values)
+
+
+@functools.lru_cache(maxsize=None)
+def _biased(lo: int, hi: int) -> st.SearchStrategy[int]:
+    """An integer in [lo, hi], biased to the ends, 0 and +-1."""
+    edges = [v for v in (lo, hi, 0, 1, -1, lo + 1, hi - 1) if lo <= v <= hi]
+    return st.one_of(st.sampled_from(edges), st.integers(lo, hi))
+
+
+@functools.lru_cache(maxsize=None)
+def _a_value() -> st.SearchStrategy[int]:
+    return st.one_of(u32(), st.integers(DATA_LO, DATA_HI - 1))
+
+
 def draw_instruction(draw, row, size: Size | None, first_mode: Mode | None) -> Instruction:  # noqa: ANN001
     """A random canonical instruction of ``row`` at ``size`` whose first EA operand has ``first_mode``.
 
@@ -557,15 +580,14 @@ def draw_instruction(draw, row, size: Size | None, first_mode: Mode | None) -> I
             if not seen_ea and first_mode is not None:
                 modes.append(first_mode)
             else:
-                modes.append(draw(st.sampled_from(sorted(row.allowed_modes(i, size), key=_MODE_ORDER.index))))
+                modes.append(draw(_sampled(tuple(sorted(row.allowed_modes(i, size), key=_MODE_ORDER.index)))))
             seen_ea = True
         else:
             modes.append(sorted(spec.modes, key=_MODE_ORDER.index)[0])
-    cond = draw(st.sampled_from(sorted(row.condition_codes))) if row.conditional else None
+    cond = draw(_sampled(tuple(sorted(row.condition_codes)))) if row.conditional else None
 
     def biased(lo: int, hi: int) -> int:
-        edges = [v for v in (lo, hi, 0, 1, -1, lo + 1, hi - 1) if lo <= v <= hi]
-        return draw(st.one_of(st.sampled_from(edges), st.integers(lo, hi)))
+        return draw(_biased(lo, hi))
 
     return build(Form(row, size, cond, tuple(modes)), CODE, biased)
 
@@ -586,7 +608,7 @@ def cases(draw, row, size: Size | None, first_mode: Mode | None, odd: bool = Fal
     instr = draw_instruction(draw, row, size, first_mode)
     pc = CODE
     d = [draw(u32()) for _ in range(8)]
-    a = [draw(st.one_of(u32(), st.integers(DATA_LO, DATA_HI - 1))) for _ in range(7)]
+    a = [draw(_a_value()) for _ in range(7)]
     a.append(draw(st.integers((DATA_LO + 0x400) // 2, (DATA_HI - 0x400) // 2)) * 2)
     ccr = draw(st.integers(0, 0x1F))
     seed = draw(st.integers(0, 2**32 - 1))
@@ -735,6 +757,7 @@ def cases(draw, row, size: Size | None, first_mode: Mode | None, odd: bool = Fal
     return Case(instr, format_text(instr), code, Machine(d, a, ccr, pc, image))
 
 
+@functools.lru_cache(maxsize=None)
 def bus_target(mode: Mode | None) -> st.SearchStrategy[int]:
     """An even address where a word or long access faults on the end of the RAM: the last word or long of the
     RAM (a long there straddles the end), the first unmapped word, or further out (abs.W: ``$FF8000..``)."""

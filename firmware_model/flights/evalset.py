@@ -7,11 +7,10 @@
   TeleMetrum v1 transfer function, no added noise: the logs carry real noise).
 * ``set:sim`` the simulated part, ``set:logs`` the logs, ``set:quick`` a few short flights (tests, smoke runs).
 
-**Pascal sensor**: the MS5607-like digital barometer reports pascals in a 32-bit word; today's firmware reads a
-16-bit barometer word (``BuildConfig.baro_bits`` 8..16), so the set cannot run it yet. :func:`pascal_supported`
-is the hook: when the field-ready firmware of issue 9 gives BuildConfig a ``baro_kind`` field (what
-``FirmwareInputs.config_overrides()`` passes for a pascal sensor), the pascal rows join the set automatically;
-until then :func:`evaluation_set` lists them in ``skipped`` with the reason, and the table says so.
+**Pascal sensor**: the MS5607-like digital barometer reports pascals in a 32-bit word, which the firmware reads
+since issue 9 item 1 (``BuildConfig.baro_kind`` pascal, docs/firmware-spec.md §2). :func:`pascal_supported` (true
+when BuildConfig has the ``baro_kind`` field that ``FirmwareInputs.config_overrides()`` passes for a pascal
+sensor) lets the pascal rows join the set; a build without it lists them in ``skipped`` with the reason.
 """
 
 from __future__ import annotations
