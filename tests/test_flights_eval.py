@@ -119,10 +119,14 @@ def test_finding_8bit_adc_kalman_baro_lifts_off_on_the_pad():
 
 
 def test_finding_recursive_pad_bias_of_first_accel_sample():
-    """Finding: ACC0 is the first accelerometer sample; an offset b of that one sample integrates to b*t on the pad,
-    so the recursive program's LIFTOFF (VEL > 30 m/s) fires after t = 30 m/s / b with nothing moving."""
+    """Finding: with ACC0 the first accelerometer sample (cal_p = 0, the firmware before the field-ready change) an
+    offset b of that one sample integrates to b*t on the pad, so the recursive program's LIFTOFF (VEL > 30 m/s)
+    fires after t = 30 m/s / b with nothing moving. With the default pad calibration (2^(k-2) samples averaged,
+    spec §5 step 1) the same offset is divided by 2^(k-2) and nothing fires in 40 s."""
     k = 5
-    cfg = METHODS["rec_quarter"].config(k, _sensor(16))
+    calibrated = METHODS["rec_quarter"].config(k, _sensor(16))
+    assert calibrated.cal_p_bits == 3
+    cfg = METHODS["rec_quarter"].config(k, _sensor(16), cal_p=0)
     n = 40 * 2 ** k
     acc = np.full(n, 2048, dtype=np.int64)
     bias = 300                               # counts = 1.44 m/s^2 at 2048 counts/g
@@ -134,6 +138,8 @@ def test_finding_recursive_pad_bias_of_first_accel_sample():
     assert np.any(ev & EVENT_BITS["LIFTOFF"])
     assert abs(first * cfg.dt - expected_s) < 2 * cfg.dt + 1e-9
     assert not np.any(ev & EVENT_BITS["APOGEE"])
+    ev = _events(METHODS["rec_quarter"], calibrated, adc, acc)
+    assert not np.any(ev & (EVENT_BITS["LIFTOFF"] | EVENT_BITS["APOGEE"]))
 
 
 # ---------------------------------------------------------------------------------------------------- the table
@@ -229,7 +235,7 @@ def test_flight_vector_cases_carry_provenance_and_licence():
     from firmware_model.flights.vectorcases import FLIGHT_CASES
 
     docs = _flight_vector_docs()
-    assert len(docs) == sum(len(c[4]) for c in FLIGHT_CASES) == 9
+    assert len(docs) == sum(len(c[4]) for c in FLIGHT_CASES) == 10
     shared = Path(os.environ.get("FWEMU_SHARED_FLIGHTS")
                   or Path(__file__).resolve().parents[1].parent / "shared" / "flights")
     for name, doc in docs.items():
