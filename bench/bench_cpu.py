@@ -5,7 +5,8 @@
    ``muldiv`` (MULS/MULU/DIVS/DIVU, DBRA). Ours is measured cold (a fresh process-wide code cache: decode and
    block compilation included) and warm (a new CPU on the same code: the steady state), best of ``--reps``.
 2. **Firmware**: ``kalman_accel`` (k=7) over ``synthetic_flight(7)``: samples/s of ours through
-   :func:`firmware_model.harness.run_firmware` (cold: first run in this process; warm: best of ``--reps``)
+   :func:`firmware_model.harness.run_firmware` (cold: first run in this process, no block code from the disk
+   cache; warm: best of ``--reps``)
    against Musashi running the same ROM image with a minimal harness (write the two input words, push a return
    address that holds a RESET, set PC to ``step``, execute, read the state words). The state words must be
    identical (Musashi's clock counts are known wrong and are not compared).
@@ -259,9 +260,17 @@ def firmware(reps: int, musashi: Musashi | None) -> bool:
     n = len(adc)
     build = build_firmware(BuildConfig(program="kalman_accel", k=7))
     codecache.clear()
-    t = CLOCK()
-    trace = harness.run_firmware(build, adc, acc)
-    cold = CLOCK() - t
+    saved = os.environ.get("FWEMU_CACHE_DIR")
+    os.environ["FWEMU_CACHE_DIR"] = "off"  # cold: no block code from the disk cache either (firmware_cpu reads it)
+    try:
+        t = CLOCK()
+        trace = harness.run_firmware(build, adc, acc)
+        cold = CLOCK() - t
+    finally:
+        if saved is None:
+            del os.environ["FWEMU_CACHE_DIR"]
+        else:
+            os.environ["FWEMU_CACHE_DIR"] = saved
     warm = best = 1e9
     ok = same = True
     for _ in range(reps):  # interleaved with Musashi

@@ -13,7 +13,8 @@ from firmware_model.cli_args import positive_int
 def add_flight_arguments(p: argparse.ArgumentParser) -> None:
     """FLIGHTS and the options that choose/sense them (shared by evaluate and sweep)."""
     p.add_argument("flights", nargs="*", metavar="FLIGHT",
-                   help="flight files (any format the readers take), sim:NAME (a simulated scenario), "
+                   help="flight files (any format the readers take), sim:NAME (a simulated scenario; sim:all: "
+                        "every scenario, sensed and sampled by --k/--baro/--accel/--no-noise), "
                         "set:NAME (an evaluation set: eval, logs, sim, quick)")
     p.add_argument("--simulated", action="store_true", help="add every simulated scenario")
     p.add_argument("--logs", action="store_true", help="add every shared real log (../shared/flights)")

@@ -68,6 +68,11 @@ class BuildConfig:
         (s) the gate may stay closed before it opens (GATE_N = max(1, round(gate_hold_s * 2^k))).
       * ``apogee_hold_s``: X2 < 0 this long (APO_N = max(1, round(apogee_hold_s * 2^k)) samples) declares apogee.
       * ``transonic_r_factor``: kalman_accel's barometer variance factor above ``mach_lo_mps`` (>= 1).
+    Recursive field-ready logic (docs/firmware-spec.md §5): ``cal_p`` (ACC0 averaged over 2^cal_p pad samples),
+    ``gate_sigmas``/``gate_hold_s`` and ``baro_rate_mps`` (barometer rate gate: a sample further than
+    ``baro_rate_mps * units_per_metre * dt + gate_sigmas * sqrt(2) * baro_sigma`` counts from the last used one is
+    not used, for up to GATE_N samples), ``apogee_hold_s`` (after an accelerometer clip, apogee needs this long of
+    evidence).
     """
 
     program: str = "kalman_baro"
@@ -99,6 +104,7 @@ class BuildConfig:
     apogee_hold_s: float = 0.06
     transonic_r_factor: float = 100.0
     baro_kind: str = "adc"
+    baro_rate_mps: float = 400.0
     extra: dict[str, Any] = field(default_factory=dict, compare=False, hash=False)
 
     def __post_init__(self) -> None:
@@ -175,7 +181,7 @@ class BuildConfig:
         if self.cal_p is not None and (isinstance(self.cal_p, bool) or not isinstance(self.cal_p, int)
                                        or not 0 <= self.cal_p <= 8):
             raise bad("cal_p", "pad calibration over 2^cal_p samples needs cal_p in 0..8 (or null)")
-        for name in ("gate_sigmas", "gate_hold_s", "apogee_hold_s"):
+        for name in ("gate_sigmas", "gate_hold_s", "apogee_hold_s", "baro_rate_mps"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
                 raise bad(name, "must be a finite number >= 0")

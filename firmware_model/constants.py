@@ -204,6 +204,15 @@ def build_constants(cfg: BuildConfig) -> FirmwareConstants:
     recursive = cfg.program in ("recursive", "recursive_seed_literal")
     lo, hi = cfg.baro_range
     kalman = {}
+    if cfg.program == "recursive":
+        # §5 steps 1, 5, 6: pad calibration of ACC0, the barometer rate gate (raw counts per sample), the apogee
+        # evidence after an accelerometer clip
+        d_gate = INT32_MAX if cfg.gate_sigmas == 0 else max(1, _round_int(
+            "E_GATE", cfg.baro_rate_mps * cfg.units_per_metre * cfg.dt
+            + cfg.gate_sigmas * math.sqrt(2.0) * cfg.baro_sigma, where))
+        kalman = dict(CAL_P=cfg.cal_p_bits, E_GATE=d_gate,
+                      GATE_N=min(32767, max(1, _round_int("GATE_N", cfg.gate_hold_s * 2.0**cfg.k, where))),
+                      APO_N=min(32767, max(1, _round_int("APO_N", cfg.apogee_hold_s * 2.0**cfg.k, where))))
     if not recursive:
         from firmware_model.alt_table import table_of_config
         from firmware_model.design import innovation_sigma_m

@@ -95,6 +95,11 @@ EXT = 1
 VEL = 2
 ACC0_R = 3
 EVENTS_R = 4
+ZL_R = 5
+SUMA_R = 6
+CAL_R = 7
+REJ_R = 8
+NEG_R = 9
 #: Kalman (both programs; kalman_baro leaves ACC0 and SUMA at 0 and does not output them):
 X1 = 0
 X2 = 1
@@ -113,7 +118,7 @@ N_STATE = 12
 
 #: State entries output per program, in firmware_model.trace.STATE_WORDS order.
 OUT_COLS: dict[str, tuple[int, ...]] = {
-    "recursive": (EST, EXT, VEL, ACC0_R, EVENTS_R),
+    "recursive": (EST, EXT, VEL, ACC0_R, EVENTS_R, ZL_R, SUMA_R, CAL_R, REJ_R, NEG_R),
     "recursive_seed_literal": (EST,),
     "kalman_baro": (X1, X2, X3, EVENTS, APFRAC, GND, SUMZ, CAL, REJ, NEG),
     "kalman_accel": (X1, X2, X3, ACC0, EVENTS, APFRAC, GND, SUMZ, SUMA, CAL, REJ, NEG),
@@ -169,7 +174,7 @@ _SCALARS2 = ("ALT_SHIFT", "CAL_P", "E_GATE", "GATE_N", "APO_N")
 WRAP_NAMES: tuple[str, ...] = ("", "EST", "VEL", "X1", "X2", "X3", "e1", "e2", "mulg(acc,ACC_G)",
                                "mulg(e1,G11)", "mulg(e1,G21)", "mulg(e1,G31)",
                                "mulg(e2,G12)", "mulg(e2,G22)", "mulg(e2,G32)", "SUMZ", "SUMA",
-                               "mulg(e1,G11T)", "mulg(e1,G21T)", "mulg(e1,G31T)")
+                               "mulg(e1,G11T)", "mulg(e1,G21T)", "mulg(e1,G31T)", "EXT")
 W_NONE = 0
 W_EST = 1
 W_VEL = 2
@@ -190,6 +195,7 @@ W_SUMA = 16
 W_E1G11T = 17
 W_E1G21T = 18
 W_E1G31T = 19
+W_EXT = 20
 
 #: Event bits (docs/firmware-spec.md §4; equal to firmware_model.trace.EVENT_BITS, checked by a test).
 LIFTOFF = 1
@@ -200,7 +206,8 @@ BARO_INVALID = 16
 APOGEE_PREDICTED = 32
 GATE_HIGH = 64
 BARO_REJECT = 128
-LATCHED = LIFTOFF | ARMED | APOGEE | APOGEE_PREDICTED | GATE_HIGH
+ACC_CLIP = 256
+LATCHED = LIFTOFF | ARMED | APOGEE | APOGEE_PREDICTED | GATE_HIGH | ACC_CLIP
 
 INT32_MIN = -2147483648
 INT32_MAX = 2147483647
@@ -248,47 +255,90 @@ def _note(w, x, wid):  # type: ignore[no-untyped-def]
 # ------------------------------------------------------------------------------------------- recursive (§5)
 @njit(cache=True)
 def recursive_init(st, adc, acc, c):  # type: ignore[no-untyped-def]
-    """EST = EXT = z << 8; VEL = 0; ACC0 = acc; EVENTS = 0."""
+    """EST = EXT = wrap32(z << 8); VEL = 0; ACC0 = acc; EVENTS = 0; ZL = wrap32(z); SUMA = CAL = REJ = NEG = 0."""
     z = adc * c[C_BARO_SIGN]
     st[EST] = _w32(z << 8)       # exact for |z| < 2^23: every ADC word; a pascal word wraps as LSL.L does
     st[EXT] = _w32(z << 8)
     st[VEL] = 0
     st[ACC0_R] = acc
     st[EVENTS_R] = 0
+    st[ZL_R] = _w32(z)
+    st[SUMA_R] = 0
+    st[CAL_R] = 0
+    st[REJ_R] = 0
+    st[NEG_R] = 0
 
 
 @njit(cache=True, inline="always")
 def recursive_step(st, adc, acc, c):  # type: ignore[no-untyped-def]
-    """docs/firmware-spec.md §5 steps 1-5; returns the first wrap id of the sample (0: none)."""
+    """docs/firmware-spec.md §5 steps 0-6; returns the first wrap id of the sample (0: none)."""
     rnd = c[C_ROUND]
     S = c[C_S]
     w = W_NONE
     z = adc * c[C_BARO_SIGN]
-    # 1. accelerometer velocity
-    vel = st[VEL] + (acc - st[ACC0_R])
-    w = _note(w, vel, W_VEL)
-    vel = _w32(vel)
-    ev = st[EVENTS_R]
-    # 2. liftoff
-    if (ev & LIFTOFF) == 0 and vel > c[C_V_LIFT]:
-        ev |= LIFTOFF
-    # 3a. armed once VEL is back below the gate, on a sample after the one that set GATE_HIGH (3b runs after)
-    if (ev & GATE_HIGH) != 0 and (ev & ARMED) == 0 and vel < c[C_V_GATE]:
-        ev |= ARMED
-    # 3b. the accelerometer velocity has exceeded the gate since liftoff
-    if (ev & LIFTOFF) != 0 and vel > c[C_V_GATE]:
-        ev |= GATE_HIGH
-    # 4. the filter
+    # 0. per-sample bits
+    ev = st[EVENTS_R] & LATCHED
+    vel = st[VEL]
+    cal_p = c[C_CAL_P]
+    if st[CAL_R] < (1 << cal_p):
+        # 1. pad calibration of ACC0 (steps 2-4 skipped; |SUMA| <= 2^23, exact)
+        st[SUMA_R] = st[SUMA_R] + acc
+        st[CAL_R] = st[CAL_R] + 1
+        if st[CAL_R] == (1 << cal_p):
+            st[ACC0_R] = rs(st[SUMA_R], cal_p, rnd)
+    else:
+        # 2. accelerometer velocity and liftoff
+        vel = vel + (acc - st[ACC0_R])
+        w = _note(w, vel, W_VEL)
+        vel = _w32(vel)
+        if (ev & LIFTOFF) == 0 and vel > c[C_V_LIFT]:
+            ev |= LIFTOFF
+        # 3. accelerometer at its rail: VEL underestimates from now on
+        if (ev & LIFTOFF) != 0 and (ev & ARMED) == 0 and acc == 32767:
+            ev |= ACC_CLIP
+        # 4a. armed once VEL is back below the gate, on a sample after the one that set GATE_HIGH (4b runs after)
+        if (ev & GATE_HIGH) != 0 and (ev & ARMED) == 0 and vel < c[C_V_GATE]:
+            ev |= ARMED
+        # 4b. the accelerometer velocity has exceeded the gate since liftoff
+        if (ev & LIFTOFF) != 0 and vel > c[C_V_GATE]:
+            ev |= GATE_HIGH
+    # 5. barometer rate gate, then the filter
+    zw = _w32(z)
+    d = _w32(zw - st[ZL_R])         # SUB.L: exact for every ADC word and sane pascal word
+    use = True
     est = st[EST]
-    est = est + (z << (8 - S)) - rs(est, S, rnd)
-    w = _note(w, est, W_EST)
-    est = _w32(est)
-    # 5. extreme and apogee
     ext = st[EXT]
+    if -c[C_E_GATE] <= d <= c[C_E_GATE]:
+        st[REJ_R] = 0
+    elif st[REJ_R] < c[C_GATE_N]:
+        st[REJ_R] = st[REJ_R] + 1
+        ev |= BARO_REJECT
+        use = False
+    else:
+        # the gate opens on a lasting shift: EST and EXT move with it (re-base)
+        est = est + (d << 8)
+        w = _note(w, est, W_EST)
+        est = _w32(est)
+        ext = ext + (d << 8)
+        w = _note(w, ext, W_EXT)
+        ext = _w32(ext)
+    if use:
+        st[ZL_R] = zw
+        est = est + (z << (8 - S)) - rs(est, S, rnd)
+        w = _note(w, est, W_EST)
+        est = _w32(est)
+    # 6. extreme and apogee (after an accelerometer clip, APO_N samples of evidence)
     if est > ext:
         ext = est
-    elif (ev & ARMED) != 0 and (ev & APOGEE) == 0 and ext - est >= c[C_THR]:
-        ev |= APOGEE
+        st[NEG_R] = 0
+    elif (ev & ARMED) != 0 and (ev & APOGEE) == 0:
+        if ext - est >= c[C_THR]:
+            st[NEG_R] = st[NEG_R] + 1
+            need = c[C_APO_N] if (ev & ACC_CLIP) != 0 else 1
+            if st[NEG_R] >= need:
+                ev |= APOGEE
+        else:
+            st[NEG_R] = 0
     st[EST] = est
     st[EXT] = ext
     st[VEL] = vel

@@ -33,6 +33,7 @@ _BARO_INVALID = EVENT_BITS["BARO_INVALID"]
 _PREDICTED = EVENT_BITS["APOGEE_PREDICTED"]
 _GATE_HIGH = EVENT_BITS["GATE_HIGH"]
 _BARO_REJECT = EVENT_BITS["BARO_REJECT"]
+_ACC_CLIP = EVENT_BITS["ACC_CLIP"]
 
 
 class _WrapTracker:
@@ -95,36 +96,73 @@ def run_model_numpy(consts: "FirmwareConstants", adc: np.ndarray, acc: np.ndarra
 # ---------------------------------------------------------------------------------------------------- recursive
 def _run_recursive(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np.ndarray,
                    tr: _WrapTracker) -> tuple[np.ndarray, np.ndarray]:
-    """docs/firmware-spec.md §5 (EST, EXT, VEL, ACC0, EVENTS)."""
+    """docs/firmware-spec.md §5 (EST, EXT, VEL, ACC0, EVENTS, ZL, SUMA, CAL, REJ, NEG)."""
     n_streams, n = adc.shape
     S = int(consts.S)
-    z = adc * np.int64(consts.BARO_SIGN)
-    zin = z << np.int64(8 - S)                      # exact: |z| <= 2^31 (pascal word), so |z << 7| <= 2^38
-    est = wrap32(z[:, 0] << np.int64(8))            # exact for |z| < 2^23 (every ADC word, every sane pascal)
+    z_all = adc * np.int64(consts.BARO_SIGN)
+    zin = z_all << np.int64(8 - S)                  # exact: |z| <= 2^31 (pascal word), so |z << 7| <= 2^38
+    est = wrap32(z_all[:, 0] << np.int64(8))        # exact for |z| < 2^23 (every ADC word, every sane pascal)
     ext = est.copy()
     vel = np.zeros(n_streams, dtype=np.int64)
     acc0 = acc[:, 0].copy()
     ev = np.zeros(n_streams, dtype=np.int64)
-    init = np.stack([est, ext, vel, acc0, ev], axis=-1)
-    out = np.empty((n_streams, n, 5), dtype=np.int64)
+    zl = wrap32(z_all[:, 0])
+    suma = np.zeros(n_streams, dtype=np.int64)
+    cal = np.zeros(n_streams, dtype=np.int64)
+    rej = np.zeros(n_streams, dtype=np.int64)
+    neg = np.zeros(n_streams, dtype=np.int64)
+    init = np.stack([est, ext, vel, acc0, ev, zl, suma, cal, rej, neg], axis=-1)
+    out = np.empty((n_streams, n, 10), dtype=np.int64)
     v_lift, v_gate, thr = np.int64(consts.V_LIFT), np.int64(consts.V_GATE), np.int64(consts.THR)
+    cal_p = int(consts.CAL_P)
+    ncal = np.int64(1 << cal_p)
+    d_gate, gate_n, apo_n = np.int64(consts.E_GATE), np.int64(consts.GATE_N), np.int64(consts.APO_N)
     for i in range(n):
-        vel = tr.w32(vel + (acc[:, i] - acc0), i, "VEL")
-        ev = np.where(((ev & _LIFTOFF) == 0) & (vel > v_lift), ev | _LIFTOFF, ev)
-        # 3a. armed once VEL is back below the gate, on a sample after the one that set GATE_HIGH (3b runs after)
-        ev = np.where(((ev & _GATE_HIGH) != 0) & ((ev & _ARMED) == 0) & (vel < v_gate), ev | _ARMED, ev)
-        # 3b. the accelerometer velocity has exceeded the gate since liftoff
-        ev = np.where(((ev & _LIFTOFF) != 0) & (vel > v_gate), ev | _GATE_HIGH, ev)
-        est = tr.w32(est + zin[:, i] - rs(est, S, mode), i, "EST")
+        a = acc[:, i]
+        z = z_all[:, i]
+        ev = ev & LATCHED_EVENTS                     # 0. per-sample bits
+        calib = cal < ncal
+        run = ~calib
+        # 1. pad calibration of ACC0 (exact: |SUMA| <= 2^23)
+        suma = np.where(calib, suma + a, suma)
+        cal = np.where(calib, cal + 1, cal)
+        done = calib & (cal == ncal)
+        acc0 = np.where(done, rs(suma, cal_p, mode), acc0)
+        # 2. velocity and liftoff (after calibration)
+        if run.any():
+            vel = np.where(run, vel + (a - acc0), vel)
+            vel = tr.w32(vel, i, "VEL")
+        ev = np.where(run & ((ev & _LIFTOFF) == 0) & (vel > v_lift), ev | _LIFTOFF, ev)
+        # 3. accelerometer at its rail before arming
+        ev = np.where(run & ((ev & _LIFTOFF) != 0) & ((ev & _ARMED) == 0) & (a == 32767), ev | _ACC_CLIP, ev)
+        # 4a. armed once VEL is back below the gate, on a sample after the one that set GATE_HIGH (4b runs after)
+        ev = np.where(run & ((ev & _GATE_HIGH) != 0) & ((ev & _ARMED) == 0) & (vel < v_gate), ev | _ARMED, ev)
+        # 4b. the accelerometer velocity has exceeded the gate since liftoff
+        ev = np.where(run & ((ev & _LIFTOFF) != 0) & (vel > v_gate), ev | _GATE_HIGH, ev)
+        # 5. barometer rate gate, then the filter
+        zw = wrap32(z)
+        d = wrap32(zw - zl)                          # SUB.L
+        inside = (d >= -d_gate) & (d <= d_gate)
+        reject = ~inside & (rej < gate_n)
+        rebase = ~inside & ~reject                   # the gate opens on a lasting shift: EST, EXT move with it
+        rej = np.where(inside, 0, np.where(reject, rej + 1, rej))
+        ev = np.where(reject, ev | _BARO_REJECT, ev)
+        if rebase.any():
+            est = np.where(rebase, tr.w32(np.where(rebase, est + (d << np.int64(8)), est), i, "EST"), est)
+            ext = np.where(rebase, tr.w32(np.where(rebase, ext + (d << np.int64(8)), ext), i, "EXT"), ext)
+        use = ~reject
+        zl = np.where(use, zw, zl)
+        est = np.where(use, tr.w32(np.where(use, est + zin[:, i] - rs(est, S, mode), est), i, "EST"), est)
+        # 6. extreme and apogee (after a clip: APO_N samples of evidence)
         up = est > ext
         ext = np.where(up, est, ext)
-        fire = ~up & ((ev & _ARMED) != 0) & ((ev & _APOGEE) == 0) & (ext - est >= thr)
-        ev = np.where(fire, ev | _APOGEE, ev)
-        out[:, i, 0] = est
-        out[:, i, 1] = ext
-        out[:, i, 2] = vel
-        out[:, i, 3] = acc0
-        out[:, i, 4] = ev
+        live = ~up & ((ev & _ARMED) != 0) & ((ev & _APOGEE) == 0)
+        below = ext - est >= thr
+        neg = np.where(up, 0, np.where(live, np.where(below, neg + 1, 0), neg))
+        need = np.where((ev & _ACC_CLIP) != 0, apo_n, np.int64(1))
+        ev = np.where(live & below & (neg >= need), ev | _APOGEE, ev)
+        for j, col in enumerate((est, ext, vel, acc0, ev, zl, suma, cal, rej, neg)):
+            out[:, i, j] = col
     return init, out
 
 

@@ -38,6 +38,7 @@ _BARO_INVALID = EVENT_BITS["BARO_INVALID"]
 _PREDICTED = EVENT_BITS["APOGEE_PREDICTED"]
 _GATE_HIGH = EVENT_BITS["GATE_HIGH"]
 _BARO_REJECT = EVENT_BITS["BARO_REJECT"]
+_ACC_CLIP = EVENT_BITS["ACC_CLIP"]
 
 
 @dataclass
@@ -134,21 +135,56 @@ def _mirror_recursive(consts: "FirmwareConstants", adc: np.ndarray, acc: np.ndar
         return init, out
     ext = est.copy()
     vel = np.zeros(n_streams)
-    acc0 = acc[:, 0].copy()
+    acc0 = acc[:, 0].astype(float)
     ev = np.zeros(n_streams, dtype=np.int64)
-    init = np.stack([est, ext, vel, acc0, ev.astype(float)], axis=-1)
-    out = np.empty((n_streams, n, 5))
+    zl = z[:, 0].copy()
+    suma = np.zeros(n_streams)
+    cal = np.zeros(n_streams, dtype=np.int64)
+    rej = np.zeros(n_streams, dtype=np.int64)
+    neg = np.zeros(n_streams, dtype=np.int64)
+    ncal = 1 << int(consts.CAL_P)
+
+    def row() -> np.ndarray:
+        return np.stack([est, ext, vel, acc0, ev.astype(float), zl, suma, cal.astype(float), rej.astype(float),
+                         neg.astype(float)], axis=-1)
+
+    init = row()
+    out = np.empty((n_streams, n, 10))
     for i in range(n):
-        vel = vel + (acc[:, i] - acc0)
-        ev = np.where(((ev & _LIFTOFF) == 0) & (vel > consts.V_LIFT), ev | _LIFTOFF, ev)
-        ev = np.where(((ev & _GATE_HIGH) != 0) & ((ev & _ARMED) == 0) & (vel < consts.V_GATE), ev | _ARMED, ev)
-        ev = np.where(((ev & _LIFTOFF) != 0) & (vel > consts.V_GATE), ev | _GATE_HIGH, ev)
-        est = est + z[:, i] * 256.0 * x - est * x
+        a = acc[:, i]
+        ev = ev & LATCHED_EVENTS
+        calib = cal < ncal
+        run = ~calib
+        # 1. pad calibration: ACC0 is the mean of the pad samples (no rounding)
+        suma = np.where(calib, suma + a, suma)
+        cal = np.where(calib, cal + 1, cal)
+        acc0 = np.where(calib & (cal == ncal), suma / ncal, acc0)
+        vel = np.where(run, vel + (a - acc0), vel)
+        ev = np.where(run & ((ev & _LIFTOFF) == 0) & (vel > consts.V_LIFT), ev | _LIFTOFF, ev)
+        ev = np.where(run & ((ev & _LIFTOFF) != 0) & ((ev & _ARMED) == 0) & (a == 32767), ev | _ACC_CLIP, ev)
+        ev = np.where(run & ((ev & _GATE_HIGH) != 0) & ((ev & _ARMED) == 0) & (vel < consts.V_GATE), ev | _ARMED,
+                      ev)
+        ev = np.where(run & ((ev & _LIFTOFF) != 0) & (vel > consts.V_GATE), ev | _GATE_HIGH, ev)
+        # 5. the rate gate reads raw inputs only: the same decisions as the integer model
+        d = z[:, i] - zl
+        inside = (d >= -consts.E_GATE) & (d <= consts.E_GATE)
+        reject = ~inside & (rej < consts.GATE_N)
+        rebase = ~inside & ~reject
+        rej = np.where(inside, 0, np.where(reject, rej + 1, rej))
+        ev = np.where(reject, ev | _BARO_REJECT, ev)
+        est = np.where(rebase, est + d * 256.0, est)
+        ext = np.where(rebase, ext + d * 256.0, ext)
+        use = ~reject
+        zl = np.where(use, z[:, i], zl)
+        est = np.where(use, est + z[:, i] * 256.0 * x - est * x, est)
         up = est > ext
         ext = np.where(up, est, ext)
-        fire = ~up & ((ev & _ARMED) != 0) & ((ev & _APOGEE) == 0) & (ext - est >= consts.THR)
-        ev = np.where(fire, ev | _APOGEE, ev)
-        out[:, i] = np.stack([est, ext, vel, acc0, ev.astype(float)], axis=-1)
+        live = ~up & ((ev & _ARMED) != 0) & ((ev & _APOGEE) == 0)
+        below = ext - est >= consts.THR
+        neg = np.where(up, 0, np.where(live, np.where(below, neg + 1, 0), neg))
+        need = np.where((ev & _ACC_CLIP) != 0, int(consts.APO_N), 1)
+        ev = np.where(live & below & (neg >= need), ev | _APOGEE, ev)
+        out[:, i] = row()
     return init, out
 
 

@@ -19,9 +19,9 @@ RECOMMENDED: dict[str, dict[int, dict[str, Any]]] = {
     "kalman_baro": {k: {"ratio": 1000.0} for k in (5, 6, 7)},
     # half_up: floor biases the metres state (X2 -1.9 m/s at k = 7 on a still pad, docs/numerics.md); R/q 1,000
     "kalman_accel": {k: {"ratio": 1000.0, "rounding": "half_up"} for k in (5, 6, 7)},
-    # unchanged: S = 5, THR = 1/4 LSB (a smaller S lowers the median but fires 25 s early on one supersonic
-    # scenario, README)
-    "recursive": {k: {} for k in (5, 6, 7)},
+    # S = k - 2 (a lag of 2^(k-2) samples = 0.25 s at every k), THR = 1/4 LSB; the rate gate, its re-base and the
+    # 0.06 s apogee evidence after an accelerometer clip at their defaults (README "Field-ready firmware")
+    "recursive": {k: {"shift": k - 2} for k in (5, 6, 7)},
 }
 
 

@@ -73,7 +73,10 @@ FAST_FLIGHT_SEED: int = 20240602
 Q_FORMATS: dict[str, dict[str, str]] = {
     "recursive": {"EST": "Q24.8 barometer units (z = BARO_SIGN*adc)", "EXT": "Q24.8 barometer units",
                   "VEL": "Q32.0 accelerometer counts x samples", "ACC0": "Q32.0 accelerometer counts",
-                  "EVENTS": "uint16 event bits"},
+                  "EVENTS": "uint16 event bits", "ZL": "Q32.0 barometer units (last sample used)",
+                  "SUMA": "Q32.0 accelerometer counts (sum of pad readings)", "CAL": "uint16 pad samples",
+                  "REJ": "uint16 rejected barometer samples in a row",
+                  "NEG": "uint16 apogee evidence samples in a row"},
     "recursive_seed_literal": {"EST": "Q24.8 barometer units (z = BARO_SIGN*adc)"},
     "kalman_baro": {"X1": "Q24.8 m (table altitude)", "X2": "Q24.8 m/s", "X3": "Q24.8 m/s^2",
                     "EVENTS": "uint16 event bits", "APFRAC": "UQ0.16 fraction of a sample period",

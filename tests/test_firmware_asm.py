@@ -215,7 +215,7 @@ def test_firmware_sources_assemble(program: str, rounding: str) -> None:
 # step on the emulated CPU and check it against docs/firmware-spec.md §5/§6 written out below as a one-step
 # oracle with Python integers.
 
-LIFTOFF, ARMED, APOGEE, MACH, INVALID, PRED, GATE_HIGH, REJECT = 1, 2, 4, 8, 16, 32, 64, 128
+LIFTOFF, ARMED, APOGEE, MACH, INVALID, PRED, GATE_HIGH, REJECT, CLIP = 1, 2, 4, 8, 16, 32, 64, 128, 256
 LATCHED = LIFTOFF | ARMED | APOGEE | PRED | GATE_HIGH
 
 
@@ -307,23 +307,49 @@ def spec_kalman_step(c: object, st: dict[str, int], adc: int, acc: int) -> dict[
 
 
 def spec_recursive_step(c: object, st: dict[str, int], adc: int, acc: int) -> dict[str, int]:
-    """docs/firmware-spec.md §5 step 1-5, one sample, exact integers."""
+    """docs/firmware-spec.md §5 steps 0-6, one sample, exact integers."""
     h = bool(c.ROUND)
-    ev = st["EVENTS"]
-    vel = wrap32(st["VEL"] + (acc - st["ACC0"]))
-    if not ev & LIFTOFF and vel > c.V_LIFT:
-        ev |= LIFTOFF
-    if ev & GATE_HIGH and not ev & ARMED and vel < c.V_GATE:      # 3a (GATE_HIGH from an earlier sample)
-        ev |= ARMED
-    if ev & LIFTOFF and vel > c.V_GATE:                              # 3b
-        ev |= GATE_HIGH
-    est = wrap32(st["EST"] + ((c.BARO_SIGN * adc) << (8 - c.S)) - rs_exact(st["EST"], c.S, h))
-    ext = st["EXT"]
-    if est > ext:
-        ext = est
-    elif ev & ARMED and not ev & APOGEE and ext - est >= c.THR:
-        ev |= APOGEE
-    return dict(st, EST=est, EXT=ext, VEL=vel, EVENTS=ev)
+    ev = st["EVENTS"] & (LATCHED | CLIP)                            # 0. per-sample bits
+    vel, acc0, suma, cal = st["VEL"], st["ACC0"], st["SUMA"], st["CAL"]
+    if cal < (1 << c.CAL_P):                                         # 1. pad calibration
+        suma, cal = suma + acc, cal + 1
+        if cal == 1 << c.CAL_P:
+            acc0 = rs_exact(suma, c.CAL_P, h)
+    else:
+        vel = wrap32(vel + (acc - acc0))                             # 2.
+        if not ev & LIFTOFF and vel > c.V_LIFT:
+            ev |= LIFTOFF
+        if ev & LIFTOFF and not ev & ARMED and acc == 32767:         # 3. the accelerometer at its rail
+            ev |= CLIP
+        if ev & GATE_HIGH and not ev & ARMED and vel < c.V_GATE:     # 4a (GATE_HIGH from an earlier sample)
+            ev |= ARMED
+        if ev & LIFTOFF and vel > c.V_GATE:                          # 4b
+            ev |= GATE_HIGH
+    z = c.BARO_SIGN * adc
+    est, ext, zl, rej = st["EST"], st["EXT"], st["ZL"], st["REJ"]
+    use = True                                                       # 5. rate gate
+    d = wrap32(wrap32(z) - zl)                                       # SUB.L
+    if -c.E_GATE <= d <= c.E_GATE:
+        rej = 0
+    elif rej < c.GATE_N:
+        rej, use = rej + 1, False
+        ev |= REJECT
+    else:                                                            # re-base on a lasting shift
+        est, ext = wrap32(est + d * 256), wrap32(ext + d * 256)
+    if use:
+        zl = wrap32(z)
+        est = wrap32(est + (z << (8 - c.S)) - rs_exact(est, c.S, h))
+    neg = st["NEG"]
+    if est > ext:                                                    # 6.
+        ext, neg = est, 0
+    elif ev & ARMED and not ev & APOGEE:
+        if ext - est >= c.THR:
+            neg += 1
+            if neg >= (c.APO_N if ev & CLIP else 1):
+                ev |= APOGEE
+        else:
+            neg = 0
+    return dict(st, EST=est, EXT=ext, VEL=vel, ACC0=acc0, EVENTS=ev, ZL=zl, SUMA=suma, CAL=cal, REJ=rej, NEG=neg)
 
 
 class _Board:
@@ -424,26 +450,39 @@ def test_kalman_one_step_boundaries(program: str, k: int, rounding: str, data: s
 @settings(max_examples=examples(100))
 @given(k=st.sampled_from((4, 6, 8)), rounding=st.sampled_from(("floor", "half_up")), data=st.data())
 def test_recursive_one_step_boundaries(k: int, rounding: str, data: st.DataObject) -> None:
-    """Liftoff and gate thresholds, EXT - EST == THR (also as an exact difference beyond 2^31), from every
-    reachable EVENTS state (GATE_HIGH implies LIFTOFF, ARMED implies GATE_HIGH, APOGEE implies ARMED) and from
-    the unreachable ones that a corrupted RAM word could hold (the spec is total: each bit is tested as written)."""
+    """Liftoff and gate thresholds, EXT - EST == THR (also as an exact difference beyond 2^31), the accelerometer
+    rail, the rate gate at/next to +-E_GATE with the reject counter at/next to GATE_N, the evidence counter at/next
+    to APO_N, the last pad-calibration sample, from every reachable EVENTS state (GATE_HIGH implies LIFTOFF, ARMED
+    implies GATE_HIGH, APOGEE implies ARMED) and from the unreachable ones that a corrupted RAM word could hold
+    (the spec is total: each bit is tested as written)."""
     board = _board("recursive", k, rounding)
     c = board.build.consts
     h = bool(c.ROUND)
     adc = data.draw(st.integers(0, 65535), label="adc")
+    z = c.BARO_SIGN * adc
     acc0 = data.draw(st.integers(-32768, 32767), label="ACC0")
-    acc = data.draw(st.integers(-32768, 32767), label="acc")
+    acc = data.draw(st.one_of(st.just(32767), st.just(32766), st.integers(-32768, 32767)), label="acc")
     vel_target = data.draw(_near(c.V_LIFT, c.V_GATE, 0, INT32_MAX, INT32_MIN), label="vel_target")
     vel = wrap32(vel_target - (acc - acc0))
+    zl = data.draw(st.one_of(st.integers(-2, 2).flatmap(
+        lambda d: st.sampled_from((z - c.E_GATE + d, z + c.E_GATE + d, z + d))), st.integers(-65535, 65535)),
+        label="ZL")
     est = data.draw(_near(0, INT32_MIN, INT32_MAX, 1 << 20), label="EST")
-    est_new = wrap32(est + ((c.BARO_SIGN * adc) << (8 - c.S)) - rs_exact(est, c.S, h))
-    ext = data.draw(st.one_of(_near(est_new + c.THR, est_new, INT32_MAX), st.integers(INT32_MIN, INT32_MAX)),
-                    label="EXT")
+    est_new = wrap32(est + (z << (8 - c.S)) - rs_exact(est, c.S, h))
+    ext = data.draw(st.one_of(_near(est_new + c.THR, est_new, est + c.THR, est, INT32_MAX),
+                              st.integers(INT32_MIN, INT32_MAX)), label="EXT")
     events = data.draw(st.one_of(
         st.sampled_from((0, LIFTOFF, LIFTOFF | GATE_HIGH, LIFTOFF | GATE_HIGH | ARMED,
-                         LIFTOFF | GATE_HIGH | ARMED | APOGEE)),
-        st.sets(st.sampled_from((LIFTOFF, GATE_HIGH, ARMED, APOGEE))).map(sum)), label="EVENTS")
-    state = {"EST": est, "EXT": ext, "VEL": vel, "ACC0": acc0, "EVENTS": events}
+                         LIFTOFF | GATE_HIGH | ARMED | APOGEE, LIFTOFF | CLIP | GATE_HIGH | ARMED,
+                         LIFTOFF | GATE_HIGH | REJECT)),
+        st.sets(st.sampled_from((LIFTOFF, GATE_HIGH, ARMED, APOGEE, CLIP, REJECT))).map(sum)), label="EVENTS")
+    ncal = 1 << c.CAL_P
+    cal = data.draw(st.sampled_from((ncal, ncal, ncal, ncal - 1, 0)), label="CAL")
+    suma = data.draw(st.integers(-(1 << 23), 1 << 23), label="SUMA")
+    rej = data.draw(st.sampled_from((0, c.GATE_N - 1, c.GATE_N)), label="REJ")
+    neg = data.draw(st.sampled_from((0, max(0, c.APO_N - 2), c.APO_N - 1)), label="NEG")
+    state = {"EST": est, "EXT": ext, "VEL": vel, "ACC0": acc0, "EVENTS": events, "ZL": zl, "SUMA": suma,
+             "CAL": cal, "REJ": rej, "NEG": neg}
     got = board.step(dict(state), adc, acc)
     assert got == spec_recursive_step(c, dict(state), adc, acc), f"k={k} {rounding} state={state} adc={adc}"
 

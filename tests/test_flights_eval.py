@@ -119,10 +119,14 @@ def test_finding_8bit_adc_kalman_baro_lifts_off_on_the_pad():
 
 
 def test_finding_recursive_pad_bias_of_first_accel_sample():
-    """Finding: ACC0 is the first accelerometer sample; an offset b of that one sample integrates to b*t on the pad,
-    so the recursive program's LIFTOFF (VEL > 30 m/s) fires after t = 30 m/s / b with nothing moving."""
+    """Finding: with ACC0 the first accelerometer sample (cal_p = 0, the firmware before the field-ready change) an
+    offset b of that one sample integrates to b*t on the pad, so the recursive program's LIFTOFF (VEL > 30 m/s)
+    fires after t = 30 m/s / b with nothing moving. With the default pad calibration (2^(k-2) samples averaged,
+    spec §5 step 1) the same offset is divided by 2^(k-2) and nothing fires in 40 s."""
     k = 5
-    cfg = METHODS["rec_quarter"].config(k, _sensor(16))
+    calibrated = METHODS["rec_quarter"].config(k, _sensor(16))
+    assert calibrated.cal_p_bits == 3
+    cfg = METHODS["rec_quarter"].config(k, _sensor(16), cal_p=0)
     n = 40 * 2 ** k
     acc = np.full(n, 2048, dtype=np.int64)
     bias = 300                               # counts = 1.44 m/s^2 at 2048 counts/g
@@ -134,6 +138,8 @@ def test_finding_recursive_pad_bias_of_first_accel_sample():
     assert np.any(ev & EVENT_BITS["LIFTOFF"])
     assert abs(first * cfg.dt - expected_s) < 2 * cfg.dt + 1e-9
     assert not np.any(ev & EVENT_BITS["APOGEE"])
+    ev = _events(METHODS["rec_quarter"], calibrated, adc, acc)
+    assert not np.any(ev & (EVENT_BITS["LIFTOFF"] | EVENT_BITS["APOGEE"]))
 
 
 # ---------------------------------------------------------------------------------------------------- the table
@@ -164,6 +170,21 @@ def test_summary_median_worst_misses():
     doc = json.loads(render_json(rs))
     assert doc["summary"]["kalman_baro"]["worst_abs_s"] == 1.0
     assert doc["flights"][1]["methods"]["rec_half"]["time_s"] is None
+
+
+def test_summary_leaves_flagged_references_out_of_the_usable_worst_only():
+    flagged = FlightResult("cato", "log", 7, "test", Reference(3.0, 100.0, 0.9, "baro_parabola", "not ballistic",
+                                                               usable=False), None,
+                           {"kalman_baro": Detection("kalman_baro", 0, 6.0)}, 10)
+    rs = [_result("a", 10.0, {"kalman_baro": 9.6}), _result("b", 20.0, {"kalman_baro": 20.2}), flagged]
+    s = summarize(rs, "kalman_baro", "kb")
+    assert (s.worst_abs_s, s.worst_flight) == (3.0, "cato")            # the plain worst keeps every flight
+    assert (s.worst_usable_abs_s, s.worst_usable_flight, s.unusable) == (pytest.approx(0.4), "a", 1)
+    assert (s.most_early_s, s.most_early_flight) == (pytest.approx(-0.4), "a")
+    md = render_markdown(rs)
+    assert "(baro_parabola) ⚠" in md and "1 on flagged references left out" in md
+    late = summarize([_result("a", 10.0, {"kalman_baro": 10.5})], "kalman_baro", "kb")
+    assert late.most_early_s is None and late.unusable == 0
 
 
 # ---------------------------------------------------------------------------------------------------- subsonic flights
@@ -214,7 +235,7 @@ def test_flight_vector_cases_carry_provenance_and_licence():
     from firmware_model.flights.vectorcases import FLIGHT_CASES
 
     docs = _flight_vector_docs()
-    assert len(docs) == sum(len(c[4]) for c in FLIGHT_CASES) == 9
+    assert len(docs) == sum(len(c[4]) for c in FLIGHT_CASES) == 10
     shared = Path(os.environ.get("FWEMU_SHARED_FLIGHTS")
                   or Path(__file__).resolve().parents[1].parent / "shared" / "flights")
     for name, doc in docs.items():

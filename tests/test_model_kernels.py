@@ -62,7 +62,7 @@ def test_kernel_numbering_matches_the_trace_contract():
     for name, bit in EVENT_BITS.items():
         assert getattr(KC, name) == bit
     assert KC.LATCHED == LATCHED_EVENTS
-    assert len(KC.WRAP_NAMES) == 20 and len(set(KC.WRAP_NAMES)) == 20 and KC.WRAP_NAMES[0] == ""
+    assert len(KC.WRAP_NAMES) == 21 and len(set(KC.WRAP_NAMES)) == 21 and KC.WRAP_NAMES[0] == ""
     assert KP.COMPILED is False
 
 
@@ -119,8 +119,14 @@ def _extreme_case(draw):
         state[KC.NEG] = draw(st.sampled_from((0, c[KC.C_APO_N] - 1)))
         state[KC.SUMA] = draw(st.integers(-(2 ** 23), 2 ** 23))
     if program == "recursive":
+        ncal = 1 << c[KC.C_CAL_P]
         state[KC.ACC0_R] = draw(st.integers(-32768, 32767))
-        state[KC.EVENTS_R] = draw(st.integers(0, 127))
+        state[KC.EVENTS_R] = draw(st.integers(0, 511))
+        state[KC.ZL_R] = draw(st.sampled_from((-65535, 0, 65535)) | st.integers(-65535, 65535))  # a z
+        state[KC.SUMA_R] = draw(st.integers(-(2 ** 23), 2 ** 23))
+        state[KC.CAL_R] = draw(st.sampled_from((0, ncal - 1, ncal, ncal)))
+        state[KC.REJ_R] = draw(st.sampled_from((0, c[KC.C_GATE_N] - 1, c[KC.C_GATE_N])))
+        state[KC.NEG_R] = draw(st.sampled_from((0, c[KC.C_APO_N] - 1)))
     else:
         state[KC.ACC0] = draw(st.integers(-32768, 32767))
         state[KC.EVENTS] = draw(st.integers(0, 127))
@@ -174,8 +180,11 @@ def test_wrap_ids_are_reached_at_the_extremes():
     assert KP.WRAP_NAMES[KP.kalman_baro_step(st, 1 << 14, 0, c)] == "SUMZ"     # calibration sum
     st = np.array([-(2 ** 31), 0, 0, 0, 0, 0], dtype=object)
     assert KP.WRAP_NAMES[KP.seed_literal_step(st, 65535, 0, c)] == "EST"
-    st = np.array([0, 0, 2 ** 31 - 1, -5, 0, 0], dtype=object)
+    st = np.array([0, 0, 2 ** 31 - 1, -5, 0, 0, 0, 1, 0, 0, 0, 0], dtype=object)   # calibrated: CAL = 2^0
     assert KP.WRAP_NAMES[KP.recursive_step(st, 0, 0, c)] == "VEL"
+    c[KP.C_E_GATE] = 1                                   # re-base after GATE_N = 1 held sample: EXT wraps
+    st = np.array([0, 2 ** 31 - 100, 0, 0, 0, 0, 0, 1, 1, 0, 0, 0], dtype=object)
+    assert KP.WRAP_NAMES[KP.recursive_step(st, 1000, 0, c)] == "EXT"
 
 
 # ---------------------------------------------------------------------------------------------------- whole runs

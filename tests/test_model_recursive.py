@@ -68,9 +68,10 @@ def test_recursive_bound_is_reached_not_vacuous():
 @given(S=st.integers(1, 8), rounding=st.sampled_from(("floor", "half_up")), a=st.integers(0, 65535),
        b=st.integers(0, 65535))
 def test_constant_input_converges_into_dead_band(S, rounding, a, b):
-    """Start at level a (init), hold level b: within N = 18 * 2^S samples EST - (z << 8) is in the dead band."""
+    """Start at level a (init), hold level b: within N = 18 * 2^S samples EST - (z << 8) is in the dead band (plus
+    GATE_N: a step larger than the rate gate is held out for GATE_N samples, then accepted)."""
     consts = _consts(shift=S, rounding=rounding, baro_sign=-1)
-    n = 18 * 2 ** S
+    n = 18 * 2 ** S + consts.GATE_N
     adc = np.full(n + 5, b)
     adc[0] = a
     est = run_model(consts, adc).column("EST")
@@ -120,7 +121,7 @@ def test_seed_literal_listing_diverges_while_recursive_tracks_float_reference():
 def test_no_wrap_inside_documented_range_worst_case_velocity():
     """VEL sums acc - ACC0 (|.| <= 65535): no wrap for n <= 32767 samples of the worst case (65535 * 32767 <
     2^31); one more saturated second at k = 10 and it wraps, detected at the right sample."""
-    consts = _consts(k=10)
+    consts = _consts(k=10, cal_p=0)                  # ACC0 = acc[0], calibrated on the first step (VEL += 0)
     n = 32768 + 10
     acc = np.full(n, 32767)
     acc[0] = -32768                                   # ACC0 = -32768, every step adds 65535

@@ -161,13 +161,15 @@ def named_set(name: str) -> list[FlightSpec]:
 def resolve_flights(items: Iterable[str], simulated: bool = False, logs: bool = False, ks: Sequence[int] = (7,),
                     baro: str | None = None, accel: str | None = None, noise: bool = True,
                     format: str | None = None) -> list[FlightSpec]:
-    """FLIGHT arguments -> rows: files and ``sim:NAME`` at each k in ``ks`` with the given sensing (files keep
+    """FLIGHT arguments -> rows: files and ``sim:NAME`` (``sim:all``: every scenario) at each k in ``ks`` with the given sensing (files keep
     their own sensor and get no added noise unless a preset is named), ``set:NAME`` as defined, then every
     scenario (``simulated``) and every shared log (``logs``)."""
     specs: list[FlightSpec] = []
     for k in ks:
         if not isinstance(k, int) or not 0 <= k <= 10:
             raise UserError(f"--k {k!r}: must be an integer 0..10")
+    # ``sim:all``: every scenario as a FLIGHT argument (so --k, --baro, --accel, --no-noise apply, unlike set:sim)
+    items = [x for item in items for x in ([f"sim:{n}" for n in _scenario_names()] if item == "sim:all" else [item])]
     for item in items:
         if item.startswith("set:"):
             specs += named_set(item[4:])

@@ -154,7 +154,8 @@ class Reference:
     altitude_m: float | None
     uncertainty_s: float
     source: str                 # "truth" or the reference_apogee rule
-    notes: str = ""
+    notes: str = ""             # the rule's warning and how the fit was made, readable
+    usable: bool = True         # False when the reference carries a warning (not a free flight near its peak)
 
 
 def reference_for(record: FlightRecord) -> Reference:
@@ -166,8 +167,13 @@ def reference_for(record: FlightRecord) -> Reference:
     from firmware_model.flights.reference import reference_apogee
 
     ref = reference_apogee(record)
-    notes = ref.notes if isinstance(ref.notes, str) else "; ".join(map(str, ref.notes or ()))
-    return Reference(float(ref.time_s), float(ref.altitude_m), float(ref.uncertainty_s), str(ref.source), notes)
+    parts = []
+    if ref.notes.get("deployment_cut"):
+        parts.append(f"fitted up to the log's deployment at {ref.notes['deployment_s']:.2f} s")
+    if "warning" in ref.notes:
+        parts.append(str(ref.notes["warning"]))
+    return Reference(float(ref.time_s), float(ref.altitude_m), float(ref.uncertainty_s), str(ref.source),
+                     "; ".join(parts), "warning" not in ref.notes)
 
 
 # ---------------------------------------------------------------------------------------------------- one flight
@@ -464,6 +470,11 @@ class MethodSummary:
     median_s: float | None
     early: int
     late: int
+    most_early_s: float | None = None          # the most negative error (None: nothing fired early)
+    most_early_flight: str | None = None
+    worst_usable_abs_s: float | None = None    # worst |error| over flights whose reference is usable
+    worst_usable_flight: str | None = None
+    unusable: int = 0                          # detections on flights whose reference carries a warning
 
 
 def summarize(results: Sequence[FlightResult], method: str, label: str) -> MethodSummary:
@@ -473,15 +484,21 @@ def summarize(results: Sequence[FlightResult], method: str, label: str) -> Metho
         ran = [r for r in results if r.altos_s is not None]
     else:
         ran = [r for r in results if method in r.detections and not r.detections[method].failed]
-    got = [(r.error(method), r.name) for r in ran]
-    got = [(e, name) for e, name in got if e is not None]
+    trio = [(r.error(method), r.name, r.reference.usable) for r in ran]
+    trio = [t for t in trio if t[0] is not None]
+    got = [(e, name) for e, name, _ in trio]
     if not got:
         return MethodSummary(method, label, len(ran), 0, None, None, None, None, 0, 0)
     a = np.array([abs(e) for e, _ in got])
     worst = int(np.argmax(a))
+    early = min(got)
+    usable = [(abs(e), name) for e, name, ok in trio if ok]
+    wu = max(usable) if usable else (None, None)
     return MethodSummary(method, label, len(ran), len(got), float(np.median(a)), float(a[worst]), got[worst][1],
                          float(np.median([e for e, _ in got])), sum(e < 0 for e, _ in got),
-                         sum(e > 0 for e, _ in got))
+                         sum(e > 0 for e, _ in got), float(early[0]) if early[0] < 0 else None,
+                         early[1] if early[0] < 0 else None, None if wu[0] is None else float(wu[0]), wu[1],
+                         len(got) - len(usable))
 
 
 def table_methods(results: Sequence[FlightResult]) -> list[tuple[str, str]]:
@@ -512,7 +529,8 @@ def render_markdown(results: Sequence[FlightResult], command: str | None = None)
     for r in results:
         ref = r.reference
         cells = [r.name, str(r.k), r.sensor,
-                 f"{ref.time_s:.3f} ±{ref.uncertainty_s:.3f} ({ref.source})", _fmt(ref.altitude_m, 0)]
+                 f"{ref.time_s:.3f} ±{ref.uncertainty_s:.3f} ({ref.source}){'' if ref.usable else ' ⚠'}",
+                 _fmt(ref.altitude_m, 0)]
         for m, _ in cols:
             if m == "altos":
                 cells.append("—" if r.altos_s is None else f"{r.altos_s:.2f} ({_fmt_err(r.error('altos'))})")
@@ -525,9 +543,12 @@ def render_markdown(results: Sequence[FlightResult], command: str | None = None)
                 else:
                     cells.append("miss" if d.time_s is None else f"{d.time_s:.3f} ({_fmt_err(r.error(m))})")
         lines.append("| " + " | ".join(cells) + " |")
-    out = ["Detection time s (error s = detection - reference; + late, miss = never fired).", ""] + lines
+    out = ["Detection time s (error s = detection - reference; + late, miss = never fired). ⚠: the reference "
+           "carries a warning (the fit is not a free flight near its peak, docs/flights.md); such rows are left out "
+           "of the summary's last column only.", ""] + lines
     out += ["", "| method | flights | detected | median abs error s | worst abs error s (flight) | median error s "
-            "| early / late |", "|---|---|---|---|---|---|---|"]
+            "| early / late | most early s (flight) | worst abs error s, usable references |",
+            "|---|---|---|---|---|---|---|---|---|"]
     for m, label in cols:
         s = summarize(results, m, label)
         worst = "—" if s.worst_abs_s is None else f"{s.worst_abs_s:.3f} ({s.worst_flight})"
@@ -535,8 +556,11 @@ def render_markdown(results: Sequence[FlightResult], command: str | None = None)
         worst += f"; {miss} missed" if miss else ""
         skipped = sum(1 for r in results if m in r.detections and r.detections[m].failed)
         worst += f"; {skipped} n/a" if skipped else ""
+        most_early = "—" if s.most_early_s is None else f"{s.most_early_s:+.3f} ({s.most_early_flight})"
+        usable = "—" if s.worst_usable_abs_s is None else f"{s.worst_usable_abs_s:.3f} ({s.worst_usable_flight})"
+        usable += f"; {s.unusable} on flagged references left out" if s.unusable else ""
         out.append(f"| {label} | {s.n} | {s.detected} | {_fmt(s.median_abs_s)} | {worst} | "
-                   f"{_fmt(s.median_s)} | {s.early} / {s.late} |")
+                   f"{_fmt(s.median_s)} | {s.early} / {s.late} | {most_early} | {usable} |")
     if command:
         out += ["", f"Regenerate: `{command}`"]
     return "\n".join(out) + "\n"

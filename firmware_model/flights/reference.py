@@ -20,6 +20,12 @@
   4. Nominal window w = 1.5 s; the uncertainty is the largest distance of the vertex time from the nominal one over
      the windows w = 1.0, 1.25, 1.5, 2.0, 2.5 s and the nominal window shifted by +-0.25 s (all that give a valid
      fit), at least half the log's median interval near the peak (the time resolution of the data).
+  5. Deployment: when the log says its own computer fired a recovery charge (:data:`DEPLOY_EVENTS`, the earliest)
+     and the samples up to that moment hold the vertex, only they are fitted: windows [t_d - 2w, t_d] for the
+     same w (nominal 1.5 s), the uncertainty their spread. After a charge the flight is no longer free (a
+     parachute opens) and the ejection disturbs the pressure for seconds, so samples after it bias the vertex
+     (measured: 2012-10-20 serial 068, whose whole-window fit sat 0.6 s after the deployment with a curvature of
+     -20 m/s^2). When they do not hold it (the charge fired before apogee) rules 3-4 stand as they are.
 """
 
 from __future__ import annotations
@@ -40,6 +46,8 @@ SHIFTS_S: tuple[float, ...] = (-0.25, 0.25)
 SPIKE_MIN_M: float = 3.0
 SPIKE_SIGMAS: float = 6.0
 MEDIAN_HALF: int = 3
+#: Events a reader sets where the log's own computer fired a recovery charge (rule 5).
+DEPLOY_EVENTS: tuple[str, ...] = ("altos_apogee", "altos_drogue", "altos_main")
 
 
 @dataclass(frozen=True)
@@ -198,6 +206,47 @@ def _fit(t: np.ndarray, h: np.ndarray, w: np.ndarray, tp: float, lo: float, hi: 
     return float(tp + tv), float(c0 + c1 * tv + c2 * tv * tv), int(keep.sum()), int((~keep).sum()), float(2 * c2)
 
 
+def deployment_time(record: FlightRecord) -> float | None:
+    """The first time the log's own flight computer fired a recovery charge (the earliest of the reader's
+    :data:`DEPLOY_EVENTS`), or None."""
+    times = [float(record.events[k]) for k in DEPLOY_EVENTS if record.events.get(k) is not None]
+    return min(times) if times else None
+
+
+def _deployment_cut_fits(t: np.ndarray, h: np.ndarray, w: np.ndarray, deploy: float
+                         ) -> dict[str, tuple[float, float, int, int, float]]:
+    """Rule 5: fits over the samples up to the deployment only, windows [deploy - 2 w, deploy] keyed like the
+    symmetric ones (``+-w``), or {} when the nominal one has no vertex there (the charge fired before apogee)."""
+    sel = t <= deploy
+    ts, hs, ws = t[sel], h[sel], w[sel]
+    fits = {}
+    for win in WINDOWS_S:
+        f = _fit(ts, hs, ws, deploy - win, deploy - 2.0 * win, deploy)
+        if f is not None:
+            fits[f"+-{win:g}"] = f
+    return fits if f"+-{NOMINAL_WINDOW_S:g}" in fits else {}
+
+
+def _vertex_standard_error(t: np.ndarray, h: np.ndarray, w: np.ndarray, lo: float, hi: float, tv: float) -> float:
+    """Standard error (s) of the vertex time of a weighted parabola over lo <= t <= hi, from the residual scale and
+    the least-squares covariance (delta method): a fit that sees few samples past its vertex (a deployment just
+    after apogee) is a near extrapolation, which the window spread alone understates."""
+    sel = (t >= lo) & (t <= hi)
+    ts, hs, ws = t[sel] - tv, h[sel], w[sel]
+    a = np.vstack([np.ones(ts.size), ts, ts ** 2]).T
+    sw = np.sqrt(ws)
+    coef, *_ = np.linalg.lstsq(a * sw[:, None], hs * sw, rcond=None)
+    r = (hs - a @ coef) * sw
+    dof = max(ts.size - 3, 1)
+    sigma2 = float(r @ r) / dof
+    cov = sigma2 * np.linalg.inv((a * ws[:, None]).T @ a)
+    c1, c2 = coef[1], coef[2]
+    if not c2 < 0:
+        return math.inf
+    g = np.array([0.0, -1.0 / (2 * c2), c1 / (2 * c2 * c2)])       # d(vertex)/d(c0, c1, c2) about tv
+    return float(math.sqrt(max(g @ cov @ g, 0.0)))
+
+
 def reference_apogee(record: FlightRecord) -> ReferenceApogee:
     """The reference apogee of ``record`` (module docstring)."""
     tr = record.truth
@@ -236,15 +285,26 @@ def reference_apogee(record: FlightRecord) -> ReferenceApogee:
         f = _fit(t_c, h_c, w, tp, tp + sh - NOMINAL_WINDOW_S, tp + sh + NOMINAL_WINDOW_S)
         if f is not None:
             fits[f"+-{NOMINAL_WINDOW_S:g} shifted {sh:+g}"] = f
+    deploy = deployment_time(record)
+    cut = None if deploy is None else _deployment_cut_fits(t_c, h_c, w, deploy)
+    if cut:
+        fits = cut
     nominal = fits.get(f"+-{NOMINAL_WINDOW_S:g}")
     if nominal is None:
         if not fits:
             raise UserError(f"{where}: no parabola fits the barometric altitude near its peak "
                             f"(t = {tp:.3f} s, {h_c[ip]:.1f} m): is there an apogee in this log?")
         nominal = min(fits.values(), key=lambda f: abs(f[0] - tp))
-    near = (t_c > tp - NOMINAL_WINDOW_S) & (t_c < tp + NOMINAL_WINDOW_S)
+    if cut:
+        near = (t_c >= deploy - 2.0 * NOMINAL_WINDOW_S) & (t_c <= deploy)
+    else:
+        near = (t_c > tp - NOMINAL_WINDOW_S) & (t_c < tp + NOMINAL_WINDOW_S)
     resolution = 0.5 * float(np.median(np.diff(t_c[near]))) if near.sum() > 2 else 0.0
     spread = max(abs(f[0] - nominal[0]) for f in fits.values())
+    if cut:
+        # per-sample weights only (dropping the duration weights would change nothing at a constant rate)
+        se = _vertex_standard_error(t_c, h_c, np.ones_like(t_c), deploy - 2.0 * NOMINAL_WINDOW_S, deploy, nominal[0])
+        spread = max(spread, 2.0 * se)
     notes = {
         "peak_sample_s": tp, "peak_sample_m": float(h_c[ip]), "spikes_rejected": int(spike.sum()),
         "spike_times_s": [float(x) for x in t[spike][:20]], "noise_m": noise,
@@ -253,6 +313,8 @@ def reference_apogee(record: FlightRecord) -> ReferenceApogee:
                  for k, v in fits.items()},
         "curvature_mps2": nominal[4],
         "resolution_s": resolution,
+        "deployment_s": deploy,
+        "deployment_cut": bool(cut),
     }
     if not -2.0 * G0 <= nominal[4] <= -0.25 * G0:
         notes["warning"] = (f"fitted curvature {nominal[4]:.2f} m/s^2 is far from -g: the flight is not ballistic "

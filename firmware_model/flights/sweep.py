@@ -73,7 +73,8 @@ def _ratio_job(job: tuple[FlightSpec, str, tuple[float, ...], tuple[tuple[str, A
             continue
         errs.append(None if det.time_s is None else det.time_s - ref.time_s)
         why.append(f"integer wrap at {det.wrap}" if det.wrap else "")
-    return spec.name, errs, why, {"time_s": ref.time_s, "uncertainty_s": ref.uncertainty_s, "source": ref.source}
+    return spec.name, errs, why, {"time_s": ref.time_s, "uncertainty_s": ref.uncertainty_s, "source": ref.source,
+                                   "usable": ref.usable}
 
 
 def _k_job(job: tuple[FlightSpec, tuple[str, ...], tuple[int, ...], tuple[tuple[str, Any], ...]]
@@ -106,7 +107,8 @@ def _k_job(job: tuple[FlightSpec, tuple[str, ...], tuple[int, ...], tuple[tuple[
                 continue
             per[m.name].append(None if det.time_s is None else det.time_s - ref.time_s)
         why.append("; ".join(notes))
-    return spec.name, per, why, {"time_s": ref.time_s, "uncertainty_s": ref.uncertainty_s, "source": ref.source}
+    return spec.name, per, why, {"time_s": ref.time_s, "uncertainty_s": ref.uncertainty_s, "source": ref.source,
+                                   "usable": ref.usable}
 
 
 def _map(fn: Callable[[Any], Any], jobs_list: list[Any], jobs: int) -> list[Any]:
@@ -169,7 +171,9 @@ def render_markdown(res: SweepResult, command: str | None = None) -> str:
     for method, errors in tables.items():
         if res.kind == "k":
             lines += [f"**{METHODS[method].label if method in METHODS else method}**", ""]
-        head = ["R/q" if res.kind == "ratio" else "k"] + res.flights + ["median abs", "worst abs"]
+        usable = [f for f in res.flights if res.reference.get(f, {}).get("usable", True)]
+        head = ["R/q" if res.kind == "ratio" else "k"] + res.flights + ["median abs", "worst abs",
+                                                                        "most early", "worst abs, usable references"]
         lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
         for j, x in enumerate(res.axis):
             cells = [_axis_label(res, x)]
@@ -183,12 +187,17 @@ def render_markdown(res: SweepResult, command: str | None = None) -> str:
             missed = sum(errors[f][j] is None for f in res.flights)
             cells.append(f"{np.median(vals):.3f}" if vals else "—")
             cells.append((f"{max(vals):.3f}" if vals else "—") + (f" ({missed} miss)" if missed else ""))
+            early = [errors[f][j] for f in res.flights if errors[f][j] is not None and errors[f][j] < 0]
+            cells.append(f"{min(early):+.3f}" if early else "—")
+            uv = [abs(errors[f][j]) for f in usable if errors[f][j] is not None]
+            cells.append(f"{max(uv):.3f}" if uv else "—")
             lines.append("| " + " | ".join(cells) + " |")
         lines.append("")
     notes = sorted({w for f in res.flights for w in res.failed[f] if w})
     if notes:
         lines += ["Notes:", ""] + [f"- {n}" for n in notes[:20]] + [""]
     refs = [f"- {f}: reference {r['time_s']:.3f} s ±{r['uncertainty_s']:.3f} ({r['source']})"
+            + ("" if r.get("usable", True) else " ⚠ flagged: left out of the usable-references column")
             for f, r in res.reference.items()]
     lines += refs
     if command:

@@ -77,6 +77,7 @@ void fw_init(fw_program prog, const fw_consts *c, fw_state *st, int32_t adc, int
 {
     int32_t z8 = fw_wrap32(ls(baro_z(c, adc), 8));
     st->EST = st->EXT = st->VEL = 0;
+    st->ZL = 0;
     st->X1 = st->X2 = st->X3 = 0;
     st->ACC0 = 0;
     st->EVENTS = 0;
@@ -89,6 +90,7 @@ void fw_init(fw_program prog, const fw_consts *c, fw_state *st, int32_t adc, int
         st->EXT = z8;
         st->VEL = 0;
         st->ACC0 = acc;
+        st->ZL = fw_wrap32(baro_z(c, adc));
         break;
     case FW_RECURSIVE_SEED_LITERAL:
         st->EST = z8;
@@ -106,29 +108,67 @@ void fw_init(fw_program prog, const fw_consts *c, fw_state *st, int32_t adc, int
 static void step_recursive(const fw_consts *c, fw_state *st, int32_t adc, int16_t acc)
 {
     int64_t z = baro_z(c, adc);
+    int32_t zw = fw_wrap32(z);
+    int32_t d;
+    int use = 1;
     st->EVENTS &= (uint16_t)~FW_EV_PER_SAMPLE;
-    /* 1. velocity: running sum of (acc - ACC0) */
-    st->VEL = fw_wrap32((int64_t)st->VEL + ((int64_t)acc - (int64_t)st->ACC0));
-    /* 2. liftoff */
-    if (!(st->EVENTS & FW_EV_LIFTOFF) && st->VEL > c->V_LIFT) {
-        st->EVENTS |= FW_EV_LIFTOFF;
+    if ((int32_t)st->CAL < (1 << c->CAL_P)) {
+        /* 1. pad calibration of ACC0 (|SUMA| <= 2^23: exact); steps 2-4 skipped */
+        st->SUMA = (int32_t)((int64_t)st->SUMA + acc);
+        st->CAL = (uint16_t)(st->CAL + 1u);
+        if ((int32_t)st->CAL == (1 << c->CAL_P)) {
+            st->ACC0 = (int32_t)fw_rs(st->SUMA, c->CAL_P, c->ROUND);
+        }
+    } else {
+        /* 2. velocity: running sum of (acc - ACC0); liftoff */
+        st->VEL = fw_wrap32((int64_t)st->VEL + ((int64_t)acc - (int64_t)st->ACC0));
+        if (!(st->EVENTS & FW_EV_LIFTOFF) && st->VEL > c->V_LIFT) {
+            st->EVENTS |= FW_EV_LIFTOFF;
+        }
+        /* 3. the accelerometer at its rail before arming: VEL underestimates from now on */
+        if ((st->EVENTS & FW_EV_LIFTOFF) && !(st->EVENTS & FW_EV_ARMED) && acc == 32767) {
+            st->EVENTS |= FW_EV_ACC_CLIP;
+        }
+        /* 4. velocity gate: a. armed when VEL is back below the gate (GATE_HIGH from an earlier sample);
+              b. GATE_HIGH once VEL exceeds the gate after liftoff */
+        if ((st->EVENTS & FW_EV_GATE_HIGH) && !(st->EVENTS & FW_EV_ARMED) && st->VEL < c->V_GATE) {
+            st->EVENTS |= FW_EV_ARMED;
+        }
+        if ((st->EVENTS & FW_EV_LIFTOFF) && st->VEL > c->V_GATE) {
+            st->EVENTS |= FW_EV_GATE_HIGH;
+        }
     }
-    /* 3. velocity gate: a. armed when VEL is back below the gate (GATE_HIGH from an earlier sample);
-          b. GATE_HIGH once VEL exceeds the gate after liftoff */
-    if ((st->EVENTS & FW_EV_GATE_HIGH) && !(st->EVENTS & FW_EV_ARMED) && st->VEL < c->V_GATE) {
-        st->EVENTS |= FW_EV_ARMED;
+    /* 5. barometer rate gate; EST += (z << (8 - S)) - rs(EST, S) for a used sample */
+    d = fw_wrap32((int64_t)zw - (int64_t)st->ZL); /* SUB.L */
+    if (d >= -(int64_t)c->E_GATE && d <= (int64_t)c->E_GATE) {
+        st->REJ = 0;
+    } else if ((int32_t)st->REJ < c->GATE_N) {
+        st->REJ = (uint16_t)(st->REJ + 1u);
+        st->EVENTS |= FW_EV_BARO_REJECT;
+        use = 0;
+    } else {
+        /* the gate opens on a lasting shift: EST and EXT move with it (re-base) */
+        st->EST = fw_wrap32((int64_t)st->EST + ls(d, 8));
+        st->EXT = fw_wrap32((int64_t)st->EXT + ls(d, 8));
     }
-    if ((st->EVENTS & FW_EV_LIFTOFF) && st->VEL > c->V_GATE) {
-        st->EVENTS |= FW_EV_GATE_HIGH;
+    if (use) {
+        st->ZL = zw;
+        st->EST = fw_wrap32((int64_t)st->EST + ls(z, 8 - c->S) - fw_rs(st->EST, c->S, c->ROUND));
     }
-    /* 4. EST += (z << (8 - S)) - rs(EST, S) */
-    st->EST = fw_wrap32((int64_t)st->EST + ls(z, 8 - c->S) - fw_rs(st->EST, c->S, c->ROUND));
-    /* 5. extreme and apogee */
+    /* 6. extreme and apogee (after ACC_CLIP: APO_N samples of evidence) */
     if (st->EST > st->EXT) {
         st->EXT = st->EST;
-    } else if ((st->EVENTS & FW_EV_ARMED) && !(st->EVENTS & FW_EV_APOGEE)
-               && (int64_t)st->EXT - (int64_t)st->EST >= (int64_t)c->THR) {
-        st->EVENTS |= FW_EV_APOGEE;
+        st->NEG = 0;
+    } else if ((st->EVENTS & FW_EV_ARMED) && !(st->EVENTS & FW_EV_APOGEE)) {
+        if ((int64_t)st->EXT - (int64_t)st->EST >= (int64_t)c->THR) {
+            int32_t need = (st->EVENTS & FW_EV_ACC_CLIP) ? c->APO_N : 1;
+            st->NEG = (uint16_t)(st->NEG + 1u);
+            if ((int32_t)st->NEG >= need) {
+                st->EVENTS |= FW_EV_APOGEE;
+            }
+        } else {
+            st->NEG = 0;
+        }
     }
 }
 
@@ -276,7 +316,8 @@ int fw_words(fw_program prog, const fw_state *st, int32_t out[FW_MAX_WORDS])
     switch (prog) {
     case FW_RECURSIVE:
         out[0] = st->EST; out[1] = st->EXT; out[2] = st->VEL; out[3] = st->ACC0; out[4] = st->EVENTS;
-        return 5;
+        out[5] = st->ZL; out[6] = st->SUMA; out[7] = st->CAL; out[8] = st->REJ; out[9] = st->NEG;
+        return 10;
     case FW_RECURSIVE_SEED_LITERAL:
         out[0] = st->EST;
         return 1;
@@ -295,14 +336,14 @@ int fw_words(fw_program prog, const fw_state *st, int32_t out[FW_MAX_WORDS])
 
 const char *fw_word_name(fw_program prog, int i)
 {
-    static const char *const rec[] = {"EST", "EXT", "VEL", "ACC0", "EVENTS"};
+    static const char *const rec[] = {"EST", "EXT", "VEL", "ACC0", "EVENTS", "ZL", "SUMA", "CAL", "REJ", "NEG"};
     static const char *const lit[] = {"EST"};
     static const char *const kb[] = {"X1", "X2", "X3", "EVENTS", "APFRAC", "GND", "SUMZ", "CAL", "REJ", "NEG"};
     static const char *const ka[] = {"X1", "X2", "X3", "ACC0", "EVENTS", "APFRAC", "GND", "SUMZ", "SUMA", "CAL",
                                      "REJ", "NEG"};
     switch (prog) {
     case FW_RECURSIVE:
-        return (i >= 0 && i < 5) ? rec[i] : "?";
+        return (i >= 0 && i < 10) ? rec[i] : "?";
     case FW_RECURSIVE_SEED_LITERAL:
         return (i == 0) ? lit[0] : "?";
     case FW_KALMAN_BARO:

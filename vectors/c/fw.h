@@ -31,6 +31,7 @@ typedef enum {
 #define FW_EV_APOGEE_PREDICTED 0x0020u /* latched */
 #define FW_EV_GATE_HIGH        0x0040u /* latched (recursive: VEL has exceeded V_GATE since liftoff) */
 #define FW_EV_BARO_REJECT      0x0080u /* this sample only (Kalman: innovation outside the gate, not used) */
+#define FW_EV_ACC_CLIP         0x0100u /* latched (recursive: the accelerometer read its rail before ARMED) */
 #define FW_EV_PER_SAMPLE       (FW_EV_MACH_LOCKOUT | FW_EV_BARO_INVALID | FW_EV_BARO_REJECT)
 
 /* The altitude table lives in program memory on an AVR (PROGMEM); FW_ALT_READ reads one node. */
@@ -68,9 +69,9 @@ typedef struct {
     int32_t ALT_SHIFT;  /* Kalman: altitude-table segment width 2^ALT_SHIFT counts or Pa (1..15) */
     int32_t ALT_N;      /* number of table nodes */
     int32_t CAL_P;      /* pad calibration over 2^CAL_P valid samples (0..8) */
-    int32_t E_GATE;     /* innovation gate, Q24.8 m */
+    int32_t E_GATE;     /* Kalman: innovation gate, Q24.8 m; recursive: barometer rate gate, counts */
     int32_t GATE_N;     /* gated samples in a row after which the gate opens */
-    int32_t APO_N;      /* consecutive samples with X2 < 0 that declare apogee */
+    int32_t APO_N;      /* consecutive samples of apogee evidence (Kalman: X2 < 0; recursive: after ACC_CLIP) */
     const int32_t *ALT; /* [ALT_N] table nodes, Q24.8 m (FW_ALT_READ) */
 } fw_consts;
 
@@ -82,7 +83,8 @@ typedef struct {
     uint16_t EVENTS;        /* event bits */
     uint16_t APFRAC;        /* unsigned Q0.16 fraction of a sample period */
     int32_t GND, SUMZ, SUMA; /* Kalman pad calibration: ground (Q24.8 m), sums of altitudes and accel counts */
-    uint16_t CAL, REJ, NEG;  /* Kalman counters: pad samples, gated samples in a row, X2 < 0 samples in a row */
+    uint16_t CAL, REJ, NEG;  /* counters: pad samples, gated samples in a row, apogee evidence samples in a row */
+    int32_t ZL;              /* recursive: the last barometer sample z used (rate gate) */
 } fw_state;
 
 /* Maximum number of output words of any program. */

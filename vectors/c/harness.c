@@ -114,6 +114,11 @@ static uint32_t ticks_of(fwv_step_fn f, fw_program prog, const fw_consts *c, fw_
 {
     fw_state tmp = *st;
     uint32_t r, t0, t1;
+    /* start on a tick edge: the reading's phase then does not depend on how many instructions ran before (the
+       start-up code's .data/.bss loops grow with the port's state; a phase shift once made the calibration 102) */
+    t0 = SYST_CVR;
+    while (SYST_CVR == t0) {
+    }
     t0 = SYST_CVR;
     for (r = 0; r < FWV_REPS; r++) {
         tmp = *st;
