@@ -146,9 +146,24 @@ def main(argv: Sequence[str] | None = None) -> int:
     sys.stdout = _GuardedStdout(real_stdout)  # type: ignore[assignment]
     try:
         with output.interruptible():
+            _declare_out_early(sys.argv[1:] if argv is None else argv, output)
             return _run(argv, output, (UserError, IsaError))
     finally:
         sys.stdout = real_stdout
+
+
+def _declare_out_early(argv: Sequence[str], output: Any) -> None:
+    """Name ``--out``'s value as soon as the signal handlers are in place, before the parser is built and the
+    command's modules are imported (which can take a second on a loaded machine): an interrupt at any moment of
+    the run then says which outputs were left intact, not "nothing written". The command declares it again
+    (harmless) once parsed; a value the parser later refuses was never written to, so the line stays true."""
+    for i, arg in enumerate(argv):
+        if arg == "--":
+            break
+        if arg == "--out" and i + 1 < len(argv):
+            output.declare_output(argv[i + 1])
+        elif arg.startswith("--out="):
+            output.declare_output(arg[len("--out="):])
 
 
 def _run(argv: Sequence[str] | None, output: Any, user_errors: tuple[type[BaseException], ...]) -> int:

@@ -51,9 +51,11 @@ def temp_names(*folders: Path) -> list[Path]:
     return found
 
 
-def wait_until_catching(pid: int, sig: int, timeout: float = 60.0) -> None:
+def wait_until_catching(pid: int, sig: int = signal.SIGTERM, timeout: float = 60.0) -> None:
     """Wait until process ``pid`` has installed a handler for ``sig`` (Linux /proc SigCgt), i.e. fwemu's main() is
-    running: a signal before that (interpreter start-up, imports) would get the default action."""
+    running: a signal before that (interpreter start-up, imports) would get the default action. Wait on SIGTERM
+    whatever signal is sent next: Python catches SIGINT from its own start-up on (KeyboardInterrupt), so only
+    SIGTERM's bit says that fwemu's handlers (installed for both at once) are in place."""
     status = Path(f"/proc/{pid}/status")
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
@@ -309,7 +311,7 @@ def test_interrupted_vectors_run_leaves_previous_outputs_and_no_temp(sig: int, t
         proc = subprocess.Popen([sys.executable, "-m", "firmware_model.cli", "vectors", "--all", "--generator",
                                  "model", "--out", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                 text=True, env=env)
-        wait_until_catching(proc.pid, sig)
+        wait_until_catching(proc.pid)
         time.sleep(delay)
         proc.send_signal(sig)
         _, err = proc.communicate(timeout=120)
@@ -333,7 +335,7 @@ def test_interrupted_jobs_run_terminates_its_workers(tmp_path: Path) -> None:
     proc = subprocess.Popen([sys.executable, "-m", "firmware_model.cli", "vectors", "--all", "--generator", "model",
                              "--jobs", "2", "--out", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True, env=env, start_new_session=True)
-    wait_until_catching(proc.pid, signal.SIGINT)
+    wait_until_catching(proc.pid)
     time.sleep(3.0)
     os.killpg(proc.pid, signal.SIGINT)          # Ctrl-C reaches the whole process group, workers included
     _, err = proc.communicate(timeout=120)
@@ -349,3 +351,17 @@ def test_interrupted_jobs_run_terminates_its_workers(tmp_path: Path) -> None:
             break
         time.sleep(0.2)
     assert left == [], f"workers still running: {left}"
+
+
+def test_out_is_named_before_the_parser_runs() -> None:
+    """An interrupt between fwemu's handlers going in and the command parsing its arguments (a loaded machine
+    can take a second there) still names --out: main() declares it from argv first."""
+    from firmware_model.cli import _declare_out_early
+
+    output.reset_run_state()
+    _declare_out_early(["vectors", "--all", "--out", "v1", "--", "--out", "not-this"], output)
+    _declare_out_early(["budget", "--out=b2"], output)
+    assert output.interrupted_message() == "fwemu: interrupted; previous outputs in v1, b2 left intact"
+    output.reset_run_state()
+    _declare_out_early(["design", "--json"], output)
+    assert output.interrupted_message() == "fwemu: interrupted; nothing written"
