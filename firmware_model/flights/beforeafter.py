@@ -16,6 +16,7 @@ from __future__ import annotations
 import json
 import statistics
 import sys
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
@@ -51,8 +52,7 @@ def rescore(flights: list[dict[str, Any]]) -> list[dict[str, Any]]:
                     raise UserError(f"{src}: the log of flight {f['name']!r} is not there to rescore")
                 cache[src] = reference_for(read_flight(src))
             ref = cache[src]
-            f["reference"] = {"time_s": ref.time_s, "altitude_m": ref.altitude_m, "uncertainty_s": ref.uncertainty_s,
-                              "source": ref.source, "notes": ref.notes, "usable": ref.usable}
+            f["reference"] = asdict(ref)                  # as FlightResult.to_dict writes it
             for d in f["methods"].values():
                 d["error_s"] = None if d["time_s"] is None else d["time_s"] - ref.time_s
             if f.get("altos"):
