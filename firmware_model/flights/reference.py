@@ -22,7 +22,7 @@
      fit), at least half the log's median interval near the peak (the time resolution of the data).
   5. Deployment: when the log says its own computer fired a recovery charge (:data:`DEPLOY_EVENTS`, the earliest)
      and the samples up to that moment hold the vertex, only they are fitted: windows [t_d - 2w, t_d] for the
-     same w (nominal 1.5 s), the uncertainty their spread. After a charge the flight is no longer free (a
+     same w (nominal 1.5 s), the uncertainty the larger of their spread and twice the vertex's standard error. After a charge the flight is no longer free (a
      parachute opens) and the ejection disturbs the pressure for seconds, so samples after it bias the vertex
      (measured: 2012-10-20 serial 068, whose whole-window fit sat 0.6 s after the deployment with a curvature of
      -20 m/s^2). When they do not hold it (the charge fired before apogee) rules 3-4 stand as they are.
@@ -227,19 +227,18 @@ def _deployment_cut_fits(t: np.ndarray, h: np.ndarray, w: np.ndarray, deploy: fl
     return fits if f"+-{NOMINAL_WINDOW_S:g}" in fits else {}
 
 
-def _vertex_standard_error(t: np.ndarray, h: np.ndarray, w: np.ndarray, lo: float, hi: float, tv: float) -> float:
-    """Standard error (s) of the vertex time of a weighted parabola over lo <= t <= hi, from the residual scale and
-    the least-squares covariance (delta method): a fit that sees few samples past its vertex (a deployment just
-    after apogee) is a near extrapolation, which the window spread alone understates."""
+def _vertex_standard_error(t: np.ndarray, h: np.ndarray, lo: float, hi: float, tv: float) -> float:
+    """Standard error (s) of the vertex time of a parabola over lo <= t <= hi, from the residual scale and the
+    least-squares covariance (delta method): a fit that sees few samples past its vertex (a deployment just after
+    apogee) is a near extrapolation, which the window spread alone understates. Unweighted and untrimmed (every
+    sample of the window, outliers too: a conservative scale); the pre-deployment samples are evenly spaced."""
     sel = (t >= lo) & (t <= hi)
-    ts, hs, ws = t[sel] - tv, h[sel], w[sel]
+    ts, hs = t[sel] - tv, h[sel]
     a = np.vstack([np.ones(ts.size), ts, ts ** 2]).T
-    sw = np.sqrt(ws)
-    coef, *_ = np.linalg.lstsq(a * sw[:, None], hs * sw, rcond=None)
-    r = (hs - a @ coef) * sw
-    dof = max(ts.size - 3, 1)
-    sigma2 = float(r @ r) / dof
-    cov = sigma2 * np.linalg.inv((a * ws[:, None]).T @ a)
+    coef, *_ = np.linalg.lstsq(a, hs, rcond=None)
+    r = hs - a @ coef
+    sigma2 = float(r @ r) / max(ts.size - 3, 1)
+    cov = sigma2 * np.linalg.inv(a.T @ a)
     c1, c2 = coef[1], coef[2]
     if not c2 < 0:
         return math.inf
@@ -276,19 +275,18 @@ def reference_apogee(record: FlightRecord) -> ReferenceApogee:
     ip = int(np.argmax(smooth))
     tp = float(t_c[ip])
     w = _weights(t_c)
-    fits: dict[str, tuple[float, float, int, int, float]] = {}
-    for win in WINDOWS_S:
-        f = _fit(t_c, h_c, w, tp, tp - win, tp + win)
-        if f is not None:
-            fits[f"+-{win:g}"] = f
-    for sh in SHIFTS_S:
-        f = _fit(t_c, h_c, w, tp, tp + sh - NOMINAL_WINDOW_S, tp + sh + NOMINAL_WINDOW_S)
-        if f is not None:
-            fits[f"+-{NOMINAL_WINDOW_S:g} shifted {sh:+g}"] = f
     deploy = deployment_time(record)
-    cut = None if deploy is None else _deployment_cut_fits(t_c, h_c, w, deploy)
-    if cut:
-        fits = cut
+    cut = {} if deploy is None else _deployment_cut_fits(t_c, h_c, w, deploy)
+    fits: dict[str, tuple[float, float, int, int, float]] = dict(cut)
+    if not cut:
+        for win in WINDOWS_S:
+            f = _fit(t_c, h_c, w, tp, tp - win, tp + win)
+            if f is not None:
+                fits[f"+-{win:g}"] = f
+        for sh in SHIFTS_S:
+            f = _fit(t_c, h_c, w, tp, tp + sh - NOMINAL_WINDOW_S, tp + sh + NOMINAL_WINDOW_S)
+            if f is not None:
+                fits[f"+-{NOMINAL_WINDOW_S:g} shifted {sh:+g}"] = f
     nominal = fits.get(f"+-{NOMINAL_WINDOW_S:g}")
     if nominal is None:
         if not fits:
@@ -302,8 +300,7 @@ def reference_apogee(record: FlightRecord) -> ReferenceApogee:
     resolution = 0.5 * float(np.median(np.diff(t_c[near]))) if near.sum() > 2 else 0.0
     spread = max(abs(f[0] - nominal[0]) for f in fits.values())
     if cut:
-        # per-sample weights only (dropping the duration weights would change nothing at a constant rate)
-        se = _vertex_standard_error(t_c, h_c, np.ones_like(t_c), deploy - 2.0 * NOMINAL_WINDOW_S, deploy, nominal[0])
+        se = _vertex_standard_error(t_c, h_c, deploy - 2.0 * NOMINAL_WINDOW_S, deploy, nominal[0])
         spread = max(spread, 2.0 * se)
     notes = {
         "peak_sample_s": tp, "peak_sample_m": float(h_c[ip]), "spikes_rejected": int(spike.sum()),
