@@ -87,8 +87,9 @@ class _GuardedStdout:
         except BrokenPipeError:
             raise
         except OSError as exc:
-            self.failure = self.failure or _StdoutError(exc.errno, exc.strerror or str(exc))
-            raise _StdoutError(exc.errno, exc.strerror or str(exc)) from None
+            err = _StdoutError(exc.errno, exc.strerror or str(exc))
+            self.failure = self.failure or err
+            raise err from None
 
     def flush(self) -> None:
         try:
