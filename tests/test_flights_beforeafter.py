@@ -65,3 +65,17 @@ def test_sim_all_is_every_scenario_as_a_flight_argument() -> None:
     specs = resolve_flights(["sim:all"], ks=(5, 6), baro="telemetrum_v1")
     assert [s.source for s in specs] == [f"sim:{n}" for n in scenario_names() for _ in (5, 6)]
     assert {s.k for s in specs} == {5, 6} and {s.baro for s in specs} == {"telemetrum_v1"}
+
+
+def test_sweep_table_has_most_early_and_the_usable_worst() -> None:
+    from firmware_model.flights.sweep import SweepResult, render_markdown
+
+    res = SweepResult("ratio", [1e3, 5e4], ["a", "cato"], "kalman_baro",
+                      {"a": [-0.2, 0.1], "cato": [1.5, None]}, {"a": ["", ""], "cato": ["", ""]},
+                      {"a": {"time_s": 1.0, "uncertainty_s": 0.0, "source": "truth", "usable": True},
+                       "cato": {"time_s": 2.0, "uncertainty_s": 0.9, "source": "baro_parabola", "usable": False}})
+    md = render_markdown(res)
+    assert "| median abs | worst abs | most early | worst abs, usable references |" in md
+    assert "| 1e+03 | -0.200 | +1.500 | 0.850 | 1.500 | -0.200 | 0.200 |" in md
+    assert "| 5e+04 | +0.100 | miss | 0.100 | 0.100 (1 miss) | — | 0.100 |" in md
+    assert "cato: reference 2.000 s ±0.900 (baro_parabola) ⚠ flagged" in md
