@@ -336,8 +336,14 @@ def as_input_streams(adc: Any, acc: Any = None, pascal: bool = False) -> tuple[n
     ``adc``: integers 0..65535 (raw counts; ``pascal``: the signed 32-bit pascal word, -2^31..2^31-1), shape
     ``(n,)`` or ``(streams, n)``; ``acc``: integers -32768..32767 (counts), the same shape, ``None`` = all zero.
     Raises :class:`UserError` naming the array, the (stream and) sample and the value: wrong shape, empty stream,
-    non-integer or out-of-range samples."""
+    non-integer or out-of-range samples.
+
+    Integer arrays already in range take a fast path (a min/max scan, no copy when they are int64): the result
+    may then share memory with the arguments, which every caller only reads."""
     lo, hi, what = BARO_WORD_RANGE[bool(pascal)]
+    fast = _in_range_streams(adc, acc, lo, hi)
+    if fast is not None:
+        return fast
     adc2 = _as_streams(adc, "adc", lo, hi, what)
     if acc is None:
         return adc2, np.zeros_like(adc2)
@@ -345,6 +351,24 @@ def as_input_streams(adc: Any, acc: Any = None, pascal: bool = False) -> tuple[n
     if acc2.shape != adc2.shape:
         raise UserError(f"acc: shape {np.shape(acc)} differs from adc shape {np.shape(adc)}")
     return adc2, acc2
+
+
+def _in_range_streams(adc: Any, acc: Any, lo: int, hi: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """The common case of :func:`as_input_streams`: integer arrays of a valid shape whose values are all in range,
+    as int64 ``(streams, n)`` views (no copy for int64 input); None for anything else (the full check then names
+    the bad sample)."""
+    a = adc if isinstance(adc, np.ndarray) else None
+    b = acc if acc is None or isinstance(acc, np.ndarray) else None
+    if not (a is not None and a.dtype.kind in "iu" and a.ndim in (1, 2) and a.shape[-1] >= 1
+            and (acc is None or (b is not None and b.dtype.kind in "iu" and b.shape == a.shape))):
+        return None
+    if int(a.min()) < lo or int(a.max()) > hi:
+        return None
+    if b is not None and (int(b.min()) < -0x8000 or int(b.max()) > 0x7FFF):
+        return None
+    a2 = np.atleast_2d(a.astype(np.int64, copy=False))
+    b2 = np.zeros_like(a2) if b is None else np.atleast_2d(b.astype(np.int64, copy=False))
+    return a2, b2
 
 
 def _as_streams(values: Any, name: str, lo: int, hi: int, what: str = "16-bit input register") -> np.ndarray:

@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from firmware_model.errors import UserError
-from firmware_model.inputs import BARO_WORD_RANGE, as_input_streams
+from firmware_model.inputs import as_input_streams
 from firmware_model.trace import STATE_WORDS, Trace, word_names
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -141,7 +141,7 @@ def run_model(consts: "FirmwareConstants", adc: np.ndarray, acc: np.ndarray | No
         raise UserError(f"build constants: unknown program {program!r}; known: {', '.join(STATE_WORDS)}")
     rounding_mode(consts)
     one_stream = np.ndim(adc) == 1
-    adc2, acc2 = _input_streams(adc, acc, bool(getattr(consts, "PASCAL", 0)))
+    adc2, acc2 = as_input_streams(adc, acc, bool(getattr(consts, "PASCAL", 0)))
     if consts.BARO_SIGN not in (1, -1):
         raise UserError(f"build constants: BARO_SIGN={consts.BARO_SIGN!r} must be +1 or -1")
     kern = _kernels_for(engine)
@@ -152,24 +152,6 @@ def run_model(consts: "FirmwareConstants", adc: np.ndarray, acc: np.ndarray | No
         return ModelTrace(program, names, words[0], init_words[0], first_wrap=int(first[0]),
                           wrap_word=str(wrap_names[0]))
     return ModelTrace(program, names, words, init_words, first_wrap=first, wrap_word=wrap_names)
-
-
-def _input_streams(adc: Any, acc: Any, pascal: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`firmware_model.inputs.as_input_streams` (which names the bad sample), with a fast path for the
-    common case of integer arrays already in range: a min/max scan and no copy, instead of a copy and a mask."""
-    a = adc if isinstance(adc, np.ndarray) else None
-    b = acc if acc is None or isinstance(acc, np.ndarray) else None
-    if (a is not None and a.dtype.kind in "iu" and a.ndim in (1, 2) and a.shape[-1] >= 1
-            and (acc is None or (b is not None and b.dtype.kind in "iu" and b.shape == a.shape))):
-        lo, hi, _ = BARO_WORD_RANGE[pascal]
-        ok = int(a.min()) >= lo and int(a.max()) <= hi
-        if ok and b is not None:
-            ok = int(b.min()) >= -0x8000 and int(b.max()) <= 0x7FFF
-        if ok:
-            a2 = np.atleast_2d(a.astype(np.int64, copy=False))
-            b2 = np.zeros_like(a2) if b is None else np.atleast_2d(b.astype(np.int64, copy=False))
-            return a2, b2
-    return as_input_streams(adc, acc, pascal)
 
 
 def _run_kernels(kern: ModuleType, consts: "FirmwareConstants", adc: np.ndarray,
