@@ -141,7 +141,7 @@ def lazy_loops(draw: st.DrawFn) -> tuple[list[Instruction], int | None]:
     return body, count
 
 
-@settings(max_examples=examples(250), deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(150), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(lazy_loops(), st.lists(st.sampled_from(EDGE) | st.integers(0, M32), min_size=8, max_size=8),
        st.lists(st.sampled_from(A_VALUES), min_size=7, max_size=7), st.integers(0, 31), st.integers(0, 6),
        st.integers(1, 80), st.integers(1, 1500), st.integers(0, 40), st.booleans(), st.booleans())
@@ -171,7 +171,7 @@ REF_OTHERS = instructions(rows="move lea nop exg".split(), address=oracles.CODE,
                               i.operands[-1].mode is Mode.AREG and i.operands[-1].reg == 7))
 
 
-@settings(max_examples=examples(100), deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(60), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.sampled_from(["add", "sub"]), st.sampled_from([Size.B, Size.W, Size.L]), st.data(),
        st.lists(st.sampled_from(EDGE) | st.integers(0, M32), min_size=8, max_size=8), st.integers(0, 31),
        st.integers(0, 1 << 30))
@@ -217,7 +217,7 @@ CASES = [
 @pytest.mark.parametrize("body,a0,a1,a2,what", CASES, ids=[c[4] for c in CASES])
 def test_lazy_flags_at_exits_and_faults(body: str, a0: int, a1: int, a2: int, what: str) -> None:
     """Each case with several starting CCRs and D0/D1 values (carry, overflow, zero, negative results), run to its
-    end, then with every instruction limit and every 7th cycle limit, and until_pc at every instruction."""
+    end, then with every instruction limit and every 11th cycle limit, and until_pc at every instruction."""
     src = f" moveq #5,d7\ntop: {body}\n dbra d7,top\n trap #0\n"
     code = isa.assemble(src, origin=CODE).code
     a = [a0, a1, a2, 0x4800, 0x4800, 0x4800, 0x4800, 0x7F00]
@@ -227,7 +227,7 @@ def test_lazy_flags_at_exits_and_faults(body: str, a0: int, a1: int, a2: int, wh
         engaged = _both(code, d, a, ccr, {}) or engaged
         for n in range(1, 40):
             _both(code, d, a, ccr, {"max_instructions": n, "stop_at_limit": bool(n & 1)})
-        for c in range(1, 700, 7):
+        for c in range(1, 700, 11):
             _both(code, d, a, ccr, {"max_cycles": c, "stop_at_limit": bool(c & 2)})
         for u in range(CODE, CODE + len(code), 2):
             _both(code, d, a, ccr, {"until_pc": u, "max_instructions": 60, "stop_at_limit": True})
