@@ -43,3 +43,17 @@ def pytest_runtest_call(item: pytest.Item):  # type: ignore[no-untyped-def]
     finally:
         if own is not None:
             fn._hypothesis_internal_use_settings = own
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus, config):  # type: ignore[no-untyped-def]
+    """Print the closing lines that tests recorded (``record_property("closing_line", ...)``: the Cortex-M runs'
+    ``cortex-m0-Os: 673 passed, 0 failed``), in test order, passed or failed; xdist carries them to this process."""
+    lines = []
+    for key in ("passed", "failed"):
+        for rep in terminalreporter.stats.get(key, []):
+            if getattr(rep, "when", "call") == "call":
+                lines += [(rep.nodeid, v) for k, v in getattr(rep, "user_properties", ()) if k == "closing_line"]
+    if lines:
+        terminalreporter.section("closing lines")
+        for _, line in sorted(lines, key=lambda nl: nl[0]):   # stable: a test's own order kept
+            terminalreporter.write_line(line)
