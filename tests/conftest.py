@@ -24,6 +24,13 @@ from profiles import PROFILE
 
 settings.load_profile(PROFILE)
 
+# Load the model's compiled kernels in every test process, whatever files are selected: run_model's "auto" engine
+# runs a process's first 20,000 samples in plain Python while they are not loaded (firmware_model/model.py
+# AUTO_PURE_MAX_SAMPLES), and the in-process model tests are meant to exercise what a long run uses. (The two
+# engines are compared in tests/test_model_kernels.py; tests/test_model_engine_auto.py checks the rule itself in
+# fresh interpreters.)
+from firmware_model import model_kernels as _model_kernels  # noqa: E402,F401
+
 try:  # a private helper of hypothesis: memoize it only where it is what we expect (a pure str -> bytes function)
     from hypothesis.internal import reflection as _reflection
 
