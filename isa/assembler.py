@@ -233,6 +233,33 @@ def _split_commas(tokens: list[Token]) -> list[list[Token]]:
     return groups
 
 
+#: Process-wide memos of the pure per-line work, shared by every assembly in the process (a program assembled
+#: with many define sets, e.g. the firmware's 80 builds, splits and tokenizes each line of its sources, includes
+#: and generated data once, not once per build): include file bytes -> lines; (line, lenient) -> fields; (line,
+#: field, column) -> tokens; (line, column) -> an operand that used no symbol, no ``*`` and is not PC-relative;
+#: (line, first column, last column, tokens) -> the value of an expression that used no symbol and no ``*``.
+#: A key holds the whole line (file, number, text, macro note), so an edited file's lines are new keys; every
+#: value is a function of its key alone (errors are never cached: they recur). Cleared past _SHARED_LIMIT keys.
+_SHARED_FILES: dict[tuple[str, bytes], list["_Rec"]] = {}
+_SHARED_PARSE: dict[tuple["_Rec", bool], "_Parsed"] = {}
+_SHARED_TOKENS: dict[tuple["_Rec", str, int], list[Token]] = {}
+_SHARED_OPERANDS: dict[tuple["_Rec", int], Operand] = {}
+_SHARED_VALUES: dict[tuple["_Rec", int, int, int], int] = {}
+#: ... and of the encoder and the timing table, pure functions of a (frozen) Instruction: (instruction, address)
+#: -> its bytes; instruction -> its length; instruction -> its cycle range.
+_SHARED_CODE: dict[tuple[Instruction, int], bytes] = {}
+_SHARED_LENGTH: dict[Instruction, int] = {}
+_SHARED_CYCLES: dict[Instruction, "tuple[int, int] | None"] = {}
+_SHARED_LIMIT = 200_000
+_MISSING = object()
+
+
+def _shared(memo: dict) -> dict:  # type: ignore[type-arg]
+    if len(memo) > _SHARED_LIMIT:
+        memo.clear()
+    return memo
+
+
 class _Assembler:
     """State of one assembly (all passes)."""
 
@@ -252,9 +279,10 @@ class _Assembler:
         self.defines = dict(defines or {})
         self.main_recs = self._recs_of(text, filename)
         self.file_cache: dict[str, list[_Rec]] = {}
-        self.parse_cache: dict[tuple[_Rec, bool], _Parsed] = {}
-        self.token_cache: dict[tuple[_Rec, str, int], list[Token]] = {}
-        self.operand_cache: dict[tuple[_Rec, int], Operand] = {}
+        self.parse_cache = _shared(_SHARED_PARSE)
+        self.token_cache = _shared(_SHARED_TOKENS)
+        self.operand_cache = _shared(_SHARED_OPERANDS)
+        self.value_cache = _shared(_SHARED_VALUES)
         self.resolved = False  # set by the resolver: the expression being evaluated used a symbol
         self.prev: dict[str, _Sym] = {}
         self.prev_bases: dict[str, int] = {"code": origin, "data": origin, "bss": origin}
@@ -576,12 +604,20 @@ class _Assembler:
         if not toks or toks[0].kind == "end":
             col = toks[0].col if toks else 1
             raise rec.where().error(f"missing {what}", col)
+        key = (rec, toks[0].col, toks[-1].col, len(toks))
+        value = self.value_cache.get(key)
+        if value is not None:
+            return value
         if toks[-1].kind != "end":
             toks = toks + [Token("end", "", toks[-1].col + len(toks[-1].text))]
+        saved, self.resolved = self.resolved, False
         parser = ExprParser(toks, rec.where(), self._resolver(rec, strict), self._here())
         value = parser.parse()
         if parser.tok.kind != "end":
             raise parser.error(f"unexpected '{parser.tok.text}' in {what}")
+        if not self.resolved and not parser.used_here:
+            self.value_cache[key] = value
+        self.resolved = saved or self.resolved
         return value
 
     def _eval(self, rec: _Rec, text: str, col: int, strict: bool = False, what: str = "expression") -> int:
@@ -764,8 +800,10 @@ class _Assembler:
             except OSError as exc:
                 raise rec.where().error(f"cannot read INCLUDE file '{path}': {exc.strerror or exc}",
                                         p.operand_col) from None
-            text = decode_source(data, str(path))
-            recs = self._recs_of(text, str(path))
+            recs = _shared(_SHARED_FILES).get((str(path), data))
+            if recs is None:
+                text = decode_source(data, str(path))
+                recs = _SHARED_FILES[(str(path), data)] = self._recs_of(text, str(path))
             self.file_cache[key] = recs
         self._list(rec, None)
         self.include_stack.append(key)
@@ -924,10 +962,14 @@ class _Assembler:
         addr = self._here()
         try:
             if self.final:  # len(encode(i)) == length(i): tests/test_isa_codec.py checks it for every form
-                data = encode(instr, addr)
+                data = _SHARED_CODE.get((instr, addr))  # type: ignore[assignment]
+                if data is None:
+                    data = _shared(_SHARED_CODE)[(instr, addr)] = encode(instr, addr)
                 n = len(data)
             else:
-                n = length(instr)
+                n = _SHARED_LENGTH.get(instr)  # type: ignore[assignment]
+                if n is None:
+                    n = _shared(_SHARED_LENGTH)[instr] = length(instr)
                 data = bytes(n)
         except EncodingError as exc:
             col = p.operand_col if p.operands else p.op_col
@@ -939,7 +981,9 @@ class _Assembler:
         cycles = None
         if self.final:
             self.source_map[addr] = SourceLine(rec.file, rec.line, rec.text)
-            cycles = _cycle_range(instr)
+            cycles = _SHARED_CYCLES.get(instr, _MISSING)  # type: ignore[assignment]
+            if cycles is _MISSING:
+                cycles = _shared(_SHARED_CYCLES)[instr] = _cycle_range(instr)
         self._emit(rec, data, p.op_col)
         self._list(rec, addr, data, cycles)
 

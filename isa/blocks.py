@@ -191,7 +191,14 @@ class _BlockGen:
         # instruction can observe): ``pending`` is the SR expression the slow (faulting) paths assign first.
         self.defer = False
         self.pending: str | None = None
+        self.pending_nz = ""  # the N/Z part of ``pending`` (over ``pf``)
         self.pending_from = -1
+        # Lazy flags across the loop edge (_lazy_kind): (kind, nb) of the block's ADD/SUB whose flags are kept as
+        # ``lr`` (unmasked result) and ``ls`` (source) instead of being computed; ``lr is None`` when ``sr`` holds
+        # them. ``lazy_x`` is the expression of the true SR; ``slow_texts`` the SR assignments made on slow paths.
+        self.lazy: tuple[str, int] | None = None
+        self.lazy_x = "sr"
+        self.slow_texts: set[str] = set()
         self.cur = -1
         self.smc_inline = False  # set by gen(): a last write may leave the block right after it (smc_slots)
         self.smc_slots: list[int] = []  # item indices to fill with the exit after the instruction  # data register -> value known here (set by gen() for one instruction)
@@ -236,6 +243,35 @@ class _BlockGen:
     def cycles(self, expr: str) -> None:
         self.dyn = True
         self.emit(f"c += {expr}")
+
+    def slow_sr(self) -> str | None:
+        """The SR expression a slow (possibly faulting) path assigns before calling the accessor, or None: the
+        deferred flags (``pending``) and, in a lazy block, the lazy ADD/SUB flags under them."""
+        if self.lazy is None:
+            return self.pending
+        if self.pending is None:
+            return self.lazy_x
+        return f"({self.lazy_x} & 0xFF10) | {self.pending_nz}"
+
+    def set_lazy(self, kind: str, nb: int) -> None:
+        """Turn on lazy ADD/SUB flags for this block (see :func:`_lazy_kind`)."""
+        M, b = MASK[nb], BITS[nb]
+        rm = f"(lr & {M})"
+        if kind == "add":
+            cx, d = f"(17 if lr > {M} else 0)", "(lr - ls)"
+        else:
+            cx, d = "(17 if lr < 0 else 0)", "(lr + ls)"
+        v = f"(ls ^ {rm}) & ({d} ^ {rm})" if kind == "add" else f"(ls ^ {d}) & ({d} ^ {rm})"
+        mat = f"(sr & 0xFF00) | {cx} | ({rm} >> {b - 4} & 8 if {rm} else 4) | (({v}) >> {b - 2} & 2)"
+        self.lazy = (kind, nb)
+        self.lazy_x = f"(sr if lr is None else {mat})"
+
+    def slow_assign(self, sx: str, pad: str = "") -> None:
+        """Emit ``sr = sx`` on a slow path (and, in a lazy block, mark the lazy flags as taken into ``sr``)."""
+        self.emit(f"{pad}sr = {sx}")
+        self.slow_texts.add(f"sr = {sx}")
+        if self.lazy is not None:
+            self.emit(f"{pad}lr = None")
 
     # ---- operands
     def index_expr(self, op: Operand) -> str:
@@ -310,7 +346,14 @@ class _BlockGen:
         span inline and read straight from memory when inside it, else through the exact accessor (which raises
         the fault)."""
         fn = "rb rw _ rl".split()[nb - 1]
-        slow = f"{fn}({a})" if self.pending is None else f"(sr := {self.pending}, {fn}({a}))[1]"
+        sx = self.slow_sr()
+        if sx is None:
+            slow = f"{fn}({a})"
+        elif self.lazy is None:
+            slow = f"(sr := {sx}, {fn}({a}))[1]"
+        else:
+            slow = f"(sr := {sx}, lr := None, {fn}({a}))[2]"
+            self.slow_texts.add(f"sr := {sx}")
         if a.isdigit():
             v = int(a)
             if self.facts.readable(v, nb):
@@ -347,8 +390,9 @@ class _BlockGen:
         fn = "wb ww _ wl".split()[nb - 1]
         const = a.isdigit()
         if const and not self.facts.writable(int(a), nb):
-            if self.pending is not None:
-                self.emit(f"sr = {self.pending}")
+            sx = self.slow_sr()
+            if sx is not None:
+                self.slow_assign(sx)
                 self.pending = None
             self.emit(f"{fn}({a}, {v})")
             self.wrote = True
@@ -388,8 +432,9 @@ class _BlockGen:
         if const and _quiet_write(int(a), nb, self.facts, self.code):
             self.emit(f"    {fn}({a}, {v})")  # first-write bookkeeping or other code dropped: no fault, no exit
             return
-        if self.pending is not None:
-            self.emit(f"    sr = {self.pending}")
+        sx = self.slow_sr()
+        if sx is not None:
+            self.slow_assign(sx, "    ")
         self.emit(f"    {fn}({a}, {v})")
         if last and self.smc_inline:
             self.emit("    if D[0]:")
@@ -409,7 +454,8 @@ class _BlockGen:
         if need & _FLAGS_NZVC:
             if self.defer:  # only a fault can observe them: keep the value, set SR on the slow paths only
                 self.emit(f"pf = {v}")
-                self.pending = f"(sr & 0xFF10) | {self.nz('pf', nb)}"
+                self.pending_nz = self.nz('pf', nb)
+                self.pending = f"(sr & 0xFF10) | {self.pending_nz}"
                 self.pending_from = self.cur
                 return
             self.emit(f"sr = (sr & 0xFF10) | {self.nz(v, nb)}")
@@ -496,6 +542,7 @@ class _BlockGen:
                  "addq", "subq"):
             kind = h[:-1] if h.endswith(("i", "q")) else h
             src, dst = ops
+            lazy = self.lazy == (kind, nb) and need & _ALL_FLAGS  # flags kept as lr/ls (set_lazy)
             if h in ("addq", "subq"):
                 k = src.value
                 if dst.mode is _M.AREG:
@@ -504,7 +551,7 @@ class _BlockGen:
                     return base, False
                 s = str(k & M)
             else:
-                s = self.read(src, nb, pc, "s", materialize=dst.mode is not _M.DREG)
+                s = self.read(src, nb, pc, "ls" if lazy else "s", materialize=dst.mode is not _M.DREG)
             if dst.mode is _M.DREG:
                 dn = self.rg(dst.reg)
                 d = dn if nb == 4 else "x"
@@ -514,7 +561,13 @@ class _BlockGen:
                 a = self.addr_tmp(dst, nb, pc, "eb")
                 d = "x"
                 self.emit(f"x = {self.load(nb, a)}")
-            if kind in ("add", "sub", "cmp"):
+            if lazy:
+                if s != "ls":
+                    self.emit(f"ls = {s}")
+                self.emit(f"lr = ls + {d}" if kind == "add" else f"lr = {d} - ls")
+                self.emit(f"rm = lr & {M}")
+                self.pending = None  # all five flags are now the lazy ones (a deferred MOVE's are overwritten)
+            elif kind in ("add", "sub", "cmp"):
                 expr = f"{s} + {d}" if kind == "add" else f"{d} - {s}"
                 if need & (_ALL_FLAGS if kind != "cmp" else _FLAGS_NZVC):
                     self.emit(f"r = {expr}")
@@ -1137,7 +1190,36 @@ def _liveness(entries: list[_Entry], role: dict[int, tuple[Any, ...]], reach: li
         live0 |= live_in[head]
 
 
-def _block_source(entries: list[_Entry], facts: MapFacts
+#: Handlers that may sit in the loop of a block with lazy ADD/SUB flags (_lazy_kind): no flag reads, memory
+#: accesses only through _BlockGen.load/write (whose slow paths take the lazy flags into SR first).
+_LAZY_SAFE = frozenset("move movea adda suba lea exg nop and andi or ori eor eori cmp cmpi cmpa add addi addq sub "
+                       "subi subq bra dbcc".split())
+
+
+def _lazy_kind(entries: list[_Entry], reach: list[bool], head: int | None, need: list[int]) -> tuple[str, int] | None:
+    """(kind, size) of the ADD/SUB whose flags a looping block keeps lazily, or None. Inside a ``while`` loop the
+    flags of an ADD/SUB (all five) are usually seen only by a block exit or a fault of a later instruction (the
+    next pass's MOVE, say): the block keeps its unmasked result ``lr`` and source ``ls`` and computes SR from them
+    only on the exits and the slow (possibly faulting) memory paths, which then set ``lr = None`` (``sr`` holds
+    the flags again). Taken when every entry of the loop is in :data:`_LAZY_SAFE` (DBcc only as DBRA, which reads
+    no flag), every ADD/SUB with live flags there has the same kind and size, and there is one; the generated
+    code is then checked for any other use of ``sr`` in the loop (:func:`_block_source`), which undoes it."""
+    if head is None:
+        return None
+    kinds = set()
+    for i in range(head, len(entries)):
+        if not reach[i]:
+            continue
+        _, ins, h, cond, _ = entries[i]
+        if h not in _LAZY_SAFE or (h == "dbcc" and cond != 1):
+            return None
+        if h in ("add", "addi", "addq", "sub", "subi", "subq") and need[i] & _ALL_FLAGS and not (
+                h in ("addq", "subq") and ins.operands[1].mode is _M.AREG):
+            kinds.add((h[:3], _nb(ins)))
+    return kinds.pop() if len(kinds) == 1 else None
+
+
+def _block_source(entries: list[_Entry], facts: MapFacts, lazy_ok: bool = True
                   ) -> tuple[str, dict[str, object], tuple[list[int], list[int]], list[int], list[int], list[int],
                              bool, list[tuple[Any, ...]]]:
     """Python source of the block function for ``entries`` ((pc, instruction, handler, cond, length) each, back to
@@ -1149,6 +1231,8 @@ def _block_source(entries: list[_Entry], facts: MapFacts
     need = _liveness(entries, role, reach, head, facts)
     loops = head is not None
     g = _BlockGen(facts, (entries[0][0], entries[-1][0] + entries[-1][4]))
+    lazy = _lazy_kind(entries, reach, head, need) if lazy_ok else None
+    loop_at = 0  # first item of the while loop
     # One segment per generated copy of an entry (a duplicated tail generates entries more than once): the
     # entry, and the constant instruction count and clocks before it on the path that reaches that copy.
     segs: list[tuple[int, int, int]] = []
@@ -1261,14 +1345,15 @@ def _block_source(entries: list[_Entry], facts: MapFacts
                         g.emit(f"if {_COND_EXPR[cond ^ 1]}:")  # type: ignore[operator]
                         g.ind += 1
                     dn = g.wg(ins.operands[0].reg)
-                    g.emit(f"w = ({dn} - 1) & 0xFFFF")
-                    g.emit(f"{dn} = ({dn} & 0xFFFF0000) | w")
-                    g.emit("if w == 0xFFFF:")
-                    g.emit("    c += 2")
-                    g.emit("else:")
+                    # the low word counts down: nonzero -> minus 1 (no borrow out of it), loop; zero -> $FFFF, out
+                    g.emit(f"if {dn} & 0xFFFF:")
                     g.ind += 1
+                    g.emit(f"{dn} -= 1")
                     loopback(n + 1, cy + taken)
                     g.ind -= 1
+                    g.emit("else:")
+                    g.emit(f"    {dn} |= 0xFFFF")
+                    g.emit("    c += 2")
                     if ce != "False":
                         g.ind -= 1
                     cy += 12
@@ -1356,15 +1441,25 @@ def _block_source(entries: list[_Entry], facts: MapFacts
         g.emit("    ln = lx")
         g.emit("while True:")
         g.ind += 1
+        loop_at = len(g.items)
+        if lazy is not None:
+            g.set_lazy(*lazy)
         ended, n_end, c_end = gen(head, k, n_head, c_head)
     if not ended:
         last_pc, _, _, _, last_len = entries[-1]
         g.exit((last_pc + last_len) & 0xFFFFFF, n_end, c_end)
+    if lazy is not None:  # any use of sr in the loop other than the slow paths' assignments undoes the lazy flags
+        for _, t in g.items[loop_at:]:
+            if isinstance(t, str):
+                for x in g.slow_texts:
+                    t = t.replace(x, "")
+                if re.search(r"\bsr\b", t):
+                    return _block_source(entries, facts, lazy_ok=False)
     body: list[str] = []
     dirty = sorted(g.dirty)
     text = [t for _, t in g.items if isinstance(t, str)]
-    uses_sr = any("sr" in t for t in text)
-    sr_dirty = any("sr = " in t for t in text)
+    uses_sr = lazy is not None or any("sr" in t for t in text)
+    sr_dirty = lazy is not None or any("sr = " in t for t in text)
     lines_ = [f"def __make(R, MS, D, rb, rw, rl, wb, ww, wl, m, fl, F16, F32, UL, UW, PL, PW{''.join(', ' + n for n in g.consts)}):",
             "    def __block(bn, bc, until):"]
     used = sorted(g.used)
@@ -1373,6 +1468,8 @@ def _block_source(entries: list[_Entry], facts: MapFacts
         lines_.append("        sr = R[16]")
     if g.dyn:
         lines_.append("        c = 0")
+    if lazy is not None:
+        lines_.append("        lr = None")
     if flow or loops:
         lines_.append("        ni = 0")
     if loops:  # another pass from the head may start only if its worst case fits the budget (see CPU.run)
@@ -1397,7 +1494,7 @@ def _block_source(entries: list[_Entry], facts: MapFacts
                 if loops or r in assigned:
                     body.append(f"{pad}R[{r}] = {_RN[r]}")
             if sr_dirty and (sr_so_far or loops):
-                body.append(f"{pad}R[16] = sr")
+                body.append(f"{pad}R[16] = {g.lazy_x}")
             packed = n << 24 | cycles << 56
             expr = str(target | packed) if isinstance(target, int) else f"{target} | {packed}"
             if g.dyn:

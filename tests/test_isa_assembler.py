@@ -683,3 +683,41 @@ def test_operand_modes_parse_into_the_contract_types() -> None:
 
     instr = decode_bytes(prog.code, 0).instruction
     assert [op.mode for op in instr.operands] == [Mode.AINDEX, Mode.APOSTINC]
+
+
+# ---------------------------------------------------------------------------------------------------- shared memo
+def _clear_shared_memos() -> None:
+    import isa.assembler as A
+
+    for memo in (A._SHARED_FILES, A._SHARED_PARSE, A._SHARED_TOKENS, A._SHARED_OPERANDS, A._SHARED_VALUES,
+                 A._SHARED_CODE, A._SHARED_LENGTH, A._SHARED_CYCLES):
+        memo.clear()
+
+
+def test_process_wide_memo_gives_what_a_fresh_process_gives(tmp_path):
+    """Assemblies share the per-line memos (fields, tokens, symbol-free operands and values, encodings) across
+    define sets: each result equals the same assembly made with empty memos (a fresh process), whatever ran
+    before; an INCLUDE file edited in place (same name and size) is read again; an error is never memoised (a
+    line that failed raises again, and a line that failed under one define set still assembles under another)."""
+    inc = tmp_path / "inc.s"
+    inc.write_text("        IF FAST\n        moveq   #GAIN,d0\n        ELSE\n        move.l  #GAIN*3,d0\n"
+                   "        ENDIF\n        add.l   #100,d0\nT       dc.w    1,2,-3,$7fff\n")
+    src = f"        include \"{inc}\"\n        lea     T(pc),a0\n        bra.s   *+4\n        nop\n        dc.l    GAIN,7\n"
+    cases = [{"FAST": 1, "GAIN": 5}, {"FAST": 0, "GAIN": 70000}, {"FAST": 1, "GAIN": -8}, {"FAST": 1, "GAIN": 5}]
+    fresh = []
+    for d in cases:
+        _clear_shared_memos()
+        fresh.append(assemble(src, defines=d))
+    _clear_shared_memos()
+    shared = [assemble(src, defines=d) for d in cases]       # memos filled by the earlier define sets
+    assert shared == fresh and shared[0].code != shared[1].code and shared[0].code != shared[2].code
+    inc.write_text(inc.read_text().replace("#100,d0", "#101,d0"))
+    edited = assemble(src, defines=cases[0])
+    assert edited.code != shared[0].code and h("0000 0065") in edited.code
+    with pytest.raises(AssemblyError, match="out of range"):
+        assemble(src, defines={"FAST": 1, "GAIN": 200})       # moveq #200 does not fit
+    with pytest.raises(AssemblyError, match="out of range"):
+        assemble(src, defines={"FAST": 1, "GAIN": 200})
+    assert assemble(src, defines={"FAST": 0, "GAIN": 200}).code == assemble(src, defines={"FAST": 0, "GAIN": 200}).code
+    with pytest.raises(AssemblyError, match="undefined symbol 'GAIN'"):
+        assemble(src, defines={"FAST": 1})

@@ -380,3 +380,55 @@ def test_parallel_driver_equals_serial_driver_and_one_by_one(program):
         one = run_model(consts, adc[j], acc[j])
         assert np.array_equal(one.words, many.words[j]) and one.first_wrap == many.first_wrap[j]
         assert one.wrap_word == many.wrap_word[j]
+
+
+# ---------------------------------------------------------------------------------------------------- out=
+@pytest.mark.parametrize("engine", ["auto", "python"])
+def test_out_buffer_gives_the_same_trace_and_is_the_words(engine):
+    """run_model(..., out=buf) writes the words into buf (returned as trace.words, the same object) and gives
+    the same words, init words and wrap report as a fresh call, for one stream and many, serial and parallel
+    driver sizes, a buffer reused over calls (stale words from the previous call overwritten) and the Python
+    path; on a design that wraps, so the wrap report is compared where it says something."""
+    consts = _hot("kalman_accel", 11)
+    sizes = [(3, 50)] if engine == "python" else [(3, 50), (6, 4_000)]
+    for n_streams, n in sizes:
+        adc, acc = _wrapping_streams(n_streams, n, 3)
+        want = run_model(consts, adc, acc, engine=engine)
+        buf = np.full_like(want.words, -7)
+        for _ in range(2):
+            got = run_model(consts, adc, acc, engine=engine, out=buf)
+            assert got.words is buf
+            _same_trace(got, want, f"out= {n_streams}x{n}")
+        one_want = run_model(consts, adc[1], acc[1], engine=engine)
+        one_buf = np.full_like(one_want.words, 99)
+        one = run_model(consts, adc[1], acc[1], engine=engine, out=one_buf)
+        assert one.words is one_buf and one.first_wrap == one_want.first_wrap and one.wrap_word == one_want.wrap_word
+        _same_trace(one, one_want, "out= one stream")
+    assert (want.first_wrap >= 0).any()
+
+
+def test_out_buffer_is_checked_with_one_line_errors():
+    """A wrong out= (type, dtype, shape, layout, read-only, overlapping an input) is a UserError saying which,
+    before anything runs; the buffer is left untouched."""
+    consts = build_constants(BuildConfig(program="kalman_accel"))
+    adc = np.full((2, 30), 30000, dtype=np.int64)
+    acc = np.zeros((2, 30), dtype=np.int64)
+    n_words = len(STATE_WORDS["kalman_accel"])
+    ro = np.zeros((2, 30, n_words), dtype=np.int64)
+    ro.flags.writeable = False
+    shared = np.zeros((2, 30, n_words), dtype=np.int64)
+    cases = [([[0]], "must be a numpy array, not list"),
+             (np.zeros((2, 30, n_words), dtype=np.int32), "dtype int32; the words need int64"),
+             (np.zeros((2, 31, n_words), dtype=np.int64), r"shape \(2, 31, 12\); these inputs give .* \(2, 30, 12\)"),
+             (np.zeros((30, n_words), dtype=np.int64), r"shape \(30, 12\)"),
+             (np.zeros((2, 30, n_words), dtype=np.int64, order="F"), "C-contiguous"),
+             (ro, "read-only")]
+    for bad, msg in cases:
+        before = np.array(bad, copy=True)
+        with pytest.raises(UserError, match=msg):
+            run_model(consts, adc, acc, out=bad)
+        assert np.array_equal(np.asarray(bad), before)
+    with pytest.raises(UserError, match="overlaps an input"):
+        run_model(consts, shared[:, :, 0].copy(), shared[:, :, 1], out=shared)
+    with pytest.raises(UserError, match=r"shape \(2, 30, 12\); these inputs give words of shape \(30, 12\)"):
+        run_model(consts, adc[0], acc[0], out=np.zeros((2, 30, n_words), dtype=np.int64))
