@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import importlib.util
 import os
+import sys
 import threading
 from dataclasses import dataclass
 from pathlib import Path
@@ -68,8 +69,27 @@ def rounding_mode(consts: "FirmwareConstants") -> str:
     return ROUND_MODES[consts.ROUND]
 
 
-def _kernels_for(engine: str) -> ModuleType:
+#: ``engine="auto"`` runs the first samples of a process (at most this many in all, streams x samples, over all
+#: calls) on the plain-Python kernels while the compiled ones are not loaded: importing numba and loading the
+#: cached machine code costs about 0.6 CPU-s (with a cold cache, 10-20 s of compiling), while the plain-Python
+#: kernels do 70 k (kalman_accel) to 350 k (recursive) samples/s, so this budget costs at most ~0.3 s. A short
+#: ``fwemu run`` / ``vectors --input`` / ``compare`` then takes 0.3 CPU-s instead of 0.8 (10+ s on a fresh
+#: machine). A call that would pass the budget, a call after it, and every call once the compiled kernels are
+#: loaded (or after an explicit ``engine="numba"``) use the compiled kernels. The words are the same either way
+#: (the same source, tests/test_model_kernels.py); docs/testing.md "Short model calls".
+AUTO_PURE_MAX_SAMPLES = 20_000
+_pure_budget_used = 0
+_BUDGET_LOCK = threading.Lock()
+
+
+def _kernels_for(engine: str, n_samples: int = AUTO_PURE_MAX_SAMPLES + 1) -> ModuleType:
+    global _pure_budget_used
     if engine == "auto":
+        with _BUDGET_LOCK:
+            if ("firmware_model.model_kernels" not in sys.modules
+                    and _pure_budget_used + n_samples <= AUTO_PURE_MAX_SAMPLES):
+                _pure_budget_used += n_samples
+                return pure_kernels()
         return compiled_kernels()
     if engine == "python":
         return pure_kernels()
@@ -127,7 +147,8 @@ def run_model(consts: "FirmwareConstants", adc: np.ndarray, acc: np.ndarray | No
     * ``acc``: accelerometer counts (signed 16-bit register, -32768..32767), same shape, or ``None`` (all zero;
       only ``recursive`` and ``kalman_accel`` read it).
     * ``engine``: ``auto`` (the numba kernels when numba is importable and ``FWEMU_NO_NUMBA`` is not set, else
-      the same source in Python), ``numba`` (refuse to run uncompiled) or ``python`` (the kernels' source as
+      the same source in Python; the first :data:`AUTO_PURE_MAX_SAMPLES` samples of a process that has not
+      loaded the compiled kernels run in Python too, where that is faster than loading them), ``numba`` (refuse to run uncompiled) or ``python`` (the kernels' source as
       plain Python on exact ints: slow, for debugging). All give the same words and wrap report.
     * ``out``: an optional caller-supplied array for the words (as numpy's ``out=``): int64, C-contiguous,
       writeable, of the shape the words have (below), sharing no memory with the inputs; anything else is a
@@ -149,7 +170,7 @@ def run_model(consts: "FirmwareConstants", adc: np.ndarray, acc: np.ndarray | No
     adc2, acc2 = as_input_streams(adc, acc, bool(getattr(consts, "PASCAL", 0)))
     if consts.BARO_SIGN not in (1, -1):
         raise UserError(f"build constants: BARO_SIGN={consts.BARO_SIGN!r} must be +1 or -1")
-    kern = _kernels_for(engine)
+    kern = _kernels_for(engine, adc2.shape[0] * adc2.shape[1])
     names = word_names(program)
     out3 = None
     if out is not None:

@@ -24,7 +24,7 @@ import json
 import math
 import sys
 from collections.abc import Iterable, Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -247,6 +247,9 @@ class CaseResult:
     wrap_word: str
     #: First sample of each event, when computed while streaming (None: derived from ``words``).
     events_first: dict[str, int] | None = None
+    #: The case's JSON and C header bytes, when a ``--jobs`` worker rendered them already (:func:`render_set`
+    #: renders the rest; the same functions, so the same bytes).
+    rendered: tuple[bytes, bytes] | None = field(default=None, compare=False, repr=False)
 
 
 def _sha256_file(path: Path) -> str | None:
@@ -756,8 +759,9 @@ def render_set(results: Sequence[CaseResult], kind: str, avr: Sequence[str] = ()
     """All files of a vector set as {relative path: bytes}, including manifest.json (computed last)."""
     files: dict[str, bytes] = {}
     for res in results:
-        files[f"cases/{res.spec.name}.json"] = case_json(res).encode()
-        files[f"cases/{res.spec.name}.h"] = case_header(res).encode()
+        json_b, header_b = res.rendered or (case_json(res).encode(), case_header(res).encode())
+        files[f"cases/{res.spec.name}.json"] = json_b
+        files[f"cases/{res.spec.name}.h"] = header_b
         if res.consts.ALT_TABLE:
             files.update(alt_table_files(res.consts))
     files["c/cases.h"] = cases_table_header(results, "FWV_CASES_H").encode()
@@ -818,10 +822,14 @@ def _set_guard(kind: str) -> Any:
     return guard
 
 
-def _compute_job(job: tuple[Sequence[CaseSpec], str]) -> list[CaseResult]:
-    specs, generator = job
+def _compute_job(job: tuple[Sequence[CaseSpec], str, bool]) -> list[CaseResult]:
+    specs, generator, render = job
     builds: dict[Any, Any] = {}
-    return [compute_case(spec, generator, builds) for spec in specs]
+    results = [compute_case(spec, generator, builds) for spec in specs]
+    if render:  # the per-case files, in the worker: render_set in the parent is then only the tables + manifest
+        for res in results:
+            res.rendered = (case_json(res).encode(), case_header(res).encode())
+    return results
 
 
 def _job_batches(specs: Sequence[CaseSpec], jobs: int) -> list[list[int]]:
@@ -866,11 +874,12 @@ def _start_pool(n: int) -> Any:
 
 
 def generate(specs: Sequence[CaseSpec], generator: str = "emulation", progress: bool | None = None,
-             jobs: int = 1, pool: Any = None) -> list[CaseResult]:
+             jobs: int = 1, pool: Any = None, render: bool = False) -> list[CaseResult]:
     """Run every case (in order); ``jobs`` > 1 runs them in that many worker processes, the cases of one build in
     one worker (:func:`_job_batches`). The results come back in the order of ``specs`` whatever the workers'
     timing, so the files written are byte-identical to ``jobs=1``. An error or interrupt terminates the workers
-    at once. ``pool``: workers the caller started already (:func:`_start_pool`; terminated here)."""
+    at once. ``pool``: workers the caller started already (:func:`_start_pool`; terminated here). ``render``: the
+    workers also render each case's files (:attr:`CaseResult.rendered`), in parallel."""
     bar = _Progress(sum(len(s.stream) for s in specs), "vectors", progress, unit="samples")
     results: list[CaseResult] = []
     try:
@@ -880,7 +889,7 @@ def generate(specs: Sequence[CaseSpec], generator: str = "emulation", progress: 
             if pool is None:
                 pool = _start_pool(min(jobs, len(batches)))
             try:
-                jobs_in = [([specs[i] for i in b], generator) for b in batches]
+                jobs_in = [([specs[i] for i in b], generator, render) for b in batches]
                 for b, batch in zip(batches, pool.imap(_compute_job, jobs_in)):
                     for i, res in zip(b, batch):
                         slots[i] = res
@@ -915,7 +924,7 @@ def generate_all(out: str | Path, generator: str = "emulation", progress: bool |
             pool.terminate()
             pool.join()
         raise
-    results = generate(specs, generator, progress, jobs, pool=pool)
+    results = generate(specs, generator, progress, jobs, pool=pool, render=True)
     files = render_set(results, "all", AVR_CASES)
     write_set(files, out, "all")
     return files

@@ -133,9 +133,11 @@ class ModelStepper:
     _LOOPS = {"recursive": "_stream_recursive", "recursive_seed_literal": "_stream_seed_literal",
               "kalman_baro": "_stream_kalman_baro", "kalman_accel": "_stream_kalman_accel"}
 
-    def __init__(self, consts: Any) -> None:
-        from firmware_model import model_kernels as kern
+    def __init__(self, consts: Any, n_samples: int | None = None) -> None:
+        from firmware_model.model import AUTO_PURE_MAX_SAMPLES, _kernels_for
 
+        # the engine run_model's "auto" picks for a call of n_samples (a short stream: the plain-Python kernels)
+        kern = _kernels_for("auto", AUTO_PURE_MAX_SAMPLES + 1 if n_samples is None else n_samples)
         self.kern = kern
         self.program = consts.program
         self.prog = kern.PROGRAMS.index(consts.program)
@@ -275,7 +277,7 @@ def generate_user(program: str, input_csv: str | Path, out: str | Path, config: 
 
             consts, label, source_sha = build_constants(cfg), vectors.GENERATOR_MODEL, source_sha256(program)
             fw = None
-        model = ModelStepper(consts)
+        model = ModelStepper(consts, n)
         names = list(vectors.word_names(program))
         ev_col = names.index("EVENTS") if "EVENTS" in names else None
         events_first = {ev: -1 for ev in vectors.EVENT_BITS} if ev_col is not None else {}

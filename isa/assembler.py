@@ -41,7 +41,7 @@ from __future__ import annotations
 import bisect
 import os
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -236,15 +236,16 @@ def _split_commas(tokens: list[Token]) -> list[list[Token]]:
 #: Process-wide memos of the pure per-line work, shared by every assembly in the process (a program assembled
 #: with many define sets, e.g. the firmware's 80 builds, splits and tokenizes each line of its sources, includes
 #: and generated data once, not once per build): include file bytes -> lines; (line, lenient) -> fields; (line,
-#: field, column) -> tokens; (line, column) -> an operand that used no symbol, no ``*`` and is not PC-relative;
-#: (line, first column, last column, tokens) -> the value of an expression that used no symbol and no ``*``.
+#: field, column) -> tokens; (line, column) -> an operand (not PC-relative) and (line, first column, last column,
+#: tokens) -> an expression's value, each with the symbol values and ``*`` it used (:func:`_replay`: reused
+#: only where those are the same now).
 #: A key holds the whole line (file, number, text, macro note), so an edited file's lines are new keys; every
 #: value is a function of its key alone (errors are never cached: they recur). Cleared past _SHARED_LIMIT keys.
 _SHARED_FILES: dict[tuple[str, bytes], list["_Rec"]] = {}
 _SHARED_PARSE: dict[tuple["_Rec", bool], "_Parsed"] = {}
 _SHARED_TOKENS: dict[tuple["_Rec", str, int], list[Token]] = {}
-_SHARED_OPERANDS: dict[tuple["_Rec", int], Operand] = {}
-_SHARED_VALUES: dict[tuple["_Rec", int, int, int], int] = {}
+_SHARED_OPERANDS: dict[tuple["_Rec", int], tuple] = {}  # type: ignore[type-arg]
+_SHARED_VALUES: dict[tuple["_Rec", int, int, int], tuple] = {}  # type: ignore[type-arg]
 #: ... and of the encoder and the timing table, pure functions of a (frozen) Instruction: (instruction, address)
 #: -> its bytes; instruction -> its length; instruction -> its cycle range.
 _SHARED_CODE: dict[tuple[Instruction, int], bytes] = {}
@@ -258,6 +259,33 @@ def _shared(memo: dict) -> dict:  # type: ignore[type-arg]
     if len(memo) > _SHARED_LIMIT:
         memo.clear()
     return memo
+
+
+def _recording(resolve: Callable[[str, Token], int],
+               deps: list[tuple[str, Token, int]]) -> Callable[[str, Token], int]:
+    """``resolve`` that also appends every (name, token, value) it returns to ``deps``."""
+
+    def recording(name: str, tok: Token) -> int:
+        value = resolve(name, tok)
+        deps.append((name, tok, value))
+        return value
+
+    return recording
+
+
+def _replay(hit: tuple, resolve: Callable[[str, Token], int], here: int) -> bool:  # type: ignore[type-arg]
+    """Whether a memoised evaluation ``(deps, here or None, result)`` holds now: the location counter is the same
+    (if ``*`` was used) and ``resolve`` returns the same value for every symbol it resolved, in the same order.
+    The evaluation is then the same pure function of the same inputs: same result. The resolver is called
+    exactly as that evaluation called it (its flags set, an undefined or too-late symbol raising the same
+    error); a first differing value stops the replay and the caller evaluates afresh."""
+    deps, was_here, _ = hit
+    if was_here is not None and was_here != here:
+        return False
+    for name, tok, value in deps:
+        if resolve(name, tok) != value:
+            return False
+    return True
 
 
 class _Assembler:
@@ -605,19 +633,18 @@ class _Assembler:
             col = toks[0].col if toks else 1
             raise rec.where().error(f"missing {what}", col)
         key = (rec, toks[0].col, toks[-1].col, len(toks))
-        value = self.value_cache.get(key)
-        if value is not None:
-            return value
+        resolve = self._resolver(rec, strict)
+        hit = self.value_cache.get(key)
+        if hit is not None and _replay(hit, resolve, self._here()):
+            return hit[2]
         if toks[-1].kind != "end":
             toks = toks + [Token("end", "", toks[-1].col + len(toks[-1].text))]
-        saved, self.resolved = self.resolved, False
-        parser = ExprParser(toks, rec.where(), self._resolver(rec, strict), self._here())
+        deps: list[tuple[str, Token, int]] = []
+        parser = ExprParser(toks, rec.where(), _recording(resolve, deps), self._here())
         value = parser.parse()
         if parser.tok.kind != "end":
             raise parser.error(f"unexpected '{parser.tok.text}' in {what}")
-        if not self.resolved and not parser.used_here:
-            self.value_cache[key] = value
-        self.resolved = saved or self.resolved
+        self.value_cache[key] = (tuple(deps), self._here() if parser.used_here else None, value)
         return value
 
     def _eval(self, rec: _Rec, text: str, col: int, strict: bool = False, what: str = "expression") -> int:
@@ -1005,20 +1032,20 @@ class _Assembler:
         """One operand; cached for the later passes when it used no symbol and no ``*`` (its value cannot
         change) and is not PC-relative (that form may warn in the final pass)."""
         key = (rec, toks[0].col)
-        op = self.operand_cache.get(key)
-        if op is not None:
-            return op
-        self.resolved = False
-        op = self._operand_uncached(rec, toks)
-        if not self.resolved and not self.operand_parser.used_here and op.mode not in (Mode.PCDISP, Mode.PCINDEX):
-            self.operand_cache[key] = op
+        resolve = self._resolver(rec, strict=False)
+        hit = self.operand_cache.get(key)
+        if hit is not None and _replay(hit, resolve, self._here()):
+            return hit[2]
+        deps: list[tuple[str, Token, int]] = []
+        op = self._operand_uncached(rec, toks, _recording(resolve, deps))
+        if op.mode not in (Mode.PCDISP, Mode.PCINDEX):
+            self.operand_cache[key] = (tuple(deps), self._here() if self.operand_parser.used_here else None, op)
         return op
 
-    def _operand_uncached(self, rec: _Rec, toks: list[Token]) -> Operand:
+    def _operand_uncached(self, rec: _Rec, toks: list[Token], resolve: Callable[[str, Token], int]) -> Operand:
         end = Token("end", "", toks[-1].col + len(toks[-1].text))
         t = toks + [end]
         where = rec.where()
-        resolve = self._resolver(rec, strict=False)
         ps = self.operand_parser = ExprParser(t, where, resolve, self._here())
         self.label_ref = False
 

@@ -289,12 +289,14 @@ class _BlockGen:
         if m is _M.APOSTINC:
             an = self.wg(8 + op.reg)
             self.emit(f"{tmp} = {an}")
-            self.emit(f"{an} = ({tmp} + {_inc(op, nb)}) & 0xFFFFFFFF")
+            k = _inc(op, nb)  # one addition, no mask, unless it wraps
+            self.emit(f"{an} = {tmp} + {k} if {tmp} < {(1 << 32) - k} else {tmp} - {(1 << 32) - k}")
             self.u32.add(tmp)
             return tmp
         if m is _M.APREDEC:
             an = self.wg(8 + op.reg)
-            self.emit(f"{an} = ({an} - {_inc(op, nb)}) & 0xFFFFFFFF")
+            k = _inc(op, nb)  # one subtraction, no mask, unless it wraps
+            self.emit(f"{an} = {an} - {k} if {an} >= {k} else {an} + {(1 << 32) - k}")
             self.emit(f"{tmp} = {an}")
             self.u32.add(tmp)
             return tmp
