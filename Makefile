@@ -45,13 +45,14 @@ tools:
 	fi
 
 # The golden vectors on Cortex-M0/M3/M4 (qemu-system-arm) at -Os and -O2: one closing line per core and level.
-# (The same runs are also tests in tests/test_c_port_mcu.py; this prints their summary lines in the log.)
+# The same runs are tests in tests/test_c_port_mcu.py, so `make test` does not run them twice: pytest prints the
+# six closing lines in its "closing lines" section (tests/conftest.py). This target runs them alone.
 test-mcu: tools
 	@if command -v arm-none-eabi-gcc >/dev/null 2>&1 && command -v qemu-system-arm >/dev/null 2>&1; then \
 	  $(MAKE) -s -C vectors/c cortex-m BUILD=$(abspath build/mcu); \
 	else echo "test-mcu: arm-none-eabi-gcc / qemu-system-arm not installed: Cortex-M runs skipped"; fi
 
-test: $(STAMP) tools test-mcu
+test: $(STAMP) tools
 	$(PY) -m pytest -q -n 2 -p no:cacheprovider
 
 test-thorough: $(STAMP) tools

@@ -24,6 +24,13 @@ from profiles import PROFILE
 
 settings.load_profile(PROFILE)
 
+# Load the model's compiled kernels in every test process, whatever files are selected: run_model's "auto" engine
+# runs a process's first 20,000 samples in plain Python while they are not loaded (firmware_model/model.py
+# AUTO_PURE_MAX_SAMPLES), and the in-process model tests are meant to exercise what a long run uses. (The two
+# engines are compared in tests/test_model_kernels.py; tests/test_model_engine_auto.py checks the rule itself in
+# fresh interpreters.)
+from firmware_model import model_kernels as _model_kernels  # noqa: E402,F401
+
 try:  # a private helper of hypothesis: memoize it only where it is what we expect (a pure str -> bytes function)
     from hypothesis.internal import reflection as _reflection
 
@@ -43,3 +50,17 @@ def pytest_runtest_call(item: pytest.Item):  # type: ignore[no-untyped-def]
     finally:
         if own is not None:
             fn._hypothesis_internal_use_settings = own
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus, config):  # type: ignore[no-untyped-def]
+    """Print the closing lines that tests recorded (``record_property("closing_line", ...)``: the Cortex-M runs'
+    ``cortex-m0-Os: 673 passed, 0 failed``), in test order, passed or failed; xdist carries them to this process."""
+    lines = []
+    for key in ("passed", "failed"):
+        for rep in terminalreporter.stats.get(key, []):
+            if getattr(rep, "when", "call") == "call":
+                lines += [(rep.nodeid, v) for k, v in getattr(rep, "user_properties", ()) if k == "closing_line"]
+    if lines:
+        terminalreporter.section("closing lines")
+        for _, line in sorted(lines, key=lambda nl: nl[0]):   # stable: a test's own order kept
+            terminalreporter.write_line(line)

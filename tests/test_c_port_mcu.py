@@ -9,6 +9,7 @@ import re
 import shutil
 import subprocess
 from pathlib import Path
+from typing import Callable
 
 import pytest
 
@@ -37,8 +38,12 @@ def make(cdir: Path, *targets: str, build: Path, **variables: str) -> subprocess
 
 @needs_arm
 @pytest.mark.parametrize("core", CORES)
-def test_every_case_on_each_cortex_m_core_at_both_levels(core: str, tmp_path: Path) -> None:
+def test_every_case_on_each_cortex_m_core_at_both_levels(core: str, tmp_path: Path,
+                                                         record_property: Callable[[str, object], None]) -> None:
     r = make(CDIR, "cortex-m", build=tmp_path, CM_CORES=core)
+    for line in r.stdout.splitlines():   # the closing lines, printed at the end of the run (tests/conftest.py)
+        if re.fullmatch(rf"cortex-{core}-O[s2]: \d+ passed, \d+ failed", line):
+            record_property("closing_line", line)
     assert r.returncode == 0, r.stdout[-4000:] + r.stderr[-4000:]
     for opt in ("Os", "O2"):
         assert f"cortex-{core}-{opt}: {n_cases()} passed, 0 failed" in r.stdout.splitlines()

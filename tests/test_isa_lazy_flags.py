@@ -260,3 +260,44 @@ def test_memory_bench_loop_is_lazy_and_exact_vs_m68000py() -> None:
     cpu.pc = oracles.CODE
     cpu.run(max_instructions=1000)
     assert any("lr" in c.co_varnames for c in cpu._block_code)
+
+
+WRAPS = [
+    ("move.l (a0)+,d1\n add.l d1,d0\n move.b -(a1),d2\n add.b d2,d0", (0xFFFFFFF0, 0x00000004, 0), True),
+    ("move.w (a0)+,(a1)+\n sub.w -(a2),d0", (0xFFFFFFF8, 0xFFFFFFE0, 0x00000006), True),
+    ("move.w (a0)+,(a1)+\n sub.w -(a2),d0", (0xFFFFFFF8, 0xFFFFFFF8, 0x00000006), False),  # writes reach ROM
+    ("move.b -(a7),d1\n add.b d1,d0\n move.b -(a7),d2\n add.l d2,d0", (0, 0, 0), True),
+]
+
+
+@pytest.mark.parametrize("body,regs,ok", WRAPS)
+def test_address_register_updates_that_wrap_at_2_32(body: str, regs: tuple[int, int, int], ok: bool) -> None:
+    """(An)+ / -(An) (A7 byte steps of 2 included) across $FFFFFFFF <-> 0, compiled without a mask unless they
+    wrap: blocks == closures, with high RAM at $FFFF00 (addresses >= 2^24 reach it through the 24-bit bus) and
+    ROM at 0 (a write there faults after the wrap)."""
+    code = isa.assemble(f" moveq #9,d7\ntop: {body}\n dbra d7,top\n trap #0\n", origin=CODE).code
+    outs = []
+    for blocks in (True, False):
+        cpu = CPU(mapped=False)
+        cpu.block_compile = blocks
+        cpu.map(0, 0x4000, "rom", writable=False)
+        cpu.map(0x4000, 0x4000, "ram")
+        cpu.map(0xFFFF00, 0x100, "ram")
+        cpu.write_bytes(CODE, code)
+        cpu.write_bytes(0xFFFF00, bytes(range(0x100)))
+        for i in range(3):
+            cpu.a[i] = regs[i]
+        cpu.a[7] = 0x00000008
+        cpu.d[0] = 0x12345678
+        cpu.pc = CODE
+        try:
+            outcome: tuple[object, ...] = ("ok", cpu.run(max_instructions=200))
+        except CPUFault as exc:
+            outcome = (type(exc).__name__, str(exc))
+        outs.append(outcome + (tuple(cpu.d), tuple(cpu.a), cpu.sr, cpu.instructions, cpu.cycles,
+                               cpu.read_bytes(0xFFFF00, 0x100)))
+    assert outs[0] == outs[1]
+    assert (outs[0][0] == "ok") == ok, outs[0][:2]
+    wrapped = [(a0 - a) & M32 for a0, a in zip(list(regs) + [8], [outs[0][3][i] for i in (0, 1, 2, 7)])]
+    assert any(r and (a0 >= 0xFFFFFF00) != (a >= 0xFFFFFF00) for r, a0, a in
+               zip(wrapped, list(regs) + [8], [outs[0][3][i] for i in (0, 1, 2, 7)])), "no register crossed 2^32"
