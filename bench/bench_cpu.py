@@ -340,6 +340,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-firmware", action="store_true", help="skip the firmware harness measurement")
     ap.add_argument("--no-vectors", action="store_true", help="skip the `fwemu vectors --all` wall time")
     ap.add_argument("--loops", action="store_true", help="only the loops")
+    ap.add_argument("--firmware", action="store_true", help="only the firmware harness (section 2)")
     ap.add_argument("--wall", action="store_true", help="time with the wall clock instead of this process's CPU time")
     args = ap.parse_args(argv)
     global CLOCK
@@ -353,13 +354,13 @@ def main(argv: list[str] | None = None) -> int:
         musashi = None
         print("  (machine68k not installed: no Musashi columns)")
     gc.disable()  # no collector pauses from unrelated objects inside the timed runs (all systems alike)
-    ok = loops(args.iterations, args.reps, musashi)
-    if not args.loops and not args.no_firmware:
+    ok = True if args.firmware else loops(args.iterations, args.reps, musashi)
+    if args.firmware or (not args.loops and not args.no_firmware):
         ok = firmware(args.reps, musashi) and ok
     if musashi is not None:
         musashi.cleanup()
     gc.enable()
-    if not args.loops and not args.no_vectors:
+    if not args.loops and not args.firmware and not args.no_vectors:
         ok = vectors() and ok
     return 0 if ok else 1
 

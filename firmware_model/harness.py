@@ -182,7 +182,20 @@ def _run_stream(build: FirmwareBuild, adc: np.ndarray, acc: np.ndarray, addr_siz
         init_words[:] = read_state()
         out = [None] * len(adc_l)
         cyc = [0] * len(adc_l)
-        for i in range(len(adc_l)):
+        first = 0  # the first sample the general loop runs
+        if lean and not pascal and progress is None and read_state_lean is not read_state:
+            # The common case as one tight loop (same steps as the general loop below, fewer look-ups): inputs
+            # packed straight into memory while the two input words hold no decoded code, one call, one unpack.
+            for i in range(len(adc_l)):
+                if flags32[io_word] & 0x08080808:
+                    write(BARO_ADC, adc_l[i], 2)
+                    write(ACCEL_ADC, acc_l[i], 2)
+                else:
+                    pack_io(mem, BARO_ADC, adc_l[i], acc_l[i])
+                cyc[i] = call(step_addr, max_cycles)
+                out[i] = unpack_from(mem, base)
+            first = len(adc_l)
+        for i in range(first, len(adc_l)):
             if pascal:
                 if lean and not (flags32[io_word] | flags32[io_word + 1]) & 0x08080808:
                     pack_io_pa(mem, BARO_ADC, 0, acc_l[i], adc_l[i])

@@ -52,7 +52,7 @@ _REG_PLUS_DISP = re.compile(r"\([ad][0-7] \+ \d+\)\Z")
 
 
 #: Most instructions in one compiled block.
-BLOCK_MAX = 160
+BLOCK_MAX = 320
 #: Decoding goes on past a BRA/JMP/RTS/... while a branch of the block targets code at most this many bytes after
 #: the branch and beyond the transfer (that code may be reached inside the block).
 _FORWARD_WINDOW = 512
@@ -967,15 +967,16 @@ class _BlockInfo:
     __slots__ = ("start", "pcs", "lines", "prefix", "ncount", "regs", "n", "bound", "end")
 
     def __init__(self, start: int, pcs: list[int], lines: list[int], prefix: list[int], ncount: list[int],
-                 regs: list[int], bound: int, end: int) -> None:
+                 regs: list[int], bound: int, end: int, n: int) -> None:
         self.start = start
-        self.n = len(pcs)  #: most instructions in one pass
+        self.n = n  #: most instructions in one pass (the entries: a pass runs each at most once)
         self.bound = bound  #: clock bound of one pass (_block_bound)
         self.end = end  #: address after the last instruction
-        self.pcs = pcs  #: address of each instruction
-        self.lines = lines  #: first source line of each instruction in the generated code
-        self.prefix = prefix  #: constant clocks before each instruction on the path that reaches it (+ local c)
-        self.ncount = ncount  #: constant instruction count before each instruction on that path (+ local ni)
+        # One item per segment: each generated copy of an instruction (a duplicated tail copies some), in line order.
+        self.pcs = pcs  #: address of the segment's instruction
+        self.lines = lines  #: first source line of the segment in the generated code
+        self.prefix = prefix  #: constant clocks before the segment on the path that reaches it (+ local c)
+        self.ncount = ncount  #: constant instruction count before the segment on that path (+ local ni)
         self.regs = regs  #: register indices held in locals
 
 
@@ -1068,15 +1069,91 @@ def _plan(entries: list[_Entry]) -> tuple[dict[int, tuple[Any, ...]], list[bool]
             i += 1
         return False
 
-    if head is not None and plan(0, head):  # the loop head is never reached: no loop
+    # No loop either when the loop head is never reached, or when code before the head branches past it (those
+    # branches could only leave the block; planned without the loop they are ifs or duplicated tails, and the
+    # back edge leaves to the block at the head instead, which runs the loop).
+    if head is not None and (plan(0, head) or any(
+            h in ("bcc", "bra", "dbcc") and at.get(_branch_target(ins), -1) > head
+            for _, ins, h, _, _ in entries[:head])):
         role.clear()
         reach = [False] * k
         head, start = None, -1
     if head is None:
         plan(0, k)
+        _plan_tails(entries, role, reach, at)
     else:
         plan(head, k)
     return role, reach, head
+
+
+#: Most entries one block may generate with duplicated tails (:func:`_plan_tails`), as a multiple of its entries.
+TAIL_BUDGET = 4
+
+
+def _plan_tails(entries: list[_Entry], role: dict[int, tuple[Any, ...]], reach: list[bool], at: dict[int, int]
+                ) -> None:
+    """Tail duplication (blocks without a loop only): a Bcc or BRA that would leave the block to a later entry
+    ``j`` of the same block (a branch out of a nested region to code after it, e.g. from the then-part of an
+    if/else to the start of its else-part, or to a common ``.done`` from any depth) gets the role ``("dup", j)``:
+    the generator emits a copy of the code from ``j`` to the end of the block in the branch's taken path. Every
+    copy goes forward, so a path still runs each entry at most once (the instruction and clock bounds of one
+    pass hold). Targets the main plan never reaches stay exits; while the generated entries would exceed
+    :data:`TAIL_BUDGET` times the block's entries, the duplication with the largest copy is dropped."""
+    k = len(entries)
+    cands = []
+    for i, (_, ins, h, _, _) in enumerate(entries):
+        if reach[i] and i not in role and h in ("bcc", "bra"):
+            j = at.get(_branch_target(ins))
+            if j is not None and i < j < k and reach[j]:
+                cands.append((i, j))
+    if not cands:
+        return
+    for i, j in cands:
+        role[i] = ("dup", j)
+    while True:
+        memo: dict[int, int] = {}
+
+        def walk(lo: int, hi: int) -> tuple[int, bool]:
+            """(entries generated for lo..hi-1, whether every path leaves) -- mirrors _block_source's gen."""
+            i, cnt = lo, 0
+            while i < hi:
+                if not reach[i]:
+                    return cnt, True  # a copy that runs into code the plan never reached: an exit there
+                r = role.get(i)
+                cnt += 1
+                if r is None:
+                    if entries[i][2] in _BLOCK_ENDS:
+                        return cnt, True
+                    i += 1
+                elif r[0] in ("skip", "join"):
+                    i = r[1]
+                elif r[0] == "dup":
+                    cnt += tail(r[1])
+                    if entries[i][2] == "bra":
+                        return cnt, True
+                    i += 1
+                elif r[0] == "if":
+                    cnt += walk(i + 1, r[1])[0]
+                    i = r[1]
+                else:  # ifelse
+                    c1, e1 = walk(i + 1, r[1] - 1)
+                    c2, e2 = walk(r[1], r[2])
+                    cnt += c1 + c2 + 1
+                    if e1 and e2:
+                        return cnt, True
+                    i = r[2]
+            return cnt, False
+
+        def tail(j: int) -> int:
+            if j not in memo:
+                memo[j] = walk(j, k)[0]
+            return memo[j]
+
+        total = walk(0, k)[0]
+        dups = [i for i, r in role.items() if r[0] == "dup"]
+        if total <= TAIL_BUDGET * k or not dups:
+            return
+        del role[max(dups, key=lambda i: (tail(role[i][1]), i))]
 
 
 def _liveness(entries: list[_Entry], role: dict[int, tuple[Any, ...]], reach: list[bool], head: int | None,
@@ -1103,6 +1180,8 @@ def _liveness(entries: list[_Entry], role: dict[int, tuple[Any, ...]], reach: li
                 after = live_in[i + 1] | live_in[r[1]]
             elif r[0] in ("skip", "join"):
                 after = live_in[r[1]]
+            elif r[0] == "dup":  # the copy of the code from r[1] runs on the taken path
+                after = live_in[r[1]] if h == "bra" else live_in[i + 1] | live_in[r[1]]
             else:  # loop
                 after = live0 if h == "bra" else live0 | live_in[i + 1]
             uses, defs = _flag_effect(ins, h, cond)
@@ -1143,12 +1222,12 @@ def _lazy_kind(entries: list[_Entry], reach: list[bool], head: int | None, need:
 
 
 def _block_source(entries: list[_Entry], facts: MapFacts, lazy_ok: bool = True
-                  ) -> tuple[str, dict[str, object], list[int], list[int], list[int], list[int], bool,
-                             list[tuple[Any, ...]]]:
+                  ) -> tuple[str, dict[str, object], tuple[list[int], list[int]], list[int], list[int], list[int],
+                             bool, list[tuple[Any, ...]]]:
     """Python source of the block function for ``entries`` ((pc, instruction, handler, cond, length) each, back to
-    back in memory). Returns (source, constants, first generated line per entry, constant clocks and constant
-    instruction count before each entry on the path that reaches it, registers used, whether it loops, the
-    recipe of each constant in order)."""
+    back in memory). Returns (source, constants, (first generated line, address) per segment (a generated copy of
+    an entry, in line order), constant clocks and constant instruction count before each segment on the path
+    that reaches it, registers used, whether it loops, the recipe of each constant in order)."""
     k = len(entries)
     role, reach, head = _plan(entries)
     need = _liveness(entries, role, reach, head, facts)
@@ -1156,16 +1235,14 @@ def _block_source(entries: list[_Entry], facts: MapFacts, lazy_ok: bool = True
     g = _BlockGen(facts, (entries[0][0], entries[-1][0] + entries[-1][4]))
     lazy = _lazy_kind(entries, reach, head, need) if lazy_ok else None
     loop_at = 0  # first item of the while loop
-    prefix = [0] * k
-    ncount = [0] * k
-    marks: dict[int, int] = {}
+    # One segment per generated copy of an entry (a duplicated tail generates entries more than once): the
+    # entry, and the constant instruction count and clocks before it on the path that reaches that copy.
+    segs: list[tuple[int, int, int]] = []
     flow = bool(role)  # dynamic instruction count (local ni) needed
 
     def mark(i: int, n: int, cy: int) -> None:
-        g.items.append((0, ("mark", i)))
-        marks[i] = len(g.items)
-        prefix[i] = cy
-        ncount[i] = n
+        g.items.append((0, ("mark", len(segs))))
+        segs.append((i, n, cy))
 
     def body_start() -> int:
         return len(g.items)
@@ -1240,6 +1317,19 @@ def _block_source(entries: list[_Entry], facts: MapFacts, lazy_ok: bool = True
                 continue
             kind = r[0]
             taken = timing.cycles(ins, taken=True)
+            if kind == "dup":  # the taken path runs a copy of the code from r[1] on (_plan_tails)
+                g.dyn = True
+                if h == "bra":
+                    copy(r[1], n + 1, cy + taken)
+                    return True, n + 1, cy + taken
+                g.emit(f"if {_COND_EXPR[cond]}:")  # type: ignore[index]
+                g.ind += 1
+                copy(r[1], n + 1, cy + taken)
+                g.ind -= 1
+                n += 1
+                cy += timing.cycles(ins, taken=False)
+                i += 1
+                continue
             if kind == "loop":
                 g.dyn = True
                 if h == "bra":
@@ -1272,7 +1362,7 @@ def _block_source(entries: list[_Entry], facts: MapFacts, lazy_ok: bool = True
                 n += 1
                 i += 1
                 continue
-            if kind == "skip":
+            if kind in ("skip", "join"):  # a join is reached here only in a copy that starts in a then-part
                 n += 1
                 cy += taken
                 i = r[1]
@@ -1330,6 +1420,14 @@ def _block_source(entries: list[_Entry], facts: MapFacts, lazy_ok: bool = True
             i = t
         return False, n, cy
 
+    def copy(j: int, n: int, cy: int) -> None:
+        """A copy of the entries from ``j`` to the end of the block (a duplicated tail), ending in exits."""
+        pos = body_start()
+        e, n1, c1 = gen(j, k, n, cy)
+        if not e:
+            g.exit((entries[-1][0] + entries[-1][4]) & 0xFFFFFF, n1, c1)
+        close_body(pos)
+
     if head is None:
         ended, n_end, c_end = gen(0, k, 0, 0)
     else:
@@ -1382,7 +1480,7 @@ def _block_source(entries: list[_Entry], facts: MapFacts, lazy_ok: bool = True
         lines_.append("            ln = -1")
         lines_.append(f"        lc = bc - {_block_bound(entries[head:]) + c_head}")
     first = len(lines_) + 1
-    line_at: dict[int, int] = {}
+    seg_line = [0] * len(segs)
     sr_so_far = False
     for ind, item in g.items:
         pad = "    " * (ind + 1)
@@ -1390,7 +1488,7 @@ def _block_source(entries: list[_Entry], facts: MapFacts, lazy_ok: bool = True
             body.append(pad + item)
             sr_so_far = sr_so_far or "sr = " in item
         elif item[0] == "mark":
-            line_at[item[1]] = first + len(body)
+            seg_line[item[1]] = first + len(body)
         else:
             # Without a loop, code runs in text order: only registers assigned before this exit can differ from R.
             _, target, n, cycles, assigned = item
@@ -1406,14 +1504,13 @@ def _block_source(entries: list[_Entry], facts: MapFacts, lazy_ok: bool = True
             if flow or loops:
                 expr += " + (ni << 24)"
             body.append(f"{pad}return {expr}")
-    lines: list[int] = []
-    nxt_line = 1 << 30
-    for i in range(k - 1, -1, -1):  # entries never generated (dead) share the next generated entry's line
-        nxt_line = line_at.get(i, nxt_line)
-        lines.append(nxt_line)
-    lines.reverse()
+    # Segments in text order (as generated): the line map of _BlockInfo (a fault's line -> its segment).
+    lines = seg_line
+    seg_pcs = [entries[i][0] for i, _, _ in segs]
+    ncount = [n for _, n, _ in segs]
+    prefix = [cy for _, _, cy in segs]
     src = "\n".join(lines_ + body + ["    return __block", ""])
-    return src, g.consts, lines, prefix, ncount, used, loops, [g.recipes[name] for name in g.consts]
+    return src, g.consts, (lines, seg_pcs), prefix, ncount, used, loops, [g.recipes[name] for name in g.consts]
 
 
 def _block_bound(entries: list[_Entry]) -> int:
@@ -1459,8 +1556,9 @@ def compile_block(entries: list[_Entry], facts: MapFacts) -> tuple[Any, _BlockIn
     exec(code, ns)  # noqa: S102 - our own generated code
     make = ns["__make"]
     last_pc, _, _, _, last_len = entries[-1]
-    info = _BlockInfo(start, [e[0] for e in entries], list(lines), list(prefix), list(ncount), list(regs),
-                      _block_bound(entries), last_pc + last_len)
+    seg_lines, seg_pcs = lines
+    info = _BlockInfo(start, list(seg_pcs), list(seg_lines), list(prefix), list(ncount), list(regs),
+                      _block_bound(entries), last_pc + last_len, len(entries))
 
     def bind(R: list[int], MS: list[int], D: list[int], memory: Any) -> Any:
         rd, wr = memory.rd, memory.wr

@@ -517,17 +517,19 @@ class CPU:
         return RunResult(*self._run(max_instructions, max_cycles, until_pc, stop_at_limit))
 
     def _run(self, max_instructions: int | None, max_cycles: int | None, until_pc: int | None,
-             stop_at_limit: bool) -> tuple[str, int | None, int, int, int]:
-        """:meth:`run` without building the :class:`RunResult`: (reason, trap number, instructions, clocks, PC)."""
+             stop_at_limit: bool, n: int = 0, cyc: int = 0, start_pc: int | None = None
+             ) -> tuple[str, int | None, int, int, int]:
+        """:meth:`run` without building the :class:`RunResult`: (reason, trap number, instructions, clocks, PC).
+        ``n``/``cyc``/``start_pc``: go on with a run that already did ``n`` instructions and ``cyc`` clocks (not
+        yet added to the counters) from ``start_pc`` (see :meth:`call`)."""
         maxn = (1 << 62) if max_instructions is None else int(max_instructions)
         maxc = (1 << 62) if max_cycles is None else int(max_cycles)
         until = -1 if until_pc is None else until_pc & 0xFFFFFF
         cache = self._cache
         compile_ = self._compile
         pc = self._pc
-        start_pc = pc
-        n = 0
-        cyc = 0
+        if start_pc is None:
+            start_pc = pc
         R = self._R
         if R[15] < self._min_sp[0]:
             self._min_sp[0] = R[15]
@@ -643,7 +645,49 @@ class CPU:
         R[15] = sp
         if sp < self._min_sp[0]:
             self._min_sp[0] = sp
-        self._pc = address & 0xFFFFFF
+        address &= 0xFFFFFF
+        self._pc = address
+        # The entry block, when it is compiled and the budget covers one pass, runs straight from here (exactly
+        # what the first pass of _run's block loop would do, without its set-up): a routine that is one block
+        # (the firmware step) returns to the sentinel from it; otherwise _run goes on from where it left.
+        e = self._blocks.get(address)
+        if e is not None and e[0] is not None and not self.profiling and self.block_compile:
+            maxn = (1 << 62) if max_instructions is None else int(max_instructions)
+            maxc = (1 << 62) if max_cycles is None else int(max_cycles)
+            if e[1] <= maxn and e[2] < maxc and not address < CALL_SENTINEL < e[3]:
+                self.last_trap = None
+                self._smc[0] = 0
+                try:
+                    r = e[0](maxn, maxc, CALL_SENTINEL)
+                except _Fault as fault:
+                    pc, n, cyc = self._unwind_block(fault.__traceback__) or (address, 0, 0)
+                    self._pc = pc
+                    self.instructions += n
+                    self.cycles += cyc
+                    raise self._fault(fault.cls, fault.message, pc) from None
+                except BaseException as exc:  # not a CPU fault (e.g. KeyboardInterrupt), as in _run
+                    fix = self._unwind_block(exc.__traceback__)
+                    if fix is not None:
+                        self._pc = fix[0]
+                        self.instructions += fix[1]
+                        self.cycles += fix[2]
+                    raise
+                pc = r & 0xFFFFFF
+                n = (r >> 24) & 0xFFFFFFFF
+                cyc = r >> 56
+                if pc == CALL_SENTINEL:
+                    self.instructions += n
+                    self.cycles += cyc
+                    self._pc = saved_pc
+                    return cyc
+                self._pc = pc
+                reason, trap, _, cycles, _ = self._run(max_instructions, max_cycles, CALL_SENTINEL, False, n, cyc,
+                                                       address)
+                if reason != "until_pc":
+                    raise self._fault(CPUFault, f"call(${address:06X}) stopped by TRAP #{trap} before "
+                                      "returning", (self._pc - 2) & 0xFFFFFF)
+                self._pc = saved_pc
+                return cycles
         reason, trap, _, cycles, _ = self._run(max_instructions, max_cycles, CALL_SENTINEL, False)
         if reason != "until_pc":
             raise self._fault(CPUFault, f"call(${address:06X}) stopped by TRAP #{trap} before "

@@ -12,6 +12,7 @@ for the two atmosphere implementations' own difference (measured 0.011 m). Press
 from __future__ import annotations
 
 import dataclasses
+import functools
 from fractions import Fraction
 
 import numpy as np
@@ -104,13 +105,19 @@ def test_bound_has_teeth_a_wrong_node_breaks_it():
         _check_against_ambiance(tf, wrong, "floor")
 
 
+@functools.lru_cache(maxsize=1)
+def _telemetrum_table():
+    """The TeleMetrum 16-bit table, fitted once (0.13 s a fit) for every example below: the examples vary the
+    inputs, not the table."""
+    return fit_table(linear_transfer(TELEMETRUM_PA_PER_COUNT, TELEMETRUM_PA_AT_ZERO, -1), 16, 7)
+
+
 @settings(max_examples=examples(40), deadline=None)
 @given(adc=st.lists(st.integers(0, 65535), min_size=1, max_size=64), mode=st.sampled_from(("floor", "half_up")))
 def test_lookup_is_the_spec_formula_in_exact_rationals(adc, mode):
     """alt(adc) = ALT[i] + rs((ALT[i+1] - ALT[i]) * f, s, mode), recomputed with Fractions (floor / half-up of
     the exact quotient), independent of the numpy code."""
-    tf = linear_transfer(TELEMETRUM_PA_PER_COUNT, TELEMETRUM_PA_AT_ZERO, -1)
-    table = fit_table(tf, 16, 7)
+    table = _telemetrum_table()
     got = table.lookup(np.array(adc), mode)
     for a, g in zip(adc, got):
         i, f = a // 128, a % 128
