@@ -555,7 +555,10 @@ class _BlockGen:
                     return base, False
                 s = str(k & M)
             else:
-                s = self.read(src, nb, pc, "ls" if lazy else "s", materialize=dst.mode is not _M.DREG)
+                # straight into ls only when no slow path of this instruction follows (a memory destination's
+                # read would take the previous lazy flags, which need the previous ls)
+                s = self.read(src, nb, pc, "ls" if lazy and dst.mode is _M.DREG else "s",
+                              materialize=dst.mode is not _M.DREG)
             if dst.mode is _M.DREG:
                 dn = self.rg(dst.reg)
                 d = dn if nb == 4 else "x"

@@ -211,6 +211,7 @@ CASES = [
     ("add.l d0,d0\n move.l d0,(a1)+\n add.l d1,d0", 0x4000, 0x7FF0, 0, "two ADDs, the write between faults"),
     ("move.l (a0)+,d1\n add.l d1,d0", 0x4001, 0x6000, 0, "odd address: address error in pass 1"),
     ("subq.w #1,d0\n move.w d0,(a1)+\n sub.w d1,d0", 0x4000, 0x7FF8, 0, "SUBQ.W/SUB.W borrows, write faults"),
+    ("add.l d1,d0\n add.l d0,(a0)+", 0x7FF8, 0, 0, "ADD to memory whose destination read faults in pass 3"),
 ]
 
 
