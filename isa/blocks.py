@@ -727,7 +727,7 @@ class _BlockGen:
                 self.cycles(f"2 * {s}.bit_count()")
             return 38 + timing.EA_TIME[ops[0].mode][0], False
         if h in ("divu", "divs"):
-            return self.divide(ops, h, pc), False
+            return self.divide(ops, h, pc, need), False
         if h in _SHIFT_NAMES:
             return self.shift(ins, h, nb, pc, need, base), False
         if h == "scc":
@@ -813,13 +813,15 @@ class _BlockGen:
             return base, False
         raise _Unblockable(h)  # trap, illegal: the per-instruction path handles them
 
-    def divide(self, ops: tuple[Operand, ...], h: str, pc: int) -> int:
+    def divide(self, ops: tuple[Operand, ...], h: str, pc: int, need: int = _ALL_FLAGS) -> int:
         """DIVU/DIVS with the clocks of :func:`isa.timing.divu_cycles` / :func:`isa.timing.divs_cycles` computed
         inline from the quotient (the microcode's shift-and-subtract steps in closed form: DIVU 136 - 2 per
         quotient bit 15..1 set - 2 per step whose partial remainder has its top bit set, which needs a divisor
         above $8000 (then the timing function is called); DIVS 2 * (61 + ...) as in divs_cycles). Returns the
-        constant clocks (EA time); the rest goes to ``c``."""
+        constant clocks (EA time); the rest goes to ``c``. N/Z/V/C are assigned only when ``need`` has one of
+        them (a division that cannot fault, followed by an instruction that sets them all, leaves them dead)."""
         src, dst = ops
+        fl = need & _FLAGS_NZVC
         const = src.mode is _M.IMM
         sv = src.value & 0xFFFF
         s = str(sv) if const else self.read(src, 2, pc, "s", materialize=True)
@@ -837,12 +839,14 @@ class _BlockGen:
         self.emit(f"d = {dn}")
         if h == "divu":
             self.emit(f"if d >> 16 >= {s}:")
-            self.emit(f"    sr = (sr & 0xFF10) | {NF | VF}")
+            if fl:
+                self.emit(f"    sr = (sr & 0xFF10) | {NF | VF}")
             self.emit("    c += 10")
             self.emit("else:")
             self.emit(f"    q, rem = divmod(d, {s})")
             self.emit(f"    {dn} = (rem << 16) | q")
-            self.emit(f"    sr = (sr & 0xFF10) | {self.nz('q', 2)}")
+            if fl:
+                self.emit(f"    sr = (sr & 0xFF10) | {self.nz('q', 2)}")
             tc = self.const(timing.divu_cycles, "divc", ("divc",))
             if const and sv <= 0x8000:
                 self.emit("    c += 136 - 2 * (q >> 1).bit_count()")
@@ -860,7 +864,8 @@ class _BlockGen:
             ss_e, as_e = "ss", "abs(ss)"
         self.emit("ad = abs(sd)")
         self.emit(f"if ad >> 16 >= {as_e}:")
-        self.emit(f"    sr = (sr & 0xFF10) | {NF | VF}")
+        if fl:
+            self.emit(f"    sr = (sr & 0xFF10) | {NF | VF}")
         self.emit("    c += 18 if sd < 0 else 16")
         self.emit("else:")
         self.emit(f"    aq = ad // {as_e}")
@@ -874,9 +879,10 @@ class _BlockGen:
                       "- 2 * ((aq >> 1) & 0x7FFF).bit_count()")
         self.emit("    if -0x8000 <= q <= 0x7FFF:")
         self.emit(f"        {dn} = (((sd - q * {ss_e}) & 0xFFFF) << 16) | (q & 0xFFFF)")
-        self.emit(f"        sr = (sr & 0xFF10) | {self.nz('(q & 0xFFFF)', 2)}")
-        self.emit("    else:")
-        self.emit(f"        sr = (sr & 0xFF10) | {NF | VF}")
+        if fl:
+            self.emit(f"        sr = (sr & 0xFF10) | {self.nz('(q & 0xFFFF)', 2)}")
+            self.emit("    else:")
+            self.emit(f"        sr = (sr & 0xFF10) | {NF | VF}")
         return timing.EA_TIME[src.mode][0]
 
     def shift(self, ins: Instruction, h: str, nb: int, pc: int, need: int, base: int) -> int:
@@ -1200,7 +1206,7 @@ def _liveness(entries: list[_Entry], role: dict[int, tuple[Any, ...]], reach: li
 #: Handlers that may sit in the loop of a block with lazy ADD/SUB flags (_lazy_kind): no flag reads, memory
 #: accesses only through _BlockGen.load/write (whose slow paths take the lazy flags into SR first).
 _LAZY_SAFE = frozenset("move movea adda suba lea exg nop and andi or ori eor eori cmp cmpi cmpa add addi addq sub "
-                       "subi subq bra dbcc".split())
+                       "subi subq bra dbcc clr not neg tst swap ext muls mulu divu divs".split())
 
 
 def _lazy_kind(entries: list[_Entry], reach: list[bool], head: int | None, need: list[int]) -> tuple[str, int] | None:
@@ -1220,6 +1226,8 @@ def _lazy_kind(entries: list[_Entry], reach: list[bool], head: int | None, need:
         _, ins, h, cond, _ = entries[i]
         if h not in _LAZY_SAFE or (h == "dbcc" and cond != 1):
             return None
+        if h in ("divu", "divs") and not (ins.operands[0].mode is _M.IMM and ins.operands[0].value & 0xFFFF):
+            return None  # its divide-by-zero fault is raised inline, not on a slow memory path
         if h in ("add", "addi", "addq", "sub", "subi", "subq") and need[i] & _ALL_FLAGS and not (
                 h in ("addq", "subq") and ins.operands[1].mode is _M.AREG):
             kinds.add((h[:3], _nb(ins)))

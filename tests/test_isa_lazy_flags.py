@@ -59,6 +59,8 @@ def _rows(rows: str) -> st.SearchStrategy[Instruction]:
 
 PRODUCERS = {"add": _rows("add addi addq"), "sub": _rows("sub subi subq")}
 OTHERS = _rows("move movea lea adda suba exg nop")
+#: Also allowed in a lazy loop when their flags are dead or deferred (DIVU/DIVS only by a nonzero immediate).
+ARITH = _rows("muls mulu divu divs neg clr not tst swap ext")
 #: Rows that usually undo the lazy form (their flags are written into sr in the loop): the fallback is tested too.
 SPOILERS = _rows("and or eor cmp cmpi tst add sub")
 
@@ -127,7 +129,8 @@ def _both(code: bytes, d: list[int], a: list[int], ccr: int, kwargs: dict[str, o
 @st.composite
 def lazy_loops(draw: st.DrawFn) -> tuple[list[Instruction], int | None]:
     """A DBRA loop body: 1..3 ADD-kind or SUB-kind instructions of one size (the lazy candidates) among 0..4
-    MOVE/MOVEA/LEA/ADDA/SUBA/EXG/NOP, now and then an AND/OR/EOR/CMP/TST/ADD/SUB that may undo the lazy form;
+    MOVE/MOVEA/LEA/ADDA/SUBA/EXG/NOP and sometimes 1..2 MULS/MULU/DIVU/DIVS/NEG/CLR/NOT/TST/SWAP/EXT, now and
+    then an AND/OR/EOR/CMP/TST/ADD/SUB that may undo the lazy form;
     D7 = 0..6 passes (MOVEQ before the loop, or the loop at the block's start with D7 preset)."""
     kind = draw(st.sampled_from(["add", "sub"]))
     size = draw(st.sampled_from([Size.B, Size.W, Size.L]))
@@ -135,6 +138,8 @@ def lazy_loops(draw: st.DrawFn) -> tuple[list[Instruction], int | None]:
     body = [draw(prod) for _ in range(draw(st.integers(1, 3)))]
     for _ in range(draw(st.integers(0, 4))):
         body.insert(draw(st.integers(0, len(body))), draw(OTHERS))
+    for _ in range(draw(st.integers(0, 2)) if draw(st.booleans()) else 0):
+        body.insert(draw(st.integers(0, len(body))), draw(ARITH))
     if draw(st.integers(0, 5)) == 0:
         body.insert(draw(st.integers(0, len(body))), draw(SPOILERS))
     count = draw(st.integers(0, 6)) if draw(st.booleans()) else None
@@ -165,7 +170,7 @@ REF_PRODUCERS = {k: instructions(rows=r.split(), address=oracles.CODE,
                                                   Mode.APREDEC, Mode.ADISP}),
                                  ).filter(lambda i: _no_d7(i) and _small(i))
                  for k, r in (("add", "add addi addq"), ("sub", "sub subi subq"))}
-REF_OTHERS = instructions(rows="move lea nop exg".split(), address=oracles.CODE,
+REF_OTHERS = instructions(rows="move lea nop exg muls mulu divu divs neg".split(), address=oracles.CODE,
                           modes=frozenset({Mode.DREG, Mode.IMM, Mode.AIND, Mode.APOSTINC, Mode.APREDEC, Mode.ADISP})
                           ).filter(lambda i: _no_d7(i) and _small(i) and not (i.operands and
                               i.operands[-1].mode is Mode.AREG and i.operands[-1].reg == 7))
@@ -212,6 +217,8 @@ CASES = [
     ("move.l (a0)+,d1\n add.l d1,d0", 0x4001, 0x6000, 0, "odd address: address error in pass 1"),
     ("subq.w #1,d0\n move.w d0,(a1)+\n sub.w d1,d0", 0x4000, 0x7FF8, 0, "SUBQ.W/SUB.W borrows, write faults"),
     ("add.l d1,d0\n add.l d0,(a0)+", 0x7FF8, 0, 0, "ADD to memory whose destination read faults in pass 3"),
+    ("muls.w d1,d2\n divu.w #7,d2\n add.l d2,d0\n move.l (a0)+,d3\n add.l d3,d0", 0x7FF0, 0, 0,
+     "the bench's MUL/DIV kind of loop, MOVE faults in pass 5"),
 ]
 
 
