@@ -183,9 +183,12 @@ def _run_stream(build: FirmwareBuild, adc: np.ndarray, acc: np.ndarray, addr_siz
         out = [None] * len(adc_l)
         cyc = [0] * len(adc_l)
         first = 0  # the first sample the general loop runs
-        if lean and not pascal and progress is None and read_state_lean is not read_state:
+        fast = lean and not pascal and progress is None and read_state_lean is not read_state
+        if fast:
             # The common case as one tight loop (same steps as the general loop below, fewer look-ups): inputs
-            # packed straight into memory while the two input words hold no decoded code, one call, one unpack.
+            # packed straight into memory while the two input words hold no decoded code, one call, and the
+            # state span kept as bytes (decoded for all samples at once below).
+            end = base + span
             for i in range(len(adc_l)):
                 if flags32[io_word] & 0x08080808:
                     write(BARO_ADC, adc_l[i], 2)
@@ -193,7 +196,7 @@ def _run_stream(build: FirmwareBuild, adc: np.ndarray, acc: np.ndarray, addr_siz
                 else:
                     pack_io(mem, BARO_ADC, adc_l[i], acc_l[i])
                 cyc[i] = call(step_addr, max_cycles)
-                out[i] = unpack_from(mem, base)
+                out[i] = mem[base:end]
             first = len(adc_l)
         for i in range(first, len(adc_l)):
             if pascal:
@@ -214,7 +217,15 @@ def _run_stream(build: FirmwareBuild, adc: np.ndarray, acc: np.ndarray, addr_siz
             progress(len(adc_l), len(adc_l))
     except Exception as exc:
         raise _fault(build, exc, f"{label}init" if i < 0 else f"{label}sample {i}") from exc
-    words[:] = np.array(out, dtype=np.int64).reshape(words.shape)
+    if fast:  # the state spans, big-endian: '>i4' for the signed .l words, '>u2' for the unsigned .w words
+        spans = np.frombuffer(b"".join(out), dtype=np.dtype({
+            "names": [f"w{j}" for j in range(len(addr_size))],
+            "formats": [">i4" if size == 4 else ">u2" for _, size in addr_size],
+            "offsets": [address - base for address, _ in addr_size], "itemsize": span}))
+        for j in range(len(addr_size)):
+            words[:, j] = spans[f"w{j}"]
+    else:
+        words[:] = np.array(out, dtype=np.int64).reshape(words.shape)
     cycles[:] = cyc
     stack = STACK_TOP - int(cpu.min_sp)
     written = cpu.ram_written

@@ -240,7 +240,8 @@ def _split_commas(tokens: list[Token]) -> list[list[Token]]:
 #: tokens) -> an expression's value, each with the symbol values and ``*`` it used (:func:`_replay`: reused
 #: only where those are the same now).
 #: A key holds the whole line (file, number, text, macro note), so an edited file's lines are new keys; every
-#: value is a function of its key alone (errors are never cached: they recur). Cleared past _SHARED_LIMIT keys.
+#: value is a function of its key alone (errors are never cached: they recur). Cleared past _SHARED_LIMIT keys
+#: (the include files past _SHARED_FILES_LIMIT).
 _SHARED_FILES: dict[tuple[str, bytes], list["_Rec"]] = {}
 _SHARED_PARSE: dict[tuple["_Rec", bool], "_Parsed"] = {}
 _SHARED_TOKENS: dict[tuple["_Rec", str, int], list[Token]] = {}
@@ -252,6 +253,7 @@ _SHARED_CODE: dict[tuple[Instruction, int], bytes] = {}
 _SHARED_LENGTH: dict[Instruction, int] = {}
 _SHARED_CYCLES: dict[Instruction, "tuple[int, int] | None"] = {}
 _SHARED_LIMIT = 200_000
+_SHARED_FILES_LIMIT = 256
 _MISSING = object()
 
 
@@ -827,7 +829,9 @@ class _Assembler:
             except OSError as exc:
                 raise rec.where().error(f"cannot read INCLUDE file '{path}': {exc.strerror or exc}",
                                         p.operand_col) from None
-            recs = _shared(_SHARED_FILES).get((str(path), data))
+            if len(_SHARED_FILES) > _SHARED_FILES_LIMIT:  # keys hold whole files: a smaller bound
+                _SHARED_FILES.clear()
+            recs = _SHARED_FILES.get((str(path), data))
             if recs is None:
                 text = decode_source(data, str(path))
                 recs = _SHARED_FILES[(str(path), data)] = self._recs_of(text, str(path))

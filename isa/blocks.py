@@ -153,6 +153,8 @@ def _may_fault(ins: Instruction, h: str, facts: MapFacts | None = None, pc: int 
     code ``code`` (:func:`_quiet_write`), DIVU/DIVS by a nonzero immediate, LEA, or JMP to a constant (even)
     address."""
     ops = ins.operands
+    if h in ("bcc", "bra", "dbcc"):  # the operand is the branch target (even: _blockable), not a memory access
+        return False
     if h in ("jsr", "rts", "bsr", "pea", "movem"):
         return True
     if h in ("divs", "divu") and not (ops[0].mode is _M.IMM and ops[0].value & 0xFFFF):

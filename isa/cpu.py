@@ -53,6 +53,7 @@ of a run), ``ram_written`` (number of distinct bytes written by executed instruc
 
 from __future__ import annotations
 
+import struct
 from bisect import bisect_right
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -65,6 +66,7 @@ from isa.errors import AddressError, BusError, CPUFault, IllegalInstruction, Isa
 from isa.memory import _CODE, _TOP, MapError, MapFacts, Memory, Region
 
 _SET_CODE_TABLE = bytes(b | _CODE for b in range(256))
+_PL = struct.Struct(">L").pack_into
 from isa.operands import Instruction
 from isa.program import Program
 from isa.semantics import CALL_SENTINEL, M32, _Fault, _format, _Stop
@@ -142,6 +144,7 @@ class CPU:
         self.memory = Memory(lambda: self._pc, self._invalidate, self._host_invalidate)
         self._mem = self.memory.mem
         self._flags = self.memory.flags
+        self._flags32 = self.memory.flags32
         self._rd, self._wr = self.memory.rd, self.memory.wr
         self._mkey = codecache.map_key(())
         self._R: list[int] = [0] * 17  # D0-D7, A0-A7, SR
@@ -637,11 +640,14 @@ class CPU:
         saved_pc = self._pc
         R = self._R
         sp = (R[15] - 4) & M32
-        try:
-            self._wr[4](sp, CALL_SENTINEL)
-        except _Fault as fault:
-            raise self._fault(fault.cls, f"call(${address:06X}): cannot push the return address: "
-                              f"{fault.message}", self._pc) from None
+        if sp <= 0xFFFFFC and not sp & 3 and self._flags32[sp >> 2] == 0x07070707:
+            _PL(self._mem, sp, CALL_SENTINEL)  # mapped, writable, written, no code: all the accessor would do
+        else:
+            try:
+                self._wr[4](sp, CALL_SENTINEL)
+            except _Fault as fault:
+                raise self._fault(fault.cls, f"call(${address:06X}): cannot push the return address: "
+                                  f"{fault.message}", self._pc) from None
         R[15] = sp
         if sp < self._min_sp[0]:
             self._min_sp[0] = sp

@@ -702,7 +702,8 @@ def test_process_wide_memo_gives_what_a_fresh_process_gives(tmp_path):
     inc = tmp_path / "inc.s"
     inc.write_text("        IF FAST\n        moveq   #GAIN,d0\n        ELSE\n        move.l  #GAIN*3,d0\n"
                    "        ENDIF\n        add.l   #100,d0\nT       dc.w    1,2,-3,$7fff\n")
-    src = f"        include \"{inc}\"\n        lea     T(pc),a0\n        bra.s   *+4\n        nop\n        dc.l    GAIN,7\n"
+    src = (f"        include \"{inc}\"\n        lea     T(pc),a0\n        bra.s   *+4\n        nop\n"
+           "        dc.l    GAIN,7\n")
     cases = [{"FAST": 1, "GAIN": 5}, {"FAST": 0, "GAIN": 70000}, {"FAST": 1, "GAIN": -8}, {"FAST": 1, "GAIN": 5}]
     fresh = []
     for d in cases:

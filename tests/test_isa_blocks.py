@@ -958,9 +958,8 @@ def test_duplicated_tail_keeps_the_flags_only_the_copy_needs() -> None:
     """The taken path of a duplicated branch needs flags the fall-through path kills: ADDQ sets X N Z V C, BEQ
     jumps from the then-part into a copy of the else-part, whose flag-neutral code reaches the block's exit (all
     flags observable) while the fall-through MOVEQ overwrites N Z V C. CCR after the block must be ADDQ's
-    (X Z C), as on m68000-python. (Today every branch counts as a possible fault in _liveness, so all flags are
-    live at it and a liveness that ignored the copy would still pass here; the case stays covered if that
-    conservative rule is ever narrowed: then the ADDQ would compute only X/C and N/Z and leave CMP's V set.)"""
+    (X Z C), as on m68000-python; a liveness that ignored the copy makes ADDQ compute only its X/C and N/Z
+    parts (what the BEQ and the fall-through need) and leaves CMP's V set (CCR $17)."""
     src = """
         cmp.l   d1,d0           ; $80000000 - 1: V set, N Z C clear
         bcs.s   other           ; not taken: the then-part runs
