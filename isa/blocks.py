@@ -1453,6 +1453,7 @@ def _block_source(entries: list[_Entry], facts: MapFacts, lazy_ok: bool = True
         # makes `ni <= ln` imply the clock test `c < lc`. The cap only binds near a small max_cycles, where the
         # block then leaves earlier than it had to (exact either way: CPU.run goes on from the head).
         worst_pass = sum(timing.cycle_range(e[1])[1] for e in entries[head:])
+        g.dyn = True  # the cap reads c (a loop whose only pass leaves at once may add no clock to c itself)
         g.emit(f"lx = ni + (lc - c - 1) // {worst_pass}")
         g.emit("if lx < ln:")
         g.emit("    ln = lx")
