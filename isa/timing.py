@@ -21,6 +21,8 @@ the interpreter stops at a TRAP instead of vectoring.
 
 from __future__ import annotations
 
+import functools
+
 from isa.operands import Instruction, Mode, Operand, Size
 
 _M = Mode
@@ -52,9 +54,12 @@ _SHIFTS = frozenset("asl asr lsl lsr rol ror roxl roxr".split())
 _SPECIAL = {"bra": "bra", "bsr": "bsr", "dbra": "dbcc"}
 
 
+@functools.lru_cache(maxsize=1024)
 def handler_name(mnemonic: str) -> str:
     """Handler family of a canonical mnemonic (``"beq"`` -> ``"bcc"``, ``"dbra"`` -> ``"dbcc"``, ``"sne"`` ->
-    ``"scc"``), from :data:`isa.table.TABLE`. Raises ``KeyError`` for an unknown mnemonic."""
+    ``"scc"``), from :data:`isa.table.TABLE`. Raises ``KeyError`` for an unknown mnemonic (not memoized).
+    Memoized: a pure function of the string over an immutable table, asked about a million times while the
+    block compiler generates the property tests' programs (the timing of every generated copy)."""
     from isa.table import match_mnemonic
 
     found = match_mnemonic(mnemonic)
