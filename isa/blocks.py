@@ -21,7 +21,9 @@ Contract with :mod:`isa.cpu` (which decodes, caches and runs blocks):
   an ``if`` (``if``/``else`` when the skipped code ends in a BRA forward), a BRA forward skips code, a branch back
   to the loop head becomes the ``continue`` of a ``while`` loop bounded by the remaining budget and ``until``;
   any other branch leaves the block. Clocks and instruction counts are folded per path (locals ``c``/``ni`` hold
-  what differs); flags only a fault could see are assigned on the faulting slow paths only (:func:`_defer_flags`).
+  what differs); flags only a fault could see are assigned on the faulting slow paths only (:func:`_defer_flags`);
+  in a loop, an ADD/SUB's flags may be kept as its result and source and computed only on the exits and the
+  slow memory paths (:func:`_lazy_kind`).
   A memory write that hits compiled code sets ``D[0]`` (in the memory accessor); the block then leaves right
   after that instruction, unless the write was to a constant address outside the block's own code
   (:func:`_quiet_write`: this block's instructions did not change). Instructions the block compiler does not take (TRAP, ILLEGAL, constant
@@ -1451,6 +1453,7 @@ def _block_source(entries: list[_Entry], facts: MapFacts, lazy_ok: bool = True
         # makes `ni <= ln` imply the clock test `c < lc`. The cap only binds near a small max_cycles, where the
         # block then leaves earlier than it had to (exact either way: CPU.run goes on from the head).
         worst_pass = sum(timing.cycle_range(e[1])[1] for e in entries[head:])
+        g.dyn = True  # the cap reads c (a loop whose only pass leaves at once may add no clock to c itself)
         g.emit(f"lx = ni + (lc - c - 1) // {worst_pass}")
         g.emit("if lx < ln:")
         g.emit("    ln = lx")

@@ -309,3 +309,13 @@ def test_address_register_updates_that_wrap_at_2_32(body: str, regs: tuple[int, 
     wrapped = [(a0 - a) & M32 for a0, a in zip(list(regs) + [8], [outs[0][3][i] for i in (0, 1, 2, 7)])]
     assert any(r and (a0 >= 0xFFFFFF00) != (a >= 0xFFFFFF00) for r, a0, a in
                zip(wrapped, list(regs) + [8], [outs[0][3][i] for i in (0, 1, 2, 7)])), "no register crossed 2^32"
+
+
+def test_loop_whose_head_branches_past_its_end() -> None:
+    """``top: bra.s out / dbra d7,top / out:`` is planned as a loop whose only pass leaves at once: its cap on the
+    pass count reads the clock local ``c``, which then has to exist (found by the thorough profile: NameError in
+    the generated block). Blocks == closures at every limit."""
+    code = isa.assemble("top: bra.s out\n dbra d7,top\nout: trap #0\n", origin=CODE).code
+    for n, c in ((None, None), (1, None), (2, 15), (3, 9), (None, 11)):
+        kwargs = {"max_instructions": n, "max_cycles": c, "stop_at_limit": True}
+        _both(code, [0] * 7 + [3], [0x4000] * 7 + [0x7F00], 0, kwargs)
