@@ -203,6 +203,42 @@ def _check_out(out: Any, shape: tuple[int, ...], inputs: tuple[Any, Any]) -> np.
     return out.reshape((1,) + shape) if len(shape) == 2 else out
 
 
+#: Words arrays of at least this many bytes come from a small pool (:func:`_words_buffer`).
+POOL_MIN_BYTES = 16 << 20
+#: Buffers the pool keeps (two: a loop ``for b in batches: tr = run_model(...)`` still holds the previous result
+#: while the next call runs, so the one before it is the free one).
+POOL_SLOTS = 2
+_POOL: list[np.ndarray] = []
+_POOL_LOCK = threading.Lock()
+
+
+def _words_buffer(shape: tuple[int, int, int]) -> np.ndarray:
+    """An int64 words array of ``shape`` for a compiled call. A large one (>= :data:`POOL_MIN_BYTES`) is taken from
+    the pool when a pooled buffer of that shape is referenced by nothing but the pool (every trace, view or
+    memoryview of it is gone: ``sys.getrefcount``), so a caller running batch after batch does not pay the page
+    faults of a fresh ~100-byte-per-sample array (the OS zeroing 96 MB at 1,000 x 1,000 samples costs about a
+    third of the call, bench/bench_model.py). Otherwise a fresh array, kept in the pool (the oldest dropped).
+    The kernel writes every word of the array (as it must for ``np.empty``), so old contents never show. The pool holds
+    at most :data:`POOL_SLOTS` buffers after their traces are gone; :func:`release_buffers` frees them."""
+    if int(np.prod(shape)) * 8 < POOL_MIN_BYTES:
+        return np.empty(shape, dtype=np.int64)
+    with _POOL_LOCK:
+        for buf in _POOL:
+            # referenced by the pool's list, by ``buf`` here and by getrefcount's argument: nobody else
+            if buf.shape == shape and sys.getrefcount(buf) == 3:
+                return buf
+        fresh = np.empty(shape, dtype=np.int64)
+        _POOL.append(fresh)
+        del _POOL[:-POOL_SLOTS]
+        return fresh
+
+
+def release_buffers() -> None:
+    """Drop the words buffers :func:`run_model` keeps for reuse (their memory goes back once no trace holds it)."""
+    with _POOL_LOCK:
+        _POOL.clear()
+
+
 def _run_kernels(kern: ModuleType, consts: "FirmwareConstants", adc: np.ndarray, acc: np.ndarray,
                  out_words: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Allocate and call ``kern.run_streams``: (init_words, words, first_wrap, wrap ids), int64 arrays; the words
@@ -228,6 +264,8 @@ def _run_kernels(kern: ModuleType, consts: "FirmwareConstants", adc: np.ndarray,
     init_out = np.empty((n_streams, len(cols)), dtype=dt)
     if out_words is not None and kern.COMPILED:
         out = out_words
+    elif kern.COMPILED:
+        out = _words_buffer((n_streams, n, len(cols)))
     else:
         out = np.empty((n_streams, n, len(cols)), dtype=dt)
     args = (prog, adc_k, acc_k, c, cols, state, init_out, out, first, word)
