@@ -2,10 +2,10 @@
 
 Modules (each with its contract in its docstring): :mod:`isa.memory` (the address space, program accessors,
 host access), :mod:`isa.semantics` (masks, flags, condition table, ALU/shift kernels, the internal fault/stop
-signals), :mod:`isa.closures` (one closure per instruction), :mod:`isa.blocks` (the block compiler), and this
-module: the CPU itself (registers, the decode/closure/block caches and their invalidation, the run loop,
-counters, ``step``/``run``/``call``/``execute``, and turning internal faults into :class:`isa.errors.CPUFault`
-with PC, disassembly and source line).
+signals), :mod:`isa.closures` (one closure per instruction), :mod:`isa.blocks` (the block compiler, with
+:mod:`isa.block_plan` and :mod:`isa.block_codegen`), and this module: the CPU itself (registers, the
+decode/closure/block caches and their invalidation, the run loop, counters, ``step``/``run``/``call``/``execute``,
+and turning internal faults into :class:`isa.errors.CPUFault` with PC, disassembly and source line).
 
 Model
 -----

@@ -1,0 +1,843 @@
+"""The block code generator: the Python code of each instruction of a block (:class:`_BlockGen`).
+
+Contract with :mod:`isa.blocks` (whose :func:`_block_source` drives it) and :mod:`isa.block_plan`:
+
+* :func:`_block_source` makes one ``_BlockGen(facts, (start, end))`` per block, sets its per-instruction state
+  (``known``, ``defer``, ``lazy``, ``cur``, ``smc_inline``, ... as its attributes document) from the plan
+  (:mod:`isa.block_plan`: roles, live flags, deferred and lazy flags) and calls :meth:`_BlockGen.instruction`
+  for each entry in the order planned, with the flags ``need``-ed after it. The generator appends indented lines,
+  exits (``("exit", target, n, cycles, dirty registers)``) and marks to ``items``; :func:`_block_source` turns
+  them into the function's text (the exits' register write-back, clocks and counts per path).
+* Registers are the locals :data:`_RN` (``d0..a7``), the SR is ``sr``, :data:`_COND_EXPR` is the inline test of
+  each condition code. Objects the generated code needs are named through :meth:`_BlockGen.const` together with
+  a recipe that :func:`isa.blocks._make_const` turns back into the object (the disk cache stores recipes).
+* Memory accesses follow :mod:`isa.memory`'s contract (direct ``mem`` for constant addresses the map
+  guarantees, span/flag checks inline, the exact accessor otherwise, which raises the fault); a write that
+  :func:`isa.block_plan._quiet_write` accepts gets no fault path and no leave-the-block check.
+* Imports: :mod:`isa.block_plan` (flag constants, :func:`_quiet_write`), :mod:`isa.semantics`,
+  :mod:`isa.timing`; never :mod:`isa.blocks`.
+"""
+
+from __future__ import annotations
+
+import re
+from typing import Any
+
+from isa import timing
+from isa.block_plan import _ALL_FLAGS, _FLAGS_NZVC, _SHIFT_NAMES, _quiet_write
+from isa.errors import AddressError, DivideByZero
+from isa.operands import Instruction, Operand, Size
+from isa.memory import MapFacts
+from isa.semantics import (BITS, CALL_SENTINEL, CF, M32, MASK, NF, SIGN, VF, XF, ZF, _M, _Fault, _inc, _k_addx,
+                           _k_shift, _k_subx, _nb, _nz, _pc_target, _sx)
+
+
+#: An address expression ``(<register local> + <displacement >= 0>)`` (d16(An) with d16 >= 0): never negative.
+_REG_PLUS_DISP = re.compile(r"\([ad][0-7] \+ \d+\)\Z")
+
+
+_RN: tuple[str, ...] = tuple(f"d{i}" for i in range(8)) + tuple(f"a{i}" for i in range(8))
+#: Inline Python expression (over the local ``sr``) that is true when condition ``cc`` holds.
+_COND_EXPR: tuple[str, ...] = (
+    "True", "False", "not sr & 5", "sr & 5", "not sr & 1", "sr & 1", "not sr & 4", "sr & 4",
+    "not sr & 2", "sr & 2", "not sr & 8", "sr & 8", "not (sr ^ sr >> 2) & 2", "(sr ^ sr >> 2) & 2",
+    "not (sr & 4 | (sr ^ sr >> 2) & 2)", "sr & 4 | (sr ^ sr >> 2) & 2",
+)  # fmt: skip
+
+
+class _Unblockable(Exception):
+    """Internal: this instruction is left to the per-instruction path (the block ends before it)."""
+
+
+class _BlockGen:
+    """Generates the source of one block function. Registers live in locals ``d0..a7``, the status register in
+    ``sr``, data-dependent clocks accumulate in ``c``; every exit writes the registers back and returns
+    ``next_pc | instructions << 24 | clocks << 56``."""
+
+    def __init__(self, facts: MapFacts, code: tuple[int, int] = (0, 1 << 24)) -> None:
+        self.facts = facts
+        self.code = code  # the block's own code bytes [start, end)
+        self.known: dict[int, int] = {}
+        self.wrote = False  # set by write(): the instruction writes memory; check D[0] after it
+        self.u32: set[str] = set()  # temporaries of this instruction known to hold a masked 32-bit address
+        # Deferred flags (set by gen() for an instruction whose NZVC only a fault of itself or of the next
+        # instruction can observe): ``pending`` is the SR expression the slow (faulting) paths assign first.
+        self.defer = False
+        self.pending: str | None = None
+        self.pending_nz = ""  # the N/Z part of ``pending`` (over ``pf``)
+        self.pending_from = -1
+        # Lazy flags across the loop edge (_lazy_kind): (kind, nb) of the block's ADD/SUB whose flags are kept as
+        # ``lr`` (unmasked result) and ``ls`` (source) instead of being computed; ``lr is None`` when ``sr`` holds
+        # them. ``lazy_x`` is the expression of the true SR; ``slow_texts`` the SR assignments made on slow paths.
+        self.lazy: tuple[str, int] | None = None
+        self.lazy_x = "sr"
+        self.slow_texts: set[str] = set()
+        self.cur = -1
+        self.smc_inline = False  # set by gen(): a last write may leave the block right after it (smc_slots)
+        self.smc_slots: list[int] = []  # item indices to fill with the exit after the instruction  # data register -> value known here (set by gen() for one instruction)
+        self.items: list[tuple[int, object]] = []  # (indent, line str | ("exit", ...) | ("mark", i))
+        self.ind = 1
+        self.used: set[int] = set()
+        self.dirty: set[int] = set()
+        self.consts: dict[str, object] = {}
+        self.recipes: dict[str, tuple[Any, ...]] = {}
+        self.dyn = False
+
+    # ---- emission helpers
+    def emit(self, line: str) -> None:
+        if self.pending is not None and self.cur != self.pending_from and line.startswith(("sr = ", "rm, sr = ")):
+            self.pending = None  # the next instruction sets all the flags the deferred ones were (see gen)
+        self.items.append((self.ind, line))
+
+    def const(self, obj: object, hint: str, recipe: tuple[Any, ...]) -> str:
+        """The name under which the generated code sees ``obj``; ``recipe`` makes it again (:func:`_make_const`:
+        the disk cache of compiled blocks stores recipes, not objects)."""
+        for k, v in self.consts.items():
+            if v is obj:
+                return k
+        name = f"{hint}_{len(self.consts)}"
+        self.consts[name] = obj
+        self.recipes[name] = recipe
+        return name
+
+    def rg(self, i: int) -> str:
+        self.used.add(i)
+        return _RN[i]
+
+    def wg(self, i: int) -> str:
+        self.used.add(i)
+        self.dirty.add(i)
+        return _RN[i]
+
+    def exit(self, target: str | int, n: int, cycles: int) -> None:
+        """Leave the block to ``target`` (int or expression) after ``n`` instructions and ``cycles`` clocks (+c)."""
+        self.items.append((self.ind, ("exit", target, n, cycles, frozenset(self.dirty))))
+
+    def cycles(self, expr: str) -> None:
+        self.dyn = True
+        self.emit(f"c += {expr}")
+
+    def slow_sr(self) -> str | None:
+        """The SR expression a slow (possibly faulting) path assigns before calling the accessor, or None: the
+        deferred flags (``pending``) and, in a lazy block, the lazy ADD/SUB flags under them."""
+        if self.lazy is None:
+            return self.pending
+        if self.pending is None:
+            return self.lazy_x
+        return f"({self.lazy_x} & 0xFF10) | {self.pending_nz}"
+
+    def set_lazy(self, kind: str, nb: int) -> None:
+        """Turn on lazy ADD/SUB flags for this block (see :func:`_lazy_kind`)."""
+        M, b = MASK[nb], BITS[nb]
+        rm = f"(lr & {M})"
+        if kind == "add":
+            cx, d = f"(17 if lr > {M} else 0)", "(lr - ls)"
+        else:
+            cx, d = "(17 if lr < 0 else 0)", "(lr + ls)"
+        v = f"(ls ^ {rm}) & ({d} ^ {rm})" if kind == "add" else f"(ls ^ {d}) & ({d} ^ {rm})"
+        mat = f"(sr & 0xFF00) | {cx} | ({rm} >> {b - 4} & 8 if {rm} else 4) | (({v}) >> {b - 2} & 2)"
+        self.lazy = (kind, nb)
+        self.lazy_x = f"(sr if lr is None else {mat})"
+
+    def slow_assign(self, sx: str, pad: str = "") -> None:
+        """Emit ``sr = sx`` on a slow path (and, in a lazy block, mark the lazy flags as taken into ``sr``)."""
+        self.emit(f"{pad}sr = {sx}")
+        self.slow_texts.add(f"sr = {sx}")
+        if self.lazy is not None:
+            self.emit(f"{pad}lr = None")
+
+    # ---- operands
+    def index_expr(self, op: Operand) -> str:
+        ix = op.index
+        assert ix is not None
+        x = self.rg(ix.num + (8 if ix.is_areg else 0))
+        return x if ix.long else f"((({x} & 0xFFFF) ^ 0x8000) - 0x8000)"
+
+    def addr(self, op: Operand, nb: int, pc: int, tmp: str) -> str:
+        """Emit the address calculation of a memory operand (with its (An)+/-(An) side effect, in the order the
+        per-instruction closures use); return an expression for the (unmasked) address."""
+        m = op.mode
+        if m is _M.AIND:
+            return self.rg(8 + op.reg)
+        if m is _M.APOSTINC:
+            an = self.wg(8 + op.reg)
+            self.emit(f"{tmp} = {an}")
+            k = _inc(op, nb)  # one addition, no mask, unless it wraps
+            self.emit(f"{an} = {tmp} + {k} if {tmp} < {(1 << 32) - k} else {tmp} - {(1 << 32) - k}")
+            self.u32.add(tmp)
+            return tmp
+        if m is _M.APREDEC:
+            an = self.wg(8 + op.reg)
+            k = _inc(op, nb)  # one subtraction, no mask, unless it wraps
+            self.emit(f"{an} = {an} - {k} if {an} >= {k} else {an} + {(1 << 32) - k}")
+            self.emit(f"{tmp} = {an}")
+            self.u32.add(tmp)
+            return tmp
+        if m is _M.ADISP:
+            return f"({self.rg(8 + op.reg)} + {op.value})"
+        if m is _M.AINDEX:
+            return f"({self.rg(8 + op.reg)} + {op.value} + {self.index_expr(op)})"
+        if m is _M.ABSW:
+            return str(((op.value & 0xFFFF) ^ 0x8000) - 0x8000 & M32)
+        if m is _M.ABSL:
+            return str(op.value & M32)
+        if m is _M.PCDISP:
+            return str(_pc_target(pc, op.value))
+        if m is _M.PCINDEX:
+            return f"({_pc_target(pc, op.value)} + {self.index_expr(op)})"
+        raise _Unblockable(m)
+
+    def addr_tmp(self, op: Operand, nb: int, pc: int, tmp: str) -> str:
+        """Like :meth:`addr` but the address is held in local ``tmp`` (used twice: read-modify-write)."""
+        e = self.addr(op, nb, pc, tmp)
+        if e != tmp:
+            self.emit(f"{tmp} = {e}")
+        return tmp
+
+    def read(self, op: Operand, nb: int, pc: int, tmp: str, materialize: bool = False) -> str:
+        """Emit what reading a source operand needs; return an expression of its unsigned ``nb``-byte value."""
+        M = MASK[nb]
+        m = op.mode
+        if m is _M.DREG or m is _M.AREG:
+            r = self.rg(op.reg + (8 if m is _M.AREG else 0))
+            e = r if nb == 4 else f"({r} & {M})"
+            if materialize:
+                self.emit(f"{tmp} = {e}")
+                return tmp
+            return e
+        if m is _M.IMM:
+            if materialize:
+                self.emit(f"{tmp} = {op.value & M}")
+                return tmp
+            return str(op.value & M)
+        a = self.addr(op, nb, pc, "ea")
+        self.emit(f"{tmp} = {self.load(nb, a)}")
+        return tmp
+
+    # ---- memory
+    def load(self, nb: int, a: str) -> str:
+        """An expression reading ``nb`` bytes at address expression ``a`` (32-bit, unmasked). A constant address
+        the map guarantees is read straight from memory; any other address is checked against the largest mapped
+        span inline and read straight from memory when inside it, else through the exact accessor (which raises
+        the fault)."""
+        fn = "rb rw _ rl".split()[nb - 1]
+        sx = self.slow_sr()
+        if sx is None:
+            slow = f"{fn}({a})"
+        elif self.lazy is None:
+            slow = f"(sr := {sx}, {fn}({a}))[1]"
+        else:
+            slow = f"(sr := {sx}, lr := None, {fn}({a}))[2]"
+            self.slow_texts.add(f"sr := {sx}")
+        if a.isdigit():
+            v = int(a)
+            if self.facts.readable(v, nb):
+                t = v & 0xFFFFFF
+                return (f"m[{t}]", f"(m[{t}] << 8 | m[{t + 1}])", "", f"UL(m, {t})[0]")[nb - 1]
+            return slow
+        lo, hi = self.facts.span
+        if hi - lo < nb:
+            return slow
+        if a in self.u32 or a in _RN:  # a local holding 0..2^32-1: the span comparison needs no mask
+            odd = "" if nb == 1 else f"not {a} & 1 and "
+            rng = f"{a} <= {hi - nb}" if lo == 0 else f"{lo} <= {a} <= {hi - nb}"
+            val = (f"m[{a}]", f"(m[{a}] << 8 | m[{a} + 1])", "", f"UL(m, {a})[0]")[nb - 1]
+            return f"({val} if {odd}{rng} else {slow})"
+        # Any other address (d16(An), d8(An,Xn), d8(PC,Xn)) is computed once, unmasked, into _t: inside the span
+        # it is the 24-bit address itself (the span lies in 0..2^24-1); outside (negative, or at/above 2^24, where
+        # the 68000 wraps) it takes the accessor, which masks. Only a register plus a displacement >= 0 cannot
+        # be negative, so only it may skip the lower bound when the span starts at 0.
+        nonneg = lo == 0 and _REG_PLUS_DISP.match(a) is not None
+        if nb == 1:
+            rng = f"(_t := {a}) <= {hi - nb}" if nonneg else f"{lo} <= (_t := {a}) <= {hi - nb}"
+        else:
+            rng = f"not (_t := {a}) & 1 and " + (f"_t <= {hi - nb}" if nonneg else f"{lo} <= _t <= {hi - nb}")
+        val = ("m[_t]", "(m[_t] << 8 | m[_t + 1])", "", "UL(m, _t)[0]")[nb - 1]
+        return f"({val} if {rng} else {slow})"
+
+    def write(self, nb: int, a: str, v: str, last: bool = False) -> None:
+        """Emit a write of the ``nb``-byte value ``v`` (already masked) at address expression ``a``: straight
+        into memory when one look at the (aligned) flag bytes says mapped, writable and holding no code (marking
+        them written on a first write), else through the exact accessor (faults, code invalidation, mixed or
+        misaligned flag bytes). ``last``: the write is the instruction's last action, so a write that hit
+        compiled code (``D[0]``) can leave the block right there (:attr:`smc_slots`); otherwise the block
+        checks ``D[0]`` after the instruction (:attr:`wrote`)."""
+        fn = "wb ww _ wl".split()[nb - 1]
+        const = a.isdigit()
+        if const and not self.facts.writable(int(a), nb):
+            sx = self.slow_sr()
+            if sx is not None:
+                self.slow_assign(sx)
+                self.pending = None
+            self.emit(f"{fn}({a}, {v})")
+            self.wrote = True
+            return
+        t = str(int(a) & 0xFFFFFF) if const else "_t"
+        ta = t if const else f"(_t := ({a}) & 0xFFFFFF)"
+        if nb == 1:
+            fast, first, store = f"(f := fl[{ta}]) == 7", "f == 3", f"m[{t}] = {v}"
+            setf = f"fl[{t}] = 7"
+        elif nb == 2:
+            i16 = str(int(t) >> 1) if const else f"{ta} >> 1"
+            fast = f"(f := F16[{i16}]) == 1799"
+            first, store = "f == 771", f"PW(m, {t}, {v})"
+            setf = f"F16[{int(t) >> 1 if const else '_t >> 1'}] = 1799"
+            if not const:  # the address once, masked, into _t (the parity is that of the unmasked address)
+                fast = f"not (_t := ({a}) & 0xFFFFFF) & 1 and (f := F16[_t >> 1]) == 1799"
+                first = "not _t & 1 and " + first
+        else:
+            aligned = (int(a) & 3) == 0 if const else True
+            i32 = str(int(t) >> 2) if const else f"{ta} >> 2"
+            fast = f"(f := F32[{i32}]) == 117901063"
+            first, store = "f == 50529027", f"PL(m, {t}, {v})"
+            setf = f"F32[{int(t) >> 2 if const else '_t >> 2'}] = 117901063"
+            if not const:
+                fast = f"not (_t := ({a}) & 0xFFFFFF) & 3 and (f := F32[_t >> 2]) == 117901063"
+                first = "not _t & 3 and " + first
+            elif not aligned:
+                fast = f"UL(fl, {t})[0] == 117901063"
+                first = None
+        self.emit(f"if {fast}:")
+        self.emit(f"    {store}")
+        if first is not None:
+            self.emit(f"elif {first}:")
+            self.emit(f"    {setf}")
+            self.emit(f"    {store}")
+        self.emit("else:")
+        if const and _quiet_write(int(a), nb, self.facts, self.code):
+            self.emit(f"    {fn}({a}, {v})")  # first-write bookkeeping or other code dropped: no fault, no exit
+            return
+        sx = self.slow_sr()
+        if sx is not None:
+            self.slow_assign(sx, "    ")
+        self.emit(f"    {fn}({a}, {v})")
+        if last and self.smc_inline:
+            self.emit("    if D[0]:")
+            self.emit("        D[0] = 0")
+            self.ind += 2
+            self.smc_slots.append(len(self.items))
+            self.items.append((self.ind, ("smc",)))
+            self.ind -= 2
+        else:
+            self.wrote = True
+
+    # ---- flag fragments
+    def nz(self, v: str, nb: int) -> str:
+        return f"({v} >> {BITS[nb] - 4} & 8 if {v} else 4)"  # N = the sign bit moved to bit 3; Z
+
+    def logic_flags(self, v: str, nb: int, need: int) -> None:
+        if need & _FLAGS_NZVC:
+            if self.defer:  # only a fault can observe them: keep the value, set SR on the slow paths only
+                self.emit(f"pf = {v}")
+                self.pending_nz = self.nz('pf', nb)
+                self.pending = f"(sr & 0xFF10) | {self.pending_nz}"
+                self.pending_from = self.cur
+                return
+            self.emit(f"sr = (sr & 0xFF10) | {self.nz(v, nb)}")
+
+    def arith_flags(self, kind: str, nb: int, s: str, d: str, need: int) -> None:
+        """ADD/SUB/CMP flags from ``r`` (unmasked result) and ``rm`` (masked); only the bits in ``need``."""
+        M, S = MASK[nb], SIGN[nb]
+        keep = 0xFF1F
+        parts = []
+        if need & (CF | (XF if kind != "cmp" else 0)):
+            bits = 1 if kind == "cmp" else 0x11
+            test = f"r > {M}" if kind == "add" else "r < 0"
+            parts.append(f"({bits} if {test} else 0)")
+            keep &= ~bits
+        if need & (NF | ZF):
+            parts.append(self.nz("rm", nb))
+            keep &= ~(NF | ZF)
+        if need & VF:
+            v = f"({s} ^ rm) & ({d} ^ rm)" if kind == "add" else f"({s} ^ {d}) & ({d} ^ rm)"
+            parts.append(f"(({v}) >> {BITS[nb] - 2} & 2)")  # the sign bit of the overflow test moved to bit 1
+            keep &= ~VF
+        if kind == "cmp":
+            keep |= XF
+        if parts:
+            self.emit(f"sr = (sr & 0x{keep:04X}) | " + " | ".join(parts))
+
+    def set_dreg(self, i: int, nb: int, v: str) -> None:
+        r = self.wg(i)
+        if nb == 4:
+            last = self.items[-1]
+            if v == "rm" and last[0] == self.ind and isinstance(last[1], str) and last[1].startswith("rm = "):
+                self.items[-1] = (self.ind, f"{r} = {last[1][5:]}")  # the result goes straight to the register
+                return
+            self.emit(f"{r} = {v}")
+        else:
+            self.emit(f"{r} = ({r} & 0x{M32 ^ MASK[nb]:08X}) | {v}")
+
+    def push(self, v: str) -> None:
+        """Push the long ``v`` (PEA, BSR, JSR) and lower ``min_sp`` at once: a later instruction of the same
+        block (an RTS after a PEA, say) may raise A7 again before the block exits."""
+        sp = self.wg(15)
+        self.emit(f"eb = ({sp} - 4) & 0xFFFFFFFF")
+        self.write(4, "eb", v)
+        self.emit(f"{sp} = eb")
+        self.emit("if eb < MS[0]:")
+        self.emit("    MS[0] = eb")
+
+    # ---- one instruction
+    def instruction(self, idx: int, ins: Instruction, h: str, cond: int | None, pc: int, nxt: int, need: int,
+                    prefix: int) -> tuple[int, bool]:
+        """Emit one instruction; return (its clocks on the fall-through path, excluding ``c``, and whether the
+        block ends after it). ``idx``/``prefix``: constant instruction count/clocks before it on the path the
+        generator is on (the locals ``ni``/``c`` hold the rest)."""
+        ops = ins.operands
+        nb = _nb(ins)
+        M = MASK[nb]
+        base = timing.cycles(ins) if h not in ("bcc", "dbcc", "scc", "mulu", "muls", "divu", "divs") \
+            and not (h in _SHIFT_NAMES and len(ops) == 2 and ops[0].mode is _M.DREG) else 0
+        n_done = idx + 1
+        if h == "moveq":
+            v = _sx(ops[0].value & 0xFF, 1) & M32
+            self.emit(f"{self.wg(ops[1].reg)} = {v}")
+            if need & _FLAGS_NZVC:
+                self.emit(f"sr = (sr & 0xFF10) | {_nz(v, 4)}")
+            return base, False
+        if h == "move":
+            src, dst = ops
+            if dst.mode is _M.DREG:
+                v = self.read(src, nb, pc, "v", materialize=nb != 4 or src.mode not in (_M.DREG, _M.AREG))
+                self.set_dreg(dst.reg, nb, v)
+                self.logic_flags(self.rg(dst.reg) if nb == 4 else v, nb, need)
+                return base, False
+            v = self.read(src, nb, pc, "v", materialize=True)
+            a = self.addr(dst, nb, pc, "eb")
+            self.logic_flags(v, nb, need)
+            self.write(nb, a, v, last=True)
+            return base, False
+        if h == "movea":
+            v = self.read(ops[0], nb, pc, "v")
+            an = self.wg(8 + ops[1].reg)
+            self.emit(f"{an} = {v}" if nb == 4 else f"{an} = (({v} ^ 0x8000) - 0x8000) & 0xFFFFFFFF")
+            return base, False
+        if h in ("add", "addi", "sub", "subi", "cmp", "cmpi", "and", "andi", "or", "ori", "eor", "eori",
+                 "addq", "subq"):
+            kind = h[:-1] if h.endswith(("i", "q")) else h
+            src, dst = ops
+            lazy = self.lazy == (kind, nb) and need & _ALL_FLAGS  # flags kept as lr/ls (set_lazy)
+            if h in ("addq", "subq"):
+                k = src.value
+                if dst.mode is _M.AREG:
+                    an = self.wg(8 + dst.reg)
+                    self.emit(f"{an} = ({an} {'+' if kind == 'add' else '-'} {k}) & 0xFFFFFFFF")
+                    return base, False
+                s = str(k & M)
+            else:
+                # straight into ls only when no slow path of this instruction follows (a memory destination's
+                # read would take the previous lazy flags, which need the previous ls)
+                s = self.read(src, nb, pc, "ls" if lazy and dst.mode is _M.DREG else "s",
+                              materialize=dst.mode is not _M.DREG)
+            if dst.mode is _M.DREG:
+                dn = self.rg(dst.reg)
+                d = dn if nb == 4 else "x"
+                if nb != 4:
+                    self.emit(f"x = {dn} & {M}")
+            else:
+                a = self.addr_tmp(dst, nb, pc, "eb")
+                d = "x"
+                self.emit(f"x = {self.load(nb, a)}")
+            if lazy:
+                if s != "ls":
+                    self.emit(f"ls = {s}")
+                self.emit(f"lr = ls + {d}" if kind == "add" else f"lr = {d} - ls")
+                self.emit(f"rm = lr & {M}")
+                self.pending = None  # all five flags are now the lazy ones (a deferred MOVE's are overwritten)
+            elif kind in ("add", "sub", "cmp"):
+                expr = f"{s} + {d}" if kind == "add" else f"{d} - {s}"
+                if need & (_ALL_FLAGS if kind != "cmp" else _FLAGS_NZVC):
+                    self.emit(f"r = {expr}")
+                    self.emit(f"rm = r & {M}")
+                    self.arith_flags(kind, nb, s, d, need)
+                elif kind == "cmp":
+                    return base, False
+                else:
+                    self.emit(f"rm = ({expr}) & {M}")
+            else:
+                op = {"and": "&", "or": "|", "eor": "^"}[kind]
+                self.emit(f"rm = {s} {op} {d}")
+                self.logic_flags("rm", nb, need)
+            if kind == "cmp":
+                return base, False
+            if dst.mode is _M.DREG:
+                self.set_dreg(dst.reg, nb, "rm")
+            else:
+                self.write(nb, "eb", "rm", last=True)
+            return base, False
+        if h in ("adda", "suba"):
+            v = self.read(ops[0], nb, pc, "v")
+            an = self.wg(8 + ops[1].reg)
+            sign = "+" if h == "adda" else "-"
+            if nb == 2:
+                v = f"((({v}) ^ 0x8000) - 0x8000)"
+            self.emit(f"{an} = ({an} {sign} {v}) & 0xFFFFFFFF")
+            return base, False
+        if h == "cmpa":
+            v = self.read(ops[0], nb, pc, "v")
+            if nb == 2:
+                self.emit(f"s = ((({v}) ^ 0x8000) - 0x8000) & 0xFFFFFFFF")
+                v = "s"
+            an = self.rg(8 + ops[1].reg)
+            if need & _FLAGS_NZVC:
+                self.emit(f"r = {an} - {v}")
+                self.emit("rm = r & 0xFFFFFFFF")
+                self.arith_flags("cmp", 4, v, an, need)
+            return base, False
+        if h == "lea":
+            a = self.addr(ops[0], 4, pc, "ea")
+            self.emit(f"{self.wg(8 + ops[1].reg)} = {a} & 0xFFFFFFFF")
+            return base, False
+        if h == "pea":
+            a = self.addr(ops[0], 4, pc, "ea")
+            self.emit(f"v = {a} & 0xFFFFFFFF")
+            self.push("v")
+            return base, False
+        if h in ("clr", "not", "neg", "negx", "tst"):
+            dst = ops[0]
+            if dst.mode is _M.DREG:
+                dn = self.rg(dst.reg)
+                self.emit(f"x = {dn}" if nb == 4 else f"x = {dn} & {M}")
+            else:
+                a = self.addr_tmp(dst, nb, pc, "eb")
+                self.emit(f"x = {self.load(nb, a)}")
+            if h == "clr":
+                self.emit("rm = 0")
+                if need & _FLAGS_NZVC:
+                    self.emit("sr = (sr & 0xFF10) | 4")
+            elif h == "not":
+                self.emit(f"rm = x ^ {M}")
+                self.logic_flags("rm", nb, need)
+            elif h == "tst":
+                self.logic_flags("x", nb, need)
+                return base, False
+            elif h == "neg":
+                self.emit("r = -x")
+                self.emit(f"rm = r & {M}")
+                self.arith_flags("sub", nb, "x", "0", need)
+            else:
+                k = self.const(_k_subx(nb), f"negx{nb}", ("subx", nb))
+                self.emit(f"rm, sr = {k}(x, 0, sr)")
+            if dst.mode is _M.DREG:
+                self.set_dreg(dst.reg, nb, "rm")
+            else:
+                self.write(nb, "eb", "rm", last=True)
+            return base, False
+        if h == "cmpm":  # (Ay)+,(Ax)+: Ay read and incremented first; flags as CMP (X kept)
+            s_op, d_op = ops
+            sa = self.addr(s_op, nb, pc, "ea")
+            self.emit(f"s = {self.load(nb, sa)}")
+            da = self.addr(d_op, nb, pc, "eb")
+            self.emit(f"x = {self.load(nb, da)}")
+            if need & _FLAGS_NZVC:
+                self.emit("r = x - s")
+                self.emit(f"rm = r & {M}")
+                self.arith_flags("cmp", nb, "s", "x", need)
+            return base, False
+        if h in ("addx", "subx"):
+            s_op, d_op = ops
+            k = self.const((_k_subx if h == "subx" else _k_addx)(nb), f"{h}{nb}", (h, nb))
+            if s_op.mode is _M.DREG:
+                s = self.read(s_op, nb, pc, "s")
+                dn = self.rg(d_op.reg)
+                self.emit(f"rm, sr = {k}({s}, {dn if nb == 4 else f'{dn} & {M}'}, sr)")
+                self.set_dreg(d_op.reg, nb, "rm")
+                return base, False
+            sa = self.addr(s_op, nb, pc, "ea")
+            self.emit(f"s = {self.load(nb, sa)}")
+            da = self.addr_tmp(d_op, nb, pc, "eb")
+            self.emit(f"x = {self.load(nb, da)}")
+            self.emit(f"rm, sr = {k}(s, x, sr)")
+            self.write(nb, "eb", "rm", last=True)
+            return base, False
+        if h == "ext":
+            dn = self.wg(ops[0].reg)
+            if ins.size is Size.W:
+                self.emit(f"v = ((({dn} & 0xFF) ^ 0x80) - 0x80) & 0xFFFF")
+                self.emit(f"{dn} = ({dn} & 0xFFFF0000) | v")
+                self.logic_flags("v", 2, need)
+            else:
+                self.emit(f"{dn} = ((({dn} & 0xFFFF) ^ 0x8000) - 0x8000) & 0xFFFFFFFF")
+                self.logic_flags(dn, 4, need)
+            return base, False
+        if h == "swap":
+            dn = self.wg(ops[0].reg)
+            self.emit(f"{dn} = (({dn} << 16) | ({dn} >> 16)) & 0xFFFFFFFF")
+            self.logic_flags(dn, 4, need)
+            return base, False
+        if h == "exg":
+            a, b = (self.wg(o.reg + (8 if o.mode is _M.AREG else 0)) for o in ops)
+            self.emit(f"{a}, {b} = {b}, {a}")
+            return base, False
+        if h in ("mulu", "muls") and ops[0].mode is _M.IMM:  # constant source: constant clocks
+            sv = ops[0].value & 0xFFFF
+            dn = self.wg(ops[1].reg)
+            if h == "muls":
+                self.emit(f"{dn} = ({_sx(sv, 2)} * ((({dn} & 0xFFFF) ^ 0x8000) - 0x8000)) & 0xFFFFFFFF")
+                x = sv << 1
+                extra = 2 * ((x ^ (x >> 1)) & 0xFFFF).bit_count()
+            else:
+                self.emit(f"{dn} = {sv} * ({dn} & 0xFFFF)")
+                extra = 2 * sv.bit_count()
+            self.logic_flags(dn, 4, need)
+            return 38 + timing.EA_TIME[ops[0].mode][0] + extra, False
+        if h in ("mulu", "muls"):
+            s = self.read(ops[0], 2, pc, "s", materialize=True)
+            dn = self.wg(ops[1].reg)
+            if h == "muls":
+                self.emit(f"{dn} = ((({s} ^ 0x8000) - 0x8000) * ((({dn} & 0xFFFF) ^ 0x8000) - 0x8000)) "
+                          "& 0xFFFFFFFF")
+            else:
+                self.emit(f"{dn} = {s} * ({dn} & 0xFFFF)")
+            self.logic_flags(dn, 4, need)
+            if h == "muls":
+                self.emit(f"x = {s} << 1")
+                self.cycles("2 * ((x ^ (x >> 1)) & 0xFFFF).bit_count()")
+            else:
+                self.cycles(f"2 * {s}.bit_count()")
+            return 38 + timing.EA_TIME[ops[0].mode][0], False
+        if h in ("divu", "divs"):
+            return self.divide(ops, h, pc, need), False
+        if h in _SHIFT_NAMES:
+            return self.shift(ins, h, nb, pc, need, base), False
+        if h == "scc":
+            dst = ops[0]
+            ce = _COND_EXPR[cond]  # type: ignore[index]
+            if dst.mode is _M.DREG:
+                dn = self.wg(dst.reg)
+                self.emit(f"if {ce}:")
+                self.emit(f"    {dn} |= 0xFF")
+                self.emit("    c += 2")
+                self.emit("else:")
+                self.emit(f"    {dn} &= 0xFFFFFF00")
+                self.dyn = True
+                return 4, False
+            a = self.addr(dst, 1, pc, "eb")
+            self.write(1, a, f"(0xFF if {ce} else 0)", last=True)
+            return timing.cycles(ins), False
+        if h in ("bcc", "bra", "bsr"):
+            target = ops[0].value & 0xFFFFFF
+            if target & 1:
+                raise _Unblockable("odd branch target")
+            if h == "bsr":
+                self.push(str(nxt & 0xFFFFFF))
+                self.exit(target, n_done, prefix + base)
+                return base, True
+            if h == "bra":
+                self.exit(target, n_done, prefix + base)
+                return base, True
+            self.emit(f"if {_COND_EXPR[cond]}:")  # type: ignore[index]
+            self.ind += 1
+            self.exit(target, n_done, prefix + timing.cycles(ins, taken=True))
+            self.ind -= 1
+            return timing.cycles(ins, taken=False), False
+        if h == "dbcc":
+            dn_op, tgt = ops
+            target = tgt.value & 0xFFFFFF
+            if target & 1:
+                raise _Unblockable("odd branch target")
+            ce = _COND_EXPR[cond]  # type: ignore[index]
+            if ce == "True":
+                return 12, False
+            if ce != "False":
+                self.emit(f"if not ({ce}):")
+                self.ind += 1
+            dn = self.wg(dn_op.reg)
+            self.emit(f"w = ({dn} - 1) & 0xFFFF")
+            self.emit(f"{dn} = ({dn} & 0xFFFF0000) | w")
+            self.emit("if w == 0xFFFF:")
+            self.emit("    c += 2")
+            self.dyn = True
+            self.emit("else:")
+            self.ind += 1
+            self.exit(target, n_done, prefix + timing.cycles(ins, taken=True))
+            self.ind -= 1
+            if ce != "False":
+                self.ind -= 1
+            return 12, False
+        if h in ("jmp", "jsr"):
+            a = self.addr(ops[0], 4, pc, "ea")
+            fault = self.const(_Fault, "Fault", ("Fault",))
+            ae = self.const(AddressError, "AddressError", ("AddressError",))
+            self.emit(f"t = {a} & 0xFFFFFF")
+            self.emit("if t & 1:")
+            self.emit(f"    raise {fault}({ae}, f\"jump to odd address ${{t:06X}}\")")
+            if h == "jsr":
+                self.push(str(nxt & 0xFFFFFF))
+            self.exit("t", n_done, prefix + base)
+            return base, True
+        if h == "rts":
+            sp = self.wg(15)
+            fault = self.const(_Fault, "Fault", ("Fault",))
+            ae = self.const(AddressError, "AddressError", ("AddressError",))
+            self.emit(f"v = {self.load(4, sp)}")
+            self.emit(f"{sp} = ({sp} + 4) & 0xFFFFFFFF")
+            self.emit(f"if v & 1 and (v & 0xFFFFFF) != {CALL_SENTINEL}:")
+            self.emit(f"    raise {fault}({ae}, f\"return to odd address ${{v & 0xFFFFFF:06X}}\")")
+            self.exit("(v & 0xFFFFFF)", n_done, prefix + base)
+            return base, True
+        if h == "movem":
+            self.movem(ins, nb, pc)
+            return base, False
+        if h == "nop":
+            return base, False
+        raise _Unblockable(h)  # trap, illegal: the per-instruction path handles them
+
+    def divide(self, ops: tuple[Operand, ...], h: str, pc: int, need: int = _ALL_FLAGS) -> int:
+        """DIVU/DIVS with the clocks of :func:`isa.timing.divu_cycles` / :func:`isa.timing.divs_cycles` computed
+        inline from the quotient (the microcode's shift-and-subtract steps in closed form: DIVU 136 - 2 per
+        quotient bit 15..1 set - 2 per step whose partial remainder has its top bit set, which needs a divisor
+        above $8000 (then the timing function is called); DIVS 2 * (61 + ...) as in divs_cycles). Returns the
+        constant clocks (EA time); the rest goes to ``c``. N/Z/V/C are assigned only when ``need`` has one of
+        them (a division that cannot fault, followed by an instruction that sets them all, leaves them dead)."""
+        src, dst = ops
+        fl = need & _FLAGS_NZVC
+        const = src.mode is _M.IMM
+        sv = src.value & 0xFFFF
+        s = str(sv) if const else self.read(src, 2, pc, "s", materialize=True)
+        dn = self.wg(dst.reg)
+        name = "DIVS" if h == "divs" else "DIVU"
+        if not const or sv == 0:
+            fault = self.const(_Fault, "Fault", ("Fault",))
+            dz = self.const(DivideByZero, "DivideByZero", ("DivideByZero",))
+            if const:
+                self.emit(f"raise {fault}({dz}, f\"{name} by zero (dividend ${{{dn}:08X}})\")")
+                return timing.EA_TIME[src.mode][0]
+            self.emit(f"if {s} == 0:")
+            self.emit(f"    raise {fault}({dz}, f\"{name} by zero (dividend ${{{dn}:08X}})\")")
+        self.dyn = True
+        self.emit(f"d = {dn}")
+        if h == "divu":
+            self.emit(f"if d >> 16 >= {s}:")
+            if fl:
+                self.emit(f"    sr = (sr & 0xFF10) | {NF | VF}")
+            self.emit("    c += 10")
+            self.emit("else:")
+            self.emit(f"    q, rem = divmod(d, {s})")
+            self.emit(f"    {dn} = (rem << 16) | q")
+            if fl:
+                self.emit(f"    sr = (sr & 0xFF10) | {self.nz('q', 2)}")
+            tc = self.const(timing.divu_cycles, "divc", ("divc",))
+            if const and sv <= 0x8000:
+                self.emit("    c += 136 - 2 * (q >> 1).bit_count()")
+            elif const:
+                self.emit(f"    c += {tc}(d, {s})")
+            else:
+                self.emit(f"    c += 136 - 2 * (q >> 1).bit_count() if {s} <= 0x8000 else {tc}(d, {s})")
+            return timing.EA_TIME[src.mode][0]
+        self.emit("sd = (d ^ 0x80000000) - 0x80000000")
+        if const:
+            ss = _sx(sv, 2)
+            ss_e, as_e = str(ss), str(abs(ss))
+        else:
+            self.emit(f"ss = ({s} ^ 0x8000) - 0x8000")
+            ss_e, as_e = "ss", "abs(ss)"
+        self.emit("ad = abs(sd)")
+        self.emit(f"if ad >> 16 >= {as_e}:")
+        if fl:
+            self.emit(f"    sr = (sr & 0xFF10) | {NF | VF}")
+        self.emit("    c += 18 if sd < 0 else 16")
+        self.emit("else:")
+        self.emit(f"    aq = ad // {as_e}")
+        if const:
+            self.emit(f"    q = -aq if sd < 0 else aq" if ss > 0 else f"    q = aq if sd < 0 else -aq")
+            base = (126, 120) if ss >= 0 else (124, 122)  # 2 * (61 + [sd < 0] + adjust): (sd < 0, sd >= 0)
+            self.emit(f"    c += ({base[0]} if sd < 0 else {base[1]}) + 30 - 2 * ((aq >> 1) & 0x7FFF).bit_count()")
+        else:
+            self.emit("    q = -aq if (sd < 0) != (ss < 0) else aq")
+            self.emit("    c += ((126 if sd < 0 else 120) if ss >= 0 else (124 if sd < 0 else 122)) + 30 "
+                      "- 2 * ((aq >> 1) & 0x7FFF).bit_count()")
+        self.emit("    if -0x8000 <= q <= 0x7FFF:")
+        self.emit(f"        {dn} = (((sd - q * {ss_e}) & 0xFFFF) << 16) | (q & 0xFFFF)")
+        if fl:
+            self.emit(f"        sr = (sr & 0xFF10) | {self.nz('(q & 0xFFFF)', 2)}")
+            self.emit("    else:")
+            self.emit(f"        sr = (sr & 0xFF10) | {NF | VF}")
+        return timing.EA_TIME[src.mode][0]
+
+    def shift(self, ins: Instruction, h: str, nb: int, pc: int, need: int, base: int) -> int:
+        ops = ins.operands
+        M, S, W = MASK[nb], SIGN[nb], BITS[nb]
+        if len(ops) == 1:  # memory word by 1
+            k = self.const(_k_shift(h, 2), f"{h}2", ("shift", h, 2))
+            a = self.addr_tmp(ops[0], 2, pc, "eb")
+            self.emit(f"x = {self.load(2, a)}")
+            self.emit(f"rm, sr = {k}(x, 1, sr)")
+            self.write(2, "eb", "rm", last=True)
+            return base
+        cnt, dst = ops
+        dn = self.rg(dst.reg)
+        x = dn if nb == 4 else "x"
+        if nb != 4:
+            self.emit(f"x = {dn} & {M}")
+        fixed = None  # a count known when compiling: an immediate, or a register set by the MOVEQ just before
+        if cnt.mode is _M.IMM:
+            fixed = cnt.value
+        elif cnt.reg in self.known:
+            fixed = self.known[cnt.reg] & 63
+            base = (8 if nb == 4 else 6) + 2 * fixed
+        if fixed and h in ("lsl", "lsr", "asr"):
+            n = fixed
+            if h == "lsl":
+                self.emit(f"rm = ({x} << {n}) & {M}" if n else f"rm = {x}")
+                cexpr = f"{x} >> {W - n} & 1" if n <= W else "0"
+            elif h == "lsr":
+                self.emit(f"rm = {x} >> {n}")
+                cexpr = f"{x} >> {n - 1} & 1"
+            else:
+                self.emit(f"sx = ({x} ^ {S}) - {S}")
+                self.emit(f"rm = (sx >> {n}) & {M}")
+                cexpr = f"sx >> {n - 1} & 1"
+            if need & _ALL_FLAGS:
+                self.emit(f"sr = (sr & 0xFF00) | (0x11 if {cexpr} else 0) | {self.nz('rm', nb)}")
+            self.set_dreg(dst.reg, nb, "rm")
+            return base
+        k = self.const(_k_shift(h, nb), f"{h}{nb}", ("shift", h, nb))
+        if fixed is not None:
+            self.emit(f"rm, sr = {k}({x}, {fixed}, sr)")
+            self.set_dreg(dst.reg, nb, "rm")
+            return base
+        self.emit(f"n = {self.rg(cnt.reg)} & 63")
+        self.emit(f"rm, sr = {k}({x}, n, sr)")
+        self.set_dreg(dst.reg, nb, "rm")
+        self.cycles("n + n")
+        return 8 if nb == 4 else 6
+
+    def movem(self, ins: Instruction, nb: int, pc: int) -> None:
+        M = MASK[nb]
+        if ins.operands[0].mode is _M.REGLIST:
+            mask, ea = ins.operands[0].value, ins.operands[1]
+            regs = [i for i in range(16) if mask >> i & 1]
+            if ea.mode is _M.APREDEC:
+                an = 8 + ea.reg
+                self.emit(f"ea = {self.rg(an)}")
+                for i in regs[::-1]:
+                    self.emit(f"ea = (ea - {nb}) & 0xFFFFFFFF")
+                    r = self.rg(i)
+                    self.write(nb, "ea", r if nb == 4 else f"{r} & {M}")
+                self.emit(f"{self.wg(an)} = ea")
+                return
+            self.addr_tmp(ea, nb, pc, "ea")
+            for j, i in enumerate(regs):
+                r = self.rg(i)
+                self.write(nb, f"ea + {j * nb}" if j else "ea", r if nb == 4 else f"{r} & {M}")
+            return
+        ea, mask = ins.operands[0], ins.operands[1].value
+        regs = [i for i in range(16) if mask >> i & 1]
+        post = ea.mode is _M.APOSTINC
+        an = 8 + ea.reg
+        if post:
+            self.emit(f"ea = {self.rg(an)}")
+        else:
+            self.addr_tmp(ea, nb, pc, "ea")
+        for j, i in enumerate(regs):
+            a = f"ea + {j * nb}" if j else "ea"
+            r = self.wg(i)
+            if nb == 4:
+                self.emit(f"{r} = {self.load(nb, a)}")
+            else:
+                self.emit(f"{r} = (({self.load(nb, a)} ^ 0x8000) - 0x8000) & 0xFFFFFFFF")
+        if post:
+            self.emit(f"{self.wg(an)} = (ea + {len(regs) * nb}) & 0xFFFFFFFF")
+        self.emit(self.load(2, f"ea + {len(regs) * nb}" if regs else "ea"))  # the 68000's extra word read
