@@ -838,7 +838,7 @@ NEUTRAL = st.sampled_from([
 
 @st.composite
 def dup_flow(draw: st.DrawFn, ins: st.SearchStrategy[Instruction]) -> list[object]:
-    """Branches that leave nested regions for later code of the same block (isa.blocks._plan_tails): the
+    """Branches that leave nested regions for later code of the same block (isa.block_plan._plan_tails): the
     firmware's gate shape (``bcc L1; ...; bcc L1; ...; bra L2; L1: ...; L2:``, the inner Bcc jumping from the
     then-part to the start of the else-part), Bcc/BRA from the then-part, the else-part and a nested ``if`` to a
     common tail ``far``; labels resolved to flow_layout items (``("b", mnemonic, skip, short)``)."""

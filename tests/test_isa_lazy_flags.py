@@ -1,4 +1,4 @@
-"""Lazy ADD/SUB flags across a block's loop edge (isa/blocks.py ``_lazy_kind``, docs/isa-internals.md).
+"""Lazy ADD/SUB flags across a block's loop edge (isa/block_plan.py ``_lazy_kind``, docs/isa-internals.md).
 
 In a compiled loop whose ADD/SUB flags only a block exit or a fault can see, the block keeps the ADD/SUB's
 unmasked result and source (``lr``/``ls``) and computes the CCR from them only on the exits and on the slow
@@ -30,7 +30,7 @@ from isa.strategies import instructions
 from profiles import examples
 
 import oracles
-from test_isa_blocks import _diff, machine, ours_blocks, ref_run
+from test_isa_blocks import _diff, _map_cpu, machine, ours_blocks, ref_run
 
 M32 = 0xFFFFFFFF
 CODE = 0x1000
@@ -63,15 +63,6 @@ OTHERS = _rows("move movea lea adda suba exg nop")
 ARITH = _rows("muls mulu divu divs neg clr not tst swap ext")
 #: Rows that usually undo the lazy form (their flags are written into sr in the loop): the fallback is tested too.
 SPOILERS = _rows("and or eor cmp cmpi tst add sub")
-
-
-def _map_cpu(blocks: bool) -> CPU:
-    cpu = CPU(mapped=False)
-    cpu.block_compile = blocks
-    cpu.map(0, 0x4000, "rom", writable=False)
-    cpu.map(0x4000, 0x4000, "ram")
-    cpu.map(0xFFF000, 4, "io")
-    return cpu
 
 
 def _loop_code(body: list[Instruction], count: int | None) -> bytes:
