@@ -212,20 +212,43 @@ _POOL: list[np.ndarray] = []
 _POOL_LOCK = threading.Lock()
 
 
+def _free_counts(pool: list[np.ndarray]) -> list[int]:
+    """``sys.getrefcount`` of each pooled array as :func:`_words_buffer` sees it (the list, the loop variable,
+    the call's argument): the one place the count is taken, so that the calibration below measures the same."""
+    return [sys.getrefcount(buf) for buf in pool]
+
+
+def _calibrate() -> int | None:
+    """The count of an array referenced by nothing but the pool, or None (pooling off) when one more reference
+    does not show as exactly one more: interpreters differ in what ``getrefcount`` counts (borrowed references),
+    and reuse is only safe where a held array is told apart from a free one."""
+    probe = [np.empty(1, dtype=np.int64)]
+    free = _free_counts(probe)[0]
+    held = probe[0]
+    if _free_counts(probe)[0] != free + 1:
+        return None
+    del held
+    return free if _free_counts(probe)[0] == free else None
+
+
+_FREE_COUNT: int | None = _calibrate()
+
+
 def _words_buffer(shape: tuple[int, int, int]) -> np.ndarray:
     """An int64 words array of ``shape`` for a compiled call. A large one (>= :data:`POOL_MIN_BYTES`) is taken from
     the pool when a pooled buffer of that shape is referenced by nothing but the pool (every trace, view or
     memoryview of it is gone: ``sys.getrefcount``), so a caller running batch after batch does not pay the page
     faults of a fresh ~100-byte-per-sample array (the OS zeroing 96 MB at 1,000 x 1,000 samples costs about a
     third of the call, bench/bench_model.py). Otherwise a fresh array, kept in the pool (the oldest dropped).
-    The kernel writes every word of the array (as it must for ``np.empty``), so old contents never show. The pool holds
-    at most :data:`POOL_SLOTS` buffers after their traces are gone; :func:`release_buffers` frees them."""
-    if int(np.prod(shape)) * 8 < POOL_MIN_BYTES:
+    The kernel writes every word of the array (as it must for ``np.empty``), so old contents never show. The pool
+    holds at most :data:`POOL_SLOTS` buffers after their traces are gone; :func:`release_buffers` frees them. Off
+    (always a fresh array) where the reference count cannot tell a held array from a free one (:func:`_calibrate`).
+    """
+    if int(np.prod(shape)) * 8 < POOL_MIN_BYTES or _FREE_COUNT is None:
         return np.empty(shape, dtype=np.int64)
     with _POOL_LOCK:
-        for buf in _POOL:
-            # referenced by the pool's list, by ``buf`` here and by getrefcount's argument: nobody else
-            if buf.shape == shape and sys.getrefcount(buf) == 3:
+        for buf, count in zip(_POOL, _free_counts(_POOL)):
+            if buf.shape == shape and count == _FREE_COUNT:   # referenced by the pool only: nobody else
                 return buf
         fresh = np.empty(shape, dtype=np.int64)
         _POOL.append(fresh)

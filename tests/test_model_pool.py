@@ -83,3 +83,19 @@ def test_small_results_are_not_pooled() -> None:
     adc = np.full((2, 100), 30000)
     run_model(CONSTS, adc)
     assert model._POOL == []
+
+
+def test_the_calibration_tells_a_held_array_from_a_free_one(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The free count is measured where it is used; where it could not be (pooling off), no array is reused."""
+    probe = [np.empty(1, dtype=np.int64)]
+    free = model._free_counts(probe)[0]
+    held = probe[0]
+    assert model._free_counts(probe)[0] == free + 1 and free == model._FREE_COUNT
+    del held
+    monkeypatch.setattr(model, "_FREE_COUNT", None)
+    release_buffers()
+    kept = run_model(CONSTS, *_inputs(1))
+    before = np.array(kept.words)
+    second = run_model(CONSTS, *_inputs(2))
+    assert model._POOL == []             # nothing pooled, so nothing can be handed out again
+    assert np.array_equal(kept.words, before) and np.array_equal(second.words, _expected(2))
