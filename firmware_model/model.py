@@ -82,8 +82,14 @@ _pure_budget_used = 0
 _BUDGET_LOCK = threading.Lock()
 
 
-def _kernels_for(engine: str, n_samples: int = AUTO_PURE_MAX_SAMPLES + 1) -> ModuleType:
+def kernels_for(engine: str, n_samples: int | None = None) -> ModuleType:
+    """The kernels module a call of ``n_samples`` (streams x samples; None: a large call) runs on for ``engine``
+    (``auto`` / ``numba`` / ``python``, as :func:`run_model`); an ``auto`` call within the plain-Python budget
+    (:data:`AUTO_PURE_MAX_SAMPLES`) is charged to it. Used by :func:`run_model` and by the streaming
+    :class:`firmware_model.vectors_stream.ModelStepper`."""
     global _pure_budget_used
+    if n_samples is None:
+        n_samples = AUTO_PURE_MAX_SAMPLES + 1
     if engine == "auto":
         with _BUDGET_LOCK:
             if ("firmware_model.model_kernels" not in sys.modules
@@ -170,7 +176,7 @@ def run_model(consts: "FirmwareConstants", adc: np.ndarray, acc: np.ndarray | No
     adc2, acc2 = as_input_streams(adc, acc, bool(getattr(consts, "PASCAL", 0)))
     if consts.BARO_SIGN not in (1, -1):
         raise UserError(f"build constants: BARO_SIGN={consts.BARO_SIGN!r} must be +1 or -1")
-    kern = _kernels_for(engine, adc2.shape[0] * adc2.shape[1])
+    kern = kernels_for(engine, adc2.shape[0] * adc2.shape[1])
     names = word_names(program)
     out3 = None
     if out is not None:

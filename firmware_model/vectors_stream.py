@@ -134,10 +134,10 @@ class ModelStepper:
               "kalman_baro": "_stream_kalman_baro", "kalman_accel": "_stream_kalman_accel"}
 
     def __init__(self, consts: Any, n_samples: int | None = None) -> None:
-        from firmware_model.model import AUTO_PURE_MAX_SAMPLES, _kernels_for
+        from firmware_model.model import kernels_for
 
         # the engine run_model's "auto" picks for a call of n_samples (a short stream: the plain-Python kernels)
-        kern = _kernels_for("auto", AUTO_PURE_MAX_SAMPLES + 1 if n_samples is None else n_samples)
+        kern = kernels_for("auto", n_samples)
         self.kern = kern
         self.program = consts.program
         self.prog = kern.PROGRAMS.index(consts.program)

@@ -10,7 +10,11 @@ Two overheads of hypothesis 6.1xx grow with the suite, not with what a test chec
   after each test, so every invocation gets the same one-level wrapper that the first one got: the same
   effective settings, the same derandomized examples.
 * With ``derandomize`` the seed is a digest of the test's cleaned source, and hypothesis re-tokenizes the source
-  for every test (about 3 ms); the cleaning is a pure function of the source text, memoized here.
+  for every test (about 3 ms); the cleaning is a pure function of the source text, memoized here, and so is the
+  ``inspect.getsource`` read before it (:func:`_memo_inspect`; every digest logged identical with and without).
+
+It also prints the closing lines tests record (the Cortex-M runs', :func:`pytest_terminal_summary`) and loads
+the compiled model kernels in every test process (below).
 """
 
 from __future__ import annotations
@@ -21,6 +25,17 @@ import types
 
 import pytest
 from hypothesis import settings
+
+from profiles import PROFILE
+
+settings.load_profile(PROFILE)
+
+# Load the model's compiled kernels in every test process, whatever files are selected: run_model's "auto" engine
+# runs a process's first 20,000 samples in plain Python while they are not loaded (firmware_model/model.py
+# AUTO_PURE_MAX_SAMPLES), and the in-process model tests are meant to exercise what a long run uses. (The two
+# engines are compared in tests/test_model_kernels.py; tests/test_model_engine_auto.py checks the rule itself in
+# fresh interpreters.)
+from firmware_model import model_kernels as _model_kernels  # noqa: E402,F401
 
 
 def _memo_inspect() -> types.ModuleType:
@@ -48,16 +63,6 @@ def _memo_inspect() -> types.ModuleType:
     proxy.getsource = getsource  # type: ignore[attr-defined]
     return proxy
 
-from profiles import PROFILE
-
-settings.load_profile(PROFILE)
-
-# Load the model's compiled kernels in every test process, whatever files are selected: run_model's "auto" engine
-# runs a process's first 20,000 samples in plain Python while they are not loaded (firmware_model/model.py
-# AUTO_PURE_MAX_SAMPLES), and the in-process model tests are meant to exercise what a long run uses. (The two
-# engines are compared in tests/test_model_kernels.py; tests/test_model_engine_auto.py checks the rule itself in
-# fresh interpreters.)
-from firmware_model import model_kernels as _model_kernels  # noqa: E402,F401
 
 try:  # a private helper of hypothesis: memoize it only where it is what we expect (a pure str -> bytes function)
     from hypothesis.internal import reflection as _reflection
