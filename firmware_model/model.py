@@ -154,8 +154,9 @@ def run_model(consts: "FirmwareConstants", adc: np.ndarray, acc: np.ndarray | No
       only ``recursive`` and ``kalman_accel`` read it).
     * ``engine``: ``auto`` (the numba kernels when numba is importable and ``FWEMU_NO_NUMBA`` is not set, else
       the same source in Python; the first :data:`AUTO_PURE_MAX_SAMPLES` samples of a process that has not
-      loaded the compiled kernels run in Python too, where that is faster than loading them), ``numba`` (refuse to run uncompiled) or ``python`` (the kernels' source as
-      plain Python on exact ints: slow, for debugging). All give the same words and wrap report.
+      loaded the compiled kernels run in Python too, where that is faster than loading them), ``numba``
+      (refuse to run uncompiled) or ``python`` (the kernels' source as plain Python on exact ints: slow, for
+      debugging). All give the same words and wrap report.
     * ``out``: an optional caller-supplied array for the words (as numpy's ``out=``): int64, C-contiguous,
       writeable, of the shape the words have (below), sharing no memory with the inputs; anything else is a
       :class:`UserError` naming what is wrong. The returned trace's ``words`` is then ``out`` itself, overwritten.

@@ -176,7 +176,7 @@ class ModelStepper:
             f, w = self.loop(*args, out)
         if f >= 0 and self.first_wrap < 0:
             self.first_wrap, self.wrap_word = start + int(f), str(self.kern.WRAP_NAMES[int(w)])
-        return out.astype(np.int64)
+        return out if self.dtype is np.int64 else out.astype(np.int64)   # exact Python ints back to int64
 
 
 # ------------------------------------------------------------------------------------------- the user set
