@@ -23,7 +23,7 @@ import hashlib
 import json
 import math
 import sys
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -187,6 +187,13 @@ def case_matrix(require_logs: bool = True) -> list[CaseSpec]:
     flight for :data:`FLIGHT_PROGRAMS`), then the flight cases of
     :data:`firmware_model.flights.vectorcases.FLIGHT_CASES` (the real-log cases need ../shared/flights: without
     it a :class:`UserError`, or with ``require_logs=False`` the set without them)."""
+    return grid_case_specs() + tail_case_specs(require_logs)
+
+
+def grid_case_specs() -> list[CaseSpec]:
+    """The first part of :func:`case_matrix`: programs x roundings x k x ADC bits (edge streams and synthetic
+    flights). Cheap to build (no log, no simulation): ``--jobs`` starts running it while :func:`tail_case_specs`
+    is built."""
     specs: list[CaseSpec] = []
     flights: dict[tuple[int, int], Stream] = {}
     for program in PROGRAMS:
@@ -210,13 +217,18 @@ def case_matrix(require_logs: bool = True) -> list[CaseSpec]:
                                                             name="flight_fast")
                         stream = flights[key]
                         specs.append(CaseSpec(case_name(program, rounding, k, bits, stream.name), cfg, stream))
+    return specs
+
+
+def tail_case_specs(require_logs: bool = True) -> list[CaseSpec]:
+    """The rest of :func:`case_matrix`, in order: the flight cases, then the pascal cases. The flight cases read
+    the shared logs and simulate flights (seconds of work; :class:`UserError` when the logs are absent and
+    ``require_logs``)."""
     # Flight cases (docs/vectors.md, "Flight cases"): MIT-licensed shared logs and simulated flights, floor, k = 5,
     # built as the apogee table builds them; provenance and licence in each case's input.provenance.
     from firmware_model.flights.vectorcases import flight_case_specs
 
-    specs += flight_case_specs(case_name, CaseSpec, Stream, require_logs)
-    specs += pascal_case_specs()
-    return specs
+    return flight_case_specs(case_name, CaseSpec, Stream, require_logs) + pascal_case_specs()
 
 
 #: The subset run on the ATmega2560 under simavr (must fit 64 KiB of program-memory data: the Kalman cases carry
@@ -478,9 +490,12 @@ def _c_rows(values: Iterable[int], per_line: int = 16) -> str:
     return ",\n".join("    " + ", ".join(vals[i:i + per_line]) for i in range(0, len(vals), per_line))
 
 
+_INT32_MIN = -(1 << 31)
+
+
 def _c_i32(v: int) -> str:
     """An int32 value as a C constant valid for every compiler (INT32_MIN is written as an expression)."""
-    return "(-2147483647 - 1)" if v == -(1 << 31) else str(v)
+    return "(-2147483647 - 1)" if v == _INT32_MIN else str(v)
 
 
 def _c_expected(rows: Any) -> str:
@@ -548,6 +563,24 @@ def case_header(res: CaseResult) -> str:
     empty by default: define it to PROGMEM or a section attribute before including)."""
     stream = res.spec.stream
     return "".join(case_header_parts(res, [_c_rows(stream.adc)], [_c_rows(stream.acc)], [_c_expected(res.words)]))
+
+
+def render_case(res: CaseResult) -> tuple[bytes, bytes]:
+    """``(case_json(res), case_header(res))`` encoded, with each row of expected words converted to text once for
+    both files: a row of Python ints prints as ``str(row)`` = ``"[" + ", ".join(map(str, row)) + "]"``, the JSON
+    row, and the same numbers make the C row unless one is INT32_MIN (then :func:`_c_expected`'s spelling). The
+    number-to-text conversion is most of the rendering; the bytes equal the two functions' (tests/test_vectors.py)."""
+    rows = res.words
+    if not (isinstance(rows, list) and all(type(r) is list and set(map(type, r)) <= {int} for r in rows)):
+        return case_json(res).encode(), case_header(res).encode()
+    text = [str(r)[1:-1] for r in rows]
+    json_rows = ",\n  ".join(["[" + t + "]" for t in text])
+    c_rows = ",\n".join(["    { " + t + " }" if _INT32_MIN not in r else
+                          "    { " + ", ".join(_c_i32(v) for v in r) + " }" for t, r in zip(text, rows)])
+    stream = res.spec.stream
+    json_b = "".join(case_json_parts(res, [_json_values(stream.adc)], [_json_values(stream.acc)], [json_rows]))
+    header_b = "".join(case_header_parts(res, [_c_rows(stream.adc)], [_c_rows(stream.acc)], [c_rows]))
+    return json_b.encode(), header_b.encode()
 
 
 
@@ -759,7 +792,7 @@ def render_set(results: Sequence[CaseResult], kind: str, avr: Sequence[str] = ()
     """All files of a vector set as {relative path: bytes}, including manifest.json (computed last)."""
     files: dict[str, bytes] = {}
     for res in results:
-        json_b, header_b = res.rendered or (case_json(res).encode(), case_header(res).encode())
+        json_b, header_b = res.rendered or render_case(res)
         files[f"cases/{res.spec.name}.json"] = json_b
         files[f"cases/{res.spec.name}.h"] = header_b
         if res.consts.ALT_TABLE:
@@ -828,7 +861,7 @@ def _compute_job(job: tuple[Sequence[CaseSpec], str, bool]) -> list[CaseResult]:
     results = [compute_case(spec, generator, builds) for spec in specs]
     if render:  # the per-case files, in the worker: render_set in the parent is then only the tables + manifest
         for res in results:
-            res.rendered = (case_json(res).encode(), case_header(res).encode())
+            res.rendered = render_case(res)
     return results
 
 
@@ -874,57 +907,79 @@ def _start_pool(n: int) -> Any:
 
 
 def generate(specs: Sequence[CaseSpec], generator: str = "emulation", progress: bool | None = None,
-             jobs: int = 1, pool: Any = None, render: bool = False) -> list[CaseResult]:
+             jobs: int = 1, pool: Any = None, render: bool = False,
+             more: Callable[[], Sequence[CaseSpec]] | None = None) -> list[CaseResult]:
     """Run every case (in order); ``jobs`` > 1 runs them in that many worker processes, the cases of one build in
     one worker (:func:`_job_batches`). The results come back in the order of ``specs`` whatever the workers'
     timing, so the files written are byte-identical to ``jobs=1``. An error or interrupt terminates the workers
     at once. ``pool``: workers the caller started already (:func:`_start_pool`; terminated here). ``render``: the
-    workers also render each case's files (:attr:`CaseResult.rendered`), in parallel."""
-    bar = _Progress(sum(len(s.stream) for s in specs), "vectors", progress, unit="samples")
-    results: list[CaseResult] = []
-    try:
-        if jobs > 1 and len(specs) > 1:
-            batches = _job_batches(specs, jobs)
-            slots: list[CaseResult | None] = [None] * len(specs)
-            if pool is None:
-                pool = _start_pool(min(jobs, len(batches)))
-            try:
-                jobs_in = [([specs[i] for i in b], generator, render) for b in batches]
-                for b, batch in zip(batches, pool.imap(_compute_job, jobs_in)):
-                    for i, res in zip(b, batch):
-                        slots[i] = res
-                        bar.step(res.spec.name, len(res.spec.stream))
-                pool.close()
-            finally:
-                pool.terminate()
-                pool.join()
-            results = [r for r in slots if r is not None]
-        else:
-            builds: dict[Any, Any] = {}
+    workers also render each case's files (:attr:`CaseResult.rendered`), in parallel. ``more``: a function
+    returning further cases, run after ``specs`` (their results follow in order); with workers it is called
+    after the batches of ``specs`` are handed to them, so that building the further cases overlaps running the
+    first ones (an error it raises ends the workers as any other)."""
+    if jobs <= 1 or (len(specs) <= 1 and more is None):
+        specs = list(specs) + (list(more()) if more is not None else [])
+        bar = _Progress(sum(len(s.stream) for s in specs), "vectors", progress, unit="samples")
+        builds: dict[Any, Any] = {}
+        results: list[CaseResult] = []
+        try:
             for spec in specs:
                 results.append(compute_case(spec, generator, builds))
                 bar.step(spec.name, len(spec.stream))
+        finally:
+            if pool is not None:  # started by the caller, not needed
+                pool.terminate()
+                pool.join()
+            bar.close()
+        return results
+    bar = None
+    try:
+        if pool is None:
+            pool = _start_pool(jobs)
+        pending: list[tuple[list[CaseSpec], Any]] = []  # (a batch's specs, its AsyncResult), in submission order
+
+        def submit(part: Sequence[CaseSpec]) -> None:
+            for b in _job_batches(part, jobs):
+                batch = [part[i] for i in b]
+                pending.append((batch, pool.apply_async(_compute_job, ((batch, generator, render),))))
+
+        order = list(specs)
+        submit(order)
+        if more is not None:
+            tail = list(more())
+            submit(tail)
+            order += tail
+        bar = _Progress(sum(len(s.stream) for s in order), "vectors", progress, unit="samples")
+        done: dict[int, CaseResult] = {}
+        for batch, pend in pending:
+            for spec, res in zip(batch, pend.get()):
+                done[id(spec)] = res
+                bar.step(res.spec.name, len(res.spec.stream))
+        pool.close()
+        return [done[id(s)] for s in order]
     finally:
-        if pool is not None:  # an error before the workers got their jobs
+        if pool is not None:
             pool.terminate()
             pool.join()
-        bar.close()
-    return results
+        if bar is not None:
+            bar.close()
 
 
 def generate_all(out: str | Path, generator: str = "emulation", progress: bool | None = None,
                  jobs: int = 1) -> dict[str, bytes]:
     """Regenerate the whole committed set (:func:`case_matrix`) into ``out``; returns the files written. With
-    ``jobs`` > 1 the workers start first, so their start-up overlaps the building of the case matrix."""
+    ``jobs`` > 1 the workers start first, so their start-up overlaps the building of the case matrix, and they
+    run the grid cases (:func:`grid_case_specs`) while the flight and pascal cases (:func:`tail_case_specs`:
+    logs read, flights simulated) are built."""
     pool = _start_pool(jobs) if jobs > 1 else None
     try:
-        specs = case_matrix()
+        grid = grid_case_specs()
     except BaseException:
         if pool is not None:
             pool.terminate()
             pool.join()
         raise
-    results = generate(specs, generator, progress, jobs, pool=pool, render=True)
+    results = generate(grid, generator, progress, jobs, pool=pool, render=True, more=tail_case_specs)
     files = render_set(results, "all", AVR_CASES)
     write_set(files, out, "all")
     return files

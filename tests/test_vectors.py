@@ -338,7 +338,8 @@ def test_jobs_give_byte_identical_files_in_case_order() -> None:
     # so the pick is the same with or without ../shared/flights)
     specs = vectors.case_matrix(require_logs=False)[::16]
     one = vectors.generate(specs, "emulation", progress=False, jobs=1)
-    two = vectors.generate(specs, "emulation", progress=False, jobs=2)
+    # as generate_all runs them: the first part handed to the workers, the rest built meanwhile (``more``)
+    two = vectors.generate(specs[:25], "emulation", progress=False, jobs=2, more=lambda: specs[25:])
     assert [r.spec.name for r in two] == [s.name for s in specs]
     a, b = vectors.render_set(one, "subset"), vectors.render_set(two, "subset")
     assert a == b
@@ -372,3 +373,19 @@ def test_jobs_pool_started_early_is_ended_when_the_matrix_fails(tmp_path, monkey
         vectors.generate_all(tmp_path / "out", jobs=2, progress=False)
     assert not multiprocessing.active_children()
     assert not (tmp_path / "out").exists()
+
+
+def test_render_case_equals_case_json_and_case_header() -> None:
+    """render_case (both files from one text conversion of the rows) gives the bytes of case_json and case_header,
+    also for a row holding INT32_MIN (the C spelling differs from the JSON one) and for rows that are not lists of
+    Python ints (the per-value path)."""
+    spec = vectors.case_matrix(require_logs=False)[0]
+    res = vectors.compute_case(spec)
+    words = [list(r) for r in res.words]
+    words[1][0] = -(1 << 31)
+    words[2][-1] = 2**31 - 1
+    for rows in (res.words, words, np.asarray(words, dtype=np.int64), [tuple(r) for r in words]):
+        res.words = rows
+        assert vectors.render_case(res) == (vectors.case_json(res).encode(), vectors.case_header(res).encode())
+    res.words = words
+    assert b"(-2147483647 - 1)" in vectors.render_case(res)[1] and b"-2147483648" in vectors.render_case(res)[0]
