@@ -1,7 +1,11 @@
 """Machine code -> :class:`~isa.operands.Instruction`, derived from :data:`isa.table.TABLE`.
 
-A 65536-entry opcode -> row map is built from the table at import (each opcode word belongs to at most one row;
-building the map asserts it). :func:`decode` reads the opcode and its extension words through a caller-supplied
+The opcode -> row relation is resolved per opcode word on first use (:func:`row_for`: among the rows whose fixed
+bits agree with the word's top four bits, the one whose fixed bits and operand rules accept it; two such rows
+are a table error and raise), so importing the decoder costs nothing: building all 65536 entries at import took
+~0.2 s in every process that decoded anything. :data:`OPCODE_MAP`, the whole 65536-entry list, is built on first
+access (tests, sweeps), asserting that each opcode word belongs to at most one row. :func:`decode` reads the
+opcode and its extension words through a caller-supplied
 ``fetch_word(address) -> int`` (16-bit, big-endian word at an even address) and returns a :class:`Decoded`.
 
 Canonical form of decoded operands (what :func:`isa.encoder.encode` accepts back to the same bytes):
@@ -60,13 +64,36 @@ def _build_map() -> list[Row | None]:
     return table
 
 
-#: Opcode word -> row (None: not in the supported subset).
-OPCODE_MAP: list[Row | None] = _build_map()
+#: The rows an opcode with these top four bits can belong to (those whose fixed bits there agree).
+_BUCKETS: list[list[Row]] = [[r for r in TABLE if (n << 12 ^ r.fixed_bits) & r.fixed_mask & 0xF000 == 0]
+                             for n in range(16)]
+
+_UNSET = object()
+#: Opcode word -> row or None, filled on first use by :func:`row_for` (the same rows :func:`_build_map` gives).
+_ROWS: list[object] = [_UNSET] * 65536
 
 
 def row_for(word: int) -> Row | None:
-    """The table row of opcode ``word`` (0..0xFFFF), or None if the word is not in the subset."""
-    return OPCODE_MAP[word & 0xFFFF]
+    """The table row of opcode ``word`` (0..0xFFFF), or None if the word is not in the subset. Raises
+    RuntimeError if two rows claim the word (a table error; :func:`_build_map` finds it for every word)."""
+    word &= 0xFFFF
+    row = _ROWS[word]
+    if row is _UNSET:
+        found = [r for r in _BUCKETS[word >> 12] if matches(r, word)]
+        if len(found) > 1:
+            raise RuntimeError(f"opcode ${word:04X} matches both {found[0]} and {found[1]}")
+        row = _ROWS[word] = found[0] if found else None
+    return row  # type: ignore[return-value]
+
+
+def __getattr__(name: str) -> object:
+    """``OPCODE_MAP``: opcode word -> row (None: not in the supported subset), all 65536 words, built on first
+    access with the one-row-per-word check."""
+    if name == "OPCODE_MAP":
+        global OPCODE_MAP
+        OPCODE_MAP = _build_map()
+        return OPCODE_MAP
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def _s8(v: int) -> int:
@@ -87,7 +114,9 @@ def decode(fetch_word: Callable[[int], int], address: int) -> Decoded:
     Raises :class:`~isa.errors.IllegalInstruction` (with ``pc=address``) for an opcode word outside the subset.
     Errors raised by ``fetch_word`` (e.g. bus errors) propagate unchanged."""
     opcode = fetch_word(address) & 0xFFFF
-    row = OPCODE_MAP[opcode]
+    row = _ROWS[opcode]
+    if row is _UNSET:
+        row = row_for(opcode)
     if row is None:
         raise IllegalInstruction(f"illegal instruction ${opcode:04X}", pc=address, instruction=f"dc.w ${opcode:04X}")
     size = row_size(row, opcode)

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from isa.decoder import OPCODE_MAP
+from isa.decoder import OPCODE_MAP, row_for
 from isa.operands import Mode, Size
 from isa.table import (
     ALTERABLE,
@@ -46,6 +46,7 @@ def test_no_two_rows_share_an_opcode_word() -> None:
     for w in range(65536):
         expect = TABLE[owner[w]] if owner[w] >= 0 else None
         assert OPCODE_MAP[w] is expect, f"decoder map disagrees at ${w:04X}"
+        assert row_for(w) is expect, f"the decoder's per-word lookup disagrees at ${w:04X}"
 
 
 def test_every_row_decodes() -> None:
