@@ -16,15 +16,14 @@ from __future__ import annotations
 import functools
 import hashlib
 import os
-import pickle
 import re
 import sys
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from types import MappingProxyType
 from typing import Mapping, Union
 
+from firmware_model import diskcache
 from firmware_model.config import PROGRAMS, BuildConfig
 from firmware_model.constants import FirmwareConstants, build_constants
 from firmware_model.errors import UserError
@@ -159,36 +158,12 @@ def build_key(program: str, equates: tuple[tuple[str, int], ...], digest: str, d
 def _load_cached(path: Path) -> object | None:
     import isa.program
 
-    try:
-        with open(path, "rb") as fh:
-            prog = pickle.load(fh)  # noqa: S301 - our own cache file, content-keyed, in the user's cache dir
-    except FileNotFoundError:
-        return None
-    except Exception:  # noqa: BLE001 - a truncated or foreign file: rebuild (and overwrite it)
-        return None
-    return prog if isinstance(prog, isa.program.Program) else None
+    return diskcache.load(path, lambda obj: isinstance(obj, isa.program.Program))
 
 
 def _store_cached(path: Path, prog: object) -> None:
-    """Write ``prog`` to ``path`` atomically (temp file in the same folder, then os.replace): concurrent writers
-    of the same key write the same bytes, readers never see a partial file. Failures (read-only disk, ...) only
-    cost the cache."""
-    tmp = None
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True, mode=0o700)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=".pickle")
-        with os.fdopen(fd, "wb") as fh:
-            pickle.dump(prog, fh, protocol=pickle.HIGHEST_PROTOCOL)
-        os.replace(tmp, path)
-        tmp = None
-    except OSError:
-        pass
-    finally:
-        if tmp is not None:
-            try:
-                os.unlink(tmp)
-            except OSError:
-                pass
+    """Write ``prog`` to ``path`` atomically (:func:`firmware_model.diskcache.store`)."""
+    diskcache.store(path, prog)
 
 
 #: Counters of the build cache: ``assembled`` (assembler runs), ``disk_hits``.

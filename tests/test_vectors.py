@@ -389,3 +389,44 @@ def test_render_case_equals_case_json_and_case_header() -> None:
         assert vectors.render_case(res) == (vectors.case_json(res).encode(), vectors.case_header(res).encode())
     res.words = words
     assert b"(-2147483647 - 1)" in vectors.render_case(res)[1] and b"-2147483648" in vectors.render_case(res)[0]
+
+
+def _spec_fields(spec: vectors.CaseSpec) -> tuple:
+    st = spec.stream
+    return (spec.name, spec.cfg, st.name, st.k, st.bits, st.adc.dtype, st.adc.tolist(), st.acc.dtype, st.acc.tolist(),
+            json.dumps(st.provenance, sort_keys=True), json.dumps(st.truth, sort_keys=True))
+
+
+def test_flight_cases_come_from_the_disk_cache_unchanged(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The flight cases are computed once per content key and stored; a second call loads them without reading a
+    log (the computing function is then broken) and gives the same specs, field by field, as a computation with no
+    cache at all; another key (require_logs, code digest) computes again."""
+    from firmware_model.flights import vectorcases
+
+    args = (vectors.case_name, vectors.CaseSpec, vectors.Stream)
+    monkeypatch.setenv("FWEMU_CACHE_DIR", "off")
+    fresh = vectorcases.flight_case_specs(*args, require_logs=False)
+    monkeypatch.setenv("FWEMU_CACHE_DIR", str(tmp_path))
+    first = vectorcases.flight_case_specs(*args, require_logs=False)
+    stored = list((tmp_path / "cases").glob("flights-*.pickle"))
+    assert len(stored) == 1
+    real = vectorcases._flight_case_specs
+
+    def broken(*a, **k):
+        raise AssertionError("computed again")
+
+    monkeypatch.setattr(vectorcases, "_flight_case_specs", broken)
+    again = vectorcases.flight_case_specs(*args, require_logs=False)
+    assert [_spec_fields(s) for s in again] == [_spec_fields(s) for s in first] == [_spec_fields(s) for s in fresh]
+    assert len(again) > 0
+    with pytest.raises(AssertionError, match="computed again"):
+        vectorcases.flight_case_specs(*args, require_logs=True)
+    monkeypatch.setattr(vectorcases, "_code_digest", lambda: "another version")
+    with pytest.raises(AssertionError, match="computed again"):
+        vectorcases.flight_case_specs(*args, require_logs=False)
+    monkeypatch.setattr(vectorcases, "_flight_case_specs", real)
+    stored[0].write_bytes(b"damaged")  # a damaged entry is a miss
+    monkeypatch.undo()
+    monkeypatch.setenv("FWEMU_CACHE_DIR", str(tmp_path))
+    assert [_spec_fields(s) for s in vectorcases.flight_case_specs(*args, require_logs=False)] == \
+        [_spec_fields(s) for s in fresh]

@@ -15,7 +15,9 @@ generated, and :func:`flight_case_specs` raises a :class:`UserError` saying so.
 
 from __future__ import annotations
 
+import functools
 import hashlib
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -54,16 +56,76 @@ def _sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
+#: Bumped when the cached form of the flight cases changes.
+_CACHE_FORMAT = 1
+
+
+@functools.lru_cache(maxsize=1)
+def _code_digest() -> str:
+    """SHA-256 over every source file of ``firmware_model`` (readers, sensors, resampling, reference apogee,
+    simulators, gain design, case naming: what the flight cases are computed with) and the flights data files
+    (motors, drag), with the versions of the libraries the simulations and fits run on."""
+    from importlib import metadata
+
+    root = Path(__file__).resolve().parents[1]
+    h = hashlib.sha256()
+    for path in sorted(root.rglob("*.py")) + sorted(p for p in (root / "flights" / "data").rglob("*") if p.is_file()):
+        h.update(str(path.relative_to(root)).encode() + b"\0" + path.read_bytes() + b"\0")
+    versions = []
+    for dist in ("numpy", "scipy", "numba", "rocketpy"):
+        try:
+            versions.append((dist, metadata.version(dist)))
+        except metadata.PackageNotFoundError:
+            versions.append((dist, None))
+    h.update(repr((sys.version_info[:3], versions)).encode())
+    return h.hexdigest()
+
+
+def flight_cases_key(require_logs: bool, base: Path | None) -> str:
+    """The content key of :func:`flight_case_specs`' result: the case list, ``require_logs``, the bytes of every
+    log it reads (or that the log is missing), and :func:`_code_digest`."""
+    h = hashlib.sha256(repr((_CACHE_FORMAT, FLIGHT_CASES, bool(require_logs), base is None)).encode())
+    for _name, source, *_ in FLIGHT_CASES:
+        if source.startswith("sim:") or base is None:
+            continue
+        try:
+            h.update(source.encode() + b"\0" + hashlib.sha256((base / source).read_bytes()).digest())
+        except OSError:
+            h.update(source.encode() + b"\0missing")
+    h.update(_code_digest().encode())
+    return h.hexdigest()
+
+
 def flight_case_specs(case_name: Any, spec_type: Any, stream_type: Any, require_logs: bool = True) -> list[Any]:
     """The flight cases as :class:`firmware_model.vectors.CaseSpec` (``case_name``, ``spec_type`` and
     ``stream_type`` are vectors' ``case_name``, ``CaseSpec`` and ``Stream``, passed in to keep this module free of
     an import cycle). When the shared logs are absent: :class:`UserError` if ``require_logs``, else the simulated
-    cases only."""
+    cases only.
+
+    Reading the logs and simulating the flights takes seconds; the result is kept in the disk cache
+    (:func:`firmware_model.build.cache_dir`, ``cases/flights-<key>.pickle``) under :func:`flight_cases_key`, so a
+    later run with the same logs and the same code loads it instead (the same specs: tests/test_vectors.py)."""
+    from firmware_model import diskcache
+    from firmware_model.build import cache_dir
     from firmware_model.flights.evalset import shared_dir
-    from firmware_model.flights.evaluate import (FlightSpec, flight_inputs, load_record, reference_for,
-                                                 sensor_config)
 
     base = shared_dir()
+    folder = cache_dir()
+    path = folder / "cases" / f"flights-{flight_cases_key(require_logs, base)}.pickle" if folder is not None else None
+    if path is not None:
+        cached = diskcache.load(path, lambda obj: isinstance(obj, list) and all(type(x) is spec_type for x in obj))
+        if cached is not None:
+            return cached
+    specs = _flight_case_specs(case_name, spec_type, stream_type, require_logs, base)
+    if path is not None:
+        diskcache.store(path, specs)
+    return specs
+
+
+def _flight_case_specs(case_name: Any, spec_type: Any, stream_type: Any, require_logs: bool,
+                       base: Path | None) -> list[Any]:
+    from firmware_model.flights.evaluate import FlightSpec, load_record, reference_for, sensor_config
+
     specs: list[Any] = []
     for stream_name, source, baro, noisy, programs in FLIGHT_CASES:
         if source.startswith("sim:"):

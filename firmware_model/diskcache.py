@@ -1,0 +1,47 @@
+"""Content-keyed pickles in the user's cache folder (:func:`firmware_model.build.cache_dir`, ``$FWEMU_CACHE_DIR``).
+
+One job: read and write a cached object by a path whose name is the content key of everything the object was
+computed from (the caller's responsibility: :func:`firmware_model.build.build_key` for assembled builds,
+:func:`firmware_model.flights.vectorcases.flight_cases_key` for the flight vector cases). Writes are atomic (a
+temporary file in the same folder, then ``os.replace``): concurrent writers of one key write the same bytes and
+readers never see a partial file; a failed write (read-only or full disk) only costs the cache, and an unreadable
+or foreign file reads as a miss (it is recomputed and overwritten).
+"""
+
+from __future__ import annotations
+
+import os
+import pickle
+import tempfile
+from pathlib import Path
+from typing import Any, Callable
+
+
+def load(path: Path, accept: Callable[[Any], bool]) -> Any | None:
+    """The object pickled at ``path`` if ``accept(obj)``, else None (also when the file is missing or damaged)."""
+    try:
+        with open(path, "rb") as fh:
+            obj = pickle.load(fh)  # noqa: S301 - our own cache file, content-keyed, in the user's cache dir
+    except Exception:  # noqa: BLE001 - missing, truncated or foreign: a miss
+        return None
+    return obj if accept(obj) else None
+
+
+def store(path: Path, obj: Any) -> None:
+    """Pickle ``obj`` to ``path`` atomically; failures (read-only disk, ...) only cost the cache."""
+    tmp = None
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True, mode=0o700)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=".pickle")
+        with os.fdopen(fd, "wb") as fh:
+            pickle.dump(obj, fh, protocol=pickle.HIGHEST_PROTOCOL)
+        os.replace(tmp, path)
+        tmp = None
+    except (OSError, pickle.PicklingError):
+        pass
+    finally:
+        if tmp is not None:
+            try:
+                os.unlink(tmp)
+            except OSError:
+                pass
