@@ -2,7 +2,9 @@
 
 One job: read and write a cached object by a path whose name is the content key of everything the object was
 computed from (the caller's responsibility: :func:`firmware_model.build.build_key` for assembled builds,
-:func:`firmware_model.flights.vectorcases.flight_cases_key` for the flight vector cases). Writes are atomic (a
+:func:`firmware_model.flights.vectorcases.flight_cases_key` for the flight vector cases,
+:func:`firmware_model.vectors` for build constants; :func:`source_digest` is the part that covers this package's
+code). Writes are atomic (a
 temporary file in the same folder, then ``os.replace``): concurrent writers of one key write the same bytes and
 readers never see a partial file; a failed write (read-only or full disk) only costs the cache, and an unreadable
 or foreign file reads as a miss (it is recomputed and overwritten).
@@ -10,8 +12,11 @@ or foreign file reads as a miss (it is recomputed and overwritten).
 
 from __future__ import annotations
 
+import functools
+import hashlib
 import os
 import pickle
+import sys
 import tempfile
 from pathlib import Path
 from typing import Any, Callable
@@ -45,3 +50,25 @@ def store(path: Path, obj: Any) -> None:
                 os.unlink(tmp)
             except OSError:
                 pass
+
+
+@functools.lru_cache(maxsize=1)
+def source_digest() -> str:
+    """SHA-256 over every source file of ``firmware_model`` and its data files (motors, drag), with the Python
+    version and the versions of the libraries the designs, fits and simulations run on: a key part for results
+    computed by this package's code, so that any change to the code invalidates them."""
+    from importlib import metadata
+
+    root = Path(__file__).resolve().parent
+    h = hashlib.sha256()
+    files = sorted(root.rglob("*.py")) + sorted(p for p in (root / "flights" / "data").rglob("*") if p.is_file())
+    for path in files:
+        h.update(str(path.relative_to(root)).encode() + b"\0" + path.read_bytes() + b"\0")
+    versions = []
+    for dist in ("numpy", "scipy", "numba", "rocketpy"):
+        try:
+            versions.append((dist, metadata.version(dist)))
+        except metadata.PackageNotFoundError:
+            versions.append((dist, None))
+    h.update(repr((sys.version_info[:3], versions)).encode())
+    return h.hexdigest()

@@ -274,10 +274,25 @@ def _sha256_file(path: Path) -> str | None:
 @functools.lru_cache(maxsize=256)
 def _constants(cfg: BuildConfig) -> Any:
     """:func:`firmware_model.constants.build_constants` of ``cfg``, once per process (a pure function of the frozen
-    config; the gain design costs about 2 ms and the committed matrix has 637 cases over 80 builds)."""
-    from firmware_model.constants import build_constants
+    config) and kept in the disk cache (:func:`firmware_model.build.cache_dir`, ``constants/<key>.pickle``) under
+    the config's ``repr`` and :func:`firmware_model.diskcache.source_digest`: the gain designs and the altitude
+    table fits of the committed matrix's 98 builds cost about 1 CPU-s in every run."""
+    from firmware_model import diskcache
+    from firmware_model.build import cache_dir
+    from firmware_model.constants import FirmwareConstants, build_constants
 
-    return build_constants(cfg)
+    folder = cache_dir()
+    path = None
+    if folder is not None:
+        key = hashlib.sha256(repr((1, repr(cfg), diskcache.source_digest())).encode()).hexdigest()
+        path = folder / "constants" / f"{key}.pickle"
+        cached = diskcache.load(path, lambda obj: isinstance(obj, FirmwareConstants) and obj.program == cfg.program)
+        if cached is not None:
+            return cached
+    consts = build_constants(cfg)
+    if path is not None:
+        diskcache.store(path, consts)
+    return consts
 
 
 def compute_case(spec: CaseSpec, generator: str = "emulation", builds: dict[Any, Any] | None = None) -> CaseResult:

@@ -430,3 +430,29 @@ def test_flight_cases_come_from_the_disk_cache_unchanged(tmp_path: Path, monkeyp
     monkeypatch.setenv("FWEMU_CACHE_DIR", str(tmp_path))
     assert [_spec_fields(s) for s in vectorcases.flight_case_specs(*args, require_logs=False)] == \
         [_spec_fields(s) for s in fresh]
+
+
+def test_build_constants_come_from_the_disk_cache_unchanged(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """vectors' constants: computed once per config and code, stored, then loaded (equal to a fresh derivation)
+    without designing again; another config is designed."""
+    import firmware_model.constants as constants_mod
+
+    cfg = BuildConfig(program="kalman_accel", k=6)
+    other = BuildConfig(program="kalman_accel", k=5)
+    monkeypatch.setenv("FWEMU_CACHE_DIR", str(tmp_path))
+    vectors._constants.cache_clear()
+    try:
+        first = vectors._constants(cfg)
+        assert len(list((tmp_path / "constants").glob("*.pickle"))) == 1
+        vectors._constants.cache_clear()
+
+        def broken(c):
+            raise AssertionError("designed again")
+
+        monkeypatch.setattr(constants_mod, "build_constants", broken)
+        again = vectors._constants(cfg)
+        assert again == first == build_constants(cfg)
+        with pytest.raises(AssertionError, match="designed again"):
+            vectors._constants(other)
+    finally:
+        vectors._constants.cache_clear()

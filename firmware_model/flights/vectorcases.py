@@ -15,14 +15,13 @@ generated, and :func:`flight_case_specs` raises a :class:`UserError` saying so.
 
 from __future__ import annotations
 
-import functools
 import hashlib
-import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from firmware_model import diskcache
 from firmware_model.errors import UserError
 
 #: Sample period of the flight cases (2^-5 s: short streams, still a realistic rate for the recursive filter).
@@ -60,25 +59,8 @@ def _sha256(path: Path) -> str:
 _CACHE_FORMAT = 1
 
 
-@functools.lru_cache(maxsize=1)
 def _code_digest() -> str:
-    """SHA-256 over every source file of ``firmware_model`` (readers, sensors, resampling, reference apogee,
-    simulators, gain design, case naming: what the flight cases are computed with) and the flights data files
-    (motors, drag), with the versions of the libraries the simulations and fits run on."""
-    from importlib import metadata
-
-    root = Path(__file__).resolve().parents[1]
-    h = hashlib.sha256()
-    for path in sorted(root.rglob("*.py")) + sorted(p for p in (root / "flights" / "data").rglob("*") if p.is_file()):
-        h.update(str(path.relative_to(root)).encode() + b"\0" + path.read_bytes() + b"\0")
-    versions = []
-    for dist in ("numpy", "scipy", "numba", "rocketpy"):
-        try:
-            versions.append((dist, metadata.version(dist)))
-        except metadata.PackageNotFoundError:
-            versions.append((dist, None))
-    h.update(repr((sys.version_info[:3], versions)).encode())
-    return h.hexdigest()
+    return diskcache.source_digest()
 
 
 def flight_cases_key(require_logs: bool, base: Path | None) -> str:
@@ -105,7 +87,6 @@ def flight_case_specs(case_name: Any, spec_type: Any, stream_type: Any, require_
     Reading the logs and simulating the flights takes seconds; the result is kept in the disk cache
     (:func:`firmware_model.build.cache_dir`, ``cases/flights-<key>.pickle``) under :func:`flight_cases_key`, so a
     later run with the same logs and the same code loads it instead (the same specs: tests/test_vectors.py)."""
-    from firmware_model import diskcache
     from firmware_model.build import cache_dir
     from firmware_model.flights.evalset import shared_dir
 
