@@ -26,6 +26,7 @@ import sys
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -372,6 +373,11 @@ def _fmt_float(x: float) -> float | None:
 
 def _clean(obj: Any) -> Any:
     """Recursively convert numpy scalars and floats into stable JSON values."""
+    t = type(obj)  # the common exact types first (a case document has ~170 values); the rest as below
+    if t is str or t is int or obj is None:
+        return obj
+    if t is float:
+        return _fmt_float(obj)
     if isinstance(obj, dict):
         return {str(k): _clean(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
@@ -602,6 +608,14 @@ def render_case(res: CaseResult) -> tuple[bytes, bytes]:
 def alt_table_files(consts: Any) -> dict[str, bytes]:
     """The shared altitude-table files of a Kalman build: ``tables/<tag>.json`` (the node list, Q24.8 m) and
     ``tables/<tag>.h`` (``fwv_<tag>[]`` with FWV_ROM placement), included by every case header that uses it."""
+    return dict(_alt_table_files(consts.ALT_TABLE, consts.ALT_SHIFT, consts.ALT_N))
+
+
+@functools.lru_cache(maxsize=64)
+def _alt_table_files(table: tuple[int, ...], shift: int, n: int) -> tuple[tuple[str, bytes], ...]:
+    """:func:`alt_table_files` of a table (every case of a build, and every build with the same sensor, renders
+    the same files: once per process)."""
+    consts = SimpleNamespace(ALT_TABLE=table, ALT_SHIFT=shift, ALT_N=n)
     tag = _alt_tag(consts)
     doc = {"name": tag, "shift": consts.ALT_SHIFT, "n_nodes": consts.ALT_N, "q_format": "Q24.8 m",
            "node_count_of_j": f"j << {consts.ALT_SHIFT}", "nodes": list(consts.ALT_TABLE)}
@@ -612,12 +626,18 @@ def alt_table_files(consts: Any) -> dict[str, bytes]:
          f"static const int32_t fwv_{tag}[{consts.ALT_N}] FWV_ROM = {{",
          ",\n".join("    " + ", ".join(_c_i32(v) for v in consts.ALT_TABLE[i:i + 8]) for i in range(0, consts.ALT_N, 8)),
          "};", "", f"#endif /* FWV_{tag.upper()}_H */", ""]
-    return {f"tables/{tag}.json": (json.dumps(doc, sort_keys=True) + "\n").encode(), f"tables/{tag}.h": "\n".join(h).encode()}
+    return ((f"tables/{tag}.json", (json.dumps(doc, sort_keys=True) + "\n").encode()),
+            (f"tables/{tag}.h", "\n".join(h).encode()))
 
 
 def _alt_tag(consts: Any) -> str:
     """C identifier of a build's altitude table: ``alt_`` + the first 12 hex digits of the nodes' SHA-256."""
-    digest = hashlib.sha256(",".join(str(v) for v in consts.ALT_TABLE).encode()).hexdigest()[:12]
+    return _alt_tag_of(tuple(consts.ALT_TABLE))
+
+
+@functools.lru_cache(maxsize=64)
+def _alt_tag_of(table: tuple[int, ...]) -> str:
+    digest = hashlib.sha256(",".join(str(v) for v in table).encode()).hexdigest()[:12]
     return f"alt_{digest}"
 
 
