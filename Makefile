@@ -59,7 +59,7 @@ test-thorough: $(STAMP) tools
 	HYPOTHESIS_PROFILE=thorough $(PY) -m pytest -q -n 2 -p no:cacheprovider
 
 vectors: $(STAMP)
-	$(FWEMU) vectors --all --out vectors
+	$(FWEMU) vectors --all --jobs 2 --out vectors
 
 budget: $(STAMP)
 	$(FWEMU) budget --out out/budget
