@@ -153,7 +153,13 @@ def test_schema_validator_reports_bad_documents(docs: dict[str, dict]) -> None:
     doc["adc"][3] = 2**31          # the barometer word is at most a signed 32-bit word (the pascal kind)
     doc["gains"]["G11"]["s"] = "7"
     doc["surprise"] = 1
+    doc["acc"][5] = -32769         # below the minimum, in an array of ints (the validator's fast path must fall back)
+    doc["acc"][6] = True           # a bool is not an integer here
+    doc["expected"][2][1] = "x"
     errs = vectors.validate(doc, schema)
+    assert "$.acc[5]: -32769 < minimum -32768" in errs
+    assert "$.acc[6]: expected integer, got bool" in errs
+    assert "$.expected[2][1]: expected integer, got str" in errs
     assert "$: missing required key 'init'" in errs
     assert "$.adc[3]: 2147483648 > maximum 2147483647" in errs
     assert "$.gains.G11.s: expected integer, got str" in errs
