@@ -490,7 +490,7 @@ def iter_stream_csv(path: str | Path, bits: int, k: int, require_acc: bool = Fal
     try:
         with f:
             reader = csv.reader(text_lines())
-            while True:
+            while header is None:
                 try:
                     row = next(reader)
                 except StopIteration:
@@ -501,37 +501,64 @@ def iter_stream_csv(path: str | Path, bits: int, k: int, require_acc: bool = Fal
                 cells = [c.strip() for c in row]
                 if not cells or all(c == "" for c in cells) or cells[0].startswith("#"):
                     continue
-                if header is None:
-                    header = [c.lower() for c in cells]
-                    if "adc" not in header:
-                        shown = ", ".join(repr(c) for c in cells[:8]) + (", ..." if len(cells) > 8 else "")
-                        raise UserError(f"{path}:{lineno}: header must name an 'adc' column (and optionally "
-                                        f"'acc'); got {shown[:200]}")
-                    dupes = sorted({c for c in header if c and header.count(c) > 1})
-                    if dupes:
-                        raise UserError(f"{path}:{lineno}: duplicate column {dupes[0]!r} in the header")
-                    i_adc = header.index("adc")
-                    i_acc = header.index("acc") if "acc" in header else None
-                    info.has_acc = i_acc is not None
-                    if require_acc and i_acc is None:
-                        raise UserError(f"{path}:{lineno}: this program reads the accelerometer: the header needs "
-                                        f"an 'acc' column (counts, -32768..32767)")
+                header = [c.lower() for c in cells]
+                if "adc" not in header:
+                    shown = ", ".join(repr(c) for c in cells[:8]) + (", ..." if len(cells) > 8 else "")
+                    raise UserError(f"{path}:{lineno}: header must name an 'adc' column (and optionally "
+                                    f"'acc'); got {shown[:200]}")
+                dupes = sorted({c for c in header if c and header.count(c) > 1})
+                if dupes:
+                    raise UserError(f"{path}:{lineno}: duplicate column {dupes[0]!r} in the header")
+                i_adc = header.index("adc")
+                i_acc = header.index("acc") if "acc" in header else None
+                info.has_acc = i_acc is not None
+                if require_acc and i_acc is None:
+                    raise UserError(f"{path}:{lineno}: this program reads the accelerometer: the header needs "
+                                    f"an 'acc' column (counts, -32768..32767)")
+            # The data rows, the same rules as the header loop above (a row whose cells are all blank, or
+            # whose first cell starts with '#', is skipped; then the field count; then adc, then acc), written
+            # for speed: a cell is stripped only when looked at, and a blank row is recognised when its adc
+            # cell does not parse.
+            ncols = len(header) if header is not None else 0
+            blank = str.isspace
+            while header is not None:
+                try:
+                    row = next(reader)
+                except StopIteration:
+                    break
+                except csv.Error as exc:
+                    raise UserError(f"{path}:{reader.line_num}: malformed CSV: {exc}") from None
+                lineno = reader.line_num
+                if not row:
                     continue
-                if len(cells) != len(header):
-                    raise UserError(f"{path}:{lineno}: expected {len(header)} fields, got {len(cells)}")
-                for col, idx, lo, hi, dest in (("adc", i_adc, adc_lo, full, adc), ("acc", i_acc, -32768, 32767, acc)):
-                    if idx is None:
-                        dest.append(0)
+                c0 = row[0].strip()
+                if c0.startswith("#"):
+                    continue
+                if len(row) != ncols:
+                    if all(not c or blank(c) for c in row):
                         continue
-                    cell = cells[idx]
+                    raise UserError(f"{path}:{lineno}: expected {ncols} fields, got {len(row)}")
+                cell = c0 if i_adc == 0 else row[i_adc].strip()
+                try:
+                    v = int(cell, 10)
+                except ValueError:
+                    if all(not c or blank(c) for c in row):
+                        continue
+                    raise UserError(f"{path}:{lineno}: adc={cell[:40]!r} is not an integer") from None
+                if not adc_lo <= v <= full:
+                    raise UserError(f"{path}:{lineno}: adc={v} outside [{adc_lo}, {full}]{what}")
+                adc.append(v)
+                if i_acc is None:
+                    acc.append(0)
+                else:
+                    cell = row[i_acc].strip()
                     try:
                         v = int(cell, 10)
                     except ValueError:
-                        raise UserError(f"{path}:{lineno}: {col}={cell[:40]!r} is not an integer") from None
-                    if not lo <= v <= hi:
-                        raise UserError(f"{path}:{lineno}: {col}={v} outside [{lo}, {hi}]"
-                                        + (what if col == "adc" else ""))
-                    dest.append(v)
+                        raise UserError(f"{path}:{lineno}: acc={cell[:40]!r} is not an integer") from None
+                    if not -32768 <= v <= 32767:
+                        raise UserError(f"{path}:{lineno}: acc={v} outside [-32768, 32767]")
+                    acc.append(v)
                 if len(adc) >= chunk:
                     info.n += len(adc)
                     yield np.array(adc, np.int64), np.array(acc, np.int64)

@@ -586,18 +586,29 @@ def case_header(res: CaseResult) -> str:
     return "".join(case_header_parts(res, [_c_rows(stream.adc)], [_c_rows(stream.acc)], [_c_expected(res.words)]))
 
 
+def _row_texts(rows: Any) -> tuple[str, str] | None:
+    """``(_json_rows(rows), _c_expected(rows))`` with each row's numbers converted to text once: a row of Python
+    ints prints as ``str(row)`` = ``"[" + ", ".join(map(str, row)) + "]"``, the JSON row, and the same numbers
+    make the C row unless one is INT32_MIN (then :func:`_c_expected`'s spelling). None when ``rows`` is not a
+    list of lists of Python ints (the caller then uses the two functions)."""
+    if not (isinstance(rows, list) and all(type(r) is list and set(map(type, r)) <= {int} for r in rows)):
+        return None
+    text = [str(r)[1:-1] for r in rows]
+    json_rows = ",\n  ".join(["[" + t + "]" for t in text])
+    c_rows = ",\n".join(["    { " + t + " }" if _INT32_MIN not in r else
+                          "    { " + ", ".join(_c_i32(v) for v in r) + " }" for t, r in zip(text, rows)])
+    return json_rows, c_rows
+
+
 def render_case(res: CaseResult) -> tuple[bytes, bytes]:
     """``(case_json(res), case_header(res))`` encoded, with each row of expected words converted to text once for
     both files: a row of Python ints prints as ``str(row)`` = ``"[" + ", ".join(map(str, row)) + "]"``, the JSON
     row, and the same numbers make the C row unless one is INT32_MIN (then :func:`_c_expected`'s spelling). The
     number-to-text conversion is most of the rendering; the bytes equal the two functions' (tests/test_vectors.py)."""
-    rows = res.words
-    if not (isinstance(rows, list) and all(type(r) is list and set(map(type, r)) <= {int} for r in rows)):
+    texts = _row_texts(res.words)
+    if texts is None:
         return case_json(res).encode(), case_header(res).encode()
-    text = [str(r)[1:-1] for r in rows]
-    json_rows = ",\n  ".join(["[" + t + "]" for t in text])
-    c_rows = ",\n".join(["    { " + t + " }" if _INT32_MIN not in r else
-                          "    { " + ", ".join(_c_i32(v) for v in r) + " }" for t, r in zip(text, rows)])
+    json_rows, c_rows = texts
     stream = res.spec.stream
     json_b = "".join(case_json_parts(res, [_json_values(stream.adc)], [_json_values(stream.acc)], [json_rows]))
     header_b = "".join(case_header_parts(res, [_c_rows(stream.adc)], [_c_rows(stream.acc)], [c_rows]))

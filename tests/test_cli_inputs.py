@@ -13,6 +13,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from firmware_model.config import BuildConfig, load_config
 from firmware_model.errors import UserError
@@ -176,3 +178,75 @@ def test_design_flags_override_the_file(tmp_path: Path) -> None:
     cfg = json.loads(r.stdout)["config"]
     assert cfg["k"] == 6 and cfg["rounding"] == "half_up"
     assert np.isfinite(json.loads(r.stdout)["dt"])
+
+
+# ------------------------------------------------------------------------------ the CSV reader against its rules
+def _plain_reader(path: Path, bits: int, require_acc: bool) -> tuple[list[int], list[int]] | str:
+    """The user-CSV rules of firmware_model.inputs.iter_stream_csv written plainly, one rule after the other
+    (this is how the reader was written before its data rows were rewritten for speed): the samples, or the
+    error message. Only what the data rows do differently is modelled: header errors come from the header."""
+    import csv
+
+    lo, hi = (-(1 << 31), (1 << 31) - 1) if bits == 32 else (0, (1 << bits) - 1)
+    what = " (signed 32-bit pascal word)" if bits == 32 else f" ({bits}-bit barometer ADC)"
+    header = None
+    adc: list[int] = []
+    acc: list[int] = []
+    reader = csv.reader(path.read_text(encoding="utf-8").splitlines(keepends=True))
+    for row in reader:
+        n = reader.line_num
+        cells = [c.strip() for c in row]
+        if not cells or all(c == "" for c in cells) or cells[0].startswith("#"):
+            continue
+        if header is None:
+            header = [c.lower() for c in cells]
+            continue
+        if len(cells) != len(header):
+            return f"{path}:{n}: expected {len(header)} fields, got {len(cells)}"
+        for col, idx, a, b, dest in (("adc", header.index("adc"), lo, hi, adc),
+                                     ("acc", header.index("acc") if "acc" in header else None, -32768, 32767, acc)):
+            if idx is None:
+                dest.append(0)
+                continue
+            try:
+                v = int(cells[idx], 10)
+            except ValueError:
+                return f"{path}:{n}: {col}={cells[idx][:40]!r} is not an integer"
+            if not a <= v <= b:
+                return f"{path}:{n}: {col}={v} outside [{a}, {b}]" + (what if col == "adc" else "")
+            dest.append(v)
+    if not adc:
+        return f"{path}: no samples after the header"
+    return adc, acc
+
+
+_CELLS = ["0", "1", "4095", "4096", "65535", "65536", "-1", " 12 ", "\t7", "+3", "1_0", "", " ", "x", "#", "# c",
+          "2147483647", "2147483648", "-2147483648", "-32768", "32767", "32768", "0x10", "١٢", '"5"', '" 6 "']
+
+
+@pytest.mark.parametrize("bits", [12, 16, 32])
+@settings(max_examples=150, deadline=None)
+@given(data=st.data())
+def test_csv_data_rows_follow_the_plain_rules(bits: int, data: st.DataObject, tmp_path_factory) -> None:
+    """Random data rows (blank, comment, whitespace, quoted, signed, underscored, non-ASCII digits, out of
+    range, wrong field counts) under a random header: the reader's samples or its one-line error are the plain
+    rules' (any chunk size)."""
+    from firmware_model.inputs import CsvInfo, iter_stream_csv
+
+    header = data.draw(st.sampled_from(["adc,acc", "acc,adc", "adc", "t,adc,acc", "adc,acc,note"]))
+    ncol = header.count(",") + 1
+    rows = data.draw(st.lists(st.one_of(
+        st.lists(st.sampled_from(_CELLS), min_size=ncol, max_size=ncol),
+        st.lists(st.sampled_from(_CELLS), min_size=0, max_size=ncol + 1)).map(",".join), max_size=12))
+    path = tmp_path_factory.mktemp("csv") / "s.csv"
+    path.write_text(header + "\n" + "".join(r + "\n" for r in rows), encoding="utf-8")
+    chunk = data.draw(st.sampled_from([1, 2, 1000]))
+    expect = _plain_reader(path, bits, False)
+    try:
+        parts = list(iter_stream_csv(path, bits, 5, chunk=chunk, info=CsvInfo(path, bits, 5)))
+    except UserError as exc:
+        assert str(exc) == expect
+        return
+    assert not isinstance(expect, str), expect
+    assert [v for a, _ in parts for v in a.tolist()] == expect[0]
+    assert [v for _, b in parts for v in b.tolist()] == expect[1]
