@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import itertools
 import json
 import math
 import sys
@@ -466,7 +467,10 @@ def _joined(chunks: Iterable[str], sep: str) -> Iterator[str]:
 
 
 def _json_values(values: Any) -> str:
-    return ", ".join(str(int(v)) for v in np.asarray(values).tolist())
+    arr = np.asarray(values)
+    if arr.dtype.kind in "iu":  # tolist() gives Python ints: str is the text int() would give
+        return ", ".join(map(str, arr.tolist()))
+    return ", ".join(str(int(v)) for v in arr.tolist())
 
 
 def _json_rows(rows: Any) -> str:
@@ -507,6 +511,11 @@ def case_json(res: CaseResult) -> str:
 
 
 def _c_rows(values: Iterable[int], per_line: int = 16) -> str:
+    if isinstance(values, np.ndarray) and values.dtype.kind in "iu":
+        ints = values.tolist()  # Python ints: each value's C text is its str, unless it is INT32_MIN
+        if _INT32_MIN not in ints:
+            vals = list(map(str, ints))
+            return ",\n".join("    " + ", ".join(vals[i:i + per_line]) for i in range(0, len(vals), per_line))
     vals = [_c_i32(int(v)) for v in values]
     return ",\n".join("    " + ", ".join(vals[i:i + per_line]) for i in range(0, len(vals), per_line))
 
@@ -591,7 +600,8 @@ def _row_texts(rows: Any) -> tuple[str, str] | None:
     ints prints as ``str(row)`` = ``"[" + ", ".join(map(str, row)) + "]"``, the JSON row, and the same numbers
     make the C row unless one is INT32_MIN (then :func:`_c_expected`'s spelling). None when ``rows`` is not a
     list of lists of Python ints (the caller then uses the two functions)."""
-    if not (isinstance(rows, list) and all(type(r) is list and set(map(type, r)) <= {int} for r in rows)):
+    if not (isinstance(rows, list) and all(type(r) is list for r in rows)
+            and set(map(type, itertools.chain.from_iterable(rows))) <= {int}):
         return None
     text = [str(r)[1:-1] for r in rows]
     json_rows = ",\n  ".join(["[" + t + "]" for t in text])
