@@ -462,3 +462,17 @@ def test_build_constants_come_from_the_disk_cache_unchanged(tmp_path: Path, monk
             vectors._constants(other)
     finally:
         vectors._constants.cache_clear()
+
+
+def test_integer_arrays_render_as_before() -> None:
+    """The input arrays' JSON and C texts: numpy int arrays (the fast path) read as the value-by-value spelling,
+    INT32_MIN spelled as a C expression, other dtypes and plain lists through the per-value path."""
+    vals = [0, 1, -1, 65535, 2**31 - 1, -(2**31), 7] * 5
+    want_c = ",\n".join("    " + ", ".join("(-2147483647 - 1)" if v == -(2**31) else str(v) for v in vals[i:i + 16])
+                        for i in range(0, len(vals), 16))
+    for arr in (np.asarray(vals, dtype=np.int64), vals, np.asarray(vals, dtype=np.float64)):
+        assert vectors._c_rows(arr) == want_c
+        assert vectors._json_values(arr) == ", ".join(str(v) for v in vals)
+    no_min = [v for v in vals if v != -(2**31)]
+    assert vectors._c_rows(np.asarray(no_min, dtype=np.int32)) == ",\n".join(
+        "    " + ", ".join(str(v) for v in no_min[i:i + 16]) for i in range(0, len(no_min), 16))
