@@ -490,14 +490,19 @@ def iter_stream_csv(path: str | Path, bits: int, k: int, require_acc: bool = Fal
     try:
         with f:
             reader = csv.reader(text_lines())
-            while header is None:
-                try:
-                    row = next(reader)
-                except StopIteration:
-                    break
-                except csv.Error as exc:
-                    raise UserError(f"{path}:{reader.line_num}: malformed CSV: {exc}") from None
-                lineno = reader.line_num
+
+            def numbered_rows():  # (line number, row); a CSV syntax error names its line
+                while True:
+                    try:
+                        row = next(reader)
+                    except StopIteration:
+                        return
+                    except csv.Error as exc:
+                        raise UserError(f"{path}:{reader.line_num}: malformed CSV: {exc}") from None
+                    yield reader.line_num, row
+
+            rows = numbered_rows()
+            for lineno, row in rows:
                 cells = [c.strip() for c in row]
                 if not cells or all(c == "" for c in cells) or cells[0].startswith("#"):
                     continue
@@ -515,20 +520,14 @@ def iter_stream_csv(path: str | Path, bits: int, k: int, require_acc: bool = Fal
                 if require_acc and i_acc is None:
                     raise UserError(f"{path}:{lineno}: this program reads the accelerometer: the header needs "
                                     f"an 'acc' column (counts, -32768..32767)")
+                break
             # The data rows, the same rules as the header loop above (a row whose cells are all blank, or
             # whose first cell starts with '#', is skipped; then the field count; then adc, then acc), written
             # for speed: a cell is stripped only when looked at, and a blank row is recognised when its adc
             # cell does not parse.
             ncols = len(header) if header is not None else 0
             blank = str.isspace
-            while header is not None:
-                try:
-                    row = next(reader)
-                except StopIteration:
-                    break
-                except csv.Error as exc:
-                    raise UserError(f"{path}:{reader.line_num}: malformed CSV: {exc}") from None
-                lineno = reader.line_num
+            for lineno, row in rows:  # the data rows (none when the file ended before a header)
                 if not row:
                     continue
                 c0 = row[0].strip()
