@@ -24,7 +24,7 @@ import re
 from typing import Any
 
 from isa import timing
-from isa.block_plan import _ALL_FLAGS, _FLAGS_NZVC, _SHIFT_NAMES, _quiet_write
+from isa.block_plan import _ALL_FLAGS, _CONTROL, _FLAGS_NZVC, _SHIFT_NAMES, _may_fault, _quiet_write
 from isa.errors import AddressError, DivideByZero
 from isa.operands import Instruction, Operand, Size
 from isa.memory import MapFacts
@@ -43,6 +43,37 @@ _COND_EXPR: tuple[str, ...] = (
     "not sr & 2", "sr & 2", "not sr & 8", "sr & 8", "not (sr ^ sr >> 2) & 2", "(sr ^ sr >> 2) & 2",
     "not (sr & 4 | (sr ^ sr >> 2) & 2)", "sr & 4 | (sr ^ sr >> 2) & 2",
 )  # fmt: skip
+
+
+#: Pending register values (:class:`_Val`): register-only data instructions that cannot fault are not assigned as
+#: statements; their values are expressions, composed into the next instruction's, and assigned to the register
+#: locals only where something can observe them. False: every instruction is generated as statements.
+SYMBOLIC = True
+
+_ATOM = re.compile(r"(?:\d+|[ad][0-7]|_y\d+)\Z")  # a register local, a temporary or a literal
+_DREF = re.compile(r"\bd[0-7]\b")
+#: Handlers whose register-only forms the value layer takes (some only with their flags dead: _BlockGen.symbolic).
+_SYM = frozenset("move moveq add addi addq sub subi subq and andi or ori eor eori cmp cmpi tst clr not neg swap ext "
+                 "exg mulu muls asl asr lsl lsr".split())
+
+
+class _Val:
+    """The value of a data register not yet assigned to its local. ``e``: a pure expression (over the register
+    locals as they are now, ``_y`` temporaries and literals) of the unsigned 32-bit value, or a function that
+    makes it (and may bind a temporary first); ``hi``: an upper bound of the value; ``lo``: a cheaper expression of
+    its low word, or None; ``lohi``: an upper bound of the low word."""
+
+    __slots__ = ("e", "hi", "lo", "lohi")
+
+    def __init__(self, e: Any, hi: int, lo: str | None = None, lohi: int | None = None) -> None:
+        self.e = e
+        self.hi = hi
+        self.lo = lo
+        self.lohi = min(hi, 0xFFFF) if lohi is None else lohi
+
+
+def _lit(v: int) -> str:
+    return str(v) if v >= 0 else f"({v})"
 
 
 class _Unblockable(Exception):
@@ -82,6 +113,13 @@ class _BlockGen:
         self.consts: dict[str, object] = {}
         self.recipes: dict[str, tuple[Any, ...]] = {}
         self.dyn = False
+        # The value layer (SYMBOLIC): data register -> its pending value; the temporaries' counter; ``later(r)``
+        # (set by _block_source per entry): whether register r is read again before being overwritten
+        # (:func:`isa.block_plan._read_later`; only a cost guess).
+        self.sym = SYMBOLIC
+        self.pend: dict[int, _Val] = {}
+        self.ntmp = 0
+        self.later: Any = lambda r: True
 
     # ---- emission helpers
     def emit(self, line: str) -> None:
@@ -111,6 +149,7 @@ class _BlockGen:
 
     def exit(self, target: str | int, n: int, cycles: int) -> None:
         """Leave the block to ``target`` (int or expression) after ``n`` instructions and ``cycles`` clocks (+c)."""
+        assert not self.pend, "pending register values at a block exit"
         self.items.append((self.ind, ("exit", target, n, cycles, frozenset(self.dirty))))
 
     def cycles(self, expr: str) -> None:
@@ -378,6 +417,375 @@ class _BlockGen:
         self.emit("if eb < MS[0]:")
         self.emit("    MS[0] = eb")
 
+    # ---- the value layer: pending register values (SYMBOLIC)
+    def tmp(self) -> str:
+        self.ntmp += 1
+        return f"_y{self.ntmp}"
+
+    def val(self, r: int) -> _Val:
+        """The value of data register ``r`` here: pending, or its local."""
+        v = self.pend.get(r)
+        return v if v is not None else _Val(self.rg(r), M32)
+
+    def force(self, v: _Val) -> str:
+        if not isinstance(v.e, str):
+            v.e = v.e()
+        return v.e
+
+    def bind(self, v: _Val) -> _Val:
+        """``v`` as a name or literal: a composite value is assigned to a fresh temporary (one statement)."""
+        e = self.force(v)
+        if _ATOM.match(e):
+            return v
+        t = self.tmp()
+        self.emit(f"{t} = {e}")
+        return _Val(t, v.hi, None, v.lohi)
+
+    def take(self, r: int, dst: int | None) -> _Val:
+        """The value of data register ``r`` as an operand of an instruction that writes ``dst`` (None: of a
+        statement). A composite value that another instruction reads again is bound to a temporary first (then it
+        is computed once); one read only once (the register is overwritten next) is composed into the reader."""
+        v = self.val(r)
+        if r == dst or r not in self.pend or (isinstance(v.e, str) and _ATOM.match(v.e)):
+            return v
+        if self.later(r):
+            v = self.pend[r] = self.bind(v)
+        return v
+
+    def setv(self, r: int, v: _Val) -> None:
+        if isinstance(v.e, str) and len(v.e) > 400:  # keep expressions (and their nesting) small
+            v = self.bind(v)
+        self.pend[r] = v
+
+    def low(self, v: _Val, nb: int) -> str:
+        """Expression of the low ``nb`` bytes of ``v``."""
+        if nb == 4:
+            return self.force(v)
+        m = MASK[nb]
+        base, hi = (v.lo, v.lohi) if v.lo is not None else (self.force(v), v.hi)
+        if base.isdigit():
+            return str(int(base) & m)
+        return base if hi <= m else f"({base} & {m})"
+
+    @staticmethod
+    def lowhi(v: _Val, nb: int) -> int:
+        return v.hi if nb == 4 else min(MASK[nb], v.lohi)
+
+    def sx16(self, v: _Val) -> str:
+        """Expression of the low word of ``v`` sign-extended (a Python int)."""
+        x = self.low(v, 2)
+        if x.isdigit():
+            return _lit(_sx(int(x), 2))
+        return x if v.lohi <= 0x7FFF else f"(({x} ^ 32768) - 32768)"
+
+    def merge(self, d: _Val, nb: int, x: str, xhi: int) -> _Val:
+        """Register value ``d`` with its low ``nb`` bytes replaced by ``x`` (bound ``xhi``)."""
+        if nb == 4:
+            return _Val(x, xhi)
+        m = MASK[nb]
+        keep = M32 ^ m
+        lo, lohi = (x, xhi) if nb == 2 else (None, None)
+        if d.hi <= m:
+            return _Val(x, xhi, lo, lohi)
+        de = self.force(d)
+        if de.isdigit():
+            k = int(de) & keep
+            return _Val(f"({k} | {x})" if k else x, k | m, lo, lohi)
+        return _Val(f"(({de} & {keep}) | {x})", d.hi | m, lo, lohi)
+
+    def vflags(self, x: str, nb: int, need: int) -> str:
+        """N/Z (V, C cleared) from the ``nb``-byte value ``x`` when ``need`` asks for them; returns an expression
+        of the same value (a temporary bound by the flag line when ``x`` is composite)."""
+        if not need & _FLAGS_NZVC:
+            return x
+        if self.defer:  # deferred: pf = x (logic_flags)
+            self.logic_flags(x, nb, need)
+            return x
+        if x.isdigit():
+            self.emit(f"sr = (sr & 0xFF10) | {_nz(int(x), nb)}")
+            return x
+        if _ATOM.match(x):
+            self.emit(f"sr = (sr & 0xFF10) | {self.nz(x, nb)}")
+            return x
+        t = self.tmp()
+        if need & NF:
+            self.emit(f"sr = (sr & 0xFF10) | (4 if not ({t} := {x}) else {t} >> {BITS[nb] - 4} & 8)")
+        else:  # N is dead: only Z is asked for
+            self.emit(f"sr = (sr & 0xFF10) | (0 if ({t} := {x}) else 4)")
+        return t
+
+    def flush(self, regs: set[int] | None = None) -> None:
+        """Assign pending values to their register locals: all of them (``regs`` None), or those of ``regs`` and
+        every pending value that names one of their locals (those locals are about to change)."""
+        if not self.pend:
+            return
+        texts = {q: self.force(v) for q, v in self.pend.items()}  # before any assignment (may bind temporaries)
+        if regs is None:
+            todo = set(self.pend)
+        else:
+            todo = {r for r in regs if r in self.pend}
+            names = {_RN[r] for r in regs}
+            grow = True
+            while grow:
+                grow = False
+                for q, t in texts.items():
+                    if q not in todo and names.intersection(_DREF.findall(t)):
+                        todo.add(q)
+                        names.add(_RN[q])
+                        grow = True
+        for q in todo:
+            del self.pend[q]
+        order = [q for q in sorted(todo) if texts[q] != _RN[q]]
+        refs = {q: set(_DREF.findall(texts[q])) for q in order}
+        while order:
+            ready = [q for q in order if not any(_RN[q] in refs[o] for o in order if o != q)]
+            if not ready:  # a cycle (EXG): one tuple assignment
+                self.emit(f"{', '.join(self.wg(q) for q in order)} = {', '.join(texts[q] for q in order)}")
+                break
+            for q in ready:
+                self.emit(f"{self.wg(q)} = {texts[q]}")
+                order.remove(q)
+
+    def pre_flush(self, ins: Instruction, h: str, pc: int) -> None:
+        """Before an instruction the value layer does not take: everything is assigned when it may fault (the
+        fault unwinding reads every register local) or branch/leave; else its own data registers."""
+        if not self.pend:
+            return
+        if h in _CONTROL or _may_fault(ins, h, self.facts, pc, self.code):
+            self.flush()
+            return
+        regs = set()
+        for o in ins.operands:
+            if o.mode is _M.DREG:
+                regs.add(o.reg)
+            elif o.index is not None and not o.index.is_areg:
+                regs.add(o.index.num)
+        self.flush(regs)
+
+    def symbolic(self, ins: Instruction, h: str, need: int) -> int | None:
+        """Take a register-only data instruction into the value layer: its result becomes the pending value of its
+        register (no statement), flags are emitted when asked for. Returns its clocks, or None when it is left to
+        the statement generator (memory operands, address registers, and ADD/SUB/NEG/shifts with live flags)."""
+        if h not in _SYM:
+            return None
+        ops = ins.operands
+        if h == "moveq":
+            k = _sx(ops[0].value & 0xFF, 1) & M32
+            self.setv(ops[1].reg, _Val(str(k), k))
+            if need & _FLAGS_NZVC:
+                self.emit(f"sr = (sr & 0xFF10) | {_nz(k, 4)}")
+            return timing.cycles(ins)
+        nb = _nb(ins)
+        M = MASK[nb]
+        src, dst = (ops[0], ops[1]) if len(ops) == 2 else (None, ops[0])
+        if dst.mode is not _M.DREG or (src is not None and src.mode not in (_M.DREG, _M.IMM)):
+            return None
+        r = dst.reg
+        base = timing.cycles(ins)
+        nzvc = need & _FLAGS_NZVC
+
+        def operand(o: Operand, dest: int | None) -> _Val:
+            if o.mode is _M.IMM:
+                k = o.value & M
+                return _Val(str(k), k)
+            return self.take(o.reg, dest)
+
+        if h == "exg":
+            if src.mode is not _M.DREG:
+                return None
+            a, b = self.val(src.reg), self.val(r)
+            self.pend[src.reg], self.pend[r] = b, a
+            return base
+        if h in ("cmp", "cmpi"):
+            if not nzvc:
+                return base
+            s, d = operand(src, None), self.take(r, None)
+            ls, ld = self.low(s, nb), self.low(d, nb)
+            if nzvc == CF:
+                self.emit(f"sr = (sr & 0xFF1E) | (1 if {ld} < {ls} else 0)")
+            elif nzvc == ZF:
+                self.emit(f"sr = (sr & 0xFF1B) | (4 if {ld} == {ls} else 0)")
+            else:
+                if not _ATOM.match(ls):
+                    self.emit(f"s = {ls}")
+                    ls = "s"
+                if not _ATOM.match(ld):
+                    self.emit(f"x = {ld}")
+                    ld = "x"
+                self.emit(f"r = {ld} - {ls}")
+                self.emit(f"rm = r & {M}")
+                self.arith_flags("cmp", nb, ls, ld, need)
+            return base
+        if h == "tst":
+            self.vflags(self.low(self.take(r, None), nb), nb, need)
+            return base
+        if h == "move":
+            s = operand(src, r)
+            if nb == 4:
+                x = self.vflags(self.force(s), 4, need)
+                self.setv(r, s if x == s.e else _Val(x, s.hi, None, s.lohi))
+                return base
+            d = self.val(r)
+            if src.mode is _M.DREG and src.reg == r:
+                d = s = self.bind(d)
+            x, xhi = self.low(s, nb), self.lowhi(s, nb)
+            self.setv(r, self.merge(d, nb, self.vflags(x, nb, need), xhi))
+            return base
+        if h in ("and", "andi", "or", "ori", "eor", "eori"):
+            kind = h.rstrip("i")
+            op = {"and": "&", "or": "|", "eor": "^"}[kind]
+            s = operand(src, r)
+            d = self.val(r)
+            if src.mode is _M.DREG and src.reg == r:
+                d = s = self.bind(d)
+            if nb == 4 or not nzvc:
+                se, de = (self.force(s), self.force(d)) if nb == 4 else (self.low(s, nb), self.force(d))
+                if kind == "and":
+                    if nb != 4:
+                        se = str(int(se) | (M32 ^ M)) if se.isdigit() else f"({se} | {M32 ^ M})"
+                    hi = min(s.hi, d.hi) if nb == 4 else d.hi
+                else:
+                    hi = (1 << max(d.hi, self.lowhi(s, nb)).bit_length()) - 1
+                e = str(eval(f"{de} {op} {se}")) if de.isdigit() and se.isdigit() else f"({de} {op} {se})"
+                if nb == 4:
+                    x = self.vflags(e, 4, need)
+                    self.setv(r, _Val(x, hi))
+                else:
+                    self.setv(r, _Val(e, hi))
+                return base
+            d = self.bind(d) if s is not d else d
+            x = f"({self.low(d, nb)} {op} {self.low(s, nb)})"
+            xhi = min(self.lowhi(s, nb), self.lowhi(d, nb)) if kind == "and" else M
+            self.setv(r, self.merge(d, nb, self.vflags(x, nb, need), xhi))
+            return base
+        if h in ("add", "addi", "addq", "sub", "subi", "subq"):
+            if need & _ALL_FLAGS:
+                return None
+            add = h.startswith("add")
+            s = _Val(str(src.value & M), src.value & M) if h in ("addq", "subq") else operand(src, r)
+            d = self.val(r)
+            if src.mode is _M.DREG and src.reg == r:
+                d = s = self.bind(d)
+            if nb == 4:
+                de, se = self.force(d), self.force(s)
+            else:
+                d = self.bind(d)
+                de, se = self.low(d, nb), self.low(s, nb)
+            dhi, shi = self.lowhi(d, nb), self.lowhi(s, nb)
+            if add:
+                x = f"({de} + {se})" if dhi + shi <= M else f"(({de} + {se}) & {M})"
+                xhi = min(dhi + shi, M)
+            else:
+                x, xhi = (de, dhi) if se == "0" else (f"(({de} - {se}) & {M})", M)
+            self.setv(r, self.merge(d, nb, x, xhi))
+            return base
+        if h in ("clr", "not", "neg"):
+            if h == "neg" and need & _ALL_FLAGS:
+                return None
+            d = self.val(r)
+            if h == "clr":
+                if nzvc:
+                    self.emit("sr = (sr & 0xFF10) | 4")
+                self.setv(r, self.merge(d, nb, "0", 0))
+                return base
+            if nb == 4 and not nzvc:
+                de = self.force(d)
+                e = f"({de} ^ {M32})" if h == "not" else f"(-{de} & {M32})"
+                self.setv(r, _Val(e, M32))
+                return base
+            d = self.bind(d)
+            ld = self.low(d, nb)
+            x = f"({ld} ^ {M})" if h == "not" else f"(-{ld} & {M})"
+            self.setv(r, self.merge(d, nb, self.vflags(x, nb, need), M))
+            return base
+        if h == "swap":
+            d = self.val(r)
+            if d.hi <= 0xFFFF:
+                x = f"({self.force(d)} << 16)"
+                self.setv(r, _Val(self.vflags(x, 4, need), d.hi << 16, "0", 0))
+                return base
+            de = self.force(d)
+            lo, lohi = f"({de} >> 16)", d.hi >> 16
+            if _ATOM.match(de) or nzvc:
+                if not _ATOM.match(de):
+                    d = self.bind(d)
+                    de = d.e
+                    lo = f"({de} >> 16)"
+                x = self.vflags(f"(({self.low(d, 2)} << 16) | ({de} >> 16))", 4, need)
+                self.setv(r, _Val(x, M32, lo, lohi))
+                return base
+
+            def make(d: _Val = d) -> str:  # both halves of a composite value: bound once, if at all needed
+                t = self.bind(d)
+                return f"(({self.low(t, 2)} << 16) | ({t.e} >> 16))"
+
+            self.setv(r, _Val(make, M32, lo, lohi))
+            return base
+        if h == "ext":
+            d = self.val(r)
+            if ins.size is Size.W:
+                d = self.bind(d)
+                b, bhi = self.low(d, 1), self.lowhi(d, 1)
+                x, xhi = (b, bhi) if bhi <= 0x7F else (f"((({b} ^ 128) - 128) & 65535)", 0xFFFF)
+                self.setv(r, self.merge(d, 2, self.vflags(x, 2, need), xhi))
+                return base
+            w, whi = self.low(d, 2), d.lohi
+            if whi <= 0x7FFF:
+                self.setv(r, _Val(self.vflags(w, 4, need), whi, w, whi))
+                return base
+            x = self.vflags(f"((({w} ^ 32768) - 32768) & {M32})", 4, need)
+            self.setv(r, _Val(x, M32, w if _ATOM.match(w) else None, whi))
+            return base
+        if h in ("mulu", "muls"):
+            if src.mode is not _M.IMM:
+                return None
+            k = src.value & 0xFFFF
+            d = self.val(r)
+            if h == "mulu":
+                x, hi = f"({k} * {self.low(d, 2)})", k * d.lohi
+                extra = 2 * k.bit_count()
+            else:
+                ks = _sx(k, 2)
+                w = self.sx16(d)
+                if ks >= 0 and d.lohi <= 0x7FFF:
+                    x, hi = f"({ks} * {w})", ks * d.lohi
+                else:
+                    x, hi = f"(({_lit(ks)} * {w}) & {M32})", M32
+                y = k << 1
+                extra = 2 * ((y ^ (y >> 1)) & 0xFFFF).bit_count()
+            if k == 0:
+                x, hi = "0", 0
+            self.setv(r, _Val(self.vflags(x, 4, need), hi))
+            return 38 + timing.EA_TIME[_M.IMM][0] + extra
+        # shifts: long, by an immediate or by a register holding a known count, flags dead
+        if nb != 4 or need & _ALL_FLAGS or len(ops) != 2:
+            return None
+        if src.mode is _M.IMM:
+            n = src.value
+        else:
+            c = self.val(src.reg)
+            if not (isinstance(c.e, str) and c.e.isdigit()):
+                return None
+            n = int(c.e) & 63
+            base = 8 + 2 * n
+        d = self.val(r)
+        de = self.force(d)
+        if n == 0:
+            self.setv(r, d)
+        elif h in ("lsl", "asl"):
+            if n >= 32:
+                self.setv(r, _Val("0", 0))
+            elif d.hi << n <= M32:
+                self.setv(r, _Val(f"({de} << {n})", d.hi << n))
+            else:
+                self.setv(r, _Val(f"(({de} << {n}) & {M32})", M32))
+        elif h == "lsr" or d.hi <= 0x7FFFFFFF:
+            self.setv(r, _Val(f"({de} >> {n})", d.hi >> n) if n < 32 else _Val("0", 0))
+        else:
+            sx = str(_sx(int(de), 4)) if de.isdigit() else f"(({de} ^ {SIGN[4]}) - {SIGN[4]})"
+            self.setv(r, _Val(f"(({sx} >> {n}) & {M32})", M32))
+        return base
+
     # ---- one instruction
     def instruction(self, idx: int, ins: Instruction, h: str, cond: int | None, pc: int, nxt: int, need: int,
                     prefix: int) -> tuple[int, bool]:
@@ -390,6 +798,11 @@ class _BlockGen:
         base = timing.cycles(ins) if h not in ("bcc", "dbcc", "scc", "mulu", "muls", "divu", "divs") \
             and not (h in _SHIFT_NAMES and len(ops) == 2 and ops[0].mode is _M.DREG) else 0
         n_done = idx + 1
+        if self.sym:
+            sc = self.symbolic(ins, h, need)
+            if sc is not None:
+                return sc, False
+            self.pre_flush(ins, h, pc)
         if h == "moveq":
             v = _sx(ops[0].value & 0xFF, 1) & M32
             self.emit(f"{self.wg(ops[1].reg)} = {v}")
