@@ -59,17 +59,22 @@ _SYM = frozenset("move moveq add addi addq sub subi subq and andi or ori eor eor
 
 class _Val:
     """The value of a data register not yet assigned to its local. ``e``: a pure expression (over the register
-    locals as they are now, ``_y`` temporaries and literals) of the unsigned 32-bit value, or a function that
-    makes it (and may bind a temporary first); ``hi``: an upper bound of the value; ``lo``: a cheaper expression of
-    its low word, or None; ``lohi``: an upper bound of the low word."""
+    locals as they are now, ``_y`` temporaries and literals), or a function that makes it (and may bind a
+    temporary first), of a Python int in ``[lo, hi]`` congruent to the register's value modulo 2^32 (the value
+    itself when ``0 <= lo`` and ``hi < 2^32``: :meth:`exact`); ``w``: a cheaper expression of its low word, or
+    None, and ``whi`` an upper bound of that word."""
 
-    __slots__ = ("e", "hi", "lo", "lohi")
+    __slots__ = ("e", "lo", "hi", "w", "whi")
 
-    def __init__(self, e: Any, hi: int, lo: str | None = None, lohi: int | None = None) -> None:
+    def __init__(self, e: Any, lo: int, hi: int, w: str | None = None, whi: int | None = None) -> None:
         self.e = e
-        self.hi = hi
         self.lo = lo
-        self.lohi = min(hi, 0xFFFF) if lohi is None else lohi
+        self.hi = hi
+        self.w = w
+        self.whi = (hi if 0 <= lo and hi <= 0xFFFF else 0xFFFF) if whi is None else whi
+
+    def exact(self) -> bool:
+        return 0 <= self.lo and self.hi <= M32
 
 
 def _lit(v: int) -> str:
@@ -120,6 +125,7 @@ class _BlockGen:
         self.pend: dict[int, _Val] = {}
         self.ntmp = 0
         self.later: Any = lambda r: True
+        self.shifted: dict[str, tuple[str, str, int, int, int]] = {}  # shift result -> (kind, operand, lo, hi, n)
 
     # ---- emission helpers
     def emit(self, line: str) -> None:
@@ -374,21 +380,23 @@ class _BlockGen:
                 return
             self.emit(f"sr = (sr & 0xFF10) | {self.nz(v, nb)}")
 
-    def arith_flags(self, kind: str, nb: int, s: str, d: str, need: int) -> None:
-        """ADD/SUB/CMP flags from ``r`` (unmasked result) and ``rm`` (masked); only the bits in ``need``."""
+    def arith_flags(self, kind: str, nb: int, s: str, d: str, need: int, r: str = "r", rm: str | None = "rm"
+                    ) -> None:
+        """ADD/SUB/CMP flags from ``r`` (unmasked result) and ``rm`` (masked; None: only C/X asked for); only the
+        bits in ``need``."""
         M, S = MASK[nb], SIGN[nb]
         keep = 0xFF1F
         parts = []
         if need & (CF | (XF if kind != "cmp" else 0)):
             bits = 1 if kind == "cmp" else 0x11
-            test = f"r > {M}" if kind == "add" else "r < 0"
+            test = f"{r} > {M}" if kind == "add" else f"{r} < 0"
             parts.append(f"({bits} if {test} else 0)")
             keep &= ~bits
         if need & (NF | ZF):
-            parts.append(self.nz("rm", nb))
+            parts.append(self.nz(rm, nb))
             keep &= ~(NF | ZF)
         if need & VF:
-            v = f"({s} ^ rm) & ({d} ^ rm)" if kind == "add" else f"({s} ^ {d}) & ({d} ^ rm)"
+            v = f"({s} ^ {rm}) & ({d} ^ {rm})" if kind == "add" else f"({s} ^ {d}) & ({d} ^ {rm})"
             parts.append(f"(({v}) >> {BITS[nb] - 2} & 2)")  # the sign bit of the overflow test moved to bit 1
             keep &= ~VF
         if kind == "cmp":
@@ -425,7 +433,7 @@ class _BlockGen:
     def val(self, r: int) -> _Val:
         """The value of data register ``r`` here: pending, or its local."""
         v = self.pend.get(r)
-        return v if v is not None else _Val(self.rg(r), M32)
+        return v if v is not None else _Val(self.rg(r), 0, M32)
 
     def force(self, v: _Val) -> str:
         if not isinstance(v.e, str):
@@ -438,8 +446,8 @@ class _BlockGen:
         if _ATOM.match(e):
             return v
         t = self.tmp()
-        self.emit(f"{t} = {e}")
-        return _Val(t, v.hi, None, v.lohi)
+        self.emit(f"{t} = {self.u(v)}")  # the exact value: a value read twice is mostly read as itself
+        return _Val(t, 0, v.hi if v.exact() else M32, None, v.whi)
 
     def take(self, r: int, dst: int | None) -> _Val:
         """The value of data register ``r`` as an operand of an instruction that writes ``dst`` (None: of a
@@ -453,49 +461,76 @@ class _BlockGen:
         return v
 
     def setv(self, r: int, v: _Val) -> None:
+        if v.lo < -(1 << 60) or v.hi > 1 << 60:  # keep the integers small: the exact value
+            v = _Val(f"({self.force(v)} & {M32})", 0, M32, v.w, v.whi)
         if isinstance(v.e, str) and len(v.e) > 400:  # keep expressions (and their nesting) small
             v = self.bind(v)
         self.pend[r] = v
 
+    def u(self, v: _Val) -> str:
+        """Expression of the exact (unsigned 32-bit) value of ``v``."""
+        e = self.force(v)
+        return e if v.exact() else f"({e} & {M32})"
+
+    def s32(self, v: _Val) -> tuple[str, int, int]:
+        """Expression of the signed 32-bit value of ``v`` and its range."""
+        e = self.force(v)
+        if -SIGN[4] <= v.lo and v.hi < SIGN[4]:
+            return e, v.lo, v.hi
+        if e.isdigit():
+            k = _sx(int(e), 4)
+            return _lit(k), k, k
+        return f"(({self.u(v)} ^ {SIGN[4]}) - {SIGN[4]})", -SIGN[4], SIGN[4] - 1
+
     def low(self, v: _Val, nb: int) -> str:
-        """Expression of the low ``nb`` bytes of ``v``."""
+        """Expression of the low ``nb`` bytes of ``v`` (exact)."""
         if nb == 4:
-            return self.force(v)
+            return self.u(v)
         m = MASK[nb]
-        base, hi = (v.lo, v.lohi) if v.lo is not None else (self.force(v), v.hi)
-        if base.isdigit():
+        if v.w is not None:
+            base, ok = v.w, v.whi <= m
+        else:
+            base, ok = self.force(v), 0 <= v.lo and v.hi <= m
+        if base.lstrip("-").isdigit():
             return str(int(base) & m)
-        return base if hi <= m else f"({base} & {m})"
+        return base if ok else f"({base} & {m})"
 
     @staticmethod
     def lowhi(v: _Val, nb: int) -> int:
-        return v.hi if nb == 4 else min(MASK[nb], v.lohi)
+        if nb == 4:
+            return v.hi if v.exact() else M32
+        return min(MASK[nb], v.whi)
 
-    def sx16(self, v: _Val) -> str:
-        """Expression of the low word of ``v`` sign-extended (a Python int)."""
+    def sx16(self, v: _Val) -> tuple[str, int, int]:
+        """Expression of the low word of ``v`` sign-extended (a Python int) and its range."""
+        if -0x8000 <= v.lo and v.hi <= 0x7FFF:
+            return self.force(v), v.lo, v.hi
         x = self.low(v, 2)
         if x.isdigit():
-            return _lit(_sx(int(x), 2))
-        return x if v.lohi <= 0x7FFF else f"(({x} ^ 32768) - 32768)"
+            k = _sx(int(x), 2)
+            return _lit(k), k, k
+        if v.whi <= 0x7FFF:
+            return x, 0, v.whi
+        return f"(({x} ^ 32768) - 32768)", -0x8000, 0x7FFF
 
     def merge(self, d: _Val, nb: int, x: str, xhi: int) -> _Val:
-        """Register value ``d`` with its low ``nb`` bytes replaced by ``x`` (bound ``xhi``)."""
+        """Register value ``d`` with its low ``nb`` bytes replaced by ``x`` (exact, at most ``xhi``)."""
         if nb == 4:
-            return _Val(x, xhi)
+            return _Val(x, 0, xhi)
         m = MASK[nb]
         keep = M32 ^ m
-        lo, lohi = (x, xhi) if nb == 2 else (None, None)
-        if d.hi <= m:
-            return _Val(x, xhi, lo, lohi)
+        w, whi = (x, xhi) if nb == 2 else (None, None)
+        if d.exact() and d.hi <= m:
+            return _Val(x, 0, xhi, w, whi)
         de = self.force(d)
         if de.isdigit():
             k = int(de) & keep
-            return _Val(f"({k} | {x})" if k else x, k | m, lo, lohi)
-        return _Val(f"(({de} & {keep}) | {x})", d.hi | m, lo, lohi)
+            return _Val(f"({k} | {x})" if k else x, 0, k | m, w, whi)
+        return _Val(f"(({de} & {keep}) | {x})", 0, (d.hi if d.exact() else M32) | m, w, whi)
 
     def vflags(self, x: str, nb: int, need: int) -> str:
-        """N/Z (V, C cleared) from the ``nb``-byte value ``x`` when ``need`` asks for them; returns an expression
-        of the same value (a temporary bound by the flag line when ``x`` is composite)."""
+        """N/Z (V, C cleared) from the exact ``nb``-byte value ``x`` when ``need`` asks for them; returns an
+        expression of the same value (a temporary bound by the flag line when ``x`` is composite)."""
         if not need & _FLAGS_NZVC:
             return x
         if self.defer:  # deferred: pf = x (logic_flags)
@@ -519,7 +554,7 @@ class _BlockGen:
         every pending value that names one of their locals (those locals are about to change)."""
         if not self.pend:
             return
-        texts = {q: self.force(v) for q, v in self.pend.items()}  # before any assignment (may bind temporaries)
+        texts = {q: self.u(v) for q, v in self.pend.items()}  # before any assignment (may bind temporaries)
         if regs is None:
             todo = set(self.pend)
         else:
@@ -535,6 +570,7 @@ class _BlockGen:
                         grow = True
         for q in todo:
             del self.pend[q]
+        self.shifted.clear()
         order = [q for q in sorted(todo) if texts[q] != _RN[q]]
         refs = {q: set(_DREF.findall(texts[q])) for q in order}
         while order:
@@ -565,29 +601,30 @@ class _BlockGen:
     def symbolic(self, ins: Instruction, h: str, need: int) -> int | None:
         """Take a register-only data instruction into the value layer: its result becomes the pending value of its
         register (no statement), flags are emitted when asked for. Returns its clocks, or None when it is left to
-        the statement generator (memory operands, address registers, and ADD/SUB/NEG/shifts with live flags)."""
+        the statement generator (memory operands, address registers, shifts with live flags, MUL by a register,
+        ADD/SUB with live flags in a block with lazy flags)."""
         if h not in _SYM:
             return None
         ops = ins.operands
         if h == "moveq":
             k = _sx(ops[0].value & 0xFF, 1) & M32
-            self.setv(ops[1].reg, _Val(str(k), k))
+            self.setv(ops[1].reg, _Val(str(k), k, k))
             if need & _FLAGS_NZVC:
                 self.emit(f"sr = (sr & 0xFF10) | {_nz(k, 4)}")
-            return timing.cycles(ins)
+            return 4
         nb = _nb(ins)
         M = MASK[nb]
         src, dst = (ops[0], ops[1]) if len(ops) == 2 else (None, ops[0])
         if dst.mode is not _M.DREG or (src is not None and src.mode not in (_M.DREG, _M.IMM)):
             return None
         r = dst.reg
-        base = timing.cycles(ins)
+        same = src is not None and src.mode is _M.DREG and src.reg == r
         nzvc = need & _FLAGS_NZVC
 
         def operand(o: Operand, dest: int | None) -> _Val:
             if o.mode is _M.IMM:
                 k = o.value & M
-                return _Val(str(k), k)
+                return _Val(str(k), k, k)
             return self.take(o.reg, dest)
 
         if h == "exg":
@@ -595,90 +632,137 @@ class _BlockGen:
                 return None
             a, b = self.val(src.reg), self.val(r)
             self.pend[src.reg], self.pend[r] = b, a
-            return base
+            return timing.cycles(ins)
         if h in ("cmp", "cmpi"):
-            if not nzvc:
-                return base
-            s, d = operand(src, None), self.take(r, None)
-            ls, ld = self.low(s, nb), self.low(d, nb)
-            if nzvc == CF:
-                self.emit(f"sr = (sr & 0xFF1E) | (1 if {ld} < {ls} else 0)")
-            elif nzvc == ZF:
-                self.emit(f"sr = (sr & 0xFF1B) | (4 if {ld} == {ls} else 0)")
-            else:
-                if not _ATOM.match(ls):
-                    self.emit(f"s = {ls}")
-                    ls = "s"
-                if not _ATOM.match(ld):
-                    self.emit(f"x = {ld}")
-                    ld = "x"
-                self.emit(f"r = {ld} - {ls}")
-                self.emit(f"rm = r & {M}")
-                self.arith_flags("cmp", nb, ls, ld, need)
-            return base
+            if nzvc:
+                s, d = operand(src, None), self.take(r, None)
+                ls, ld = self.low(s, nb), self.low(d, nb)
+                if nzvc == CF:
+                    self.emit(f"sr = (sr & 0xFF1E) | (1 if {ld} < {ls} else 0)")
+                elif nzvc == ZF:
+                    self.emit(f"sr = (sr & 0xFF1B) | (4 if {ld} == {ls} else 0)")
+                else:
+                    if not _ATOM.match(ls):
+                        self.emit(f"s = {ls}")
+                        ls = "s"
+                    if not _ATOM.match(ld):
+                        self.emit(f"x = {ld}")
+                        ld = "x"
+                    self.emit(f"r = {ld} - {ls}")
+                    self.emit(f"rm = r & {M}")
+                    self.arith_flags("cmp", nb, ls, ld, need)
+            return timing.cycles(ins)
         if h == "tst":
             self.vflags(self.low(self.take(r, None), nb), nb, need)
-            return base
+            return timing.cycles(ins)
         if h == "move":
             s = operand(src, r)
             if nb == 4:
-                x = self.vflags(self.force(s), 4, need)
-                self.setv(r, s if x == s.e else _Val(x, s.hi, None, s.lohi))
-                return base
+                if nzvc:
+                    x = self.vflags(self.u(s), 4, need)
+                    s = s if x == s.e else _Val(x, 0, s.hi if s.exact() else M32, None, s.whi)
+                self.setv(r, s)
+                return timing.cycles(ins)
             d = self.val(r)
-            if src.mode is _M.DREG and src.reg == r:
+            if same:
                 d = s = self.bind(d)
             x, xhi = self.low(s, nb), self.lowhi(s, nb)
             self.setv(r, self.merge(d, nb, self.vflags(x, nb, need), xhi))
-            return base
+            return timing.cycles(ins)
         if h in ("and", "andi", "or", "ori", "eor", "eori"):
             kind = h.rstrip("i")
             op = {"and": "&", "or": "|", "eor": "^"}[kind]
             s = operand(src, r)
             d = self.val(r)
-            if src.mode is _M.DREG and src.reg == r:
+            if same:
                 d = s = self.bind(d)
             if nb == 4 or not nzvc:
-                se, de = (self.force(s), self.force(d)) if nb == 4 else (self.low(s, nb), self.force(d))
                 if kind == "and":
-                    if nb != 4:
-                        se = str(int(se) | (M32 ^ M)) if se.isdigit() else f"({se} | {M32 ^ M})"
-                    hi = min(s.hi, d.hi) if nb == 4 else d.hi
+                    se = self.u(s) if nb == 4 else self.low(s, nb)
+                    de = self.force(d)
+                    mask = int(se) | (M32 ^ M) if se.isdigit() else None
+                    if mask is not None:  # any representative of d: & a constant <= 2^32-1 is exact
+                        e, hi = f"({de} & {mask})", min(mask, d.hi) if d.lo >= 0 else mask
+                    else:
+                        se = se if nb == 4 else f"({se} | {M32 ^ M})"
+                        e, hi = f"({self.u(d)} & {se})", min(s.hi if s.exact() else M32, d.hi if d.exact() else M32)
+                        if nb != 4:
+                            hi = d.hi if d.exact() else M32
+                    if de.isdigit() and not self.force(s).isdigit():  # a constant d: & it the other way round
+                        k = int(de)
+                        e, hi = f"({self.force(s)} & {k & M})", k & M
+                        if k & (M32 ^ M):
+                            e, hi = f"({k & (M32 ^ M)} | {e})", k
                 else:
-                    hi = (1 << max(d.hi, self.lowhi(s, nb)).bit_length()) - 1
-                e = str(eval(f"{de} {op} {se}")) if de.isdigit() and se.isdigit() else f"({de} {op} {se})"
+                    de, se = self.u(d), (self.u(s) if nb == 4 else self.low(s, nb))
+                    hi = (1 << max(d.hi if d.exact() else M32, self.lowhi(s, nb)).bit_length()) - 1
+                    e = f"({de} {op} {se})"
                 if nb == 4:
                     x = self.vflags(e, 4, need)
-                    self.setv(r, _Val(x, hi))
+                    self.setv(r, _Val(x, 0, hi))
                 else:
-                    self.setv(r, _Val(e, hi))
-                return base
+                    self.setv(r, _Val(e, 0, hi))
+                return timing.cycles(ins)
             d = self.bind(d) if s is not d else d
-            x = f"({self.low(d, nb)} {op} {self.low(s, nb)})"
-            xhi = min(self.lowhi(s, nb), self.lowhi(d, nb)) if kind == "and" else M
+            ld, ls = self.low(d, nb), self.low(s, nb)
+            if kind == "and" and ls.isdigit() and not ld.isdigit():
+                x, xhi = f"({self.force(d)} & {ls})", int(ls)
+            elif kind == "and" and ld.isdigit() and not ls.isdigit():
+                x, xhi = f"({self.force(s)} & {ld})", int(ld)
+            else:
+                x = f"({ld} {op} {ls})"
+                xhi = min(self.lowhi(s, nb), self.lowhi(d, nb)) if kind == "and" else M
             self.setv(r, self.merge(d, nb, self.vflags(x, nb, need), xhi))
-            return base
+            return timing.cycles(ins)
         if h in ("add", "addi", "addq", "sub", "subi", "subq"):
-            if need & _ALL_FLAGS:
+            flags = need & _ALL_FLAGS
+            if flags and self.lazy is not None:
                 return None
             add = h.startswith("add")
-            s = _Val(str(src.value & M), src.value & M) if h in ("addq", "subq") else operand(src, r)
+            s = _Val(str(src.value & M), src.value & M, src.value & M) if h in ("addq", "subq") else operand(src, r)
             d = self.val(r)
-            if src.mode is _M.DREG and src.reg == r:
+            if same:
                 d = s = self.bind(d)
-            if nb == 4:
+            if nb == 4 and not flags:
                 de, se = self.force(d), self.force(s)
-            else:
-                d = self.bind(d)
-                de, se = self.low(d, nb), self.low(s, nb)
+                if add:
+                    self.setv(r, _Val(f"({de} + {se})", d.lo + s.lo, d.hi + s.hi))
+                elif se == "0":
+                    self.setv(r, d)
+                else:
+                    self.setv(r, _Val(f"({de} - {se})", d.lo - s.hi, d.hi - s.lo))
+                return timing.cycles(ins)
+            if nb != 4:
+                d = self.bind(d) if s is not d else d
+            de, se = self.low(d, nb), self.low(s, nb)
             dhi, shi = self.lowhi(d, nb), self.lowhi(s, nb)
-            if add:
-                x = f"({de} + {se})" if dhi + shi <= M else f"(({de} + {se}) & {M})"
-                xhi = min(dhi + shi, M)
+            if not flags:
+                if add:
+                    x = f"({de} + {se})" if dhi + shi <= M else f"(({de} + {se}) & {M})"
+                    xhi = min(dhi + shi, M)
+                else:
+                    x, xhi = (de, dhi) if se == "0" else (f"(({de} - {se}) & {M})", M)
+                self.setv(r, self.merge(d, nb, x, xhi))
+                return timing.cycles(ins)
+            if need & VF:  # the overflow test reads both operands again
+                if not _ATOM.match(de):
+                    de = self.bind(_Val(de, 0, dhi)).e
+                if same:
+                    se = de
+                elif not _ATOM.match(se):
+                    se = self.bind(_Val(se, 0, shi)).e
+            t = self.tmp()
+            self.emit(f"{t} = {de} + {se}" if add else f"{t} = {de} - {se}")
+            if need & (NF | ZF | VF):
+                rm = self.tmp()
+                self.emit(f"{rm} = {t} & {M}")
+                res = _Val(rm, 0, M)
             else:
-                x, xhi = (de, dhi) if se == "0" else (f"(({de} - {se}) & {M})", M)
-            self.setv(r, self.merge(d, nb, x, xhi))
-            return base
+                rm = None
+                res = _Val(t, 0, dhi + shi) if add else _Val(t, -shi, dhi)
+            self.arith_flags("add" if add else "sub", nb, se, de, need, t, rm)
+            self.setv(r, res if nb == 4 else self.merge(d, nb, self.low(res, nb), M))
+            return timing.cycles(ins)
         if h in ("clr", "not", "neg"):
             if h == "neg" and need & _ALL_FLAGS:
                 return None
@@ -687,40 +771,40 @@ class _BlockGen:
                 if nzvc:
                     self.emit("sr = (sr & 0xFF10) | 4")
                 self.setv(r, self.merge(d, nb, "0", 0))
-                return base
+                return timing.cycles(ins)
             if nb == 4 and not nzvc:
                 de = self.force(d)
-                e = f"({de} ^ {M32})" if h == "not" else f"(-{de} & {M32})"
-                self.setv(r, _Val(e, M32))
-                return base
+                self.setv(r, _Val(f"(~{de})", -d.hi - 1, -d.lo - 1) if h == "not" else _Val(f"(-{de})", -d.hi, -d.lo))
+                return timing.cycles(ins)
             d = self.bind(d)
             ld = self.low(d, nb)
             x = f"({ld} ^ {M})" if h == "not" else f"(-{ld} & {M})"
             self.setv(r, self.merge(d, nb, self.vflags(x, nb, need), M))
-            return base
+            return timing.cycles(ins)
         if h == "swap":
             d = self.val(r)
-            if d.hi <= 0xFFFF:
+            if d.exact() and d.hi <= 0xFFFF:
                 x = f"({self.force(d)} << 16)"
-                self.setv(r, _Val(self.vflags(x, 4, need), d.hi << 16, "0", 0))
-                return base
-            de = self.force(d)
-            lo, lohi = f"({de} >> 16)", d.hi >> 16
-            if _ATOM.match(de) or nzvc:
-                if not _ATOM.match(de):
-                    d = self.bind(d)
-                    de = d.e
-                    lo = f"({de} >> 16)"
-                x = self.vflags(f"(({self.low(d, 2)} << 16) | ({de} >> 16))", 4, need)
-                self.setv(r, _Val(x, M32, lo, lohi))
-                return base
+                self.setv(r, _Val(self.vflags(x, 4, need), 0, d.hi << 16, "0", 0))
+                return timing.cycles(ins)
+            ue = self.u(d)
+            uhi = d.hi if d.exact() else M32
+            w, whi = f"({ue} >> 16)", uhi >> 16
+            if _ATOM.match(ue) or nzvc:
+                if not _ATOM.match(ue):
+                    d = self.bind(_Val(ue, 0, uhi))
+                    ue = d.e
+                    w = f"({ue} >> 16)"
+                x = self.vflags(f"(({self.low(d, 2)} << 16) | ({ue} >> 16))", 4, need)
+                self.setv(r, _Val(x, 0, M32, w, whi))
+                return timing.cycles(ins)
 
-            def make(d: _Val = d) -> str:  # both halves of a composite value: bound once, if at all needed
+            def make(d: _Val = _Val(ue, 0, uhi)) -> str:  # both halves of a composite value: bound once, if needed
                 t = self.bind(d)
                 return f"(({self.low(t, 2)} << 16) | ({t.e} >> 16))"
 
-            self.setv(r, _Val(make, M32, lo, lohi))
-            return base
+            self.setv(r, _Val(make, 0, M32, w, whi))
+            return timing.cycles(ins)
         if h == "ext":
             d = self.val(r)
             if ins.size is Size.W:
@@ -728,40 +812,42 @@ class _BlockGen:
                 b, bhi = self.low(d, 1), self.lowhi(d, 1)
                 x, xhi = (b, bhi) if bhi <= 0x7F else (f"((({b} ^ 128) - 128) & 65535)", 0xFFFF)
                 self.setv(r, self.merge(d, 2, self.vflags(x, 2, need), xhi))
-                return base
-            w, whi = self.low(d, 2), d.lohi
-            if whi <= 0x7FFF:
-                self.setv(r, _Val(self.vflags(w, 4, need), whi, w, whi))
-                return base
-            x = self.vflags(f"((({w} ^ 32768) - 32768) & {M32})", 4, need)
-            self.setv(r, _Val(x, M32, w if _ATOM.match(w) else None, whi))
-            return base
+                return timing.cycles(ins)
+            w, lo, hi = self.sx16(d)
+            ww = self.low(d, 2)
+            if nzvc:
+                x = self.vflags(w if lo >= 0 else f"({w} & {M32})", 4, need)
+                self.setv(r, _Val(x, 0, hi if lo >= 0 else M32, None, d.whi))
+            else:
+                self.setv(r, _Val(w, lo, hi, ww if _ATOM.match(ww) else None, min(d.whi, 0xFFFF)))
+            return timing.cycles(ins)
         if h in ("mulu", "muls"):
             if src.mode is not _M.IMM:
                 return None
             k = src.value & 0xFFFF
             d = self.val(r)
             if h == "mulu":
-                x, hi = f"({k} * {self.low(d, 2)})", k * d.lohi
+                x, lo, hi = f"({k} * {self.low(d, 2)})", 0, k * d.whi
                 extra = 2 * k.bit_count()
             else:
                 ks = _sx(k, 2)
-                w = self.sx16(d)
-                if ks >= 0 and d.lohi <= 0x7FFF:
-                    x, hi = f"({ks} * {w})", ks * d.lohi
-                else:
-                    x, hi = f"(({_lit(ks)} * {w}) & {M32})", M32
+                w, wlo, whi = self.sx16(d)
+                x, lo, hi = f"({_lit(ks)} * {w})", min(ks * wlo, ks * whi), max(ks * wlo, ks * whi)
                 y = k << 1
                 extra = 2 * ((y ^ (y >> 1)) & 0xFFFF).bit_count()
             if k == 0:
-                x, hi = "0", 0
-            self.setv(r, _Val(self.vflags(x, 4, need), hi))
+                x, lo, hi = "0", 0, 0
+            if nzvc:
+                x = self.vflags(x if lo >= 0 else f"({x} & {M32})", 4, need)
+                lo, hi = 0, (hi if lo >= 0 else M32)
+            self.setv(r, _Val(x, lo, hi))
             return 38 + timing.EA_TIME[_M.IMM][0] + extra
         # shifts: long, by an immediate or by a register holding a known count, flags dead
         if nb != 4 or need & _ALL_FLAGS or len(ops) != 2:
             return None
         if src.mode is _M.IMM:
             n = src.value
+            base = timing.cycles(ins)
         else:
             c = self.val(src.reg)
             if not (isinstance(c.e, str) and c.e.isdigit()):
@@ -769,21 +855,26 @@ class _BlockGen:
             n = int(c.e) & 63
             base = 8 + 2 * n
         d = self.val(r)
-        de = self.force(d)
         if n == 0:
             self.setv(r, d)
-        elif h in ("lsl", "asl"):
-            if n >= 32:
-                self.setv(r, _Val("0", 0))
-            elif d.hi << n <= M32:
-                self.setv(r, _Val(f"({de} << {n})", d.hi << n))
-            else:
-                self.setv(r, _Val(f"(({de} << {n}) & {M32})", M32))
-        elif h == "lsr" or d.hi <= 0x7FFFFFFF:
-            self.setv(r, _Val(f"({de} >> {n})", d.hi >> n) if n < 32 else _Val("0", 0))
+            return base
+        kind = "lsl" if h == "asl" else h
+        prev = self.shifted.get(d.e) if isinstance(d.e, str) else None
+        if prev is not None and prev[0] == kind:  # a shift of a shift: one shift by the sum
+            _, e, lo, hi, k = prev
+            n += k
+        elif kind == "lsl":
+            e, lo, hi = self.force(d), d.lo, d.hi
+        elif kind == "lsr":
+            e, lo, hi = self.u(d), 0, d.hi if d.exact() else M32
         else:
-            sx = str(_sx(int(de), 4)) if de.isdigit() else f"(({de} ^ {SIGN[4]}) - {SIGN[4]})"
-            self.setv(r, _Val(f"(({sx} >> {n}) & {M32})", M32))
+            e, lo, hi = self.s32(d)
+        if kind != "asr" and n >= 32:
+            self.setv(r, _Val("0", 0, 0))
+            return base
+        v = _Val(f"({e} << {n})", lo << n, hi << n) if kind == "lsl" else _Val(f"({e} >> {n})", lo >> n, hi >> n)
+        self.shifted[v.e] = (kind, e, lo, hi, n)
+        self.setv(r, v)
         return base
 
     # ---- one instruction

@@ -1,0 +1,201 @@
+"""The block generator's value layer (pending register values, ``isa.block_codegen._BlockGen.symbolic``).
+
+Register-only data instructions (MOVE/MOVEQ/SWAP/EXT/MULx #imm/shifts/ADD/SUB/AND/OR/EOR/CLR/NOT/NEG/EXG,
+CMP/CMPI/TST) are not generated as statements: their results are expressions composed into the next
+instruction's and assigned to the register locals only where something can observe them (an instruction that
+may fault, a branch, an exit, the end of a straight line). These tests draw dense chains of them over four data
+registers, so that values flow from one to the next, mixed with what must see the registers: memory accesses that
+fault (odd, unmapped), DIVU by a register that may be zero, MUL by a register, forward branches, and random
+instruction/cycle limits and ``until_pc``; and compare
+
+* against the per-instruction closures: registers, SR, PC, memory, counters, fault class, message and PC;
+* against m68000-python (the cycle oracle): registers, CCR, memory, clocks, instruction count, fault kind.
+
+``test_value_layer_is_used`` checks that the chains really are composed (not vacuous).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import random
+
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import isa
+from isa import block_codegen, codecache
+from isa.encoder import encode
+from isa.operands import Instruction, Mode, Operand
+from isa.strategies import instructions
+from profiles import examples
+
+import oracles
+from test_isa_blocks import EDGE, M32, _diff, _run_both, layout, machine, ours_blocks, ref_run
+
+CHAIN_ROWS = ["move", "moveq", "add", "addi", "addq", "sub", "subi", "subq", "and", "andi", "or", "ori", "eor",
+              "eori", "cmp", "cmpi", "tst", "clr", "not", "neg", "swap", "ext", "exg", "mulu", "muls", "asl", "asr",
+              "lsl", "lsr"]
+REG_IMM = frozenset({Mode.DREG, Mode.IMM})
+
+
+def _four(ins: Instruction) -> Instruction:
+    """The same instruction on D0-D3 and A0-A1 only (dense data flow between few registers)."""
+    ops = []
+    for op in ins.operands:
+        if op.mode is Mode.DREG:
+            op = dataclasses.replace(op, reg=op.reg & 3)
+        elif op.mode in (Mode.AIND, Mode.APOSTINC, Mode.APREDEC, Mode.ADISP, Mode.AINDEX):
+            op = dataclasses.replace(op, reg=op.reg & 1)
+        if op.index is not None:
+            op = dataclasses.replace(op, index=dataclasses.replace(op.index, num=op.index.num & 3))
+        ops.append(op)
+    return dataclasses.replace(ins, operands=tuple(ops))
+
+
+#: Register-only chain instructions (the value layer's), shift counts by register included.
+CHAIN = instructions(rows=CHAIN_ROWS, address=oracles.CODE, modes=REG_IMM).map(_four)
+#: What observes the registers: memory accesses through A0/A1 (which may be odd or unmapped), DIVU/DIVS and
+#: MULU/MULS by a register, ADDX.
+OBSERVERS = instructions(rows=["move", "add", "and", "cmp", "tst", "clr", "swap", "ext", "divu", "divs", "mulu",
+                               "muls", "addx"],
+                         address=oracles.CODE,
+                         modes=frozenset({Mode.DREG, Mode.AIND, Mode.APOSTINC, Mode.ADISP, Mode.AINDEX})).filter(
+    lambda i: all(op.mode is not Mode.ADISP or -0x40 <= op.value <= 0x40 for op in i.operands)).map(_four)
+
+
+@st.composite
+def chains(draw: st.DrawFn, observers: bool = True) -> list[object]:
+    """6..24 items: mostly chain instructions, now and then an observer or a forward Bcc.S over 1..3 items."""
+    items: list[object] = []
+    for _ in range(draw(st.integers(6, 24))):
+        k = draw(st.integers(0, 11))
+        if k == 0:
+            items.append(("b", "b" + draw(st.sampled_from("hi ls cc cs ne eq vc vs pl mi ge lt gt le".split())),
+                          draw(st.integers(1, 3))))
+            items.append(draw(CHAIN))  # a Bcc.S needs at least one instruction to skip
+        elif k <= 2 and observers:
+            items.append(draw(OBSERVERS))
+        else:
+            items.append(draw(CHAIN))
+    return items
+
+
+@settings(max_examples=examples(300), deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(chains(), st.lists(st.sampled_from(EDGE) | st.integers(0, M32), min_size=8, max_size=8),
+       st.integers(0, 31), st.integers(0, 1 << 30), st.integers(1, 40), st.integers(1, 900), st.integers(0, 40),
+       st.sampled_from([0x6000, 0x6001, 0x6FFE, 0x1FFFE, 0x20000, 0xFFFFFE]))
+def test_value_chains_equal_closures(items: list[object], d: list[int], ccr: int, seed: int, max_n: int,
+                                     max_c: int, until_k: int, a0: int) -> None:
+    """Chains with faulting observers (odd/unmapped A0, DIVU by zero), forward branches, random limits and
+    until_pc: blocks (value layer on) and closures leave everything identical."""
+    code = layout(items, oracles.CODE) + bytes([0x4E, 0x40])  # trap #0 at the end
+    rng = random.Random(seed)
+    image = bytes(oracles.base_image(seed, [(oracles.CODE, code)]))
+    a = [a0, oracles.DATA_LO + 2 * rng.randrange(0, 0x400)] + [oracles.DATA_LO] * 5 + [0x6F00]
+    until = oracles.CODE + 2 * until_k if until_k < 30 else None
+    kwargs = dict(max_instructions=max_n, max_cycles=max_c, until_pc=until, stop_at_limit=bool(seed & 1))
+    blocks, closures = _run_both(image, d, a, ccr, kwargs)
+    assert blocks == closures
+
+
+@settings(max_examples=examples(200), deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(chains(), st.lists(st.sampled_from(EDGE) | st.integers(0, M32), min_size=8, max_size=8),
+       st.integers(0, 31), st.integers(0, 1 << 30))
+def test_value_chains_vs_m68000py(items: list[object], d: list[int], ccr: int, seed: int) -> None:
+    """The same chains against m68000-python: registers, CCR, memory, clocks, instruction count, fault kind."""
+    code = layout(items, oracles.CODE)
+    m = machine(code, seed, d, ccr)
+    end = oracles.CODE + len(code)
+    ours, ref = ours_blocks(m, end, 200), ref_run(m, end, 200)
+    assert ours == ref, f"{_diff(ours, ref)}\n  code {code.hex(' ')} d={[hex(v) for v in d]} ccr={ccr:#x}"
+
+
+def _block_text(src: str) -> str:
+    """The generated source of the block at CODE for ``src`` (the value layer on)."""
+    from isa import blocks
+
+    seen: list[str] = []
+    orig = blocks._block_source
+
+    def spy(*args: object, **kw: object):  # noqa: ANN202
+        r = orig(*args, **kw)  # type: ignore[arg-type]
+        seen.append(r[0])
+        return r
+
+    prog = isa.assemble(src, filename="v.s", origin=oracles.CODE)
+    cpu = oracles.make_cpu(isa)
+    cpu.write_bytes(oracles.CODE, prog.code)
+    cpu.pc = oracles.CODE
+    codecache.clear()
+    blocks._block_source = spy
+    try:
+        cpu.run(max_instructions=1000)
+    finally:
+        blocks._block_source = orig
+    return seen[0]
+
+
+MULG = """
+ move.l d6,d5
+ swap d5
+ muls #18879,d5
+ move.l d6,d0
+ mulu #18879,d0
+ swap d0
+ ext.l d0
+ add.l d5,d0
+ asr.l #6,d0
+ add.l d0,d1
+ move.l d1,$6000
+ moveq #0,d0
+ moveq #0,d5
+ lsr.l #1,d7
+ trap #0
+"""
+
+
+def test_value_layer_is_used() -> None:
+    """Not vacuous: the firmware's gain multiply (10 register-only instructions; D0 and D5 overwritten after the
+    write, the flags by the LSR) is one statement assigning D1 before the write; with the layer off, one or more
+    statements per instruction."""
+    text = _block_text(MULG)
+    body = [ln.strip() for ln in text.splitlines() if ln.startswith("        ") and "= R[" not in ln
+            and not ln.strip().startswith(("R[", "return", "c = ", "ni = "))]
+    before_write = body[: next(i for i, ln in enumerate(body) if "F32" in ln or "PL(" in ln or "wl(" in ln)]
+    assert len(before_write) == 2 and before_write[1] == "v = d1", before_write
+    assert any(ln.startswith("d1 = ") and "18879" in ln for ln in before_write), before_write
+    block_codegen.SYMBOLIC = False
+    try:
+        plain = _block_text(MULG)
+    finally:
+        block_codegen.SYMBOLIC = True
+    assert plain.count("\n") > text.count("\n") + 8
+
+
+def test_fault_in_the_middle_of_a_chain_sees_every_register() -> None:
+    """Pending values of D0, D1 and D2 (SWAP, EXT, shifts, MOVEQ, ADD) must be in the registers when the MOVE.W
+    from an odd address faults, and the chain after it must not have run."""
+    src = (" moveq #-3,d2\n move.l d3,d0\n swap d0\n ext.l d0\n lsl.l #3,d0\n add.l d2,d1\n move.w (a0),d3\n"
+           " asr.l #2,d0\n moveq #1,d1\n trap #0\n")
+    prog = isa.assemble(src, filename="f.s", origin=oracles.CODE)
+    image = bytes(oracles.base_image(0, [(oracles.CODE, prog.code)]))
+    d = [0x11111111, 0x22222222, 0, 0x8765ABCD, 0, 0, 0, 0]
+    blocks, closures = _run_both(image, d, [0x6001] + [0x6000] * 6 + [0x6F00], 0, {})
+    assert blocks == closures
+    assert blocks[0] == "AddressError"
+    regs = blocks[4]
+    assert regs[0] == (((0x8765 - 0x10000) << 3) & M32) and regs[1] == 0x2222221F and regs[2] == M32 - 2
+
+
+def test_exg_cycle_and_partial_writes() -> None:
+    """EXG of two pending values (a cycle: one tuple assignment), byte/word merges into pending values, and a
+    non-faulting instruction the layer does not take (MULU by a register) in the middle; then an exit."""
+    src = (" move.l d1,d0\n add.l d2,d0\n move.l d2,d1\n eor.l d0,d1\n exg d0,d1\n move.b d3,d0\n add.w d0,d1\n"
+           " mulu d1,d2\n not.b d2\n swap d2\n exg d2,d3\n trap #0\n")
+    prog = isa.assemble(src, filename="e.s", origin=oracles.CODE)
+    image = bytes(oracles.base_image(0, [(oracles.CODE, prog.code)]))
+    for d in ([0x12345678, 0x9ABCDEF0, 0x0FEDCBA9, 0x80000001, 0, 0, 0, 0], [M32] * 8, [0] * 8):
+        blocks, closures = _run_both(image, d, [0x6000] * 7 + [0x6F00], 0, {})
+        assert blocks == closures
+    text = _block_text(src)
+    assert "d0, d1 = " in text or "d1, d0 = " in text or text.count("_y") > 0
