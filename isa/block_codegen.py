@@ -24,12 +24,13 @@ import re
 from typing import Any
 
 from isa import timing
-from isa.block_plan import _ALL_FLAGS, _CONTROL, _FLAGS_NZVC, _SHIFT_NAMES, _may_fault, _quiet_write
+from isa.block_plan import (_ALL_FLAGS, _CONTROL, _FLAGS_NZVC, _READ_ONLY_DST, _SHIFT_NAMES, _may_fault,
+                             _quiet_write)
 from isa.errors import AddressError, DivideByZero
 from isa.operands import Instruction, Operand, Size
 from isa.memory import MapFacts
-from isa.semantics import (BITS, CALL_SENTINEL, CF, M32, MASK, NF, SIGN, VF, XF, ZF, _M, _Fault, _inc, _k_addx,
-                           _k_shift, _k_subx, _nb, _nz, _pc_target, _sx)
+from isa.semantics import (BITS, CALL_SENTINEL, CF, M32, MASK, NF, SIGN, VF, XF, ZF, _M, _MEMORY_MODES, _Fault, _inc,
+                           _k_addx, _k_shift, _k_subx, _nb, _nz, _pc_target, _sx)
 
 
 #: An address expression ``(<register local> + <displacement >= 0>)`` (d16(An) with d16 >= 0): never negative.
@@ -52,6 +53,7 @@ SYMBOLIC = True
 
 _ATOM = re.compile(r"(?:\d+|[ad][0-7]|_y\d+)\Z")  # a register local, a temporary or a literal
 _DREF = re.compile(r"\bd[0-7]\b")
+_CONST_SRC = frozenset((_M.ABSW, _M.ABSL, _M.PCDISP))
 #: Handlers whose register-only forms the value layer takes (some only with their flags dead: _BlockGen.symbolic).
 _SYM = frozenset("move moveq add addi addq sub subi subq and andi or ori eor eori cmp cmpi tst clr not neg swap ext "
                  "exg mulu muls asl asr lsl lsr".split())
@@ -360,6 +362,7 @@ class _BlockGen:
             self.emit("    if D[0]:")
             self.emit("        D[0] = 0")
             self.ind += 2
+            assert not self.pend, "pending register values at a block exit"
             self.smc_slots.append(len(self.items))
             self.items.append((self.ind, ("smc",)))
             self.ind -= 2
@@ -528,9 +531,12 @@ class _BlockGen:
             return _Val(f"({k} | {x})" if k else x, 0, k | m, w, whi)
         return _Val(f"(({de} & {keep}) | {x})", 0, (d.hi if d.exact() else M32) | m, w, whi)
 
-    def vflags(self, x: str, nb: int, need: int) -> str:
+    def vflags(self, x: str, nb: int, need: int, reg: int | None = None) -> str:
         """N/Z (V, C cleared) from the exact ``nb``-byte value ``x`` when ``need`` asks for them; returns an
-        expression of the same value (a temporary bound by the flag line when ``x`` is composite)."""
+        expression of the same value (a temporary bound by the flag line when ``x`` is composite). ``reg``: ``x``
+        is the whole new value of that data register: the flag line may assign it to the register's local
+        straight away (when no other pending value names that local); the result is then the local's name and
+        the caller drops the register's pending value."""
         if not need & _FLAGS_NZVC:
             return x
         if self.defer:  # deferred: pf = x (logic_flags)
@@ -543,15 +549,31 @@ class _BlockGen:
             self.emit(f"sr = (sr & 0xFF10) | {self.nz(x, nb)}")
             return x
         t = self.tmp()
+        if reg is not None and self.free(reg):
+            t = self.wg(reg)
         if need & NF:
             self.emit(f"sr = (sr & 0xFF10) | (4 if not ({t} := {x}) else {t} >> {BITS[nb] - 4} & 8)")
         else:  # N is dead: only Z is asked for
             self.emit(f"sr = (sr & 0xFF10) | (0 if ({t} := {x}) else 4)")
         return t
 
-    def flush(self, regs: set[int] | None = None) -> None:
+    def free(self, r: int) -> bool:
+        """True when no pending value other than register ``r``'s own names ``r``'s local (it may be assigned)."""
+        name = _RN[r]
+        return not any(q != r and name in _DREF.findall(self.force(v)) for q, v in self.pend.items())
+
+    def setx(self, r: int, x: str, v: _Val) -> None:
+        """Register ``r``'s new value ``v`` (whose expression is ``x`` unless :meth:`vflags` returned the
+        register's own local: then it is assigned already)."""
+        if x == _RN[r]:
+            self.pend.pop(r, None)
+        else:
+            self.setv(r, v)
+
+    def flush(self, regs: set[int] | None = None, extra: set[str] = frozenset()) -> None:  # type: ignore[assignment]
         """Assign pending values to their register locals: all of them (``regs`` None), or those of ``regs`` and
-        every pending value that names one of their locals (those locals are about to change)."""
+        every pending value that names one of their locals or a local in ``extra`` (those locals are about to
+        change)."""
         if not self.pend:
             return
         texts = {q: self.u(v) for q, v in self.pend.items()}  # before any assignment (may bind temporaries)
@@ -559,7 +581,7 @@ class _BlockGen:
             todo = set(self.pend)
         else:
             todo = {r for r in regs if r in self.pend}
-            names = {_RN[r] for r in regs}
+            names = {_RN[r] for r in regs} | extra
             grow = True
             while grow:
                 grow = False
@@ -587,7 +609,11 @@ class _BlockGen:
         fault unwinding reads every register local) or branch/leave; else its own data registers."""
         if not self.pend:
             return
-        if h in _CONTROL or _may_fault(ins, h, self.facts, pc, self.code):
+        ops = ins.operands
+        if h in _CONTROL or _may_fault(ins, h, self.facts, pc, self.code) or (
+                ops and ops[-1].mode in _MEMORY_MODES and h not in _READ_ONLY_DST):
+            # (a memory write: its generated slow path may leave the block after writing compiled code even where
+            # the planner knows it cannot fault and cannot rewrite this block)
             self.flush()
             return
         regs = set()
@@ -598,7 +624,41 @@ class _BlockGen:
                 regs.add(o.index.num)
         self.flush(regs)
 
-    def symbolic(self, ins: Instruction, h: str, need: int) -> int | None:
+    def move_const(self, ins: Instruction, nb: int, need: int, pc: int) -> int | None:
+        """MOVE between a data register (or an immediate) and a constant address the map guarantees, which cannot
+        fault (:func:`isa.block_plan._may_fault`): a read goes straight into the register's local (a long) or
+        into a temporary merged into its value; a write stores the register's value without assigning it."""
+        src, dst = ins.operands
+        if _may_fault(ins, "move", self.facts, pc, self.code):
+            return None
+        if dst.mode is _M.DREG and src.mode in (_M.ABSW, _M.ABSL, _M.PCDISP):
+            r = dst.reg
+            ld = self.load(nb, self.addr(src, nb, pc, "ea"))
+            if nb == 4:
+                self.pend.pop(r, None)  # overwritten whole; the names of its old local in pending values:
+                self.flush(set(), {_RN[r]})
+                dn = self.wg(r)
+                self.emit(f"{dn} = {ld}")
+                self.vflags(dn, 4, need)
+                return timing.cycles(ins)
+            t = self.tmp()
+            self.emit(f"{t} = {ld}")
+            self.setv(r, self.merge(self.val(r), nb, self.vflags(t, nb, need), MASK[nb]))
+            return timing.cycles(ins)
+        if src.mode in (_M.DREG, _M.IMM) and dst.mode in (_M.ABSW, _M.ABSL):
+            if src.mode is _M.IMM:
+                x = str(src.value & MASK[nb])
+            else:
+                x = self.low(self.take(src.reg, None), nb)
+            if not _ATOM.match(x):
+                self.emit(f"v = {x}")
+                x = "v"
+            self.logic_flags(x, nb, need)
+            self.write(nb, self.addr(dst, nb, pc, "eb"), x, last=True)
+            return timing.cycles(ins)
+        return None
+
+    def symbolic(self, ins: Instruction, h: str, need: int, pc: int) -> int | None:
         """Take a register-only data instruction into the value layer: its result becomes the pending value of its
         register (no statement), flags are emitted when asked for. Returns its clocks, or None when it is left to
         the statement generator (memory operands, address registers, shifts with live flags, MUL by a register,
@@ -615,16 +675,23 @@ class _BlockGen:
         nb = _nb(ins)
         M = MASK[nb]
         src, dst = (ops[0], ops[1]) if len(ops) == 2 else (None, ops[0])
-        if dst.mode is not _M.DREG or (src is not None and src.mode not in (_M.DREG, _M.IMM)):
+        if h == "move" and (dst.mode is not _M.DREG or src.mode not in (_M.DREG, _M.IMM)):
+            return self.move_const(ins, nb, need, pc)
+        if dst.mode is not _M.DREG or (src is not None and src.mode not in (_M.DREG, _M.IMM) and (
+                src.mode not in _CONST_SRC or _may_fault(ins, h, self.facts, pc, self.code))):
             return None
         r = dst.reg
         same = src is not None and src.mode is _M.DREG and src.reg == r
         nzvc = need & _FLAGS_NZVC
 
-        def operand(o: Operand, dest: int | None) -> _Val:
+        def operand(o: Operand, dest: int | None, n: int = nb) -> _Val:
             if o.mode is _M.IMM:
-                k = o.value & M
+                k = o.value & MASK[n]
                 return _Val(str(k), k, k)
+            if o.mode is not _M.DREG:  # a constant address the map guarantees (cannot fault): read it now
+                t = self.tmp()
+                self.emit(f"{t} = {self.load(n, self.addr(o, n, pc, 'ea'))}")
+                return _Val(t, 0, MASK[n])
             return self.take(o.reg, dest)
 
         if h == "exg":
@@ -659,7 +726,10 @@ class _BlockGen:
             s = operand(src, r)
             if nb == 4:
                 if nzvc:
-                    x = self.vflags(self.u(s), 4, need)
+                    x = self.vflags(self.u(s), 4, need, r)
+                    if x == _RN[r]:
+                        self.pend.pop(r, None)
+                        return timing.cycles(ins)
                     s = s if x == s.e else _Val(x, 0, s.hi if s.exact() else M32, None, s.whi)
                 self.setv(r, s)
                 return timing.cycles(ins)
@@ -698,8 +768,8 @@ class _BlockGen:
                     hi = (1 << max(d.hi if d.exact() else M32, self.lowhi(s, nb)).bit_length()) - 1
                     e = f"({de} {op} {se})"
                 if nb == 4:
-                    x = self.vflags(e, 4, need)
-                    self.setv(r, _Val(x, 0, hi))
+                    x = self.vflags(e, 4, need, r)
+                    self.setx(r, x, _Val(x, 0, hi))
                 else:
                     self.setv(r, _Val(e, 0, hi))
                 return timing.cycles(ins)
@@ -712,7 +782,9 @@ class _BlockGen:
             else:
                 x = f"({ld} {op} {ls})"
                 xhi = min(self.lowhi(s, nb), self.lowhi(d, nb)) if kind == "and" else M
-            self.setv(r, self.merge(d, nb, self.vflags(x, nb, need), xhi))
+            whole = d.exact() and d.hi <= M
+            x = self.vflags(x, nb, need, r if whole else None)
+            self.setx(r, x, self.merge(d, nb, x, xhi))
             return timing.cycles(ins)
         if h in ("add", "addi", "addq", "sub", "subi", "subq"):
             flags = need & _ALL_FLAGS
@@ -795,8 +867,8 @@ class _BlockGen:
                     d = self.bind(_Val(ue, 0, uhi))
                     ue = d.e
                     w = f"({ue} >> 16)"
-                x = self.vflags(f"(({self.low(d, 2)} << 16) | ({ue} >> 16))", 4, need)
-                self.setv(r, _Val(x, 0, M32, w, whi))
+                x = self.vflags(f"(({self.low(d, 2)} << 16) | ({ue} >> 16))", 4, need, r)
+                self.setx(r, x, _Val(x, 0, M32, w, whi))
                 return timing.cycles(ins)
 
             def make(d: _Val = _Val(ue, 0, uhi)) -> str:  # both halves of a composite value: bound once, if needed
@@ -816,14 +888,41 @@ class _BlockGen:
             w, lo, hi = self.sx16(d)
             ww = self.low(d, 2)
             if nzvc:
-                x = self.vflags(w if lo >= 0 else f"({w} & {M32})", 4, need)
-                self.setv(r, _Val(x, 0, hi if lo >= 0 else M32, None, d.whi))
+                x = self.vflags(w if lo >= 0 else f"({w} & {M32})", 4, need, r)
+                self.setx(r, x, _Val(x, 0, hi if lo >= 0 else M32, None, d.whi))
             else:
                 self.setv(r, _Val(w, lo, hi, ww if _ATOM.match(ww) else None, min(d.whi, 0xFFFF)))
             return timing.cycles(ins)
+        if h in ("mulu", "muls") and src.mode is not _M.IMM:
+            sv = operand(src, r, 2)
+            d = self.val(r)
+            if same:
+                d = sv = self.bind(d)
+            t = self.low(sv, 2)
+            if t.isdigit():  # a known source: constant clocks, as MUL #imm
+                src = Operand(_M.IMM, value=int(t))
+                ea = timing.EA_TIME[_M.DREG][0]
+            else:
+                if not _ATOM.match(t):
+                    t = self.bind(_Val(t, 0, sv.whi)).e
+                    sv = _Val(t, 0, sv.whi)
+                if h == "mulu":
+                    self.cycles(f"2 * {t}.bit_count()")
+                    x, lo, hi = f"({t} * {self.low(d, 2)})", 0, 0xFFFF * d.whi
+                else:
+                    self.cycles(f"2 * (({t} << 1 ^ {t}) & 0xFFFF).bit_count()")
+                    a, alo, ahi = self.sx16(sv)
+                    b, blo, bhi = self.sx16(d)
+                    ps = (alo * blo, alo * bhi, ahi * blo, ahi * bhi)
+                    x, lo, hi = f"({a} * {b})", min(ps), max(ps)
+                if nzvc:
+                    x = self.vflags(x if lo >= 0 else f"({x} & {M32})", 4, need, r)
+                    lo, hi = 0, (hi if lo >= 0 else M32)
+                self.setx(r, x, _Val(x, lo, hi))
+                return 38 + timing.EA_TIME[src.mode][0]
+        else:
+            ea = timing.EA_TIME[_M.IMM][0]
         if h in ("mulu", "muls"):
-            if src.mode is not _M.IMM:
-                return None
             k = src.value & 0xFFFF
             d = self.val(r)
             if h == "mulu":
@@ -838,10 +937,10 @@ class _BlockGen:
             if k == 0:
                 x, lo, hi = "0", 0, 0
             if nzvc:
-                x = self.vflags(x if lo >= 0 else f"({x} & {M32})", 4, need)
+                x = self.vflags(x if lo >= 0 else f"({x} & {M32})", 4, need, r)
                 lo, hi = 0, (hi if lo >= 0 else M32)
-            self.setv(r, _Val(x, lo, hi))
-            return 38 + timing.EA_TIME[_M.IMM][0] + extra
+            self.setx(r, x, _Val(x, lo, hi))
+            return 38 + ea + extra
         # shifts: long, by an immediate or by a register holding a known count, flags dead
         if nb != 4 or need & _ALL_FLAGS or len(ops) != 2:
             return None
@@ -890,7 +989,7 @@ class _BlockGen:
             and not (h in _SHIFT_NAMES and len(ops) == 2 and ops[0].mode is _M.DREG) else 0
         n_done = idx + 1
         if self.sym:
-            sc = self.symbolic(ins, h, need)
+            sc = self.symbolic(ins, h, need, pc)
             if sc is not None:
                 return sc, False
             self.pre_flush(ins, h, pc)
@@ -1096,8 +1195,7 @@ class _BlockGen:
                 self.emit(f"{dn} = {s} * ({dn} & 0xFFFF)")
             self.logic_flags(dn, 4, need)
             if h == "muls":
-                self.emit(f"x = {s} << 1")
-                self.cycles("2 * ((x ^ (x >> 1)) & 0xFFFF).bit_count()")
+                self.cycles(f"2 * (({s} << 1 ^ {s}) & 0xFFFF).bit_count()")
             else:
                 self.cycles(f"2 * {s}.bit_count()")
             return 38 + timing.EA_TIME[ops[0].mode][0], False
