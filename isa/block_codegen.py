@@ -126,6 +126,7 @@ class _BlockGen:
         self.sym = SYMBOLIC
         self.pend: dict[int, _Val] = {}
         self.ntmp = 0
+        self.memo: dict[str, str] = {}  # expression -> the temporary bound to it (until a register local changes)
         self.later: Any = lambda r: True
         self.shifted: dict[str, tuple[str, str, int, int, int]] = {}  # shift result -> (kind, operand, lo, hi, n)
 
@@ -153,6 +154,7 @@ class _BlockGen:
     def wg(self, i: int) -> str:
         self.used.add(i)
         self.dirty.add(i)
+        self.memo.clear()  # a register local changes: expressions over it no longer equal their temporaries
         return _RN[i]
 
     def exit(self, target: str | int, n: int, cycles: int) -> None:
@@ -448,8 +450,11 @@ class _BlockGen:
         e = self.force(v)
         if _ATOM.match(e):
             return v
-        t = self.tmp()
-        self.emit(f"{t} = {self.u(v)}")  # the exact value: a value read twice is mostly read as itself
+        x = self.u(v)  # the exact value: a value read twice is mostly read as itself
+        t = self.memo.get(x)
+        if t is None:
+            t = self.memo[x] = self.tmp()
+            self.emit(f"{t} = {x}")
         return _Val(t, 0, v.hi if v.exact() else M32, None, v.whi)
 
     def take(self, r: int, dst: int | None) -> _Val:
@@ -574,6 +579,7 @@ class _BlockGen:
         """Assign pending values to their register locals: all of them (``regs`` None), or those of ``regs`` and
         every pending value that names one of their locals or a local in ``extra`` (those locals are about to
         change)."""
+        self.memo.clear()  # (also at every control-flow point: a temporary bound on one path only)
         if not self.pend:
             return
         texts = {q: self.u(v) for q, v in self.pend.items()}  # before any assignment (may bind temporaries)
@@ -607,6 +613,7 @@ class _BlockGen:
     def pre_flush(self, ins: Instruction, h: str, pc: int) -> None:
         """Before an instruction the value layer does not take: everything is assigned when it may fault (the
         fault unwinding reads every register local) or branch/leave; else its own data registers."""
+        self.memo.clear()
         if not self.pend:
             return
         ops = ins.operands
@@ -941,8 +948,9 @@ class _BlockGen:
                 lo, hi = 0, (hi if lo >= 0 else M32)
             self.setx(r, x, _Val(x, lo, hi))
             return 38 + ea + extra
-        # shifts: long, by an immediate or by a register holding a known count, flags dead
-        if nb != 4 or need & _ALL_FLAGS or len(ops) != 2:
+        # shifts: long, by an immediate or by a register holding a known count (with live flags: ASR/LSR/LSL by
+        # 1..31 only)
+        if nb != 4 or len(ops) != 2:
             return None
         if src.mode is _M.IMM:
             n = src.value
@@ -954,6 +962,23 @@ class _BlockGen:
             n = int(c.e) & 63
             base = 8 + 2 * n
         d = self.val(r)
+        if need & _ALL_FLAGS:
+            if h == "asl" or not 1 <= n <= 31:
+                return None
+            if h == "asr":
+                x = self.s32(d)[0]
+            else:
+                x = self.u(d)
+            if not _ATOM.match(x):  # read twice (result and carry); ASR's is the signed value: no bind()
+                t = self.tmp()
+                self.emit(f"{t} = {x}")
+                x = t
+            c = f"{x} >> {32 - n} & 1" if h == "lsl" else f"{x} >> {n - 1} & 1"
+            e = f"({x} << {n}) & {M32}" if h == "lsl" else (f"({x} >> {n}) & {M32}" if h == "asr" else f"{x} >> {n}")
+            t = self.wg(r) if self.free(r) else self.tmp()
+            self.emit(f"sr = (sr & 0xFF00) | (0x11 if {c} else 0) | (4 if not ({t} := {e}) else {t} >> 28 & 8)")
+            self.setx(r, t, _Val(t, 0, M32))
+            return base
         if n == 0:
             self.setv(r, d)
             return base
@@ -1002,8 +1027,11 @@ class _BlockGen:
         if h == "move":
             src, dst = ops
             if dst.mode is _M.DREG:
-                v = self.read(src, nb, pc, "v", materialize=nb != 4 or src.mode not in (_M.DREG, _M.AREG))
-                self.set_dreg(dst.reg, nb, v)
+                if nb == 4 and src.mode not in (_M.DREG, _M.AREG, _M.IMM):  # straight into the register
+                    v = self.read(src, nb, pc, self.wg(dst.reg))
+                else:
+                    v = self.read(src, nb, pc, "v", materialize=nb != 4 or src.mode not in (_M.DREG, _M.AREG))
+                    self.set_dreg(dst.reg, nb, v)
                 self.logic_flags(self.rg(dst.reg) if nb == 4 else v, nb, need)
                 return base, False
             v = self.read(src, nb, pc, "v", materialize=True)

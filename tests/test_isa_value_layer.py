@@ -265,3 +265,27 @@ def test_pending_values_at_a_write_into_other_compiled_code() -> None:
     d = [0x12345600, 0x100, 0, 0, 0, 0, 0, 0]
     blocks, closures = _run_both(image, d, [0x6000] * 7 + [0x6F00], 0, dict(max_instructions=1, stop_at_limit=True))
     assert blocks == closures
+
+
+def test_compare_flags_before_every_branch() -> None:
+    """CMP/CMPI of every size, each condition's branch right after it and an ADD that sets all flags after that (so
+    only the flags the condition reads are live at the compare: C alone, Z alone, or more), over values with equal,
+    adjacent and sign-edge pairs: blocks and closures take the same branches and leave the same registers."""
+    values = [0, 1, 0x7F, 0x80, 0x7FFF, 0x8000, 0xFFFF, 0x7FFFFFFF, 0x80000000, M32]
+    for size in "bwl":
+        for cc in CONDS:
+            for form in (f"cmp.{size} d1,d0", f"cmpi.{size} #$80,d0"):
+                src = f" {form}\n b{cc}.s over\n moveq #1,d2\nover: add.l d3,d3\n trap #0\n"
+                prog = isa.assemble(src, filename="c.s", origin=oracles.CODE)
+                for d0 in values:
+                    for d1 in (values if form.startswith("cmp.") else [0]):
+                        out = []
+                        for blocks in (True, False):
+                            cpu = oracles.make_cpu(isa)
+                            cpu.block_compile = blocks
+                            cpu.write_bytes(oracles.CODE, prog.code)
+                            cpu.d[0], cpu.d[1], cpu.d[3] = d0, d1, 0x80000000
+                            cpu.pc = oracles.CODE
+                            res = cpu.run(max_instructions=100)
+                            out.append((tuple(cpu.d), cpu.sr, res.cycles, res.instructions))
+                        assert out[0] == out[1], (form, cc, hex(d0), hex(d1))
