@@ -289,3 +289,43 @@ def test_compare_flags_before_every_branch() -> None:
                             res = cpu.run(max_instructions=100)
                             out.append((tuple(cpu.d), cpu.sr, res.cycles, res.instructions))
                         assert out[0] == out[1], (form, cc, hex(d0), hex(d1))
+
+
+#: Value-layer instructions on D0 that leave a value outside 0..2^32-1 or with a narrow range (kept modulo 2^32).
+PRODUCERS = ["neg.l d0", "not.l d0", "sub.l d1,d0", "subq.l #1,d0", "add.l d1,d0", "muls #-3,d0", "muls d1,d0",
+             "mulu #3,d0", "ext.l d0", "ext.w d0", "asr.l #3,d0", "lsl.l #4,d0", "lsr.l #5,d0", "swap d0",
+             "andi.l #$7FFF,d0", "move.w d1,d0", "moveq #-2,d0", "clr.w d0", "eor.l d1,d0"]
+#: ... and instructions that read D0 exactly, narrowly or by shifting it again.
+READERS = ["move.w d1,d0", "move.b d1,d0", "add.w d1,d0", "sub.b d1,d0", "andi.w #$F0F0,d0", "or.w d1,d0",
+           "eori.b #$81,d0", "ext.w d0", "ext.l d0", "swap d0", "lsr.l #3,d0", "asr.l #2,d0", "lsl.l #1,d0",
+           "asl.l #2,d0", "cmp.w d1,d0", "cmpi.l #$80000000,d0", "tst.l d0", "tst.b d0", "clr.w d0", "not.w d0",
+           "neg.b d0", "mulu #3,d0", "muls #-3,d0", "mulu d0,d1", "add.l d0,d1", "move.l d0,d1", "exg d0,d1"]
+
+
+def test_every_producer_before_every_reader() -> None:
+    """Each range-producing instruction then each reader of the same register (plus shifts of shifts of every
+    kind), with the flags after them dead (an ADD.L D2,D2 sets all five) and live (a TRAP right after: all live
+    at the exit): blocks and closures leave the same registers, SR, clocks and counts, over sign-edge values."""
+    values = [0, 1, 0x7FFF, 0x8000, 0xFFFF, 0x7FFFFFFF, 0x80000000, M32]
+    shifts = [f"{k}.l #{n},d0" for k in ("asl", "asr", "lsl", "lsr") for n in (1, 3, 8)]
+    pairs = [(p, q) for p in PRODUCERS for q in READERS] + [(p, q) for p in shifts for q in shifts]
+    cpus = []
+    for blocks in (True, False):
+        cpu = oracles.make_cpu(isa)
+        cpu.block_compile = blocks
+        cpus.append(cpu)
+    for p, q in pairs:
+        for tail in (" add.l d2,d2\n", ""):
+            prog = isa.assemble(f" {p}\n {q}\n{tail} trap #0\n", filename="p.s", origin=oracles.CODE)
+            for cpu in cpus:
+                cpu.write_bytes(oracles.CODE, prog.code)
+            for d0 in values:
+                for d1 in values[::3]:
+                    out = []
+                    for cpu in cpus:
+                        cpu.d[0], cpu.d[1], cpu.d[2] = d0, d1, 0x80000000
+                        cpu.sr = 0x2700
+                        cpu.pc = oracles.CODE
+                        res = cpu.run(max_instructions=100)
+                        out.append((tuple(cpu.d), cpu.sr, res.cycles, res.instructions))
+                    assert out[0] == out[1], (p, q, tail, hex(d0), hex(d1))
