@@ -59,6 +59,16 @@ _SYM = frozenset("move moveq add addi addq sub subi subq and andi or ori eor eor
                  "exg mulu muls asl asr lsl lsr".split())
 
 
+#: A compare whose flags only the next Bcc reads (_BlockGen.nxt): the branch's condition code -> (the comparison of
+#: the operands, over their unsigned (u) or signed (s) values, that equals the condition; N/Z/V/C bits for which the
+#: condition holds; bits for which it does not). VC/VS (and T/F) are left to the flag computation.
+_CMP_COND: dict[int, tuple[str, str, int, int]] = {
+    2: ("u", ">", 0, 4), 3: ("u", "<=", 4, 0), 4: ("u", ">=", 0, 1), 5: ("u", "<", 1, 0),
+    6: ("u", "!=", 0, 4), 7: ("u", "==", 4, 0), 12: ("s", ">=", 0, 8), 13: ("s", "<", 8, 0),
+    14: ("s", ">", 0, 4), 15: ("s", "<=", 4, 0),
+}
+
+
 class _Val:
     """The value of a data register not yet assigned to its local. ``e``: a pure expression (over the register
     locals as they are now, ``_y`` temporaries and literals), or a function that makes it (and may bind a
@@ -128,6 +138,8 @@ class _BlockGen:
         self.ntmp = 0
         self.memo: dict[str, str] = {}  # expression -> the temporary bound to it (until a register local changes)
         self.later: Any = lambda r: True
+        # (condition, flags live after it) of the Bcc right after this instruction on the straight line, or None
+        self.nxt: tuple[int, int] | None = None
         self.shifted: dict[str, tuple[str, str, int, int, int]] = {}  # shift result -> (kind, operand, lo, hi, n)
 
     # ---- emission helpers
@@ -711,7 +723,15 @@ class _BlockGen:
             if nzvc:
                 s, d = operand(src, None), self.take(r, None)
                 ls, ld = self.low(s, nb), self.low(d, nb)
-                if nzvc == CF:
+                fused = _CMP_COND.get(self.nxt[0]) if self.nxt is not None and not self.nxt[1] & _FLAGS_NZVC \
+                    else None
+                if fused is not None:  # only the next Bcc reads them: flags that give its condition's outcome
+                    kind, op, yes, no = fused
+                    if kind == "s":
+                        ls = _lit(_sx(int(ls), nb)) if ls.isdigit() else f"(({ls} ^ {SIGN[nb]}) - {SIGN[nb]})"
+                        ld = _lit(_sx(int(ld), nb)) if ld.isdigit() else f"(({ld} ^ {SIGN[nb]}) - {SIGN[nb]})"
+                    self.emit(f"sr = (sr & 0xFF10) | ({yes} if {ld} {op} {ls} else {no})")
+                elif nzvc == CF:
                     self.emit(f"sr = (sr & 0xFF1E) | (1 if {ld} < {ls} else 0)")
                 elif nzvc == ZF:
                     self.emit(f"sr = (sr & 0xFF1B) | (4 if {ld} == {ls} else 0)")

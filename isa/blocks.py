@@ -153,6 +153,9 @@ def _block_source(entries: list[_Entry], facts: MapFacts, lazy_ok: bool = True
                     prev = entries[i - 1][1].operands
                     g.known = {prev[1].reg: _sx(prev[0].value & 0xFF, 1) & M32}
                 g.later = lambda reg, i=i: _read_later(entries, i, reg, role, targets, facts, g.code)
+                g.nxt = None
+                if i + 1 < hi and i + 1 not in targets and entries[i + 1][2] == "bcc":
+                    g.nxt = (entries[i + 1][3], need[i + 1])
                 cyc, ended = g.instruction(n, ins, h, cond, pc, nxt, need[i], cy)
                 cy += cyc
                 n += 1
