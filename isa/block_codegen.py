@@ -14,7 +14,19 @@ Contract with :mod:`isa.blocks` (whose :func:`_block_source` drives it) and :mod
 * Memory accesses follow :mod:`isa.memory`'s contract (direct ``mem`` for constant addresses the map
   guarantees, span/flag checks inline, the exact accessor otherwise, which raises the fault); a write that
   :func:`isa.block_plan._quiet_write` accepts gets no fault path and no leave-the-block check.
-* Imports: :mod:`isa.block_plan` (flag constants, :func:`_quiet_write`), :mod:`isa.semantics`,
+* The value layer (:data:`SYMBOLIC`, :meth:`_BlockGen.symbolic`): a register-only data instruction (and a MOVE
+  or ALU source at a constant address the map guarantees) does not become a statement; its result is the pending
+  value (:class:`_Val`: an expression congruent to the register modulo 2^32, its range, a cheap low-word view) of
+  its data register, composed into later instructions' expressions. Pending values are assigned to the register
+  locals (:meth:`_BlockGen.flush`) before anything can observe them: all of them before an instruction that may
+  fault, writes memory, branches or leaves (the fault unwinding reads every register local; exits write them
+  back), before every control-flow role and at the end of every straight line (:func:`_block_source` calls
+  ``flush``); before another non-faulting instruction, its own registers and every pending value that names
+  them. So the fault line map (one segment per generated entry, in line order) stays exact: a value-layer entry
+  has an empty segment, and no line that can raise belongs to another entry than its own. ``later`` (set per
+  entry from :func:`isa.block_plan._read_later`) only decides whether a value read by another instruction is
+  bound to a temporary first (computed once) or composed (read once): cost, not correctness.
+* Imports: :mod:`isa.block_plan` (flag constants, :func:`_quiet_write`, :func:`_may_fault`), :mod:`isa.semantics`,
   :mod:`isa.timing`; never :mod:`isa.blocks`.
 """
 
