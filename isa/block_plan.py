@@ -17,6 +17,9 @@ generates each instruction's code):
   flags a looping block keeps lazily. :func:`_flag_effect` (flags read/written per instruction) and
   :func:`_quiet_write` (a constant-address write that can neither fault nor touch the block's own code) are
   shared with the code generator, which must emit code consistent with these answers.
+* Registers: :func:`_read_later` says whether a data register is read again on the straight line after an entry
+  before being overwritten whole (the generator's value layer binds such a pending value to a temporary; a cost
+  guess only), :data:`_CONTROL` the instructions before which every pending value is assigned.
 * Imports: :mod:`isa.semantics`, :mod:`isa.operands`, :mod:`isa.memory` (:class:`MapFacts`) only; never the
   code generator or :mod:`isa.blocks`.
 """
