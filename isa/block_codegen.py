@@ -14,7 +14,19 @@ Contract with :mod:`isa.blocks` (whose :func:`_block_source` drives it) and :mod
 * Memory accesses follow :mod:`isa.memory`'s contract (direct ``mem`` for constant addresses the map
   guarantees, span/flag checks inline, the exact accessor otherwise, which raises the fault); a write that
   :func:`isa.block_plan._quiet_write` accepts gets no fault path and no leave-the-block check.
-* Imports: :mod:`isa.block_plan` (flag constants, :func:`_quiet_write`), :mod:`isa.semantics`,
+* The value layer (:data:`SYMBOLIC`, :meth:`_BlockGen.symbolic`): a register-only data instruction (and a MOVE
+  or ALU source at a constant address the map guarantees) does not become a statement; its result is the pending
+  value (:class:`_Val`: an expression congruent to the register modulo 2^32, its range, a cheap low-word view) of
+  its data register, composed into later instructions' expressions. Pending values are assigned to the register
+  locals (:meth:`_BlockGen.flush`) before anything can observe them: all of them before an instruction that may
+  fault, writes memory, branches or leaves (the fault unwinding reads every register local; exits write them
+  back), before every control-flow role and at the end of every straight line (:func:`_block_source` calls
+  ``flush``); before another non-faulting instruction, its own registers and every pending value that names
+  them. So the fault line map (one segment per generated entry, in line order) stays exact: a value-layer entry
+  has an empty segment, and no line that can raise belongs to another entry than its own. ``later`` (set per
+  entry from :func:`isa.block_plan._read_later`) only decides whether a value read by another instruction is
+  bound to a temporary first (computed once) or composed (read once): cost, not correctness.
+* Imports: :mod:`isa.block_plan` (flag constants, :func:`_quiet_write`, :func:`_may_fault`), :mod:`isa.semantics`,
   :mod:`isa.timing`; never :mod:`isa.blocks`.
 """
 
@@ -24,12 +36,13 @@ import re
 from typing import Any
 
 from isa import timing
-from isa.block_plan import _ALL_FLAGS, _FLAGS_NZVC, _SHIFT_NAMES, _quiet_write
+from isa.block_plan import (_ALL_FLAGS, _CONTROL, _FLAGS_NZVC, _READ_ONLY_DST, _SHIFT_NAMES, _may_fault,
+                             _quiet_write)
 from isa.errors import AddressError, DivideByZero
 from isa.operands import Instruction, Operand, Size
 from isa.memory import MapFacts
-from isa.semantics import (BITS, CALL_SENTINEL, CF, M32, MASK, NF, SIGN, VF, XF, ZF, _M, _Fault, _inc, _k_addx,
-                           _k_shift, _k_subx, _nb, _nz, _pc_target, _sx)
+from isa.semantics import (BITS, CALL_SENTINEL, CF, M32, MASK, NF, SIGN, VF, XF, ZF, _M, _MEMORY_MODES, _Fault, _inc,
+                           _k_addx, _k_shift, _k_subx, _nb, _nz, _pc_target, _sx)
 
 
 #: An address expression ``(<register local> + <displacement >= 0>)`` (d16(An) with d16 >= 0): never negative.
@@ -43,6 +56,53 @@ _COND_EXPR: tuple[str, ...] = (
     "not sr & 2", "sr & 2", "not sr & 8", "sr & 8", "not (sr ^ sr >> 2) & 2", "(sr ^ sr >> 2) & 2",
     "not (sr & 4 | (sr ^ sr >> 2) & 2)", "sr & 4 | (sr ^ sr >> 2) & 2",
 )  # fmt: skip
+
+
+#: Pending register values (:class:`_Val`): register-only data instructions that cannot fault are not assigned as
+#: statements; their values are expressions, composed into the next instruction's, and assigned to the register
+#: locals only where something can observe them. False: every instruction is generated as statements.
+SYMBOLIC = True
+
+_ATOM = re.compile(r"(?:\d+|[ad][0-7]|_y\d+)\Z")  # a register local, a temporary or a literal
+_DREF = re.compile(r"\bd[0-7]\b")
+_CONST_SRC = frozenset((_M.ABSW, _M.ABSL, _M.PCDISP))
+#: Handlers whose register-only forms the value layer takes (some only with their flags dead: _BlockGen.symbolic).
+_SYM = frozenset("move moveq add addi addq sub subi subq and andi or ori eor eori cmp cmpi tst clr not neg swap ext "
+                 "exg mulu muls asl asr lsl lsr".split())
+
+
+#: A compare whose flags only the next Bcc reads (_BlockGen.nxt): the branch's condition code -> (the comparison of
+#: the operands, over their unsigned (u) or signed (s) values, that equals the condition; N/Z/V/C bits for which the
+#: condition holds; bits for which it does not). VC/VS (and T/F) are left to the flag computation.
+_CMP_COND: dict[int, tuple[str, str, int, int]] = {
+    2: ("u", ">", 0, 4), 3: ("u", "<=", 4, 0), 4: ("u", ">=", 0, 1), 5: ("u", "<", 1, 0),
+    6: ("u", "!=", 0, 4), 7: ("u", "==", 4, 0), 12: ("s", ">=", 0, 8), 13: ("s", "<", 8, 0),
+    14: ("s", ">", 0, 4), 15: ("s", "<=", 4, 0),
+}
+
+
+class _Val:
+    """The value of a data register not yet assigned to its local. ``e``: a pure expression (over the register
+    locals as they are now, ``_y`` temporaries and literals), or a function that makes it (and may bind a
+    temporary first), of a Python int in ``[lo, hi]`` congruent to the register's value modulo 2^32 (the value
+    itself when ``0 <= lo`` and ``hi < 2^32``: :meth:`exact`); ``w``: a cheaper expression of its low word, or
+    None, and ``whi`` an upper bound of that word."""
+
+    __slots__ = ("e", "lo", "hi", "w", "whi")
+
+    def __init__(self, e: Any, lo: int, hi: int, w: str | None = None, whi: int | None = None) -> None:
+        self.e = e
+        self.lo = lo
+        self.hi = hi
+        self.w = w
+        self.whi = (hi if 0 <= lo and hi <= 0xFFFF else 0xFFFF) if whi is None else whi
+
+    def exact(self) -> bool:
+        return 0 <= self.lo and self.hi <= M32
+
+
+def _lit(v: int) -> str:
+    return str(v) if v >= 0 else f"({v})"
 
 
 class _Unblockable(Exception):
@@ -82,6 +142,17 @@ class _BlockGen:
         self.consts: dict[str, object] = {}
         self.recipes: dict[str, tuple[Any, ...]] = {}
         self.dyn = False
+        # The value layer (SYMBOLIC): data register -> its pending value; the temporaries' counter; ``later(r)``
+        # (set by _block_source per entry): whether register r is read again before being overwritten
+        # (:func:`isa.block_plan._read_later`; only a cost guess).
+        self.sym = SYMBOLIC
+        self.pend: dict[int, _Val] = {}
+        self.ntmp = 0
+        self.memo: dict[str, str] = {}  # expression -> the temporary bound to it (until a register local changes)
+        self.later: Any = lambda r: True
+        # (condition, flags live after it) of the Bcc right after this instruction on the straight line, or None
+        self.nxt: tuple[int, int] | None = None
+        self.shifted: dict[str, tuple[str, str, int, int, int]] = {}  # shift result -> (kind, operand, lo, hi, n)
 
     # ---- emission helpers
     def emit(self, line: str) -> None:
@@ -107,10 +178,12 @@ class _BlockGen:
     def wg(self, i: int) -> str:
         self.used.add(i)
         self.dirty.add(i)
+        self.memo.clear()  # a register local changes: expressions over it no longer equal their temporaries
         return _RN[i]
 
     def exit(self, target: str | int, n: int, cycles: int) -> None:
         """Leave the block to ``target`` (int or expression) after ``n`` instructions and ``cycles`` clocks (+c)."""
+        assert not self.pend, "pending register values at a block exit"
         self.items.append((self.ind, ("exit", target, n, cycles, frozenset(self.dirty))))
 
     def cycles(self, expr: str) -> None:
@@ -315,6 +388,7 @@ class _BlockGen:
             self.emit("    if D[0]:")
             self.emit("        D[0] = 0")
             self.ind += 2
+            assert not self.pend, "pending register values at a block exit"
             self.smc_slots.append(len(self.items))
             self.items.append((self.ind, ("smc",)))
             self.ind -= 2
@@ -335,21 +409,23 @@ class _BlockGen:
                 return
             self.emit(f"sr = (sr & 0xFF10) | {self.nz(v, nb)}")
 
-    def arith_flags(self, kind: str, nb: int, s: str, d: str, need: int) -> None:
-        """ADD/SUB/CMP flags from ``r`` (unmasked result) and ``rm`` (masked); only the bits in ``need``."""
+    def arith_flags(self, kind: str, nb: int, s: str, d: str, need: int, r: str = "r", rm: str | None = "rm"
+                    ) -> None:
+        """ADD/SUB/CMP flags from ``r`` (unmasked result) and ``rm`` (masked; None: only C/X asked for); only the
+        bits in ``need``."""
         M, S = MASK[nb], SIGN[nb]
         keep = 0xFF1F
         parts = []
         if need & (CF | (XF if kind != "cmp" else 0)):
             bits = 1 if kind == "cmp" else 0x11
-            test = f"r > {M}" if kind == "add" else "r < 0"
+            test = f"{r} > {M}" if kind == "add" else f"{r} < 0"
             parts.append(f"({bits} if {test} else 0)")
             keep &= ~bits
         if need & (NF | ZF):
-            parts.append(self.nz("rm", nb))
+            parts.append(self.nz(rm, nb))
             keep &= ~(NF | ZF)
         if need & VF:
-            v = f"({s} ^ rm) & ({d} ^ rm)" if kind == "add" else f"({s} ^ {d}) & ({d} ^ rm)"
+            v = f"({s} ^ {rm}) & ({d} ^ {rm})" if kind == "add" else f"({s} ^ {d}) & ({d} ^ {rm})"
             parts.append(f"(({v}) >> {BITS[nb] - 2} & 2)")  # the sign bit of the overflow test moved to bit 1
             keep &= ~VF
         if kind == "cmp":
@@ -378,6 +454,585 @@ class _BlockGen:
         self.emit("if eb < MS[0]:")
         self.emit("    MS[0] = eb")
 
+    # ---- the value layer: pending register values (SYMBOLIC)
+    def tmp(self) -> str:
+        self.ntmp += 1
+        return f"_y{self.ntmp}"
+
+    def val(self, r: int) -> _Val:
+        """The value of data register ``r`` here: pending, or its local."""
+        v = self.pend.get(r)
+        return v if v is not None else _Val(self.rg(r), 0, M32)
+
+    def force(self, v: _Val) -> str:
+        if not isinstance(v.e, str):
+            v.e = v.e()
+        return v.e
+
+    def bind(self, v: _Val) -> _Val:
+        """``v`` as a name or literal: a composite value is assigned to a fresh temporary (one statement)."""
+        e = self.force(v)
+        if _ATOM.match(e):
+            return v
+        x = self.u(v)  # the exact value: a value read twice is mostly read as itself
+        t = self.memo.get(x)
+        if t is None:
+            t = self.memo[x] = self.tmp()
+            self.emit(f"{t} = {x}")
+        return _Val(t, 0, v.hi if v.exact() else M32, None, v.whi)
+
+    def take(self, r: int, dst: int | None) -> _Val:
+        """The value of data register ``r`` as an operand of an instruction that writes ``dst`` (None: of a
+        statement). A composite value that another instruction reads again is bound to a temporary first (then it
+        is computed once); one read only once (the register is overwritten next) is composed into the reader."""
+        v = self.val(r)
+        if r == dst or r not in self.pend or (isinstance(v.e, str) and _ATOM.match(v.e)):
+            return v
+        if self.later(r):
+            v = self.pend[r] = self.bind(v)
+        return v
+
+    def setv(self, r: int, v: _Val) -> None:
+        if v.lo < -(1 << 60) or v.hi > 1 << 60:  # keep the integers small: the exact value
+            v = _Val(f"({self.force(v)} & {M32})", 0, M32, v.w, v.whi)
+        if isinstance(v.e, str) and len(v.e) > 400:  # keep expressions (and their nesting) small
+            v = self.bind(v)
+        self.pend[r] = v
+
+    def u(self, v: _Val) -> str:
+        """Expression of the exact (unsigned 32-bit) value of ``v``."""
+        e = self.force(v)
+        return e if v.exact() else f"({e} & {M32})"
+
+    def s32(self, v: _Val) -> tuple[str, int, int]:
+        """Expression of the signed 32-bit value of ``v`` and its range."""
+        e = self.force(v)
+        if -SIGN[4] <= v.lo and v.hi < SIGN[4]:
+            return e, v.lo, v.hi
+        if e.isdigit():
+            k = _sx(int(e), 4)
+            return _lit(k), k, k
+        return f"(({self.u(v)} ^ {SIGN[4]}) - {SIGN[4]})", -SIGN[4], SIGN[4] - 1
+
+    def low(self, v: _Val, nb: int) -> str:
+        """Expression of the low ``nb`` bytes of ``v`` (exact)."""
+        if nb == 4:
+            return self.u(v)
+        m = MASK[nb]
+        if v.w is not None:
+            base, ok = v.w, v.whi <= m
+        else:
+            base, ok = self.force(v), 0 <= v.lo and v.hi <= m
+        if base.lstrip("-").isdigit():
+            return str(int(base) & m)
+        return base if ok else f"({base} & {m})"
+
+    @staticmethod
+    def lowhi(v: _Val, nb: int) -> int:
+        if nb == 4:
+            return v.hi if v.exact() else M32
+        return min(MASK[nb], v.whi)
+
+    def sx16(self, v: _Val) -> tuple[str, int, int]:
+        """Expression of the low word of ``v`` sign-extended (a Python int) and its range."""
+        if -0x8000 <= v.lo and v.hi <= 0x7FFF:
+            return self.force(v), v.lo, v.hi
+        x = self.low(v, 2)
+        if x.isdigit():
+            k = _sx(int(x), 2)
+            return _lit(k), k, k
+        if v.whi <= 0x7FFF:
+            return x, 0, v.whi
+        return f"(({x} ^ 32768) - 32768)", -0x8000, 0x7FFF
+
+    def merge(self, d: _Val, nb: int, x: str, xhi: int) -> _Val:
+        """Register value ``d`` with its low ``nb`` bytes replaced by ``x`` (exact, at most ``xhi``)."""
+        if nb == 4:
+            return _Val(x, 0, xhi)
+        m = MASK[nb]
+        keep = M32 ^ m
+        w, whi = (x, xhi) if nb == 2 else (None, None)
+        if d.exact() and d.hi <= m:
+            return _Val(x, 0, xhi, w, whi)
+        de = self.force(d)
+        if de.isdigit():
+            k = int(de) & keep
+            return _Val(f"({k} | {x})" if k else x, 0, k | m, w, whi)
+        return _Val(f"(({de} & {keep}) | {x})", 0, (d.hi if d.exact() else M32) | m, w, whi)
+
+    def vflags(self, x: str, nb: int, need: int, reg: int | None = None) -> str:
+        """N/Z (V, C cleared) from the exact ``nb``-byte value ``x`` when ``need`` asks for them; returns an
+        expression of the same value (a temporary bound by the flag line when ``x`` is composite). ``reg``: ``x``
+        is the whole new value of that data register: the flag line may assign it to the register's local
+        straight away (when no other pending value names that local); the result is then the local's name and
+        the caller drops the register's pending value."""
+        if not need & _FLAGS_NZVC:
+            return x
+        if self.defer:  # deferred: pf = x (logic_flags)
+            self.logic_flags(x, nb, need)
+            return x
+        if x.isdigit():
+            self.emit(f"sr = (sr & 0xFF10) | {_nz(int(x), nb)}")
+            return x
+        if _ATOM.match(x):
+            self.emit(f"sr = (sr & 0xFF10) | {self.nz(x, nb)}")
+            return x
+        t = self.tmp()
+        if reg is not None and self.free(reg):
+            t = self.wg(reg)
+        if need & NF:
+            self.emit(f"sr = (sr & 0xFF10) | (4 if not ({t} := {x}) else {t} >> {BITS[nb] - 4} & 8)")
+        else:  # N is dead: only Z is asked for
+            self.emit(f"sr = (sr & 0xFF10) | (0 if ({t} := {x}) else 4)")
+        return t
+
+    def free(self, r: int) -> bool:
+        """True when no pending value other than register ``r``'s own names ``r``'s local (it may be assigned)."""
+        name = _RN[r]
+        return not any(q != r and name in _DREF.findall(self.force(v)) for q, v in self.pend.items())
+
+    def setx(self, r: int, x: str, v: _Val) -> None:
+        """Register ``r``'s new value ``v`` (whose expression is ``x`` unless :meth:`vflags` returned the
+        register's own local: then it is assigned already)."""
+        if x == _RN[r]:
+            self.pend.pop(r, None)
+        else:
+            self.setv(r, v)
+
+    def flush(self, regs: set[int] | None = None, extra: set[str] = frozenset()) -> None:  # type: ignore[assignment]
+        """Assign pending values to their register locals: all of them (``regs`` None), or those of ``regs`` and
+        every pending value that names one of their locals or a local in ``extra`` (those locals are about to
+        change)."""
+        self.memo.clear()  # (also at every control-flow point: a temporary bound on one path only)
+        if not self.pend:
+            return
+        texts = {q: self.u(v) for q, v in self.pend.items()}  # before any assignment (may bind temporaries)
+        if regs is None:
+            todo = set(self.pend)
+        else:
+            todo = {r for r in regs if r in self.pend}
+            names = {_RN[r] for r in regs} | extra
+            grow = True
+            while grow:
+                grow = False
+                for q, t in texts.items():
+                    if q not in todo and names.intersection(_DREF.findall(t)):
+                        todo.add(q)
+                        names.add(_RN[q])
+                        grow = True
+        for q in todo:
+            del self.pend[q]
+        self.shifted.clear()
+        order = [q for q in sorted(todo) if texts[q] != _RN[q]]
+        refs = {q: set(_DREF.findall(texts[q])) for q in order}
+        while order:
+            ready = [q for q in order if not any(_RN[q] in refs[o] for o in order if o != q)]
+            if not ready:  # a cycle (EXG): one tuple assignment
+                self.emit(f"{', '.join(self.wg(q) for q in order)} = {', '.join(texts[q] for q in order)}")
+                break
+            for q in ready:
+                self.emit(f"{self.wg(q)} = {texts[q]}")
+                order.remove(q)
+
+    def pre_flush(self, ins: Instruction, h: str, pc: int) -> None:
+        """Before an instruction the value layer does not take: everything is assigned when it may fault (the
+        fault unwinding reads every register local) or branch/leave; else its own data registers."""
+        self.memo.clear()
+        if not self.pend:
+            return
+        ops = ins.operands
+        if h in _CONTROL or _may_fault(ins, h, self.facts, pc, self.code) or (
+                ops and ops[-1].mode in _MEMORY_MODES and h not in _READ_ONLY_DST):
+            # (a memory write: its generated slow path may leave the block after writing compiled code even where
+            # the planner knows it cannot fault and cannot rewrite this block)
+            self.flush()
+            return
+        regs = set()
+        for o in ins.operands:
+            if o.mode is _M.DREG:
+                regs.add(o.reg)
+            elif o.index is not None and not o.index.is_areg:
+                regs.add(o.index.num)
+        self.flush(regs)
+
+    def move_const(self, ins: Instruction, nb: int, need: int, pc: int) -> int | None:
+        """MOVE between a data register (or an immediate) and a constant address the map guarantees, which cannot
+        fault (:func:`isa.block_plan._may_fault`): a read goes straight into the register's local (a long) or
+        into a temporary merged into its value; a write stores the register's value without assigning it."""
+        src, dst = ins.operands
+        if _may_fault(ins, "move", self.facts, pc, self.code):
+            return None
+        if dst.mode is _M.DREG and src.mode in (_M.ABSW, _M.ABSL, _M.PCDISP):
+            r = dst.reg
+            ld = self.load(nb, self.addr(src, nb, pc, "ea"))
+            if nb == 4:
+                self.pend.pop(r, None)  # overwritten whole; the names of its old local in pending values:
+                self.flush(set(), {_RN[r]})
+                dn = self.wg(r)
+                self.emit(f"{dn} = {ld}")
+                self.vflags(dn, 4, need)
+                return timing.cycles(ins)
+            t = self.tmp()
+            self.emit(f"{t} = {ld}")
+            self.setv(r, self.merge(self.val(r), nb, self.vflags(t, nb, need), MASK[nb]))
+            return timing.cycles(ins)
+        if src.mode in (_M.DREG, _M.IMM) and dst.mode in (_M.ABSW, _M.ABSL):
+            if src.mode is _M.IMM:
+                x = str(src.value & MASK[nb])
+            else:
+                x = self.low(self.take(src.reg, None), nb)
+            if not _ATOM.match(x):
+                self.emit(f"v = {x}")
+                x = "v"
+            self.logic_flags(x, nb, need)
+            self.write(nb, self.addr(dst, nb, pc, "eb"), x, last=True)
+            return timing.cycles(ins)
+        return None
+
+    def symbolic(self, ins: Instruction, h: str, need: int, pc: int) -> int | None:
+        """Take a register-only data instruction into the value layer: its result becomes the pending value of its
+        register (no statement), flags are emitted when asked for. Returns its clocks, or None when it is left to
+        the statement generator (memory operands, address registers, shifts with live flags, MUL by a register,
+        ADD/SUB with live flags in a block with lazy flags)."""
+        if h not in _SYM:
+            return None
+        ops = ins.operands
+        if h == "moveq":
+            k = _sx(ops[0].value & 0xFF, 1) & M32
+            self.setv(ops[1].reg, _Val(str(k), k, k))
+            if need & _FLAGS_NZVC:
+                self.emit(f"sr = (sr & 0xFF10) | {_nz(k, 4)}")
+            return 4
+        nb = _nb(ins)
+        M = MASK[nb]
+        src, dst = (ops[0], ops[1]) if len(ops) == 2 else (None, ops[0])
+        if h == "move" and (dst.mode is not _M.DREG or src.mode not in (_M.DREG, _M.IMM)):
+            return self.move_const(ins, nb, need, pc)
+        if dst.mode is not _M.DREG or (src is not None and src.mode not in (_M.DREG, _M.IMM) and (
+                src.mode not in _CONST_SRC or _may_fault(ins, h, self.facts, pc, self.code))):
+            return None
+        r = dst.reg
+        same = src is not None and src.mode is _M.DREG and src.reg == r
+        nzvc = need & _FLAGS_NZVC
+
+        def operand(o: Operand, dest: int | None, n: int = nb) -> _Val:
+            if o.mode is _M.IMM:
+                k = o.value & MASK[n]
+                return _Val(str(k), k, k)
+            if o.mode is not _M.DREG:  # a constant address the map guarantees (cannot fault): read it now
+                t = self.tmp()
+                self.emit(f"{t} = {self.load(n, self.addr(o, n, pc, 'ea'))}")
+                return _Val(t, 0, MASK[n])
+            return self.take(o.reg, dest)
+
+        if h == "exg":
+            if src.mode is not _M.DREG:
+                return None
+            a, b = self.val(src.reg), self.val(r)
+            self.pend[src.reg], self.pend[r] = b, a
+            return timing.cycles(ins)
+        if h in ("cmp", "cmpi"):
+            if nzvc:
+                s, d = operand(src, None), self.take(r, None)
+                ls, ld = self.low(s, nb), self.low(d, nb)
+                fused = _CMP_COND.get(self.nxt[0]) if self.nxt is not None and not self.nxt[1] & _FLAGS_NZVC \
+                    else None
+                if fused is not None:  # only the next Bcc reads them: flags that give its condition's outcome
+                    kind, op, yes, no = fused
+                    if kind == "s":
+                        ls = _lit(_sx(int(ls), nb)) if ls.isdigit() else f"(({ls} ^ {SIGN[nb]}) - {SIGN[nb]})"
+                        ld = _lit(_sx(int(ld), nb)) if ld.isdigit() else f"(({ld} ^ {SIGN[nb]}) - {SIGN[nb]})"
+                    self.emit(f"sr = (sr & 0xFF10) | ({yes} if {ld} {op} {ls} else {no})")
+                elif nzvc == CF:
+                    self.emit(f"sr = (sr & 0xFF1E) | (1 if {ld} < {ls} else 0)")
+                elif nzvc == ZF:
+                    self.emit(f"sr = (sr & 0xFF1B) | (4 if {ld} == {ls} else 0)")
+                else:
+                    if not _ATOM.match(ls):
+                        self.emit(f"s = {ls}")
+                        ls = "s"
+                    if not _ATOM.match(ld):
+                        self.emit(f"x = {ld}")
+                        ld = "x"
+                    self.emit(f"r = {ld} - {ls}")
+                    self.emit(f"rm = r & {M}")
+                    self.arith_flags("cmp", nb, ls, ld, need)
+            return timing.cycles(ins)
+        if h == "tst":
+            self.vflags(self.low(self.take(r, None), nb), nb, need)
+            return timing.cycles(ins)
+        if h == "move":
+            s = operand(src, r)
+            if nb == 4:
+                if nzvc:
+                    x = self.vflags(self.u(s), 4, need, r)
+                    if x == _RN[r]:
+                        self.pend.pop(r, None)
+                        return timing.cycles(ins)
+                    s = s if x == s.e else _Val(x, 0, s.hi if s.exact() else M32, None, s.whi)
+                self.setv(r, s)
+                return timing.cycles(ins)
+            d = self.val(r)
+            if same:
+                d = s = self.bind(d)
+            x, xhi = self.low(s, nb), self.lowhi(s, nb)
+            self.setv(r, self.merge(d, nb, self.vflags(x, nb, need), xhi))
+            return timing.cycles(ins)
+        if h in ("and", "andi", "or", "ori", "eor", "eori"):
+            kind = h.rstrip("i")
+            op = {"and": "&", "or": "|", "eor": "^"}[kind]
+            s = operand(src, r)
+            d = self.val(r)
+            if same:
+                d = s = self.bind(d)
+            if nb == 4 or not nzvc:
+                if kind == "and":
+                    se = self.u(s) if nb == 4 else self.low(s, nb)
+                    de = self.force(d)
+                    mask = int(se) | (M32 ^ M) if se.isdigit() else None
+                    if mask is not None:  # any representative of d: & a constant <= 2^32-1 is exact
+                        e, hi = f"({de} & {mask})", min(mask, d.hi) if d.lo >= 0 else mask
+                    else:
+                        se = se if nb == 4 else f"({se} | {M32 ^ M})"
+                        e, hi = f"({self.u(d)} & {se})", min(s.hi if s.exact() else M32, d.hi if d.exact() else M32)
+                        if nb != 4:
+                            hi = d.hi if d.exact() else M32
+                    if de.isdigit() and not self.force(s).isdigit():  # a constant d: & it the other way round
+                        k = int(de)
+                        e, hi = f"({self.force(s)} & {k & M})", k & M
+                        if k & (M32 ^ M):
+                            e, hi = f"({k & (M32 ^ M)} | {e})", k
+                else:
+                    de, se = self.u(d), (self.u(s) if nb == 4 else self.low(s, nb))
+                    hi = (1 << max(d.hi if d.exact() else M32, self.lowhi(s, nb)).bit_length()) - 1
+                    e = f"({de} {op} {se})"
+                if nb == 4:
+                    x = self.vflags(e, 4, need, r)
+                    self.setx(r, x, _Val(x, 0, hi))
+                else:
+                    self.setv(r, _Val(e, 0, hi))
+                return timing.cycles(ins)
+            d = self.bind(d) if s is not d else d
+            ld, ls = self.low(d, nb), self.low(s, nb)
+            if kind == "and" and ls.isdigit() and not ld.isdigit():
+                x, xhi = f"({self.force(d)} & {ls})", int(ls)
+            elif kind == "and" and ld.isdigit() and not ls.isdigit():
+                x, xhi = f"({self.force(s)} & {ld})", int(ld)
+            else:
+                x = f"({ld} {op} {ls})"
+                xhi = min(self.lowhi(s, nb), self.lowhi(d, nb)) if kind == "and" else M
+            whole = d.exact() and d.hi <= M
+            x = self.vflags(x, nb, need, r if whole else None)
+            self.setx(r, x, self.merge(d, nb, x, xhi))
+            return timing.cycles(ins)
+        if h in ("add", "addi", "addq", "sub", "subi", "subq"):
+            flags = need & _ALL_FLAGS
+            if flags and self.lazy is not None:
+                return None
+            add = h.startswith("add")
+            s = _Val(str(src.value & M), src.value & M, src.value & M) if h in ("addq", "subq") else operand(src, r)
+            d = self.val(r)
+            if same:
+                d = s = self.bind(d)
+            if nb == 4 and not flags:
+                de, se = self.force(d), self.force(s)
+                if add:
+                    self.setv(r, _Val(f"({de} + {se})", d.lo + s.lo, d.hi + s.hi))
+                elif se == "0":
+                    self.setv(r, d)
+                else:
+                    self.setv(r, _Val(f"({de} - {se})", d.lo - s.hi, d.hi - s.lo))
+                return timing.cycles(ins)
+            if nb != 4:
+                d = self.bind(d) if s is not d else d
+            de, se = self.low(d, nb), self.low(s, nb)
+            dhi, shi = self.lowhi(d, nb), self.lowhi(s, nb)
+            if not flags:
+                if add:
+                    x = f"({de} + {se})" if dhi + shi <= M else f"(({de} + {se}) & {M})"
+                    xhi = min(dhi + shi, M)
+                else:
+                    x, xhi = (de, dhi) if se == "0" else (f"(({de} - {se}) & {M})", M)
+                self.setv(r, self.merge(d, nb, x, xhi))
+                return timing.cycles(ins)
+            if need & VF:  # the overflow test reads both operands again
+                if not _ATOM.match(de):
+                    de = self.bind(_Val(de, 0, dhi)).e
+                if same:
+                    se = de
+                elif not _ATOM.match(se):
+                    se = self.bind(_Val(se, 0, shi)).e
+            t = self.tmp()
+            self.emit(f"{t} = {de} + {se}" if add else f"{t} = {de} - {se}")
+            if need & (NF | ZF | VF):
+                rm = self.tmp()
+                self.emit(f"{rm} = {t} & {M}")
+                res = _Val(rm, 0, M)
+            else:
+                rm = None
+                res = _Val(t, 0, dhi + shi) if add else _Val(t, -shi, dhi)
+            self.arith_flags("add" if add else "sub", nb, se, de, need, t, rm)
+            self.setv(r, res if nb == 4 else self.merge(d, nb, self.low(res, nb), M))
+            return timing.cycles(ins)
+        if h in ("clr", "not", "neg"):
+            if h == "neg" and need & _ALL_FLAGS:
+                return None
+            d = self.val(r)
+            if h == "clr":
+                if nzvc:
+                    self.emit("sr = (sr & 0xFF10) | 4")
+                self.setv(r, self.merge(d, nb, "0", 0))
+                return timing.cycles(ins)
+            if nb == 4 and not nzvc:
+                de = self.force(d)
+                self.setv(r, _Val(f"(~{de})", -d.hi - 1, -d.lo - 1) if h == "not" else _Val(f"(-{de})", -d.hi, -d.lo))
+                return timing.cycles(ins)
+            d = self.bind(d)
+            ld = self.low(d, nb)
+            x = f"({ld} ^ {M})" if h == "not" else f"(-{ld} & {M})"
+            self.setv(r, self.merge(d, nb, self.vflags(x, nb, need), M))
+            return timing.cycles(ins)
+        if h == "swap":
+            d = self.val(r)
+            if d.exact() and d.hi <= 0xFFFF:
+                x = f"({self.force(d)} << 16)"
+                self.setv(r, _Val(self.vflags(x, 4, need), 0, d.hi << 16, "0", 0))
+                return timing.cycles(ins)
+            ue = self.u(d)
+            uhi = d.hi if d.exact() else M32
+            w, whi = f"({ue} >> 16)", uhi >> 16
+            if _ATOM.match(ue) or nzvc:
+                if not _ATOM.match(ue):
+                    d = self.bind(_Val(ue, 0, uhi))
+                    ue = d.e
+                    w = f"({ue} >> 16)"
+                x = self.vflags(f"(({self.low(d, 2)} << 16) | ({ue} >> 16))", 4, need, r)
+                self.setx(r, x, _Val(x, 0, M32, w, whi))
+                return timing.cycles(ins)
+
+            def make(d: _Val = _Val(ue, 0, uhi)) -> str:  # both halves of a composite value: bound once, if needed
+                t = self.bind(d)
+                return f"(({self.low(t, 2)} << 16) | ({t.e} >> 16))"
+
+            self.setv(r, _Val(make, 0, M32, w, whi))
+            return timing.cycles(ins)
+        if h == "ext":
+            d = self.val(r)
+            if ins.size is Size.W:
+                d = self.bind(d)
+                b, bhi = self.low(d, 1), self.lowhi(d, 1)
+                x, xhi = (b, bhi) if bhi <= 0x7F else (f"((({b} ^ 128) - 128) & 65535)", 0xFFFF)
+                self.setv(r, self.merge(d, 2, self.vflags(x, 2, need), xhi))
+                return timing.cycles(ins)
+            w, lo, hi = self.sx16(d)
+            ww = self.low(d, 2)
+            if nzvc:
+                x = self.vflags(w if lo >= 0 else f"({w} & {M32})", 4, need, r)
+                self.setx(r, x, _Val(x, 0, hi if lo >= 0 else M32, None, d.whi))
+            else:
+                self.setv(r, _Val(w, lo, hi, ww if _ATOM.match(ww) else None, min(d.whi, 0xFFFF)))
+            return timing.cycles(ins)
+        if h in ("mulu", "muls") and src.mode is not _M.IMM:
+            sv = operand(src, r, 2)
+            d = self.val(r)
+            if same:
+                d = sv = self.bind(d)
+            t = self.low(sv, 2)
+            if t.isdigit():  # a known source: constant clocks, as MUL #imm
+                src = Operand(_M.IMM, value=int(t))
+                ea = timing.EA_TIME[_M.DREG][0]
+            else:
+                if not _ATOM.match(t):
+                    t = self.bind(_Val(t, 0, sv.whi)).e
+                    sv = _Val(t, 0, sv.whi)
+                if h == "mulu":
+                    self.cycles(f"2 * {t}.bit_count()")
+                    x, lo, hi = f"({t} * {self.low(d, 2)})", 0, 0xFFFF * d.whi
+                else:
+                    self.cycles(f"2 * (({t} << 1 ^ {t}) & 0xFFFF).bit_count()")
+                    a, alo, ahi = self.sx16(sv)
+                    b, blo, bhi = self.sx16(d)
+                    ps = (alo * blo, alo * bhi, ahi * blo, ahi * bhi)
+                    x, lo, hi = f"({a} * {b})", min(ps), max(ps)
+                if nzvc:
+                    x = self.vflags(x if lo >= 0 else f"({x} & {M32})", 4, need, r)
+                    lo, hi = 0, (hi if lo >= 0 else M32)
+                self.setx(r, x, _Val(x, lo, hi))
+                return 38 + timing.EA_TIME[src.mode][0]
+        else:
+            ea = timing.EA_TIME[_M.IMM][0]
+        if h in ("mulu", "muls"):
+            k = src.value & 0xFFFF
+            d = self.val(r)
+            if h == "mulu":
+                x, lo, hi = f"({k} * {self.low(d, 2)})", 0, k * d.whi
+                extra = 2 * k.bit_count()
+            else:
+                ks = _sx(k, 2)
+                w, wlo, whi = self.sx16(d)
+                x, lo, hi = f"({_lit(ks)} * {w})", min(ks * wlo, ks * whi), max(ks * wlo, ks * whi)
+                y = k << 1
+                extra = 2 * ((y ^ (y >> 1)) & 0xFFFF).bit_count()
+            if k == 0:
+                x, lo, hi = "0", 0, 0
+            if nzvc:
+                x = self.vflags(x if lo >= 0 else f"({x} & {M32})", 4, need, r)
+                lo, hi = 0, (hi if lo >= 0 else M32)
+            self.setx(r, x, _Val(x, lo, hi))
+            return 38 + ea + extra
+        # shifts: long, by an immediate or by a register holding a known count (with live flags: ASR/LSR/LSL by
+        # 1..31 only)
+        if nb != 4 or len(ops) != 2:
+            return None
+        if src.mode is _M.IMM:
+            n = src.value
+            base = timing.cycles(ins)
+        else:
+            c = self.val(src.reg)
+            if not (isinstance(c.e, str) and c.e.isdigit()):
+                return None
+            n = int(c.e) & 63
+            base = 8 + 2 * n
+        d = self.val(r)
+        if need & _ALL_FLAGS:
+            if h == "asl" or not 1 <= n <= 31:
+                return None
+            if h == "asr":
+                x = self.s32(d)[0]
+            else:
+                x = self.u(d)
+            if not _ATOM.match(x):  # read twice (result and carry); ASR's is the signed value: no bind()
+                t = self.tmp()
+                self.emit(f"{t} = {x}")
+                x = t
+            c = f"{x} >> {32 - n} & 1" if h == "lsl" else f"{x} >> {n - 1} & 1"
+            e = f"({x} << {n}) & {M32}" if h == "lsl" else (f"({x} >> {n}) & {M32}" if h == "asr" else f"{x} >> {n}")
+            t = self.wg(r) if self.free(r) else self.tmp()
+            self.emit(f"sr = (sr & 0xFF00) | (0x11 if {c} else 0) | (4 if not ({t} := {e}) else {t} >> 28 & 8)")
+            self.setx(r, t, _Val(t, 0, M32))
+            return base
+        if n == 0:
+            self.setv(r, d)
+            return base
+        kind = "lsl" if h == "asl" else h
+        prev = self.shifted.get(d.e) if isinstance(d.e, str) else None
+        if prev is not None and prev[0] == kind:  # a shift of a shift: one shift by the sum
+            _, e, lo, hi, k = prev
+            n += k
+        elif kind == "lsl":
+            e, lo, hi = self.force(d), d.lo, d.hi
+        elif kind == "lsr":
+            e, lo, hi = self.u(d), 0, d.hi if d.exact() else M32
+        else:
+            e, lo, hi = self.s32(d)
+        if kind != "asr" and n >= 32:
+            self.setv(r, _Val("0", 0, 0))
+            return base
+        v = _Val(f"({e} << {n})", lo << n, hi << n) if kind == "lsl" else _Val(f"({e} >> {n})", lo >> n, hi >> n)
+        self.shifted[v.e] = (kind, e, lo, hi, n)
+        self.setv(r, v)
+        return base
+
     # ---- one instruction
     def instruction(self, idx: int, ins: Instruction, h: str, cond: int | None, pc: int, nxt: int, need: int,
                     prefix: int) -> tuple[int, bool]:
@@ -390,6 +1045,11 @@ class _BlockGen:
         base = timing.cycles(ins) if h not in ("bcc", "dbcc", "scc", "mulu", "muls", "divu", "divs") \
             and not (h in _SHIFT_NAMES and len(ops) == 2 and ops[0].mode is _M.DREG) else 0
         n_done = idx + 1
+        if self.sym:
+            sc = self.symbolic(ins, h, need, pc)
+            if sc is not None:
+                return sc, False
+            self.pre_flush(ins, h, pc)
         if h == "moveq":
             v = _sx(ops[0].value & 0xFF, 1) & M32
             self.emit(f"{self.wg(ops[1].reg)} = {v}")
@@ -399,8 +1059,11 @@ class _BlockGen:
         if h == "move":
             src, dst = ops
             if dst.mode is _M.DREG:
-                v = self.read(src, nb, pc, "v", materialize=nb != 4 or src.mode not in (_M.DREG, _M.AREG))
-                self.set_dreg(dst.reg, nb, v)
+                if nb == 4 and src.mode not in (_M.DREG, _M.AREG, _M.IMM):  # straight into the register
+                    v = self.read(src, nb, pc, self.wg(dst.reg))
+                else:
+                    v = self.read(src, nb, pc, "v", materialize=nb != 4 or src.mode not in (_M.DREG, _M.AREG))
+                    self.set_dreg(dst.reg, nb, v)
                 self.logic_flags(self.rg(dst.reg) if nb == 4 else v, nb, need)
                 return base, False
             v = self.read(src, nb, pc, "v", materialize=True)
@@ -592,8 +1255,7 @@ class _BlockGen:
                 self.emit(f"{dn} = {s} * ({dn} & 0xFFFF)")
             self.logic_flags(dn, 4, need)
             if h == "muls":
-                self.emit(f"x = {s} << 1")
-                self.cycles("2 * ((x ^ (x >> 1)) & 0xFFFF).bit_count()")
+                self.cycles(f"2 * (({s} << 1 ^ {s}) & 0xFFFF).bit_count()")
             else:
                 self.cycles(f"2 * {s}.bit_count()")
             return 38 + timing.EA_TIME[ops[0].mode][0], False

@@ -17,6 +17,9 @@ generates each instruction's code):
   flags a looping block keeps lazily. :func:`_flag_effect` (flags read/written per instruction) and
   :func:`_quiet_write` (a constant-address write that can neither fault nor touch the block's own code) are
   shared with the code generator, which must emit code consistent with these answers.
+* Registers: :func:`_read_later` says whether a data register is read again on the straight line after an entry
+  before being overwritten whole (the generator's value layer binds such a pending value to a temporary; a cost
+  guess only), :data:`_CONTROL` the instructions before which every pending value is assigned.
 * Imports: :mod:`isa.semantics`, :mod:`isa.operands`, :mod:`isa.memory` (:class:`MapFacts`) only; never the
   code generator or :mod:`isa.blocks`.
 """
@@ -25,7 +28,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from isa.operands import Instruction, Operand
+from isa.operands import Instruction, Operand, Size
 from isa.memory import MapFacts
 from isa.semantics import CF, M32, NF, VF, XF, ZF, _M, _MEMORY_MODES, _lowers_sp, _nb, _pc_target
 
@@ -416,3 +419,38 @@ def block_entries(start: int, most: int,
             break
         pc = (pc + length) & 0xFFFFFF
     return entries
+
+
+#: Instructions after which the generator writes every pending register value back (they branch or leave).
+_CONTROL = frozenset("bcc bra bsr dbcc jmp jsr rts trap illegal".split())
+
+
+def _mentions(op: Operand, r: int) -> bool:
+    """True when operand ``op`` names data register ``r`` (as the register, an index or in a register list)."""
+    if op.mode is _M.DREG:
+        return op.reg == r
+    if op.mode is _M.REGLIST:
+        return bool(op.value >> r & 1)
+    return op.index is not None and not op.index.is_areg and op.index.num == r
+
+
+def _read_later(entries: list[_Entry], i: int, r: int, role: dict[int, tuple[Any, ...]], targets: set[int],
+                facts: MapFacts, code: tuple[int, int]) -> bool:
+    """For the generator's pending register values (:class:`isa.block_codegen._BlockGen`): False when data
+    register ``r`` is next written whole by a MOVEQ or a MOVE.L from another data register or an immediate, on the
+    straight line after entry ``i``, before any entry names it, might fault, branches or is reached from elsewhere
+    (each of which makes the generator assign the pending value to the register). Only a guess about cost: the
+    generated code is exact either way (a value used again is computed twice)."""
+    for j in range(i + 1, len(entries)):
+        if j in role or j in targets:
+            return True
+        pc, ins, h, _, _ = entries[j]
+        if h in _CONTROL or _may_fault(ins, h, facts, pc, code):
+            return True
+        ops = ins.operands
+        if len(ops) == 2 and ops[1].mode is _M.DREG and ops[1].reg == r and not _mentions(ops[0], r) and (
+                h == "moveq" or (h == "move" and ins.size is Size.L and ops[0].mode in (_M.DREG, _M.IMM))):
+            return False
+        if any(_mentions(o, r) for o in ops):
+            return True
+    return True

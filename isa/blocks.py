@@ -49,7 +49,8 @@ from typing import Any
 from isa import codecache, timing
 # BLOCK_MAX, block_entries, _RN, _COND_EXPR and _plan are also imported from here (isa.cpu, tests): re-exported.
 from isa.block_codegen import _COND_EXPR, _RN, _BlockGen
-from isa.block_plan import BLOCK_MAX, _Entry, _defer_flags, _lazy_kind, _liveness, _plan, block_entries
+from isa.block_plan import (BLOCK_MAX, _Entry, _defer_flags, _lazy_kind, _liveness, _plan, _read_later,
+                            block_entries)
 from isa.errors import AddressError, DivideByZero
 from isa.memory import MapFacts
 from isa.semantics import M32, _Fault, _k_addx, _k_shift, _k_subx, _lowers_sp, _sx
@@ -151,6 +152,10 @@ def _block_source(entries: list[_Entry], facts: MapFacts, lazy_ok: bool = True
                 if i > lo and i not in targets and entries[i - 1][2] == "moveq" and (i - 1) not in role:
                     prev = entries[i - 1][1].operands
                     g.known = {prev[1].reg: _sx(prev[0].value & 0xFF, 1) & M32}
+                g.later = lambda reg, i=i: _read_later(entries, i, reg, role, targets, facts, g.code)
+                g.nxt = None
+                if i + 1 < hi and i + 1 not in targets and entries[i + 1][2] == "bcc":
+                    g.nxt = (entries[i + 1][3], need[i + 1])
                 cyc, ended = g.instruction(n, ins, h, cond, pc, nxt, need[i], cy)
                 cy += cyc
                 n += 1
@@ -173,6 +178,7 @@ def _block_source(entries: list[_Entry], facts: MapFacts, lazy_ok: bool = True
                     return True, n, cy
                 i += 1
                 continue
+            g.flush()  # control flow: pending register values are assigned before it
             kind = r[0]
             taken = timing.cycles(ins, taken=True)
             if kind == "dup":  # the taken path runs a copy of the code from r[1] on (_plan_tails)
@@ -276,6 +282,7 @@ def _block_source(entries: list[_Entry], facts: MapFacts, lazy_ok: bool = True
                 return True, n, cy
             n, cy = (n2, c2) if e1 else (n1, c1)
             i = t
+        g.flush()  # the end of a straight line (a join, the loop edge or the block's end follows)
         return False, n, cy
 
     def copy(j: int, n: int, cy: int) -> None:
