@@ -120,9 +120,8 @@ _WARMUP: list[subprocess.Popen[bytes]] = []
 def pytest_configure(config: pytest.Config) -> None:
     """In the xdist controller, when the drivers' cache is cold: compile them once, in a subprocess started before
     the workers, instead of once in each worker (and in the CLI subprocesses that start before a worker has
-    written the cache). Nobody waits for it: the workers spend their first minute collecting and on the files
-    ordered first (MCU runs, block compiler; no model call), and a process that needs a driver before the cache
-    is written compiles it as it always did. Nothing happens with a warm cache, without ``-n``, or in a worker;
+    written the cache). Nobody waits for it: it runs while the workers start and collect (~10 CPU-s each), and a
+    process that needs a driver before the cache is written compiles it as it always did. Nothing happens with a warm cache, without ``-n``, or in a worker;
     a warm-up that fails changes nothing (the tests then compile, and fail, as they would have)."""
     if hasattr(config, "workerinput") or not getattr(config.option, "numprocesses", None) or not _cold_drivers():
         return
@@ -139,10 +138,12 @@ def pytest_unconfigure(config: pytest.Config) -> None:
     _WARMUP.clear()
 
 
-#: Scheduling only (which test starts when; the tests, their parameters and examples are the same): the files
-#: whose tests take seconds to tens of seconds start first, so that the run does not end with one worker alone
-#: on a long test, and the ~4,000 single-example oracle tests (a few ms each) come last, where they fill both
-#: workers evenly. Every other file keeps pytest's order between them. Within a file the order is kept.
+#: Scheduling only (which test starts when; the tests and their parameters are the same): the files whose tests
+#: take seconds to tens of seconds start first, so that the run does not end with one worker alone on a long
+#: test, and the ~4,000 single-example oracle tests (a few ms each) come last, where they fill both workers
+#: evenly. Every other file keeps pytest's order between them. Within a file the order is kept. Meant for
+#: ``--dist worksteal`` (``make test``): xdist's default ``load`` hands each worker a fixed first slice of an
+#: eighth of the tests, which would give one worker all of these files.
 _FIRST = ("test_c_port_mcu.py", "test_isa_blocks.py", "test_vectors.py", "test_cli_vectors_stream.py",
           "test_cli_output.py", "test_cli_interrupts.py", "test_model_kalman.py", "test_pascal_input.py",
           "test_isa_lazy_flags.py", "test_c_port.py", "test_firmware_cpu_vs_model.py", "test_cli_fuzz.py")
