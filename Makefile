@@ -53,10 +53,10 @@ test-mcu: tools
 	else echo "test-mcu: arm-none-eabi-gcc / qemu-system-arm not installed: Cortex-M runs skipped"; fi
 
 test: $(STAMP) tools
-	$(PY) -m pytest -q -n 2 -p no:cacheprovider
+	$(PY) -m pytest -q -n 2 --dist worksteal -p no:cacheprovider
 
 test-thorough: $(STAMP) tools
-	HYPOTHESIS_PROFILE=thorough $(PY) -m pytest -q -n 2 -p no:cacheprovider
+	HYPOTHESIS_PROFILE=thorough $(PY) -m pytest -q -n 2 --dist worksteal -p no:cacheprovider
 
 vectors: $(STAMP)
 	$(FWEMU) vectors --all --jobs 2 --out vectors

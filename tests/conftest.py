@@ -13,15 +13,21 @@ Two overheads of hypothesis 6.1xx grow with the suite, not with what a test chec
   for every test (about 3 ms); the cleaning is a pure function of the source text, memoized here, and so is the
   ``inspect.getsource`` read before it (:func:`_memo_inspect`; every digest logged identical with and without).
 
-It also prints the closing lines tests record (the Cortex-M runs', :func:`pytest_terminal_summary`) and loads
-the compiled model kernels in every test process (below).
+It also prints the closing lines tests record (the Cortex-M runs', :func:`pytest_terminal_summary`), loads
+the compiled model kernels in every test process (below), compiles the model's two numba drivers once before the
+xdist workers start when their cache is cold (:func:`pytest_configure`), and runs the longest files first and the
+thousands of millisecond oracle tests last (:func:`pytest_collection_modifyitems`): docs/testing.md, third round.
 """
 
 from __future__ import annotations
 
 import functools
 import inspect
+import os
+import subprocess
+import sys
 import types
+from pathlib import Path
 
 import pytest
 from hypothesis import settings
@@ -74,6 +80,84 @@ try:  # a private helper of hypothesis: memoize it only where it is what we expe
             _reflection.inspect = _memo_inspect()
 except ImportError:  # pragma: no cover - another hypothesis layout: nothing to memoize
     pass
+
+
+#: The model's two numba drivers (firmware_model/model.py ``_run_kernels``: ``run_streams_serial`` below
+#: PARALLEL_MIN_SAMPLES samples, ``run_streams`` above). With a cold numba cache (a fresh clone, as on CI) every
+#: process compiles them at its first call (~15 CPU-s for the pair, most of it their common stream kernel):
+#: each xdist worker, and CLI subprocesses that start before a worker has written the cache.
+_DRIVERS = ("run_streams_serial", "run_streams")
+_WARM_SCRIPT = """
+import numpy as np
+from firmware_model.config import BuildConfig
+from firmware_model.constants import build_constants
+from firmware_model.model import PARALLEL_MIN_SAMPLES, run_model
+consts = build_constants(BuildConfig(program="kalman_baro"))
+for n in (1, PARALLEL_MIN_SAMPLES):  # run_streams_serial, then run_streams
+    run_model(consts, np.full(n, 30000, dtype=np.int64), engine="numba")
+"""
+
+
+def _cold_drivers() -> list[str]:
+    """The drivers whose numba cache (``NUMBA_CACHE_DIR`` or ``firmware_model/__pycache__``, what the workers and
+    their subprocesses read) holds no machine code for the current source."""
+    if not getattr(_model_kernels, "COMPILED", False):
+        return []
+    cold = []
+    for name in _DRIVERS:
+        try:
+            if getattr(_model_kernels, name)._cache._cache_file._load_index():  # numba's own staleness check
+                continue
+        except Exception:  # noqa: BLE001 - numba internals moved: compile it anyway (loading is cheap)
+            pass
+        cold.append(name)
+    return cold
+
+
+_WARMUP: list[subprocess.Popen[bytes]] = []
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """In the xdist controller, when the drivers' cache is cold: compile them once, in a subprocess started before
+    the workers, instead of once in each worker (and in the CLI subprocesses that start before a worker has
+    written the cache). Nobody waits for it: it runs while the workers start and collect (~10 CPU-s each), and a
+    process that needs a driver before the cache is written compiles it as it always did. Nothing happens with a warm cache, without ``-n``, or in a worker;
+    a warm-up that fails changes nothing (the tests then compile, and fail, as they would have)."""
+    if hasattr(config, "workerinput") or not getattr(config.option, "numprocesses", None) or not _cold_drivers():
+        return
+    root = Path(__file__).resolve().parents[1]
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(root), os.environ.get("PYTHONPATH")])))
+    _WARMUP.append(subprocess.Popen([sys.executable, "-c", _WARM_SCRIPT], cwd=root, env=env,
+                                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+
+
+def pytest_unconfigure(config: pytest.Config) -> None:
+    for proc in _WARMUP:  # a session shorter than the compile: do not leave it running
+        proc.kill()
+        proc.wait()
+    _WARMUP.clear()
+
+
+#: Scheduling only (which test starts when; the tests and their parameters are the same): the files whose tests
+#: take seconds to tens of seconds start first, so that the run does not end with one worker alone on a long
+#: test, and the ~4,000 single-example oracle tests (a few ms each) come last, where they fill both workers
+#: evenly. Every other file keeps pytest's order between them. Within a file the order is kept. Meant for
+#: ``--dist worksteal`` (``make test``): xdist's default ``load`` hands each worker a fixed first slice of an
+#: eighth of the tests, which would give one worker all of these files.
+_FIRST = ("test_c_port_mcu.py", "test_isa_blocks.py", "test_vectors.py", "test_cli_vectors_stream.py",
+          "test_cli_output.py", "test_cli_interrupts.py", "test_model_kalman.py", "test_pascal_input.py",
+          "test_isa_lazy_flags.py", "test_c_port.py", "test_firmware_cpu_vs_model.py", "test_cli_fuzz.py")
+_LAST = ("test_isa_vs_m68000py.py", "test_isa_vs_musashi.py")
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    def rank(item: pytest.Item) -> int:
+        name = item.path.name
+        if name in _FIRST:
+            return _FIRST.index(name)
+        return len(_FIRST) + 1 + _LAST.index(name) if name in _LAST else len(_FIRST)
+
+    items[:] = sorted(items, key=rank)  # stable
 
 
 @pytest.hookimpl(hookwrapper=True, tryfirst=True)

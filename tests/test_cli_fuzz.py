@@ -82,7 +82,7 @@ def csv_bytes(draw: st.DrawFn) -> bytes:
     return data
 
 
-@settings(max_examples=examples(60), suppress_health_check=[HealthCheck.too_slow], deadline=None)
+@settings(max_examples=examples(60, ci=15), suppress_health_check=[HealthCheck.too_slow], deadline=None)
 @given(data=csv_bytes(), program=st.sampled_from(["kalman_baro", "kalman_accel", "recursive"]))
 def test_fuzz_csv_input(data: bytes, program: str) -> None:
     with tempfile.TemporaryDirectory() as tmp:
@@ -131,7 +131,7 @@ def config_text(draw: st.DrawFn) -> str:
     return text
 
 
-@settings(max_examples=examples(80), suppress_health_check=[HealthCheck.too_slow], deadline=None)
+@settings(max_examples=examples(80, ci=20), suppress_health_check=[HealthCheck.too_slow], deadline=None)
 @given(text=config_text(), program=st.sampled_from(["kalman_baro", "kalman_accel", "recursive"]))
 def test_fuzz_config_json(text: str, program: str) -> None:
     with tempfile.TemporaryDirectory() as tmp:
@@ -172,7 +172,7 @@ def asm_text(draw: st.DrawFn) -> str:
     return "\n".join(lines) + "\n"
 
 
-@settings(max_examples=examples(80), suppress_health_check=[HealthCheck.too_slow], deadline=None)
+@settings(max_examples=examples(80, ci=20), suppress_health_check=[HealthCheck.too_slow], deadline=None)
 @given(text=asm_text(), latin1=st.booleans())
 def test_fuzz_assembly_source(text: str, latin1: bool) -> None:
     with tempfile.TemporaryDirectory() as tmp:

@@ -401,7 +401,7 @@ def _kalman_state(board: _Board, **words: int) -> dict[str, int]:
     return {name: base[name] for name in board.build.variables}
 
 
-@settings(max_examples=examples(150), deadline=None)
+@settings(max_examples=examples(150, ci=40), deadline=None)
 @given(program=st.sampled_from(("kalman_baro", "kalman_accel")), k=st.sampled_from((4, 6, 8)),
        rounding=st.sampled_from(("floor", "half_up")), data=st.data())
 def test_kalman_one_step_boundaries(program: str, k: int, rounding: str, data: st.DataObject) -> None:

@@ -669,7 +669,7 @@ def _outcome(src: str) -> tuple[str, object]:
 
 
 @given(_fuzz_source())
-@settings(max_examples=examples(300))
+@settings(max_examples=examples(300, ci=75))
 def test_fuzz_only_assembly_errors_and_deterministic(src: str) -> None:
     first = _outcome(src)
     assert _outcome(src) == first

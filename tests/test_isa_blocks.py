@@ -177,13 +177,13 @@ def _check_vs_ref(case: tuple[bytes, list[int], int, int], limit: int) -> None:
     assert ours == ref, f"{_diff(ours, ref)}\n  code {code.hex(' ')} d={[hex(v) for v in d]} ccr={ccr:#x}"
 
 
-@settings(max_examples=examples(150), deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(150, ci=30), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(straight_blocks())
 def test_straight_blocks_vs_m68000py(case: tuple[bytes, list[int], int, int]) -> None:
     _check_vs_ref(case, 200)
 
 
-@settings(max_examples=examples(100), deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(100, ci=20), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(loops())
 def test_loops_vs_m68000py(case: tuple[bytes, list[int], int, int]) -> None:
     _check_vs_ref(case, 200)
@@ -243,7 +243,7 @@ def _run_both(image: bytes, d: list[int], a: list[int], ccr: int, kwargs: dict[s
     return out
 
 
-@settings(max_examples=examples(300), deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(300, ci=60), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.lists(ANY, min_size=1, max_size=14), st.lists(st.sampled_from(EDGE) | st.integers(0, M32), min_size=8,
                                                         max_size=8),
        st.integers(0, 31), st.integers(0, 1 << 30), st.integers(1, 40), st.integers(1, 600), st.integers(0, 40))
@@ -438,7 +438,7 @@ def flow_loops(draw: st.DrawFn) -> tuple[bytes, list[int], int, int]:
     return flow_layout(body, oracles.CODE), d, draw(st.integers(0, 31)), draw(st.integers(0, 1 << 30))
 
 
-@settings(max_examples=examples(150), deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(150, ci=30), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(flow_loops())
 def test_flow_loops_vs_m68000py(case: tuple[bytes, list[int], int, int]) -> None:
     """Loops to the block start with if/else bodies: registers, CCR, PC, memory, clocks, instruction count (or
@@ -453,7 +453,7 @@ def flow_straight(draw: st.DrawFn) -> tuple[bytes, list[int], int, int]:
     return flow_layout(body, oracles.CODE), _regs(draw), draw(st.integers(0, 31)), draw(st.integers(0, 1 << 30))
 
 
-@settings(max_examples=examples(100), deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(100, ci=20), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(flow_straight())
 def test_flow_forward_branches_vs_m68000py(case: tuple[bytes, list[int], int, int]) -> None:
     _check_vs_ref(case, 200)
@@ -483,7 +483,7 @@ def flow_any(draw: st.DrawFn) -> list[object]:
     return body
 
 
-@settings(max_examples=examples(250), deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(250, ci=50), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(flow_any(), st.lists(st.sampled_from(EDGE) | st.integers(0, M32), min_size=8, max_size=8),
        st.integers(0, 31), st.integers(0, 1 << 30), st.integers(1, 300), st.integers(1, 4000), st.integers(0, 60))
 def test_flow_blocks_equal_closures(items: list[object], d: list[int], ccr: int, seed: int, max_n: int, max_c: int,
@@ -676,7 +676,7 @@ def _run_map(code: bytes, d: list[int], a: list[int], ccr: int, pre_written: boo
     return out
 
 
-@settings(max_examples=examples(250), deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(250, ci=50), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.lists(MEM_INS, min_size=1, max_size=12), st.lists(st.sampled_from(EDGE) | st.integers(0, M32),
                                                             min_size=8, max_size=8),
        st.lists(st.sampled_from(MAP_ADDRS + [0x4200, 0x5000, 0x7F00]), min_size=8, max_size=8),
@@ -903,7 +903,7 @@ def _assert_duplicates(image: bytes, end: int) -> None:
 TRAP0 = b"\x4e\x40"
 
 
-@settings(max_examples=examples(100), deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(100, ci=20), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(dup_flow(ALU), st.integers(0, 31), st.integers(0, 1 << 30), st.data())
 def test_duplicated_tails_vs_m68000py(items: list[object], ccr: int, seed: int, data: st.DataObject) -> None:
     """Blocks whose plan duplicates tails (the copies carry their own clock/instruction constants): registers,
@@ -918,7 +918,7 @@ def test_duplicated_tails_vs_m68000py(items: list[object], ccr: int, seed: int, 
     assert ours == ref, f"{_diff(ours, ref)}\n  code {code.hex(' ')} d={[hex(v) for v in d]} ccr={ccr:#x}"
 
 
-@settings(max_examples=examples(150), deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(150, ci=30), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(dup_flow(FLOW_ANY), st.lists(st.sampled_from(EDGE) | st.integers(0, M32), min_size=8, max_size=8),
        st.integers(0, 31), st.integers(0, 1 << 30), st.integers(1, 300), st.integers(1, 4000), st.integers(0, 60))
 def test_duplicated_tails_equal_closures(items: list[object], d: list[int], ccr: int, seed: int, max_n: int,

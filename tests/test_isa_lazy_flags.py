@@ -137,7 +137,7 @@ def lazy_loops(draw: st.DrawFn) -> tuple[list[Instruction], int | None]:
     return body, count
 
 
-@settings(max_examples=examples(150), deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(150, ci=40), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(lazy_loops(), st.lists(st.sampled_from(EDGE) | st.integers(0, M32), min_size=8, max_size=8),
        st.lists(st.sampled_from(A_VALUES), min_size=7, max_size=7), st.integers(0, 31), st.integers(0, 6),
        st.integers(1, 80), st.integers(1, 1500), st.integers(0, 40), st.booleans(), st.booleans())
@@ -167,7 +167,7 @@ REF_OTHERS = instructions(rows="move lea nop exg muls mulu divu divs neg".split(
                               i.operands[-1].mode is Mode.AREG and i.operands[-1].reg == 7))
 
 
-@settings(max_examples=examples(60), deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(60, ci=15), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.sampled_from(["add", "sub"]), st.sampled_from([Size.B, Size.W, Size.L]), st.data(),
        st.lists(st.sampled_from(EDGE) | st.integers(0, M32), min_size=8, max_size=8), st.integers(0, 31),
        st.integers(0, 1 << 30))

@@ -84,7 +84,7 @@ def _case(draw):
     return cfg, adc, acc
 
 
-@settings(max_examples=examples(30), deadline=None)
+@settings(max_examples=examples(30, ci=10), deadline=None)
 @given(case=_case())
 def test_kalman_within_derived_bound_of_float_mirror(case):
     cfg, adc, acc = case

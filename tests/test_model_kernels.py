@@ -141,7 +141,7 @@ _STEPS = {"recursive": "recursive_step", "recursive_seed_literal": "seed_literal
 
 
 @needs_numba
-@settings(max_examples=examples(400))
+@settings(max_examples=examples(400, ci=100))
 @given(case=_extreme_case())
 def test_compiled_step_equals_python_int_step_at_int32_extremes(case):
     """One step from a state anywhere in int32 (e.g. X1 = -2^31, X3 = 2^31 - 1), any 16-bit input and constants

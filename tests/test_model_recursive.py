@@ -38,7 +38,7 @@ def _bound(S: int, rounding: str) -> tuple[float, float]:
     return -float(2 ** (S - 1)), float(2 ** (S - 1))
 
 
-@settings(max_examples=examples(60))
+@settings(max_examples=examples(60, ci=20))
 @given(S=st.integers(1, 8), k=st.integers(4, 8), rounding=st.sampled_from(("floor", "half_up")),
        adc=st.one_of(fst.adc_streams(max_len=300), fst.edge_streams(length=200, shifts=(5, 6, 7, 8))),
        sign=st.sampled_from((1, -1)))

@@ -219,7 +219,7 @@ def _pascal_case(draw):
     return cfg, p, acc
 
 
-@settings(max_examples=examples(20), deadline=None)
+@settings(max_examples=examples(20, ci=5), deadline=None)
 @given(case=_pascal_case())
 def test_pascal_kalman_within_derived_bound_of_float_mirror(case) -> None:
     cfg, p, acc = case

@@ -123,7 +123,7 @@ def _vel_bound_ok(consts, adc, acc) -> tuple[bool, float, float]:
     return ok, float(r.min()), float(r.max())
 
 
-@settings(max_examples=examples(40), deadline=None)
+@settings(max_examples=examples(40, ci=10), deadline=None)
 @given(k=st.integers(4, 8), rounding=st.sampled_from(("floor", "half_up")), cal_p=st.integers(0, 8),
        seed=st.integers(0, 2 ** 32 - 1), n_extra=st.integers(1, 300))
 def test_velocity_within_derived_bound_of_float_mirror(k, rounding, cal_p, seed, n_extra):
