@@ -352,8 +352,9 @@ def _liveness(entries: list[_Entry], role: dict[int, tuple[Any, ...]], reach: li
                 after = live_in[r[1]]
             elif r[0] == "dup":  # the copy of the code from r[1] runs on the taken path
                 after = live_in[r[1]] if h == "bra" else live_in[i + 1] | live_in[r[1]]
-            else:  # loop
-                after = live0 if h == "bra" else live0 | live_in[i + 1]
+            else:  # loop: the back edge is also where the instruction budget or until_pc ends the loop (the
+                # block leaves at the head with SR as it is then: every flag is observable there)
+                after = _ALL_FLAGS
             uses, defs = _flag_effect(ins, h, cond)
             need[i] = after
             live_in[i] = _ALL_FLAGS if faults else (after & ~defs) | uses

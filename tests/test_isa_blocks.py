@@ -1031,3 +1031,26 @@ def test_call_entry_block_equals_closures(routine: str, max_cycles: int | None) 
     if routine == "one" and max_cycles is None:
         # MOVEQ 4, ADD.L Dn,Dn 8, BNE.S taken 10, MOVE.L Dn,abs.L 20, RTS 16 (UM tables 8-4, 8-2, 8-10)
         assert out[0][0][0] == "ok" and out[0][2] == ("ok", 4 + 8 + 10 + 20 + 16)
+
+
+def test_loop_stopped_by_the_budget_at_its_back_edge_has_exact_flags() -> None:
+    """A looping block whose flags are dead inside the loop (ORI's, overwritten by the next pass) and a limit that
+    ends the loop at its back edge: the block leaves at the head, where SR is observable, so it must hold the last
+    ORI's flags (Z set), as the closures do. Found by the thorough profile of
+    test_blocks_equal_closures_any_instructions (the block left SR from before the loop: Z clear)."""
+    from isa.errors import LimitExceeded
+
+    src = "start: moveq #1,d1\n moveq #0,d0\nloop: ori.b #0,d0\n bra.s loop\n"
+
+    def run(block: bool, n: int) -> tuple:
+        cpu = isa.CPU()
+        cpu.block_compile = block
+        cpu.load(isa.assemble(src, filename="t.s", origin=0x1000))
+        cpu.a[7] = 0x8000
+        with pytest.raises(LimitExceeded):
+            cpu.run(max_instructions=n)
+        return cpu.pc, cpu.sr, cpu.instructions, cpu.cycles, list(cpu.d)
+
+    for n in range(1, 40):
+        assert run(True, n) == run(False, n), n
+        assert run(True, n)[1] & 4 or n < 3, n  # Z: set once an ORI ran
