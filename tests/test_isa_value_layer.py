@@ -110,7 +110,7 @@ def focused(draw: st.DrawFn) -> list[object]:
     return items
 
 
-@settings(max_examples=examples(400), deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(400, ci=80), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(focused(), VALUES | st.integers(0, M32), VALUES | st.integers(0, M32), st.integers(0, 31))
 def test_value_ranges_equal_closures(items: list[object], d0: int, d1: int, ccr: int) -> None:
     """Dense two-register chains of the value layer's instructions (values kept modulo 2^32 and read exactly,
@@ -122,7 +122,7 @@ def test_value_ranges_equal_closures(items: list[object], d0: int, d1: int, ccr:
     assert blocks == closures
 
 
-@settings(max_examples=examples(50), deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(50, ci=15), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(focused(), VALUES | st.integers(0, M32), VALUES | st.integers(0, M32), st.integers(0, 31),
        st.integers(0, 1 << 30))
 def test_value_ranges_vs_m68000py(items: list[object], d0: int, d1: int, ccr: int, seed: int) -> None:
@@ -134,7 +134,7 @@ def test_value_ranges_vs_m68000py(items: list[object], d0: int, d1: int, ccr: in
     assert ours == ref, f"{_diff(ours, ref)}\n  code {code.hex(' ')} d0={d0:#x} d1={d1:#x} ccr={ccr:#x}"
 
 
-@settings(max_examples=examples(300), deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(300, ci=60), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(chains(), st.lists(st.sampled_from(EDGE) | st.integers(0, M32), min_size=8, max_size=8),
        st.integers(0, 31), st.integers(0, 1 << 30), st.integers(1, 40), st.integers(1, 900), st.integers(0, 40),
        st.sampled_from([0x6000, 0x6001, 0x6FFE, 0x1FFFE, 0x20000, 0xFFFFFE]))
@@ -152,7 +152,7 @@ def test_value_chains_equal_closures(items: list[object], d: list[int], ccr: int
     assert blocks == closures
 
 
-@settings(max_examples=examples(50), deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(50, ci=15), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(chains(), st.lists(st.sampled_from(EDGE) | st.integers(0, M32), min_size=8, max_size=8),
        st.integers(0, 31), st.integers(0, 1 << 30))
 def test_value_chains_vs_m68000py(items: list[object], d: list[int], ccr: int, seed: int) -> None:
