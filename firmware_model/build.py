@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import functools
 import hashlib
-import os
 import re
 import sys
 from dataclasses import dataclass
@@ -24,6 +23,7 @@ from types import MappingProxyType
 from typing import Mapping, Union
 
 from firmware_model import diskcache
+from firmware_model.diskcache import cache_dir  # public here too (harness, tests)
 from firmware_model.config import PROGRAMS, BuildConfig
 from firmware_model.constants import FirmwareConstants, build_constants
 from firmware_model.errors import UserError
@@ -123,16 +123,6 @@ def source_sha256(program: str) -> str:
 
 #: Bumped when the cached form changes.
 _CACHE_FORMAT = 1
-
-
-def cache_dir() -> Path | None:
-    """Where assembled builds are cached on disk: ``$FWEMU_CACHE_DIR`` if set (empty or ``off``: no disk cache),
-    else ``$XDG_CACHE_HOME/fwemu`` or ``~/.cache/fwemu``."""
-    env = os.environ.get("FWEMU_CACHE_DIR")
-    if env is not None:
-        return None if env.strip() in ("", "off", "0") else Path(env)
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return Path(base) / "fwemu"
 
 
 @functools.lru_cache(maxsize=1)

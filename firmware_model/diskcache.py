@@ -1,11 +1,11 @@
-"""Content-keyed pickles in the user's cache folder (:func:`firmware_model.build.cache_dir`, ``$FWEMU_CACHE_DIR``).
+"""Content-keyed pickles in the user's cache folder (:func:`cache_dir`, ``$FWEMU_CACHE_DIR``).
 
 One job: read and write a cached object by a path whose name is the content key of everything the object was
 computed from (the caller's responsibility: :func:`firmware_model.build.build_key` for assembled builds,
 :func:`firmware_model.flights.vectorcases.flight_cases_key` for the flight vector cases,
 :func:`firmware_model.vectors` for build constants; :func:`source_digest` is the part that covers this package's
-code). Writes are atomic (a
-temporary file in the same folder, then ``os.replace``): concurrent writers of one key write the same bytes and
+code; :func:`memo` is the load-or-compute-and-store the last two use). Writes are atomic (a temporary file in
+the same folder, then ``os.replace``): concurrent writers of one key write the same bytes and
 readers never see a partial file; a failed write (read-only or full disk) only costs the cache, and an unreadable
 or foreign file reads as a miss (it is recomputed and overwritten).
 """
@@ -22,6 +22,17 @@ from pathlib import Path
 from typing import Any, Callable
 
 
+def cache_dir() -> Path | None:
+    """Where results are cached on disk (assembled builds, compiled block code, flight cases, build constants):
+    ``$FWEMU_CACHE_DIR`` if set (empty or ``off``: no disk cache), else ``$XDG_CACHE_HOME/fwemu`` or
+    ``~/.cache/fwemu``."""
+    env = os.environ.get("FWEMU_CACHE_DIR")
+    if env is not None:
+        return None if env.strip() in ("", "off", "0") else Path(env)
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "fwemu"
+
+
 def load(path: Path, accept: Callable[[Any], bool]) -> Any | None:
     """The object pickled at ``path`` if ``accept(obj)``, else None (also when the file is missing or damaged)."""
     try:
@@ -30,6 +41,22 @@ def load(path: Path, accept: Callable[[Any], bool]) -> Any | None:
     except Exception:  # noqa: BLE001 - missing, truncated or foreign: a miss
         return None
     return obj if accept(obj) else None
+
+
+def memo(sub: str, key: Callable[[], str], accept: Callable[[Any], bool], compute: Callable[[], Any]) -> Any:
+    """``compute()``, kept in the cache folder (:func:`cache_dir`) as ``<sub>/<key()>.pickle``:
+    loaded from there when present and ``accept``-ed, else computed and stored. ``key`` is called only when the
+    cache is on (``$FWEMU_CACHE_DIR`` not ``off``)."""
+    folder = cache_dir()
+    path = folder / sub / f"{key()}.pickle" if folder is not None else None
+    if path is not None:
+        obj = load(path, accept)
+        if obj is not None:
+            return obj
+    obj = compute()
+    if path is not None:
+        store(path, obj)
+    return obj
 
 
 def store(path: Path, obj: Any) -> None:

@@ -27,7 +27,6 @@ import sys
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -276,25 +275,16 @@ def _sha256_file(path: Path) -> str | None:
 @functools.lru_cache(maxsize=256)
 def _constants(cfg: BuildConfig) -> Any:
     """:func:`firmware_model.constants.build_constants` of ``cfg``, once per process (a pure function of the frozen
-    config) and kept in the disk cache (:func:`firmware_model.build.cache_dir`, ``constants/<key>.pickle``) under
+    config) and kept in the disk cache (:func:`firmware_model.diskcache.cache_dir`, ``constants/<key>.pickle``) under
     the config's ``repr`` and :func:`firmware_model.diskcache.source_digest`: the gain designs and the altitude
     table fits of the committed matrix's 98 builds cost about 1 CPU-s in every run."""
     from firmware_model import diskcache
-    from firmware_model.build import cache_dir
     from firmware_model.constants import FirmwareConstants, build_constants
 
-    folder = cache_dir()
-    path = None
-    if folder is not None:
-        key = hashlib.sha256(repr((1, repr(cfg), diskcache.source_digest())).encode()).hexdigest()
-        path = folder / "constants" / f"{key}.pickle"
-        cached = diskcache.load(path, lambda obj: isinstance(obj, FirmwareConstants) and obj.program == cfg.program)
-        if cached is not None:
-            return cached
-    consts = build_constants(cfg)
-    if path is not None:
-        diskcache.store(path, consts)
-    return consts
+    return diskcache.memo("constants",
+                          lambda: hashlib.sha256(repr((1, repr(cfg), diskcache.source_digest())).encode()).hexdigest(),
+                          lambda obj: isinstance(obj, FirmwareConstants) and obj.program == cfg.program,
+                          lambda: build_constants(cfg))
 
 
 def compute_case(spec: CaseSpec, generator: str = "emulation", builds: dict[Any, Any] | None = None) -> CaseResult:
@@ -511,12 +501,11 @@ def case_json(res: CaseResult) -> str:
 
 
 def _c_rows(values: Iterable[int], per_line: int = 16) -> str:
-    if isinstance(values, np.ndarray) and values.dtype.kind in "iu":
-        ints = values.tolist()  # Python ints: each value's C text is its str, unless it is INT32_MIN
-        if _INT32_MIN not in ints:
-            vals = list(map(str, ints))
-            return ",\n".join("    " + ", ".join(vals[i:i + per_line]) for i in range(0, len(vals), per_line))
-    vals = [_c_i32(int(v)) for v in values]
+    ints = values.tolist() if isinstance(values, np.ndarray) and values.dtype.kind in "iu" else None
+    if ints is not None and _INT32_MIN not in ints:
+        vals = list(map(str, ints))  # Python ints: each value's C text is its str, unless it is INT32_MIN
+    else:
+        vals = [_c_i32(int(v)) for v in values]
     return ",\n".join("    " + ", ".join(vals[i:i + per_line]) for i in range(0, len(vals), per_line))
 
 
@@ -595,14 +584,14 @@ def case_header(res: CaseResult) -> str:
     return "".join(case_header_parts(res, [_c_rows(stream.adc)], [_c_rows(stream.acc)], [_c_expected(res.words)]))
 
 
-def _row_texts(rows: Any) -> tuple[str, str] | None:
+def _row_texts(rows: Any) -> tuple[str, str]:
     """``(_json_rows(rows), _c_expected(rows))`` with each row's numbers converted to text once: a row of Python
     ints prints as ``str(row)`` = ``"[" + ", ".join(map(str, row)) + "]"``, the JSON row, and the same numbers
-    make the C row unless one is INT32_MIN (then :func:`_c_expected`'s spelling). None when ``rows`` is not a
-    list of lists of Python ints (the caller then uses the two functions)."""
+    make the C row unless one is INT32_MIN (then :func:`_c_expected`'s spelling). Rows that are not lists of
+    Python ints are formatted value by value by those two functions."""
     if not (isinstance(rows, list) and all(type(r) is list for r in rows)
             and set(map(type, itertools.chain.from_iterable(rows))) <= {int}):
-        return None
+        return _json_rows(rows), _c_expected(rows)
     text = [str(r)[1:-1] for r in rows]
     json_rows = ",\n  ".join(["[" + t + "]" for t in text])
     c_rows = ",\n".join(["    { " + t + " }" if _INT32_MIN not in r else
@@ -615,10 +604,7 @@ def render_case(res: CaseResult) -> tuple[bytes, bytes]:
     both files: a row of Python ints prints as ``str(row)`` = ``"[" + ", ".join(map(str, row)) + "]"``, the JSON
     row, and the same numbers make the C row unless one is INT32_MIN (then :func:`_c_expected`'s spelling). The
     number-to-text conversion is most of the rendering; the bytes equal the two functions' (tests/test_vectors.py)."""
-    texts = _row_texts(res.words)
-    if texts is None:
-        return case_json(res).encode(), case_header(res).encode()
-    json_rows, c_rows = texts
+    json_rows, c_rows = _row_texts(res.words)
     stream = res.spec.stream
     json_b = "".join(case_json_parts(res, [_json_values(stream.adc)], [_json_values(stream.acc)], [json_rows]))
     header_b = "".join(case_header_parts(res, [_c_rows(stream.adc)], [_c_rows(stream.acc)], [c_rows]))
@@ -629,23 +615,22 @@ def render_case(res: CaseResult) -> tuple[bytes, bytes]:
 def alt_table_files(consts: Any) -> dict[str, bytes]:
     """The shared altitude-table files of a Kalman build: ``tables/<tag>.json`` (the node list, Q24.8 m) and
     ``tables/<tag>.h`` (``fwv_<tag>[]`` with FWV_ROM placement), included by every case header that uses it."""
-    return dict(_alt_table_files(consts.ALT_TABLE, consts.ALT_SHIFT, consts.ALT_N))
+    return dict(_alt_table_files(tuple(consts.ALT_TABLE), consts.ALT_SHIFT))
 
 
 @functools.lru_cache(maxsize=64)
-def _alt_table_files(table: tuple[int, ...], shift: int, n: int) -> tuple[tuple[str, bytes], ...]:
+def _alt_table_files(table: tuple[int, ...], shift: int) -> tuple[tuple[str, bytes], ...]:
     """:func:`alt_table_files` of a table (every case of a build, and every build with the same sensor, renders
     the same files: once per process)."""
-    consts = SimpleNamespace(ALT_TABLE=table, ALT_SHIFT=shift, ALT_N=n)
-    tag = _alt_tag(consts)
-    doc = {"name": tag, "shift": consts.ALT_SHIFT, "n_nodes": consts.ALT_N, "q_format": "Q24.8 m",
-           "node_count_of_j": f"j << {consts.ALT_SHIFT}", "nodes": list(consts.ALT_TABLE)}
+    tag, n = _alt_tag_of(table), len(table)
+    doc = {"name": tag, "shift": shift, "n_nodes": n, "q_format": "Q24.8 m",
+           "node_count_of_j": f"j << {shift}", "nodes": list(table)}
     h = [f"/* Golden vectors: altitude table {tag}. Generated by {tool_version()}; do not edit (fwemu vectors). */",
          f"#ifndef FWV_{tag.upper()}_H", f"#define FWV_{tag.upper()}_H", "", "#include <stdint.h>", "",
          "#ifndef FWV_ROM", "#define FWV_ROM /* e.g. PROGMEM on AVR */", "#endif", "",
-         f"/* {consts.ALT_N} nodes, Q24.8 m; node j is the altitude at count j << {consts.ALT_SHIFT} */",
-         f"static const int32_t fwv_{tag}[{consts.ALT_N}] FWV_ROM = {{",
-         ",\n".join("    " + ", ".join(_c_i32(v) for v in consts.ALT_TABLE[i:i + 8]) for i in range(0, consts.ALT_N, 8)),
+         f"/* {n} nodes, Q24.8 m; node j is the altitude at count j << {shift} */",
+         f"static const int32_t fwv_{tag}[{n}] FWV_ROM = {{",
+         ",\n".join("    " + ", ".join(_c_i32(v) for v in table[i:i + 8]) for i in range(0, n, 8)),
          "};", "", f"#endif /* FWV_{tag.upper()}_H */", ""]
     return ((f"tables/{tag}.json", (json.dumps(doc, sort_keys=True) + "\n").encode()),
             (f"tables/{tag}.h", "\n".join(h).encode()))

@@ -322,8 +322,7 @@ def generate_user(program: str, input_csv: str | Path, out: str | Path, config: 
                                 if hit.size:
                                     events_first[ev] = start + int(hit[0])
                     rows = words.tolist()
-                    json_text, c_text = vectors._row_texts(rows) or (vectors._json_rows(rows),
-                                                                      vectors._c_expected(rows))
+                    json_text, c_text = vectors._row_texts(rows)
                     _put(fj, json_text)
                     _put(fc, c_text)
                     bar.step(name, len(a))

@@ -407,6 +407,7 @@ def test_flight_cases_come_from_the_disk_cache_unchanged(tmp_path: Path, monkeyp
     """The flight cases are computed once per content key and stored; a second call loads them without reading a
     log (the computing function is then broken) and gives the same specs, field by field, as a computation with no
     cache at all; another key (require_logs, code digest) computes again."""
+    from firmware_model import diskcache
     from firmware_model.flights import vectorcases
 
     args = (vectors.case_name, vectors.CaseSpec, vectors.Stream)
@@ -427,7 +428,7 @@ def test_flight_cases_come_from_the_disk_cache_unchanged(tmp_path: Path, monkeyp
     assert len(again) > 0
     with pytest.raises(AssertionError, match="computed again"):
         vectorcases.flight_case_specs(*args, require_logs=True)
-    monkeypatch.setattr(vectorcases, "_code_digest", lambda: "another version")
+    monkeypatch.setattr(diskcache, "source_digest", lambda: "another version")
     with pytest.raises(AssertionError, match="computed again"):
         vectorcases.flight_case_specs(*args, require_logs=False)
     monkeypatch.setattr(vectorcases, "_flight_case_specs", real)

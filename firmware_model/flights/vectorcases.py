@@ -59,13 +59,9 @@ def _sha256(path: Path) -> str:
 _CACHE_FORMAT = 1
 
 
-def _code_digest() -> str:
-    return diskcache.source_digest()
-
-
 def flight_cases_key(require_logs: bool, base: Path | None) -> str:
     """The content key of :func:`flight_case_specs`' result: the case list, ``require_logs``, the bytes of every
-    log it reads (or that the log is missing), and :func:`_code_digest`."""
+    log it reads (or that the log is missing), and :func:`firmware_model.diskcache.source_digest`."""
     h = hashlib.sha256(repr((_CACHE_FORMAT, FLIGHT_CASES, bool(require_logs), base is None)).encode())
     for _name, source, *_ in FLIGHT_CASES:
         if source.startswith("sim:") or base is None:
@@ -74,7 +70,7 @@ def flight_cases_key(require_logs: bool, base: Path | None) -> str:
             h.update(source.encode() + b"\0" + hashlib.sha256((base / source).read_bytes()).digest())
         except OSError:
             h.update(source.encode() + b"\0missing")
-    h.update(_code_digest().encode())
+    h.update(diskcache.source_digest().encode())
     return h.hexdigest()
 
 
@@ -85,22 +81,14 @@ def flight_case_specs(case_name: Any, spec_type: Any, stream_type: Any, require_
     cases only.
 
     Reading the logs and simulating the flights takes seconds; the result is kept in the disk cache
-    (:func:`firmware_model.build.cache_dir`, ``cases/flights-<key>.pickle``) under :func:`flight_cases_key`, so a
+    (:func:`firmware_model.diskcache.cache_dir`, ``cases/flights-<key>.pickle``) under :func:`flight_cases_key`, so a
     later run with the same logs and the same code loads it instead (the same specs: tests/test_vectors.py)."""
-    from firmware_model.build import cache_dir
     from firmware_model.flights.evalset import shared_dir
 
     base = shared_dir()
-    folder = cache_dir()
-    path = folder / "cases" / f"flights-{flight_cases_key(require_logs, base)}.pickle" if folder is not None else None
-    if path is not None:
-        cached = diskcache.load(path, lambda obj: isinstance(obj, list) and all(type(x) is spec_type for x in obj))
-        if cached is not None:
-            return cached
-    specs = _flight_case_specs(case_name, spec_type, stream_type, require_logs, base)
-    if path is not None:
-        diskcache.store(path, specs)
-    return specs
+    return diskcache.memo("cases", lambda: f"flights-{flight_cases_key(require_logs, base)}",
+                          lambda obj: isinstance(obj, list) and all(type(x) is spec_type for x in obj),
+                          lambda: _flight_case_specs(case_name, spec_type, stream_type, require_logs, base))
 
 
 def _flight_case_specs(case_name: Any, spec_type: Any, stream_type: Any, require_logs: bool,
