@@ -4,7 +4,7 @@ The opcode -> row relation is resolved per opcode word on first use (:func:`row_
 bits agree with the word's top four bits, the one whose fixed bits and operand rules accept it; two such rows
 are a table error and raise), so importing the decoder costs nothing: building all 65536 entries at import took
 ~0.2 s in every process that decoded anything. :data:`OPCODE_MAP`, the whole 65536-entry list, is built on first
-access (tests, sweeps), asserting that each opcode word belongs to at most one row. :func:`decode` reads the
+access (tests, sweeps) from the same lookup, which raises for a word two rows claim. :func:`decode` reads the
 opcode and its extension words through a caller-supplied
 ``fetch_word(address) -> int`` (16-bit, big-endian word at an even address) and returns a :class:`Decoded`.
 
@@ -45,37 +45,19 @@ class Decoded:
     cond: int | None = None
 
 
-def _build_map() -> list[Row | None]:
-    """Opcode word -> row; raises RuntimeError if two rows claim one word."""
-    table: list[Row | None] = [None] * 65536
-    for row in TABLE:
-        free = [15 - i for i, ch in enumerate(row.pattern) if ch not in "01"]
-        n = len(free)
-        for combo in range(1 << n):
-            word = row.fixed_bits
-            for j in range(n):
-                if combo >> j & 1:
-                    word |= 1 << free[j]
-            if matches(row, word):
-                other = table[word]
-                if other is not None:
-                    raise RuntimeError(f"opcode ${word:04X} matches both {other} and {row}")
-                table[word] = row
-    return table
-
-
 #: The rows an opcode with these top four bits can belong to (those whose fixed bits there agree).
 _BUCKETS: list[list[Row]] = [[r for r in TABLE if (n << 12 ^ r.fixed_bits) & r.fixed_mask & 0xF000 == 0]
                              for n in range(16)]
 
 _UNSET = object()
-#: Opcode word -> row or None, filled on first use by :func:`row_for` (the same rows :func:`_build_map` gives).
+#: Opcode word -> row or None, filled on first use by :func:`row_for`.
 _ROWS: list[object] = [_UNSET] * 65536
 
 
 def row_for(word: int) -> Row | None:
     """The table row of opcode ``word`` (0..0xFFFF), or None if the word is not in the subset. Raises
-    RuntimeError if two rows claim the word (a table error; :func:`_build_map` finds it for every word)."""
+    RuntimeError if two rows claim the word (a table error; building :data:`OPCODE_MAP` finds it for every
+    word)."""
     word &= 0xFFFF
     row = _ROWS[word]
     if row is _UNSET:
@@ -88,10 +70,10 @@ def row_for(word: int) -> Row | None:
 
 def __getattr__(name: str) -> object:
     """``OPCODE_MAP``: opcode word -> row (None: not in the supported subset), all 65536 words, built on first
-    access with the one-row-per-word check."""
+    access from :func:`row_for`, so with its one-row-per-word check on every word."""
     if name == "OPCODE_MAP":
         global OPCODE_MAP
-        OPCODE_MAP = _build_map()
+        OPCODE_MAP = [row_for(w) for w in range(65536)]
         return OPCODE_MAP
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
