@@ -105,8 +105,8 @@ def store_decoded(mem: Any, pc: int, value: tuple[Any, ...]) -> None:
 
 
 def lookup_block(mem: Any, start: int, mkey: tuple[tuple[int, int, bool], ...]) -> tuple[Any, ...] | None:
-    """``(end, code, entries, bind, info)`` of a block compiled for the same bytes at ``start`` under the same
-    memory map, or None."""
+    """``(end, code, entries, bind, info, adopt)`` of a block compiled for the same bytes at ``start`` under the
+    same memory map, or None."""
     if not enabled:
         return None
     key = (start, mkey)
@@ -122,13 +122,14 @@ def lookup_block(mem: Any, start: int, mkey: tuple[tuple[int, int, bool], ...]) 
 
 
 def store_block(mem: Any, start: int, mkey: tuple[tuple[int, int, bool], ...], end: int, entries: list[Any],
-                bind: Any, info: Any) -> None:
-    """Remember a block compiled from the bytes ``[start, end)`` under memory map ``mkey``."""
+                bind: Any, info: Any, adopt: Any = None) -> None:
+    """Remember a block compiled from the bytes ``[start, end)`` under memory map ``mkey`` (``adopt``: what a CPU
+    taking it over needs besides, returned last by :func:`lookup_block`)."""
     stats["compiles"] += 1
     if not enabled:
         return
     key = (start, mkey)
-    _blocks.setdefault(key, []).append((end, mem[start:end], entries, bind, info))
+    _blocks.setdefault(key, []).append((end, mem[start:end], entries, bind, info, adopt))
     _blocks.move_to_end(key)
     _n_blocks[0] += 1
     while _n_blocks[0] > MAX_BLOCKS:

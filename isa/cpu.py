@@ -157,6 +157,10 @@ class CPU:
         # instruction addresses each block covers; code object -> _BlockInfo (for faults inside a block).
         self._blocks: dict[int, tuple[Callable[[], int] | None, int, int, int]] = {}
         self._block_members: dict[int, list[int]] = {}
+        # (block start, addresses of its instructions) of each block bound since _block_members was last brought
+        # up to date: only an invalidation reads _block_members (_drop_blocks_at), so binding a block (each new CPU
+        # binds every block it runs) does not index its instructions one by one.
+        self._members_todo: list[tuple[int, Any]] = []
         self._block_drops: dict[int, int] = {}  # block start -> times its block was dropped by a code write
         self._block_code: dict[Any, _BlockInfo] = {}
         self._smc = [0]  # set when a program write invalidates compiled code (a running block leaves early)
@@ -279,6 +283,12 @@ class CPU:
 
     def _drop_blocks_at(self, start: int) -> None:
         """Forget every compiled block that contains the instruction at ``start``."""
+        if self._members_todo:
+            index = self._block_members
+            for b, pcs in self._members_todo:
+                for pc in pcs:
+                    index.setdefault(pc, []).append(b)
+            self._members_todo = []
         members = self._block_members.pop(start, None)
         if members:
             blocks = self._blocks
@@ -395,33 +405,35 @@ class CPU:
             entry: tuple[Callable[[], int] | None, int, int, int] = (None, 0, 0, 0)
             if start in self._decoded:  # a TRAP/ILLEGAL/odd branch: remember; an unfetchable start: do not
                 self._blocks[start] = entry
-                self._block_members.setdefault(start, []).append(start)
+                self._members_todo.append((start, (start,)))
             return entry
         bind, info = compile_block(entries, MapFacts(self.memory.regions))
+        pcs = tuple(e[0] for e in entries)
         if most == BLOCK_MAX:
-            codecache.store_block(self._mem, start, self._mkey, info.end, entries, bind, info)
-        return self._bind_block(start, entries, bind, info)
+            codecache.store_block(self._mem, start, self._mkey, info.end, entries, bind, info,
+                                  ({e[0]: (e[1], e[4]) for e in entries}, {e[0]: (e[2], e[3]) for e in entries}, pcs))
+        return self._bind_block(start, pcs, bind, info)
 
-    def _adopt_block(self, start: int, end: int, code: bytes, entries: list[Any], bind: Any, info: _BlockInfo
+    def _adopt_block(self, start: int, end: int, code: bytes, entries: list[Any], bind: Any, info: _BlockInfo,
+                     adopt: tuple[dict[int, Any], dict[int, Any], tuple[int, ...]]
                      ) -> tuple[Callable[[], int] | None, int, int, int]:
         """Take over a block another CPU compiled from the same bytes (:mod:`isa.codecache`): record its
-        instructions as decoded here and mark its bytes as code, as decoding them would have."""
-        decoded, meta = self._decoded, self._meta
-        for pc, ins, h, cond, length in entries:
-            decoded[pc] = (ins, length)
-            meta[pc] = (h, cond)
+        instructions as decoded here (``adopt``: their ``_decoded`` and ``_meta`` items and their addresses, made
+        once when the block was stored) and mark its bytes as code, as decoding them would have."""
+        decoded_items, meta_items, pcs = adopt
+        self._decoded.update(decoded_items)
+        self._meta.update(meta_items)
         fl = self._flags
         fl[start:end] = fl[start:end].translate(_SET_CODE_TABLE)
-        return self._bind_block(start, entries, bind, info)
+        return self._bind_block(start, pcs, bind, info)
 
-    def _bind_block(self, start: int, entries: list[Any], bind: Any, info: _BlockInfo
+    def _bind_block(self, start: int, pcs: tuple[int, ...], bind: Any, info: _BlockInfo
                     ) -> tuple[Callable[[], int] | None, int, int, int]:
         fn = bind(self._R, self._min_sp, self._smc, self.memory)
         entry = (fn, info.n, info.bound, info.end)
         self._blocks[start] = entry
         self._block_code[fn.__code__] = info
-        for e in entries:
-            self._block_members.setdefault(e[0], []).append(start)
+        self._members_todo.append((start, pcs))
         return entry
 
     def _decoded_at(self, pc: int) -> tuple[Instruction, int, str, int | None] | None:
@@ -665,38 +677,104 @@ class CPU:
                 self._smc[0] = 0
                 try:
                     r = e[0](maxn, maxc, CALL_SENTINEL)
-                except _Fault as fault:
-                    pc, n, cyc = self._unwind_block(fault.__traceback__) or (address, 0, 0)
-                    self._pc = pc
-                    self.instructions += n
-                    self.cycles += cyc
-                    raise self._fault(fault.cls, fault.message, pc) from None
-                except BaseException as exc:  # not a CPU fault (e.g. KeyboardInterrupt), as in _run
-                    fix = self._unwind_block(exc.__traceback__)
-                    if fix is not None:
-                        self._pc = fix[0]
-                        self.instructions += fix[1]
-                        self.cycles += fix[2]
+                except BaseException as exc:
+                    self._call_block_raised(exc, address)
                     raise
                 pc = r & 0xFFFFFF
-                n = (r >> 24) & 0xFFFFFFFF
-                cyc = r >> 56
                 if pc == CALL_SENTINEL:
-                    self.instructions += n
+                    cyc = r >> 56
+                    self.instructions += (r >> 24) & 0xFFFFFFFF
                     self.cycles += cyc
                     self._pc = saved_pc
                     return cyc
-                self._pc = pc
-                reason, trap, _, cycles, _ = self._run(max_instructions, max_cycles, CALL_SENTINEL, False, n, cyc,
-                                                       address)
-                if reason != "until_pc":
-                    raise self._fault(CPUFault, f"call(${address:06X}) stopped by TRAP #{trap} before "
-                                      "returning", (self._pc - 2) & 0xFFFFFF)
-                self._pc = saved_pc
-                return cycles
+                return self._call_go_on(r, address, saved_pc, max_instructions, max_cycles)
+        return self._call_run(address, saved_pc, max_instructions, max_cycles)
+
+    def _call_block_raised(self, exc: BaseException, address: int) -> None:
+        """The entry block of :meth:`call` (or a :meth:`caller`) raised ``exc``: unwind the block (registers,
+        PC, counters) as :meth:`_run` does; a CPU fault is raised here as its :class:`CPUFault`, anything else
+        (e.g. KeyboardInterrupt) is left for the caller to re-raise."""
+        if isinstance(exc, _Fault):
+            pc, n, cyc = self._unwind_block(exc.__traceback__) or (address, 0, 0)
+            self._pc = pc
+            self.instructions += n
+            self.cycles += cyc
+            raise self._fault(exc.cls, exc.message, pc) from None
+        fix = self._unwind_block(exc.__traceback__)
+        if fix is not None:
+            self._pc = fix[0]
+            self.instructions += fix[1]
+            self.cycles += fix[2]
+
+    def _call_go_on(self, r: int, address: int, saved_pc: int, max_instructions: int | None,
+                    max_cycles: int | None) -> int:
+        """The entry block of a call returned ``r`` (packed next PC, instructions, clocks) elsewhere than to the
+        sentinel: go on in :meth:`_run` from there, counting what the block did."""
+        self._pc = r & 0xFFFFFF
+        reason, trap, _, cycles, _ = self._run(max_instructions, max_cycles, CALL_SENTINEL, False,
+                                               (r >> 24) & 0xFFFFFFFF, r >> 56, address)
+        if reason != "until_pc":
+            raise self._fault(CPUFault, f"call(${address:06X}) stopped by TRAP #{trap} before "
+                              "returning", (self._pc - 2) & 0xFFFFFF)
+        self._pc = saved_pc
+        return cycles
+
+    def _call_run(self, address: int, saved_pc: int, max_instructions: int | None, max_cycles: int | None) -> int:
+        """A call whose return address is pushed and PC set: run it all in :meth:`_run`."""
         reason, trap, _, cycles, _ = self._run(max_instructions, max_cycles, CALL_SENTINEL, False)
         if reason != "until_pc":
             raise self._fault(CPUFault, f"call(${address:06X}) stopped by TRAP #{trap} before "
                               "returning", (self._pc - 2) & 0xFFFFFF)
         self._pc = saved_pc
         return cycles
+
+    def caller(self, address: int, max_cycles: int | None = 10_000_000,
+               max_instructions: int | None = None) -> Callable[[], int]:
+        """``lambda: self.call(address, max_cycles, max_instructions)``, with the per-call set-up done once: for a
+        host that calls one routine many times (the firmware harness calls ``step`` once a sample). Each call of
+        the returned function has exactly the effects and result of that :meth:`call` (registers, memory, PC,
+        counters, ``min_sp``, faults), at whatever state the CPU is in then: when the routine's entry block is
+        compiled, the return address can be pushed straight into plain RAM and nothing else applies (profiling,
+        blocks off, a budget below one pass), it runs the block itself; otherwise it calls :meth:`call`."""
+        if not isinstance(address, int):
+            raise TypeError(f"caller() needs an int address, got {type(address).__name__}")
+        call = self.call
+        at = address & 0xFFFFFF
+        maxn = (1 << 62) if max_instructions is None else int(max_instructions)
+        maxc = (1 << 62) if max_cycles is None else int(max_cycles)
+        R, mem, flags32, min_sp, smc, blocks = self._R, self._mem, self._flags32, self._min_sp, self._smc, self._blocks
+        sentinel = CALL_SENTINEL
+        spans = at < sentinel
+        fits: list[Any] = [False]  # the entry tuple last found to fit the budget (a recompiled block is a new one)
+
+        def run() -> int:
+            sp = (R[15] - 4) & M32
+            e = blocks.get(at)
+            if e is not fits[0]:
+                if e is None or e[0] is None or e[1] > maxn or e[2] >= maxc or (spans and sentinel < e[3]):
+                    return call(address, max_cycles, max_instructions)
+                fits[0] = e
+            if sp > 0xFFFFFC or sp & 3 or flags32[sp >> 2] != 0x07070707 or self.profiling or not self.block_compile:
+                return call(address, max_cycles, max_instructions)
+            _PL(mem, sp, sentinel)
+            R[15] = sp
+            if sp < min_sp[0]:
+                min_sp[0] = sp
+            saved_pc = self._pc
+            self._pc = at
+            self.last_trap = None
+            smc[0] = 0
+            try:
+                r = e[0](maxn, maxc, sentinel)
+            except BaseException as exc:
+                self._call_block_raised(exc, at)
+                raise
+            if r & 0xFFFFFF == sentinel:
+                cyc = r >> 56
+                self.instructions += (r >> 24) & 0xFFFFFFFF
+                self.cycles += cyc
+                self._pc = saved_pc
+                return cyc
+            return self._call_go_on(r, at, saved_pc, max_instructions, max_cycles)
+
+        return run

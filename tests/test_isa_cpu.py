@@ -9,8 +9,9 @@ instruction families on hypothesis-generated register states.
 from __future__ import annotations
 
 import pytest
-from hypothesis import given
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
+from profiles import examples
 
 import isa
 from isa.cpu import CALL_SENTINEL, CPU, HANDLERS, MapError
@@ -656,3 +657,93 @@ def test_execute_hand_built_instruction() -> None:
     ins = Instruction("add", Size.L, (Operand(Mode.DREG, 2), Operand(Mode.DREG, 1)))
     assert cpu.execute(ins, 2) == 8  # ADD.L Dn,Dn (UM Table 8-4 note **)
     assert cpu.d[1] == 0 and cpu.ccr == X | Z | C and cpu.pc == 0x2002 and cpu.instructions == 1
+
+
+# ------------------------------------------------------------------------------------------ caller()
+_CALLER_ROUTINES = {
+    "one block": " moveq #7,d0\n add.l d0,d1\n move.l d1,$5000\n rts\n",
+    "loop": " moveq #3,d2\nloop: add.l d2,d1\n move.w d1,$5002\n dbra d2,loop\n rts\n",
+    "two blocks": " bsr.s sub\n addq.l #1,d3\n rts\nsub: addq.l #2,d3\n rts\n",
+    "bus error": " addq.l #1,d4\n move.l $9000,d0\n rts\n",
+    "trap": " addq.l #1,d4\n trap #1\n rts\n",
+    "runaway": "loop: addq.l #1,d5\n bra.s loop\n",
+    "rewrites itself": "top: addq.l #1,d6\n move.w #$5287,top\n rts\n",  # ADDQ.L #1,D6 becomes ADDQ.L #1,D7
+}
+
+
+def _caller_cpu() -> CPU:
+    cpu = CPU(mapped=False)
+    cpu.map(0, 0x8000, "ram")  # $9000 and above unmapped; $8000..$8FFF a ROM
+    cpu.map(0x8000, 0x1000, "rom", writable=False)
+    cpu.a[7] = 0x7000
+    return cpu
+
+
+def _cpu_state(cpu: CPU) -> tuple[object, ...]:
+    return (list(cpu.d), list(cpu.a), cpu.pc, cpu.sr, cpu.instructions, cpu.cycles, cpu.min_sp, cpu.ram_written,
+            cpu.written_ranges(), cpu.read_bytes(0, 0x8000), cpu.last_trap, dict(cpu.profile))
+
+
+@given(routine=st.sampled_from(sorted(_CALLER_ROUTINES)), budget=st.sampled_from([3, 40, 500, 10_000]),
+       steps=st.lists(st.tuples(st.sampled_from(["", "", "sp", "profiling", "blocks"]),
+                                st.sampled_from([0x6FFE, 0x7002, 0x8000, 0x8008, 0x9004, 0x4])),
+                      min_size=2, max_size=8))
+@settings(max_examples=examples(60), deadline=None)
+@example(routine="one block", budget=10_000, steps=[("", 0)] * 3)
+@example(routine="loop", budget=500, steps=[("", 0), ("", 0), ("profiling", 0), ("", 0), ("blocks", 0), ("", 0)])
+@example(routine="two blocks", budget=10_000, steps=[("", 0)] * 3)
+@example(routine="bus error", budget=10_000, steps=[("", 0)] * 3)
+@example(routine="trap", budget=10_000, steps=[("", 0)] * 3)
+@example(routine="runaway", budget=500, steps=[("", 0)] * 3)
+@example(routine="rewrites itself", budget=10_000, steps=[("", 0)] * 3)
+@example(routine="one block", budget=10_000, steps=[("", 0), ("sp", 0x8008), ("sp", 0x9004), ("", 0)])
+def test_caller_does_exactly_what_call_does(routine: str, budget: int, steps: list[tuple[str, int]]) -> None:
+    """caller(address, budget)() against call(address, budget) on a twin CPU, and against the per-instruction
+    closures (block_compile off) on a third: same clocks or the same fault (class and message), then the same
+    registers, PC, counters, min_sp, RAM and profile. Each step first sets the stack pointer back to $7000 (the
+    return address then goes to RAM written before: the lean path), or moves it elsewhere (odd, into the ROM,
+    unmapped), or switches profiling or block compiling; then it calls."""
+    prog = isa.assemble(_CALLER_ROUTINES[routine], filename="r.s", origin=ORG)
+    twins = [_caller_cpu() for _ in range(3)]
+    twins[2].block_compile = False
+    for cpu in twins:
+        cpu.load(prog)
+        cpu.pc = 0x2222
+    run = twins[1].caller(ORG, max_cycles=budget)
+    for op, value in steps:
+        if op in ("", "sp"):
+            for cpu in twins:
+                cpu.a[7] = value if op else 0x7000
+        else:
+            for cpu in twins[:2]:
+                if op == "profiling":
+                    cpu.profiling = not cpu.profiling
+                else:
+                    cpu.block_compile = not cpu.block_compile
+            twins[2].profiling = twins[0].profiling
+        outcomes = []
+        for i, cpu in enumerate(twins):
+            try:
+                outcomes.append(run() if i == 1 else cpu.call(ORG, max_cycles=budget))
+            except CPUFault as exc:
+                outcomes.append((type(exc), str(exc)))
+        assert outcomes[0] == outcomes[1] == outcomes[2]
+        assert _cpu_state(twins[0]) == _cpu_state(twins[1]) == _cpu_state(twins[2])
+
+
+def test_caller_runs_the_entry_block_itself() -> None:
+    """The lean path is taken (not call()) once the entry block is compiled, and a recompiled block is used; the
+    clocks and D1 equal a twin CPU's plain call()s."""
+    cpu, twin = _caller_cpu(), _caller_cpu()
+    for c in (cpu, twin):
+        c.load(isa.assemble(_CALLER_ROUTINES["one block"], origin=ORG))
+    calls = []
+    plain = cpu.call
+    cpu.call = lambda *a, **k: (calls.append(a), plain(*a, **k))[1]  # type: ignore[method-assign]
+    run = cpu.caller(ORG)
+    assert [run() for _ in range(4)] == [twin.call(ORG) for _ in range(4)]
+    assert len(calls) == 1 and cpu.d[1] == twin.d[1] == 28
+    for c in (cpu, twin):
+        c.write(ORG, 0x7009, 2)  # host write over the code: MOVEQ #9,D0; the block is dropped
+    assert run() == twin.call(ORG) and len(calls) == 2 and cpu.d[1] == twin.d[1] == 37
+    assert run() == twin.call(ORG) and len(calls) == 2 and cpu.d[1] == twin.d[1] == 46
