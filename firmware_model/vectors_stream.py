@@ -22,7 +22,6 @@ with a message naming the count, unless ``header=False`` (``--no-header``: JSON,
 from __future__ import annotations
 
 import hashlib
-import json
 import struct
 from pathlib import Path
 from typing import Any
