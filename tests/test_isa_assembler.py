@@ -689,9 +689,7 @@ def test_operand_modes_parse_into_the_contract_types() -> None:
 def _clear_shared_memos() -> None:
     import isa.assembler as A
 
-    for memo in (A._SHARED_FILES, A._SHARED_PARSE, A._SHARED_TOKENS, A._SHARED_OPERANDS, A._SHARED_VALUES,
-                 A._SHARED_CODE, A._SHARED_LENGTH, A._SHARED_CYCLES):
-        memo.clear()
+    A.clear_memos()
 
 
 def test_process_wide_memo_gives_what_a_fresh_process_gives(tmp_path):
