@@ -148,6 +148,8 @@ class _Section:
     name: str
     chunks: list[_Chunk] = field(default_factory=list)
     pending: int | None = None  # start of the next chunk, set by ORG
+    org_seen: bool = False  # an ORG was seen: every later address of this section is independent of its base
+    based_label: bool = False  # a label was defined before any ORG: its value is the base plus an offset
 
 
 @dataclass
@@ -413,8 +415,12 @@ class _Assembler:
             # ``prev``), so it IS the final pass and one pass is saved. A final pass differs from a non-final one
             # only by raising where the other substitutes 0 (undefined symbol, range, encoding), so when it
             # completes its symbols are those of the non-final pass. After one speculative pass fails, passes
-            # run the plain way (an erroneous program costs at most one extra pass).
-            self.final = speculate and snapshot is not None
+            # run the plain way (an erroneous program costs at most one extra pass). Nor is a pass run as the
+            # final one when the previous pass defined a label in a section whose base has moved since it started
+            # (data and bss follow the code, which pass 1 does not know yet): that label's value changes, so this
+            # pass cannot be the last, and its encoding and listing would be thrown away. (Either way its symbols
+            # are the same; a wrong guess costs one pass, never a different result.)
+            self.final = speculate and snapshot is not None and not self._labels_moved()
             try:
                 self._pass()
             except AssemblyError:
@@ -441,6 +447,12 @@ class _Assembler:
         self._pass()
         return self._program()
 
+    def _labels_moved(self) -> bool:
+        """Whether the last pass defined a label relative to a section base that differs now from the one it
+        used."""
+        return any(self.sections[name].based_label and self.pass_bases[name] != self.bases[name]
+                   for name in ("data", "bss"))
+
     def _snapshot(self) -> dict[str, int]:
         return {k: s.value for k, s in self.cur.items() if s.kind != "set"}
 
@@ -451,6 +463,7 @@ class _Assembler:
         self.sections = {name: _Section(name) for name in _SECTIONS}
         self.section = self.sections["code"]
         self.bases = {"code": self.origin, "data": self.prev_bases["data"], "bss": self.prev_bases["bss"]}
+        self.pass_bases = dict(self.bases)
         self.macros: dict[str, _Macro] = {}
         self.conds: list[_Cond] = []
         self.scope = ""
@@ -650,6 +663,8 @@ class _Assembler:
     def _define_label(self, rec: _Rec, p: _Parsed) -> None:
         assert p.label is not None
         self._define(rec, p.label, p.label_col, self._here(), self.section.name, "label")
+        if not self.section.org_seen:
+            self.section.based_label = True
         if not (p.label.startswith(".") or p.label.endswith("$")):
             self.scope = p.label
 
@@ -820,6 +835,7 @@ class _Assembler:
             if not 0 <= addr < ADDRESS_LIMIT:
                 raise rec.where().error(f"ORG address {addr} outside the 24-bit address space", p.operand_col)
             self.section.pending = addr
+            self.section.org_seen = True
             self._list(rec, addr)
         elif op in ("even", "align"):
             n = 2
