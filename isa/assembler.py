@@ -126,6 +126,26 @@ class _Parsed:
     size_col: int = 1
     operands: str = ""
     operand_col: int = 1
+    kind: int = 0  # what _line does with it: _K_NONE, _K_COND, ... (from ``op``)
+
+
+_K_NONE, _K_COND, _K_MACRO, _K_ENDM, _K_EQU, _K_DIRECTIVE, _K_OTHER = range(7)
+
+
+def _kind(op: str | None) -> int:
+    if op is None:
+        return _K_NONE
+    if op in _IF_OPS or op in ("else", "endif", "endc"):
+        return _K_COND
+    if op == "macro":
+        return _K_MACRO
+    if op == "endm":
+        return _K_ENDM
+    if op in ("equ", "set", "="):
+        return _K_EQU
+    if op in _DIRECTIVES:
+        return _K_DIRECTIVE
+    return _K_OTHER  # an instruction or a macro call (macro names cannot be directives or mnemonics)
 
 
 @dataclass
@@ -377,7 +397,6 @@ class _Assembler:
         self.compiling = False  # the operand parser is building a compiled operand (no warning, no values)
         self._rec = _Rec("", 0, "")  # the line and mode a compiled expression is evaluated for (sym, where)
         self._strict = False
-        self.resolved = False  # set by the resolver: the expression being evaluated used a symbol
         self.prev: dict[str, _Sym] = {}
         self.prev_bases: dict[str, int] = {"code": origin, "data": origin, "bss": origin}
         self.final = False
@@ -523,42 +542,53 @@ class _Assembler:
                 self.defining.body.append(rec)
                 self._list(rec, None)
             return
-        if not self._active():
+        conds = self.conds
+        if conds and not conds[-1].active:
             p = self._parse_fields(rec, lenient=True)
             if p.op in _IF_OPS:
                 self.conds.append(_Cond(False, False, True, False, rec, p.op_col))
             elif p.op in ("else", "endif", "endc"):
                 self._cond_op(rec, p, cond_base)
             return
-        p = self._parse_fields(rec, lenient=False)
-        if p.op in _IF_OPS or p.op in ("else", "endif", "endc"):
+        p = _SHARED_PARSE.get(rec.text)  # type: ignore[assignment]
+        if p is None:
+            p = self._parse_fields(rec, lenient=False)
+        kind = p.kind
+        if kind == _K_OTHER:
+            if p.label is not None:
+                self._define_label(rec, p)
+            if p.op in self.macros:
+                self._list(rec, None)
+                self._expand(rec, p)
+            else:
+                self._instruction(rec, p)
+            return
+        if kind == _K_NONE:
+            if p.label is not None:
+                self._define_label(rec, p)
+                if self.final:
+                    self._list(rec, self._here())
+            elif self.final:
+                self._list(rec, None)
+            return
+        if kind == _K_COND:
             if p.label is not None:
                 raise rec.where().error("a label is not allowed on a conditional directive", p.label_col)
             self._cond_op(rec, p, cond_base)
             self._list(rec, None)
             return
-        if p.op == "macro":
+        if kind == _K_MACRO:
             self._macro_def(rec, p)
             self._list(rec, None)
             return
-        if p.op == "endm":
+        if kind == _K_ENDM:
             raise rec.where().error("ENDM without MACRO", p.op_col)
-        if p.op in ("equ", "set") or p.op == "=":
+        if kind == _K_EQU:
             self._equ(rec, p)
             return
         if p.label is not None:
             self._define_label(rec, p)
-        if p.op is None:
-            self._list(rec, self._here() if p.label is not None else None)
-            return
-        if p.op in self.macros:
-            self._list(rec, None)
-            self._expand(rec, p)
-            return
-        if p.op in _DIRECTIVES:
-            self._directive(rec, p)
-            return
-        self._instruction(rec, p)
+        self._directive(rec, p)
 
     def _parse_fields(self, rec: _Rec, lenient: bool) -> _Parsed:
         """Split a line into label, operation, size and operand field (a pure function of the line's text:
@@ -566,7 +596,9 @@ class _Assembler:
         memo = _SHARED_LENIENT if lenient else _SHARED_PARSE
         p = memo.get(rec.text)
         if p is None:
-            p = memo[rec.text] = self._parse_fields_uncached(rec, lenient)
+            p = self._parse_fields_uncached(rec, lenient)
+            p.kind = _kind(p.op)
+            memo[rec.text] = p
         return p
 
     def _parse_fields_uncached(self, rec: _Rec, lenient: bool) -> _Parsed:
@@ -680,6 +712,15 @@ class _Assembler:
         """The resolver of a compiled expression (:mod:`isa.expr`): for the line and mode of ``_value``."""
         return self._resolve(self._rec, self._strict, name, tok)
 
+    def sym_global(self, name: str, low: str, tok: Token) -> int:
+        """:meth:`sym` for a name that is not local and not a register (``low`` = its lower case)."""
+        sym = self.cur.get(low)
+        if sym is not None:
+            if sym.kind == "label":
+                self.label_ref = True
+            return sym.value
+        return self._resolve(self._rec, self._strict, name, tok)
+
     def star(self) -> int:
         """``*`` in a compiled expression."""
         return self._here()
@@ -690,7 +731,6 @@ class _Assembler:
 
     def _resolve(self, rec: _Rec, strict: bool, name: str, tok: Token) -> int:
         """The resolver: ``strict`` allows only symbols defined earlier (on ``rec``, for errors)."""
-        self.resolved = True
         low = name.lower()
         if low in _RESERVED:
             raise rec.where().error(f"register '{name}' is not allowed in an expression", tok.col)
@@ -744,7 +784,7 @@ class _Assembler:
         if toks[-1].kind != "end":
             toks = toks + [Token("end", "", toks[-1].col + len(toks[-1].text))]
         try:
-            parser = compile_parser(toks, rec.where())
+            parser = compile_parser(toks, rec.where(), _symbol_node)
             f = parser.parse()
         except AssemblyError:
             return None
@@ -1394,7 +1434,7 @@ class _Assembler:
         end = Token("end", "", toks[-1].col + len(toks[-1].text))
         t = toks + [end]
         where = rec.where()
-        ps = self.operand_parser = (compile_parser(t, where) if self.compiling
+        ps = self.operand_parser = (compile_parser(t, where, _symbol_node) if self.compiling
                                     else ExprParser(t, where, resolve, self._here()))
         self.label_ref = False
 
@@ -1624,6 +1664,15 @@ def decode_source(data: bytes, filename: str) -> str:
             text, col = text[1:], col - 1
         raise AssemblyError(f"byte ${data[start]:02X} is not UTF-8 (save the file as UTF-8)", filename, line, col,
                             text) from None
+
+
+def _symbol_node(name: str, tok: Token) -> Callable[[_Assembler], int]:
+    """The evaluator of a symbol in a compiled expression (what the plain resolver does, its dictionary key
+    worked out once)."""
+    low = name.lower()
+    if low in _RESERVED or name.startswith(".") or name.endswith("$"):
+        return lambda ev: ev.sym(name, tok)
+    return lambda ev: ev.sym_global(name, low, tok)
 
 
 def _no_symbols(name: str, tok: Token) -> int:  # pragma: no cover - a compiling parser resolves nothing

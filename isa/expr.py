@@ -437,9 +437,11 @@ class _Compiler(ExprParser):
     resolver's errors) the evaluator checks, in the same order (left to right, operands before their
     operator)."""
 
-    def __init__(self, tokens: list[Token], where: Where) -> None:
+    def __init__(self, tokens: list[Token], where: Where,
+                 symbol: Callable[[str, Token], Evaluator] | None = None) -> None:
         super().__init__(tokens, where, _no_resolve, 0)
         self.pure = True  #: no symbol and no ``*`` in what was compiled
+        self.symbol = symbol or _symbol_node
 
     def _apply(self, op_tok: Token, a: int, b: int) -> int:
         return _node_binary(op_tok, a, b)  # type: ignore[arg-type,return-value]
@@ -461,8 +463,7 @@ class _Compiler(ExprParser):
         if t.kind == "ident":
             self.next()
             self.pure = False
-            name = t.text
-            return (lambda ev: ev.sym(name, t))  # type: ignore[return-value]
+            return self.symbol(t.text, t)  # type: ignore[return-value]
         if t.kind == "op" and t.text == "*":
             self.next()
             self.pure = False
@@ -477,15 +478,21 @@ class _Compiler(ExprParser):
         return (lambda ev: value)  # type: ignore[return-value]
 
 
+def _symbol_node(name: str, tok: Token) -> Evaluator:
+    return lambda ev: ev.sym(name, tok)  # type: ignore[attr-defined]
+
+
 def _no_resolve(name: str, tok: Token) -> int:  # pragma: no cover - the compiler never resolves
     raise AssertionError(name)
 
 
-def compile_parser(tokens: list[Token], where: Where) -> ExprParser:
+def compile_parser(tokens: list[Token], where: Where,
+                   symbol: Callable[[str, Token], Evaluator] | None = None) -> ExprParser:
     """A parser over ``tokens`` whose :meth:`~ExprParser.parse` returns an evaluator (see :data:`Evaluator`)
     rather than a value; ``used_here`` is set when the parsed text holds ``*``, ``pure`` stays True when it holds
-    neither ``*`` nor a symbol."""
-    return _Compiler(tokens, where)
+    neither ``*`` nor a symbol. ``symbol(name, token)`` makes the evaluator of a symbol (default: one calling
+    ``ev.sym(name, token)``)."""
+    return _Compiler(tokens, where, symbol)
 
 
 class _ConstEv:
