@@ -127,6 +127,9 @@ class _Parsed:
     operands: str = ""
     operand_col: int = 1
     kind: int = 0  # what _line does with it: _K_NONE, _K_COND, ... (from ``op``)
+    #: The compiled instruction or DC/DS/DCB item template (None: not looked up yet; False: the plain way). It is
+    #: a function of op, size, operand field and its column, so it is shared by every line holding those.
+    template: object = field(default=None, compare=False, repr=False)
 
 
 _K_NONE, _K_COND, _K_MACRO, _K_ENDM, _K_EQU, _K_DIRECTIVE, _K_OTHER = range(7)
@@ -270,8 +273,9 @@ _SHARED_PARSE: dict[str, "_Parsed"] = {}  # line text -> fields (strict)
 _SHARED_LENIENT: dict[str, "_Parsed"] = {}  # line text -> fields (lenient: inactive IF branches, macro bodies)
 _SHARED_TOKENS: dict[tuple[str, int], list[Token]] = {}  # (field, column) -> tokens
 _SHARED_EXPRS: dict[tuple[str, int], "_Expr | None"] = {}  # (field, column) -> one expression, None: plain way
-_SHARED_INSNS: dict[str, "_Insn | None"] = {}  # line text -> instruction template, None: plain way
-_SHARED_DATA: dict[str, "_DataT | None"] = {}  # line text -> DC/DS/DCB template, None: plain way
+#: (op, size, operand field, its column) -> instruction template / DC/DS/DCB template (False: the plain way)
+_SHARED_INSNS: dict[tuple[str, str | None, str, int], "_Insn | bool"] = {}
+_SHARED_DATA: dict[tuple[str, str | None, str, int], "_DataT | bool"] = {}
 _SHARED_ARGS: dict[str, list[str]] = {}  # macro call's operand field -> arguments
 _SHARED_EXPANSIONS: dict[tuple, tuple[str, ...]] = {}  # type: ignore[type-arg]  # (body, params, args, size, \@)
 #: ... and of the encoder and the timing table (the plain path), pure functions of a (frozen) Instruction:
@@ -916,10 +920,14 @@ class _Assembler:
         self._list(rec, None)
 
     def _data(self, rec: _Rec, p: _Parsed) -> None:
-        t = _SHARED_DATA.get(rec.text, _MISSING)
-        if t is _MISSING:
-            t = _SHARED_DATA[rec.text] = self._compile_data(rec, p)
-        if t is None or not _COMPILE:
+        t = p.template
+        if t is None:
+            key = (p.op, p.size, p.operands, p.operand_col)
+            t = _SHARED_DATA.get(key)
+            if t is None:
+                t = _SHARED_DATA[key] = self._compile_data(rec, p) or False
+            p.template = t
+        if t is False or not _COMPILE:
             self._data_plain(rec, p)
             return
         # What _data_plain does, in the same order, with the line's expressions compiled.
@@ -1207,10 +1215,14 @@ class _Assembler:
 
     # --- instructions ----------------------------------------------------------------------------------------------
     def _instruction(self, rec: _Rec, p: _Parsed) -> None:
-        t = _SHARED_INSNS.get(rec.text, _MISSING)
-        if t is _MISSING:
-            t = _SHARED_INSNS[rec.text] = self._compile_instruction(rec, p)
-        if t is None or not _COMPILE:
+        t = p.template
+        if t is None:
+            key = (p.op, p.size, p.operands, p.operand_col)
+            t = _SHARED_INSNS.get(key)
+            if t is None:
+                t = _SHARED_INSNS[key] = self._compile_instruction(rec, p) or False
+            p.template = t
+        if t is False or not _COMPILE:
             self._instruction_plain(rec, p)
             return
         # What _instruction_plain does, in the same order, with the mnemonic, size and operands compiled.
