@@ -930,14 +930,15 @@ class _Assembler:
         if t is False or not _COMPILE:
             self._data_plain(rec, p)
             return
+        assert isinstance(t, _DataT)
         # What _data_plain does, in the same order, with the line's expressions compiled.
         op = p.op
-        width = t.width  # type: ignore[union-attr]
+        width = t.width
         bss = self.section.name == "bss"
         if width > 1:
             self._require_even(rec, f"{op}.{'wl'[width == 4]}", p.op_col)
         if op == "ds":
-            count = self._value(rec, t.count, strict=True)  # type: ignore[union-attr,arg-type]
+            count = self._value(rec, t.count, strict=True)
             if count < 0 or count * width >= ADDRESS_LIMIT:
                 raise rec.where().error(f"DS count {count} out of range", p.operand_col)
             addr = self._emit(rec, b"", p.op_col, reserve=count * width)
@@ -946,16 +947,16 @@ class _Assembler:
         if bss:
             raise rec.where().error("initialized data (DC/DCB) in the bss section", p.op_col)
         if op == "dcb":
-            count = self._value(rec, t.count, strict=True)  # type: ignore[union-attr,arg-type]
+            count = self._value(rec, t.count, strict=True)
             if count < 0 or count * width >= ADDRESS_LIMIT:
                 raise rec.where().error(f"DCB count {count} out of range", p.operand_col)
-            value = self._value(rec, t.value) if t.value is not None else 0  # type: ignore[union-attr]
-            data = self._pack(rec, value, width, t.value_col) * count  # type: ignore[union-attr]
-        elif t.const is not None:  # type: ignore[union-attr]
-            data = t.const  # type: ignore[union-attr]
+            value = self._value(rec, t.value) if t.value is not None else 0
+            data = self._pack(rec, value, width, t.value_col) * count
+        elif t.const is not None:
+            data = t.const
         else:
             buf = bytearray()
-            for raw, ex, col in t.items:  # type: ignore[union-attr]
+            for raw, ex, col in t.items:
                 if raw is not None:
                     buf += raw
                 else:
@@ -1225,12 +1226,13 @@ class _Assembler:
         if t is False or not _COMPILE:
             self._instruction_plain(rec, p)
             return
+        assert isinstance(t, _Insn)
         # What _instruction_plain does, in the same order, with the mnemonic, size and operands compiled.
         final = self.final
-        if t.alias is not None and final:  # type: ignore[union-attr]
+        if t.alias is not None and final:
             self.warnings.append(
-                f"{rec.file}:{rec.line}:{p.op_col}: warning: '{t.alias}' is not a 68000 mnemonic; assembled as "  # type: ignore[union-attr]
-                f"'{_ALIASES[t.alias][0]}'"  # type: ignore[union-attr]
+                f"{rec.file}:{rec.line}:{p.op_col}: warning: '{t.alias}' is not a 68000 mnemonic; assembled as "
+                f"'{_ALIASES[t.alias][0]}'"
             )
         if self.section.name == "bss":
             raise rec.where().error("instruction in the bss section", p.op_col)
@@ -1238,7 +1240,7 @@ class _Assembler:
         if addr & 1:
             raise rec.where().error(f"instruction at odd address ${addr:X} (insert EVEN)", p.op_col)
         values = []
-        for o in t.ops:  # type: ignore[union-attr]
+        for o in t.ops:
             if o.const is None:
                 self._rec = rec
                 self._strict = False
@@ -1248,33 +1250,33 @@ class _Assembler:
                     self._pc_warning(rec, o.col, values[-1])
         key = tuple(values)
         if final:
-            data = t.codes.get((key, addr))  # type: ignore[union-attr]
-            cycles = t.cycles.get(key, _MISSING)  # type: ignore[union-attr]
+            data = t.codes.get((key, addr))
+            cycles = t.cycles.get(key, _MISSING)
             if data is None or cycles is _MISSING:
-                instr = t.instruction(key)  # type: ignore[union-attr]
+                instr = t.instruction(key)
                 if data is None:
                     try:
                         data = encode(instr, addr)
                     except EncodingError as exc:
-                        raise self._encoding_error(rec, p, exc, t.cols) from None  # type: ignore[union-attr]
-                    if len(t.codes) > _TEMPLATE_LIMIT:  # type: ignore[union-attr]
-                        t.codes.clear()  # type: ignore[union-attr]
-                    t.codes[(key, addr)] = data  # type: ignore[union-attr]
+                        raise self._encoding_error(rec, p, exc, t.cols) from None
+                    if len(t.codes) > _TEMPLATE_LIMIT:
+                        t.codes.clear()
+                    t.codes[(key, addr)] = data
                 if cycles is _MISSING:
-                    if len(t.cycles) > _TEMPLATE_LIMIT:  # type: ignore[union-attr]
-                        t.cycles.clear()  # type: ignore[union-attr]
-                    cycles = t.cycles[key] = _cycle_range(instr)  # type: ignore[union-attr]
+                    if len(t.cycles) > _TEMPLATE_LIMIT:
+                        t.cycles.clear()
+                    cycles = t.cycles[key] = _cycle_range(instr)
             self.source_map[addr] = SourceLine(rec.file, rec.line, rec.text)
         else:
-            n = t.lens.get(key)  # type: ignore[union-attr]
+            n = t.lens.get(key)
             if n is None:
                 try:
-                    n = length(t.instruction(key))  # type: ignore[union-attr]
+                    n = length(t.instruction(key))
                 except EncodingError as exc:
-                    raise self._encoding_error(rec, p, exc, t.cols) from None  # type: ignore[union-attr]
-                if len(t.lens) > _TEMPLATE_LIMIT:  # type: ignore[union-attr]
-                    t.lens.clear()  # type: ignore[union-attr]
-                t.lens[key] = n  # type: ignore[union-attr]
+                    raise self._encoding_error(rec, p, exc, t.cols) from None
+                if len(t.lens) > _TEMPLATE_LIMIT:
+                    t.lens.clear()
+                t.lens[key] = n
             data = bytes(n)
             cycles = None
         self._emit(rec, data, p.op_col)

@@ -369,10 +369,6 @@ class ExprParser:
 Evaluator = Callable[[object], int]
 
 
-class CompileError(Exception):
-    """The tokens are not a well-formed expression (the interpreting :class:`ExprParser` reports why)."""
-
-
 def _raise_at(ev: object, message: str, tok: Token) -> int:
     raise ev.where().error(message, tok.col)  # type: ignore[attr-defined]
 
@@ -432,10 +428,10 @@ def _node_unary(op: str, v: Evaluator) -> Evaluator:
 class _Compiler(ExprParser):
     """:class:`ExprParser`'s grammar (``parse``, ``_binary``, ``expect``, the depth limit: inherited, so it accepts
     exactly the token lists the interpreter accepts) building an evaluator instead of a value. Everything the
-    interpreter checks while parsing raises here (as :class:`AssemblyError`; the caller turns it into
-    :class:`CompileError`); what it checks while evaluating (division by zero, shift counts, size, the
-    resolver's errors) the evaluator checks, in the same order (left to right, operands before their
-    operator)."""
+    interpreter checks while parsing raises here (as :class:`AssemblyError`: the caller then evaluates that
+    text the interpreter's way, which raises it at its place); what it checks while evaluating (division by
+    zero, shift counts, size, the resolver's errors) the evaluator checks, in the same order (left to right,
+    operands before their operator)."""
 
     def __init__(self, tokens: list[Token], where: Where,
                  symbol: Callable[[str, Token], Evaluator] | None = None) -> None:
