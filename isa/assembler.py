@@ -44,10 +44,11 @@ import re
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
 from isa.encoder import encode, length
 from isa.errors import AssemblyError, EncodingError
-from isa.expr import ExprParser, Token, Where, tokenize
+from isa.expr import ExprParser, Token, Where, compile_parser, constant_value, tokenize
 from isa.listing import format_listing
 from isa.operands import IndexReg, Instruction, Mode, Operand, Size
 from isa.program import ListingLine, Program, Segment, SourceLine, Symbol
@@ -98,9 +99,9 @@ _MACRO_ARG_RE = re.compile(r"\\(@|[0-9]|[A-Za-z_][A-Za-z0-9_]*)")
 _DATA_RANGE = {1: (-0x80, 0xFF), 2: (-0x8000, 0xFFFF), 4: (-0x8000_0000, 0xFFFF_FFFF)}
 
 
-@dataclass(frozen=True)
-class _Rec:
-    """One source line to process: where it really comes from, its text, and a macro-expansion note."""
+class _Rec(NamedTuple):
+    """One source line to process: where it really comes from, its text, and a macro-expansion note. (A tuple:
+    made for every macro-expanded line of every pass, and hashed by C code where a key holds it.)"""
 
     file: str
     line: int
@@ -125,6 +126,29 @@ class _Parsed:
     size_col: int = 1
     operands: str = ""
     operand_col: int = 1
+    kind: int = 0  # what _line does with it: _K_NONE, _K_COND, ... (from ``op``)
+    #: The compiled instruction or DC/DS/DCB item template (None: not looked up yet; False: the plain way). It is
+    #: a function of op, size, operand field and its column, so it is shared by every line holding those.
+    template: object = field(default=None, compare=False, repr=False)
+
+
+_K_NONE, _K_COND, _K_MACRO, _K_ENDM, _K_EQU, _K_DIRECTIVE, _K_OTHER = range(7)
+
+
+def _kind(op: str | None) -> int:
+    if op is None:
+        return _K_NONE
+    if op in _IF_OPS or op in ("else", "endif", "endc"):
+        return _K_COND
+    if op == "macro":
+        return _K_MACRO
+    if op == "endm":
+        return _K_ENDM
+    if op in ("equ", "set", "="):
+        return _K_EQU
+    if op in _DIRECTIVES:
+        return _K_DIRECTIVE
+    return _K_OTHER  # an instruction or a macro call (macro names cannot be directives or mnemonics)
 
 
 @dataclass
@@ -147,6 +171,8 @@ class _Section:
     name: str
     chunks: list[_Chunk] = field(default_factory=list)
     pending: int | None = None  # start of the next chunk, set by ORG
+    org_seen: bool = False  # an ORG was seen: every later address of this section is independent of its base
+    based_label: bool = False  # a label was defined before any ORG: its value is the base plus an offset
 
 
 @dataclass
@@ -233,28 +259,37 @@ def _split_commas(tokens: list[Token]) -> list[list[Token]]:
     return groups
 
 
-#: Process-wide memos of the pure per-line work, shared by every assembly in the process (a program assembled
-#: with many define sets, e.g. the firmware's 80 builds, splits and tokenizes each line of its sources, includes
-#: and generated data once, not once per build): include file bytes -> lines; (line, lenient) -> fields; (line,
-#: field, column) -> tokens; (line, column) -> an operand (not PC-relative) and (line, first column, last column,
-#: tokens) -> an expression's value, each with the symbol values and ``*`` it used (:func:`_replay`: reused
-#: only where those are the same now).
-#: A key holds the whole line (file, number, text, macro note), so an edited file's lines are new keys; every
-#: value is a function of its key alone (errors are never cached: they recur). Cleared past _SHARED_LIMIT keys
-#: (the include files past _SHARED_FILES_LIMIT).
+#: Process-wide memos of the pure per-line work, shared by every assembly in the process (the firmware's 98
+#: builds of one handful of sources differ only in their defines and a data table). Every value is a function of
+#: its key alone, and a key holds everything the value depends on: a line's fields, its tokens and the compiled
+#: form of its expressions, operands and data items depend on its text only (and a field's starting column),
+#: never on the file, line number or macro note, which only go into error messages -- and errors are never
+#: memoised: a line that cannot be compiled is marked so and assembled the plain way every time, which raises
+#: with the current line's file:line. Symbol values and ``*`` are never part of a compiled form: a compiled
+#: expression is evaluated afresh in every pass (:mod:`isa.expr` ``compile_parser``). Cleared past
+#: _SHARED_LIMIT keys (the include files past _SHARED_FILES_LIMIT).
 _SHARED_FILES: dict[tuple[str, bytes], list["_Rec"]] = {}
-_SHARED_PARSE: dict[tuple["_Rec", bool], "_Parsed"] = {}
-_SHARED_TOKENS: dict[tuple["_Rec", str, int], list[Token]] = {}
-_SHARED_OPERANDS: dict[tuple["_Rec", int], tuple] = {}  # type: ignore[type-arg]
-_SHARED_VALUES: dict[tuple["_Rec", int, int, int], tuple] = {}  # type: ignore[type-arg]
-#: ... and of the encoder and the timing table, pure functions of a (frozen) Instruction: (instruction, address)
-#: -> its bytes; instruction -> its length; instruction -> its cycle range.
+_SHARED_PARSE: dict[str, "_Parsed"] = {}  # line text -> fields (strict)
+_SHARED_LENIENT: dict[str, "_Parsed"] = {}  # line text -> fields (lenient: inactive IF branches, macro bodies)
+_SHARED_TOKENS: dict[tuple[str, int], list[Token]] = {}  # (field, column) -> tokens
+_SHARED_EXPRS: dict[tuple[str, int], "_Expr | None"] = {}  # (field, column) -> one expression, None: plain way
+#: (op, size, operand field, its column) -> instruction template / DC/DS/DCB template (False: the plain way)
+_SHARED_INSNS: dict[tuple[str, str | None, str, int], "_Insn | bool"] = {}
+_SHARED_DATA: dict[tuple[str, str | None, str, int], "_DataT | bool"] = {}
+_SHARED_ARGS: dict[str, list[str]] = {}  # macro call's operand field -> arguments
+_SHARED_EXPANSIONS: dict[tuple, tuple[str, ...]] = {}  # type: ignore[type-arg]  # (body, params, args, size, \@)
+#: ... and of the encoder and the timing table (the plain path), pure functions of a (frozen) Instruction:
+#: (instruction, address) -> its bytes; instruction -> its length; instruction -> its cycle range.
 _SHARED_CODE: dict[tuple[Instruction, int], bytes] = {}
 _SHARED_LENGTH: dict[Instruction, int] = {}
 _SHARED_CYCLES: dict[Instruction, "tuple[int, int] | None"] = {}
 _SHARED_LIMIT = 200_000
 _SHARED_FILES_LIMIT = 256
+#: Entries kept per instruction template (operand values -> length / bytes / cycles) before it is cleared.
+_TEMPLATE_LIMIT = 256
 _MISSING = object()
+#: Use the compiled forms (False: every line the plain way, the reference a test compares against).
+_COMPILE = True
 
 
 def _shared(memo: dict) -> dict:  # type: ignore[type-arg]
@@ -263,31 +298,82 @@ def _shared(memo: dict) -> dict:  # type: ignore[type-arg]
     return memo
 
 
-def _recording(resolve: Callable[[str, Token], int],
-               deps: list[tuple[str, Token, int]]) -> Callable[[str, Token], int]:
-    """``resolve`` that also appends every (name, token, value) it returns to ``deps``."""
-
-    def recording(name: str, tok: Token) -> int:
-        value = resolve(name, tok)
-        deps.append((name, tok, value))
-        return value
-
-    return recording
+def clear_memos() -> None:
+    """Empty every process-wide memo (what a fresh process starts with)."""
+    for memo in (_SHARED_FILES, _SHARED_PARSE, _SHARED_LENIENT, _SHARED_TOKENS, _SHARED_EXPRS, _SHARED_INSNS,
+                 _SHARED_DATA, _SHARED_ARGS, _SHARED_EXPANSIONS, _SHARED_CODE, _SHARED_LENGTH, _SHARED_CYCLES):
+        memo.clear()
 
 
-def _replay(hit: tuple, resolve: Callable[[str, Token], int], here: int) -> bool:  # type: ignore[type-arg]
-    """Whether a memoised evaluation ``(deps, here or None, result)`` holds now: the location counter is the same
-    (if ``*`` was used) and ``resolve`` returns the same value for every symbol it resolved, in the same order.
-    The evaluation is then the same pure function of the same inputs: same result. The resolver is called
-    exactly as that evaluation called it (its flags set, an undefined or too-late symbol raising the same
-    error); a first differing value stops the replay and the caller evaluates afresh."""
-    deps, was_here, _ = hit
-    if was_here is not None and was_here != here:
-        return False
-    for name, tok, value in deps:
-        if resolve(name, tok) != value:
-            return False
-    return True
+class _Expr:
+    """A compiled expression: ``const`` its value when it uses no symbol and no ``*`` and evaluates without
+    error, else ``f(assembler)`` evaluates it (see :mod:`isa.expr`)."""
+
+    __slots__ = ("f", "const", "here")
+
+    def __init__(self, f: Callable[[object], int], pure: bool, here: bool) -> None:
+        self.f = f
+        self.const = constant_value(f) if pure else None
+        self.here = here  # the text holds '*'
+
+
+class _Op:
+    """A compiled operand: ``const`` the Operand when it has no expression (a register, a register list) or a
+    pure non-PC-relative one; else mode, register and index fixed and the value ``f`` evaluated per use."""
+
+    __slots__ = ("mode", "reg", "index", "f", "const", "pc", "here", "col")
+
+    def __init__(self, template: Operand, f: "_Expr | None", here: bool, col: int) -> None:
+        self.mode = template.mode
+        self.reg = template.reg
+        self.index = template.index
+        self.pc = template.mode in (Mode.PCDISP, Mode.PCINDEX)
+        self.f = f.f if f is not None else None
+        self.here = here
+        self.col = col
+        self.const: Operand | None = None
+        if f is None:
+            self.const = template
+        elif f.const is not None and not self.pc:  # a PC-relative operand may warn: evaluated in each pass
+            self.const = Operand(template.mode, template.reg, f.const, template.index)
+
+
+class _Insn:
+    """A compiled instruction line: mnemonic after aliases and the A-form/CMPM/MOVEM choices (which depend on
+    the operands' modes only), size, compiled operands and the operand columns; per tuple of the values of its
+    non-constant operands: the Instruction and its length, its cycle range, and its bytes at an address."""
+
+    __slots__ = ("mn", "size", "alias", "ops", "cols", "lens", "codes", "cycles")
+
+    def __init__(self, mn: str, size: Size | None, alias: str | None, ops: list[_Op], cols: list[int]) -> None:
+        self.mn = mn
+        self.size = size
+        self.alias = alias  # the alias written, when it warns
+        self.ops = ops
+        self.cols = cols
+        self.lens: dict[tuple[int, ...], tuple[Instruction, int]] = {}
+        self.codes: dict[tuple[tuple[int, ...], int], bytes] = {}
+        self.cycles: dict[tuple[int, ...], tuple[int, int] | None] = {}
+
+    def instruction(self, values: tuple[int, ...]) -> Instruction:
+        it = iter(values)
+        ops = tuple(o.const if o.const is not None else Operand(o.mode, o.reg, next(it), o.index) for o in self.ops)
+        return Instruction(self.mn, self.size, ops)
+
+
+class _DataT:
+    """A compiled DC/DS/DCB line: the width, the count and value expressions, the DC items (bytes of a string,
+    or an expression and its column) and, when every DC item is a constant in range, the bytes."""
+
+    __slots__ = ("width", "count", "value", "value_col", "items", "const")
+
+    def __init__(self, width: int) -> None:
+        self.width = width
+        self.count: _Expr | None = None
+        self.value: _Expr | None = None
+        self.value_col = 0
+        self.items: list[tuple[bytes | None, _Expr | None, int]] = []
+        self.const: bytes | None = None
 
 
 class _Assembler:
@@ -309,11 +395,12 @@ class _Assembler:
         self.defines = dict(defines or {})
         self.main_recs = self._recs_of(text, filename)
         self.file_cache: dict[str, list[_Rec]] = {}
-        self.parse_cache = _shared(_SHARED_PARSE)
-        self.token_cache = _shared(_SHARED_TOKENS)
-        self.operand_cache = _shared(_SHARED_OPERANDS)
-        self.value_cache = _shared(_SHARED_VALUES)
-        self.resolved = False  # set by the resolver: the expression being evaluated used a symbol
+        for memo in (_SHARED_PARSE, _SHARED_LENIENT, _SHARED_TOKENS, _SHARED_EXPRS, _SHARED_INSNS, _SHARED_DATA,
+                     _SHARED_ARGS, _SHARED_EXPANSIONS, _SHARED_CODE, _SHARED_LENGTH, _SHARED_CYCLES):
+            _shared(memo)
+        self.compiling = False  # the operand parser is building a compiled operand (no warning, no values)
+        self._rec = _Rec("", 0, "")  # the line and mode a compiled expression is evaluated for (sym, where)
+        self._strict = False
         self.prev: dict[str, _Sym] = {}
         self.prev_bases: dict[str, int] = {"code": origin, "data": origin, "bss": origin}
         self.final = False
@@ -351,8 +438,12 @@ class _Assembler:
             # ``prev``), so it IS the final pass and one pass is saved. A final pass differs from a non-final one
             # only by raising where the other substitutes 0 (undefined symbol, range, encoding), so when it
             # completes its symbols are those of the non-final pass. After one speculative pass fails, passes
-            # run the plain way (an erroneous program costs at most one extra pass).
-            self.final = speculate and snapshot is not None
+            # run the plain way (an erroneous program costs at most one extra pass). Nor is a pass run as the
+            # final one when the previous pass defined a label in a section whose base has moved since it started
+            # (data and bss follow the code, which pass 1 does not know yet): that label's value changes, so this
+            # pass cannot be the last, and its encoding and listing would be thrown away. (Either way its symbols
+            # are the same; a wrong guess costs one pass, never a different result.)
+            self.final = speculate and snapshot is not None and not self._labels_moved()
             try:
                 self._pass()
             except AssemblyError:
@@ -379,6 +470,12 @@ class _Assembler:
         self._pass()
         return self._program()
 
+    def _labels_moved(self) -> bool:
+        """Whether the last pass defined a label relative to a section base that differs now from the one it
+        used."""
+        return any(self.sections[name].based_label and self.pass_bases[name] != self.bases[name]
+                   for name in ("data", "bss"))
+
     def _snapshot(self) -> dict[str, int]:
         return {k: s.value for k, s in self.cur.items() if s.kind != "set"}
 
@@ -389,6 +486,7 @@ class _Assembler:
         self.sections = {name: _Section(name) for name in _SECTIONS}
         self.section = self.sections["code"]
         self.bases = {"code": self.origin, "data": self.prev_bases["data"], "bss": self.prev_bases["bss"]}
+        self.pass_bases = dict(self.bases)
         self.macros: dict[str, _Macro] = {}
         self.conds: list[_Cond] = []
         self.scope = ""
@@ -448,50 +546,63 @@ class _Assembler:
                 self.defining.body.append(rec)
                 self._list(rec, None)
             return
-        if not self._active():
+        conds = self.conds
+        if conds and not conds[-1].active:
             p = self._parse_fields(rec, lenient=True)
             if p.op in _IF_OPS:
                 self.conds.append(_Cond(False, False, True, False, rec, p.op_col))
             elif p.op in ("else", "endif", "endc"):
                 self._cond_op(rec, p, cond_base)
             return
-        p = self._parse_fields(rec, lenient=False)
-        if p.op in _IF_OPS or p.op in ("else", "endif", "endc"):
+        p = _SHARED_PARSE.get(rec.text)  # type: ignore[assignment]
+        if p is None:
+            p = self._parse_fields(rec, lenient=False)
+        kind = p.kind
+        if kind == _K_OTHER:
+            if p.label is not None:
+                self._define_label(rec, p)
+            if p.op in self.macros:
+                self._list(rec, None)
+                self._expand(rec, p)
+            else:
+                self._instruction(rec, p)
+            return
+        if kind == _K_NONE:
+            if p.label is not None:
+                self._define_label(rec, p)
+                if self.final:
+                    self._list(rec, self._here())
+            elif self.final:
+                self._list(rec, None)
+            return
+        if kind == _K_COND:
             if p.label is not None:
                 raise rec.where().error("a label is not allowed on a conditional directive", p.label_col)
             self._cond_op(rec, p, cond_base)
             self._list(rec, None)
             return
-        if p.op == "macro":
+        if kind == _K_MACRO:
             self._macro_def(rec, p)
             self._list(rec, None)
             return
-        if p.op == "endm":
+        if kind == _K_ENDM:
             raise rec.where().error("ENDM without MACRO", p.op_col)
-        if p.op in ("equ", "set") or p.op == "=":
+        if kind == _K_EQU:
             self._equ(rec, p)
             return
         if p.label is not None:
             self._define_label(rec, p)
-        if p.op is None:
-            self._list(rec, self._here() if p.label is not None else None)
-            return
-        if p.op in self.macros:
-            self._list(rec, None)
-            self._expand(rec, p)
-            return
-        if p.op in _DIRECTIVES:
-            self._directive(rec, p)
-            return
-        self._instruction(rec, p)
+        self._directive(rec, p)
 
     def _parse_fields(self, rec: _Rec, lenient: bool) -> _Parsed:
-        """Split a line into label, operation, size and operand field (a pure function of the line: cached for
-        the later passes; errors are not cached, they recur)."""
-        key = (rec, lenient)
-        p = self.parse_cache.get(key)
+        """Split a line into label, operation, size and operand field (a pure function of the line's text:
+        memoised; errors are not, they recur)."""
+        memo = _SHARED_LENIENT if lenient else _SHARED_PARSE
+        p = memo.get(rec.text)
         if p is None:
-            p = self.parse_cache[key] = self._parse_fields_uncached(rec, lenient)
+            p = self._parse_fields_uncached(rec, lenient)
+            p.kind = _kind(p.op)
+            memo[rec.text] = p
         return p
 
     def _parse_fields_uncached(self, rec: _Rec, lenient: bool) -> _Parsed:
@@ -588,6 +699,8 @@ class _Assembler:
     def _define_label(self, rec: _Rec, p: _Parsed) -> None:
         assert p.label is not None
         self._define(rec, p.label, p.label_col, self._here(), self.section.name, "label")
+        if not self.section.org_seen:
+            self.section.based_label = True
         if not (p.label.startswith(".") or p.label.endswith("$")):
             self.scope = p.label
 
@@ -595,62 +708,116 @@ class _Assembler:
         """A symbol resolver for :class:`ExprParser`; ``strict`` allows only symbols defined earlier."""
 
         def resolve(name: str, tok: Token) -> int:
-            self.resolved = True
-            low = name.lower()
-            if low in _RESERVED:
-                raise rec.where().error(f"register '{name}' is not allowed in an expression", tok.col)
-            full, _ = self._qualify(name)
-            key = full.lower()
-            sym = self.cur.get(key)
-            if sym is not None:
-                self.label_ref |= sym.kind == "label"
-                return sym.value
-            if strict:
-                raise rec.where().error(
-                    f"symbol '{full}' must be defined before this line (it decides the layout)", tok.col
-                )
-            sym = self.prev.get(key)
-            if sym is not None and sym.kind != "set":
-                self.label_ref |= sym.kind == "label"
-                return sym.value
-            if self.final:
-                raise rec.where().error(f"undefined symbol '{full}'", tok.col)
-            self.label_ref = True  # unknown yet: do not refuse a PC-relative form before the final pass
-            return 0
+            return self._resolve(rec, strict, name, tok)
 
         return resolve
 
+    def sym(self, name: str, tok: Token) -> int:
+        """The resolver of a compiled expression (:mod:`isa.expr`): for the line and mode of ``_value``."""
+        return self._resolve(self._rec, self._strict, name, tok)
+
+    def sym_global(self, name: str, low: str, tok: Token) -> int:
+        """:meth:`sym` for a name that is not local and not a register (``low`` = its lower case)."""
+        sym = self.cur.get(low)
+        if sym is not None:
+            if sym.kind == "label":
+                self.label_ref = True
+            return sym.value
+        return self._resolve(self._rec, self._strict, name, tok)
+
+    def star(self) -> int:
+        """``*`` in a compiled expression."""
+        return self._here()
+
+    def where(self) -> Where:
+        """Error context of a compiled expression: the line it is evaluated for."""
+        return self._rec.where()
+
+    def _resolve(self, rec: _Rec, strict: bool, name: str, tok: Token) -> int:
+        """The resolver: ``strict`` allows only symbols defined earlier (on ``rec``, for errors)."""
+        low = name.lower()
+        if low in _RESERVED:
+            raise rec.where().error(f"register '{name}' is not allowed in an expression", tok.col)
+        full, _ = self._qualify(name)
+        key = full.lower()
+        sym = self.cur.get(key)
+        if sym is not None:
+            self.label_ref |= sym.kind == "label"
+            return sym.value
+        if strict:
+            raise rec.where().error(
+                f"symbol '{full}' must be defined before this line (it decides the layout)", tok.col
+            )
+        sym = self.prev.get(key)
+        if sym is not None and sym.kind != "set":
+            self.label_ref |= sym.kind == "label"
+            return sym.value
+        if self.final:
+            raise rec.where().error(f"undefined symbol '{full}'", tok.col)
+        self.label_ref = True  # unknown yet: do not refuse a PC-relative form before the final pass
+        return 0
+
     # --- expressions ----------------------------------------------------------------------------------------------
     def _tokens(self, rec: _Rec, text: str, col: int) -> list[Token]:
-        """``tokenize`` (cached per line and field for the later passes; callers never mutate the list)."""
-        key = (rec, text, col)
-        toks = self.token_cache.get(key)
+        """``tokenize`` (memoised by field text and column; callers never mutate the list)."""
+        key = (text, col)
+        toks = _SHARED_TOKENS.get(key)
         if toks is None:
-            toks = self.token_cache[key] = tokenize(text, col, rec.where())
+            toks = _SHARED_TOKENS[key] = tokenize(text, col, rec.where())
         return toks
 
     def _eval_tokens(self, rec: _Rec, toks: list[Token], strict: bool = False, what: str = "expression") -> int:
-        """Evaluate a complete token list (must be one expression)."""
+        """Evaluate a complete token list (must be one expression): the plain way, parsing as it evaluates."""
         if not toks or toks[0].kind == "end":
             col = toks[0].col if toks else 1
             raise rec.where().error(f"missing {what}", col)
-        key = (rec, toks[0].col, toks[-1].col, len(toks))
-        resolve = self._resolver(rec, strict)
-        hit = self.value_cache.get(key)
-        if hit is not None and _replay(hit, resolve, self._here()):
-            return hit[2]
         if toks[-1].kind != "end":
             toks = toks + [Token("end", "", toks[-1].col + len(toks[-1].text))]
-        deps: list[tuple[str, Token, int]] = []
-        parser = ExprParser(toks, rec.where(), _recording(resolve, deps), self._here())
+        parser = ExprParser(toks, rec.where(), self._resolver(rec, strict), self._here())
         value = parser.parse()
         if parser.tok.kind != "end":
             raise parser.error(f"unexpected '{parser.tok.text}' in {what}")
-        self.value_cache[key] = (tuple(deps), self._here() if parser.used_here else None, value)
         return value
 
+    @staticmethod
+    def _compile_tokens(rec: _Rec, toks: list[Token]) -> _Expr | None:
+        """The compiled form of what :meth:`_eval_tokens` evaluates, or None where it raises whatever the
+        symbols (a syntax error: that line goes the plain way, which raises it)."""
+        if not toks or toks[0].kind == "end":
+            return None
+        if toks[-1].kind != "end":
+            toks = toks + [Token("end", "", toks[-1].col + len(toks[-1].text))]
+        try:
+            parser = compile_parser(toks, rec.where(), _symbol_node)
+            f = parser.parse()
+        except AssemblyError:
+            return None
+        if parser.tok.kind != "end":
+            return None
+        return _Expr(f, parser.pure, parser.used_here)  # type: ignore[arg-type,attr-defined]
+
+    def _value(self, rec: _Rec, ex: _Expr, strict: bool = False) -> int:
+        """Evaluate a compiled expression for ``rec`` (what :meth:`_eval_tokens` returns or raises)."""
+        if ex.const is not None:
+            return ex.const
+        self._rec = rec
+        self._strict = strict
+        return ex.f(self)
+
     def _eval(self, rec: _Rec, text: str, col: int, strict: bool = False, what: str = "expression") -> int:
-        return self._eval_tokens(rec, self._tokens(rec, text, col), strict, what)
+        key = (text, col)
+        ex = _SHARED_EXPRS.get(key, _MISSING)
+        if ex is _MISSING:
+            try:
+                toks = self._tokens(rec, text, col)
+            except AssemblyError:
+                ex = None
+            else:
+                ex = self._compile_tokens(rec, toks)
+            _SHARED_EXPRS[key] = ex  # type: ignore[assignment]
+        if ex is None or not _COMPILE:
+            return self._eval_tokens(rec, self._tokens(rec, text, col), strict, what)
+        return self._value(rec, ex, strict)  # type: ignore[arg-type]
 
     # --- location counter -------------------------------------------------------------------------------------------
     def _here(self) -> int:
@@ -712,6 +879,7 @@ class _Assembler:
             if not 0 <= addr < ADDRESS_LIMIT:
                 raise rec.where().error(f"ORG address {addr} outside the 24-bit address space", p.operand_col)
             self.section.pending = addr
+            self.section.org_seen = True
             self._list(rec, addr)
         elif op in ("even", "align"):
             n = 2
@@ -752,6 +920,100 @@ class _Assembler:
         self._list(rec, None)
 
     def _data(self, rec: _Rec, p: _Parsed) -> None:
+        t = p.template
+        if t is None:
+            key = (p.op, p.size, p.operands, p.operand_col)
+            t = _SHARED_DATA.get(key)
+            if t is None:
+                t = _SHARED_DATA[key] = self._compile_data(rec, p) or False
+            p.template = t
+        if t is False or not _COMPILE:
+            self._data_plain(rec, p)
+            return
+        assert isinstance(t, _DataT)
+        # What _data_plain does, in the same order, with the line's expressions compiled.
+        op = p.op
+        width = t.width
+        bss = self.section.name == "bss"
+        if width > 1:
+            self._require_even(rec, f"{op}.{'wl'[width == 4]}", p.op_col)
+        if op == "ds":
+            count = self._value(rec, t.count, strict=True)
+            if count < 0 or count * width >= ADDRESS_LIMIT:
+                raise rec.where().error(f"DS count {count} out of range", p.operand_col)
+            addr = self._emit(rec, b"", p.op_col, reserve=count * width)
+            self._list(rec, addr, b"" if bss else bytes(count * width))
+            return
+        if bss:
+            raise rec.where().error("initialized data (DC/DCB) in the bss section", p.op_col)
+        if op == "dcb":
+            count = self._value(rec, t.count, strict=True)
+            if count < 0 or count * width >= ADDRESS_LIMIT:
+                raise rec.where().error(f"DCB count {count} out of range", p.operand_col)
+            value = self._value(rec, t.value) if t.value is not None else 0
+            data = self._pack(rec, value, width, t.value_col) * count
+        elif t.const is not None:
+            data = t.const
+        else:
+            buf = bytearray()
+            for raw, ex, col in t.items:
+                if raw is not None:
+                    buf += raw
+                else:
+                    buf += self._pack(rec, self._value(rec, ex), width, col)  # type: ignore[arg-type]
+            data = bytes(buf)
+        addr = self._emit(rec, data, p.op_col)
+        self._list(rec, addr, data)
+
+    def _compile_data(self, rec: _Rec, p: _Parsed) -> _DataT | None:
+        """The compiled form of a DC/DS/DCB line (a function of its text), or None where :meth:`_data_plain`
+        raises for its text whatever the symbols and the state."""
+        t = _DataT({"b": 1, "w": 2, "l": 4}[p.size or "w"])
+        try:
+            toks = self._tokens(rec, p.operands, p.operand_col)
+        except AssemblyError:
+            return None
+        groups = _split_commas(toks[:-1])
+        if p.op in ("ds", "dcb"):
+            if len(groups) not in ((1,) if p.op == "ds" else (1, 2)):
+                return None
+            t.count = self._compile_tokens(rec, groups[0])
+            if t.count is None:
+                return None
+            if len(groups) == 2:
+                t.value = self._compile_tokens(rec, groups[1])
+                if t.value is None:
+                    return None
+                t.value_col = groups[1][0].col
+            else:
+                t.value_col = p.operand_col
+            return t
+        lo, hi = _DATA_RANGE[t.width]
+        const = bytearray()
+        for g in groups:
+            if not g:
+                return None
+            if t.width == 1 and len(g) == 1 and g[0].kind == "str":
+                s = str(g[0].value)
+                if any(ord(ch) > 255 for ch in s):
+                    return None
+                raw = s.encode("latin-1")
+                t.items.append((raw, None, g[0].col))
+                if const is not None:
+                    const += raw
+                continue
+            ex = self._compile_tokens(rec, g)
+            if ex is None:
+                return None
+            t.items.append((None, ex, g[0].col))
+            if const is not None and ex.const is not None and lo <= ex.const <= hi:
+                const += (ex.const & ((1 << (8 * t.width)) - 1)).to_bytes(t.width, "big")
+            else:
+                const = None  # type: ignore[assignment]
+        t.const = bytes(const) if const is not None else None
+        return t
+
+    def _data_plain(self, rec: _Rec, p: _Parsed) -> None:
         op = p.op
         width = {"b": 1, "w": 2, "l": 4}[p.size or "w"]
         bss = self.section.name == "bss"
@@ -912,7 +1174,9 @@ class _Assembler:
 
     def _expand(self, rec: _Rec, p: _Parsed) -> None:
         mac = self.macros[p.op or ""]
-        args = [a for a, _ in _split_args(p.operands)] if p.operands.strip() else []
+        args = _SHARED_ARGS.get(p.operands)
+        if args is None:
+            args = _SHARED_ARGS[p.operands] = [a for a, _ in _split_args(p.operands)] if p.operands.strip() else []
         if len(args) > 9 and not mac.params:
             raise rec.where().error("more than 9 macro arguments", p.operand_col)
         calls = self.macro_calls
@@ -938,7 +1202,13 @@ class _Assembler:
 
         calls.append((mac.name, f"{rec.file}:{rec.line}"))
         note = _macro_note(calls)
-        body = [_Rec(r.file, r.line, _MACRO_ARG_RE.sub(sub, r.text), note) for r in mac.body]
+        # The expanded texts are a function of the body's texts, the parameter names, the arguments, the size
+        # suffix and the \@ number: memoised on exactly those.
+        key = (tuple(r.text for r in mac.body), tuple(mac.params), tuple(args), p.size, unique)
+        texts = _SHARED_EXPANSIONS.get(key)
+        if texts is None:
+            texts = _SHARED_EXPANSIONS[key] = tuple(_MACRO_ARG_RE.sub(sub, r.text) for r in mac.body)
+        body = [_Rec(r.file, r.line, text, note) for r, text in zip(mac.body, texts)]
         try:
             self._unit(body, "macro")
         finally:
@@ -946,6 +1216,164 @@ class _Assembler:
 
     # --- instructions ----------------------------------------------------------------------------------------------
     def _instruction(self, rec: _Rec, p: _Parsed) -> None:
+        t = p.template
+        if t is None:
+            key = (p.op, p.size, p.operands, p.operand_col)
+            t = _SHARED_INSNS.get(key)
+            if t is None:
+                t = _SHARED_INSNS[key] = self._compile_instruction(rec, p) or False
+            p.template = t
+        if t is False or not _COMPILE:
+            self._instruction_plain(rec, p)
+            return
+        assert isinstance(t, _Insn)
+        # What _instruction_plain does, in the same order, with the mnemonic, size and operands compiled.
+        final = self.final
+        if t.alias is not None and final:
+            self.warnings.append(
+                f"{rec.file}:{rec.line}:{p.op_col}: warning: '{t.alias}' is not a 68000 mnemonic; assembled as "
+                f"'{_ALIASES[t.alias][0]}'"
+            )
+        if self.section.name == "bss":
+            raise rec.where().error("instruction in the bss section", p.op_col)
+        addr = self._here()
+        if addr & 1:
+            raise rec.where().error(f"instruction at odd address ${addr:X} (insert EVEN)", p.op_col)
+        values = []
+        for o in t.ops:
+            if o.const is None:
+                self._rec = rec
+                self._strict = False
+                self.label_ref = False
+                values.append(o.f(self))
+                if o.pc and final and not (o.here or self.label_ref):
+                    self._pc_warning(rec, o.col, values[-1])
+        key = tuple(values)
+        if final:
+            data = t.codes.get((key, addr))
+            cycles = t.cycles.get(key, _MISSING)
+            if data is None or cycles is _MISSING:
+                instr = t.instruction(key)
+                if data is None:
+                    try:
+                        data = encode(instr, addr)
+                    except EncodingError as exc:
+                        raise self._encoding_error(rec, p, exc, t.cols) from None
+                    if len(t.codes) > _TEMPLATE_LIMIT:
+                        t.codes.clear()
+                    t.codes[(key, addr)] = data
+                if cycles is _MISSING:
+                    if len(t.cycles) > _TEMPLATE_LIMIT:
+                        t.cycles.clear()
+                    cycles = t.cycles[key] = _cycle_range(instr)
+            self.source_map[addr] = SourceLine(rec.file, rec.line, rec.text)
+        else:
+            n = t.lens.get(key)
+            if n is None:
+                try:
+                    n = length(t.instruction(key))
+                except EncodingError as exc:
+                    raise self._encoding_error(rec, p, exc, t.cols) from None
+                if len(t.lens) > _TEMPLATE_LIMIT:
+                    t.lens.clear()
+                t.lens[key] = n
+            data = bytes(n)
+            cycles = None
+        self._emit(rec, data, p.op_col)
+        self._list(rec, addr, data, cycles)  # type: ignore[arg-type]
+
+    def _compile_instruction(self, rec: _Rec, p: _Parsed) -> _Insn | None:
+        """The compiled form of an instruction line (a function of its text), or None where
+        :meth:`_instruction_plain` raises for its text whatever the symbols and the state (unknown mnemonic, bad
+        size, an operand's syntax)."""
+        mn = p.op or ""
+        alias = None
+        if mn in _ALIASES:
+            canon, warn = _ALIASES[mn]
+            alias = mn if warn else None
+            mn = canon
+        rows = BY_MNEMONIC.get(mn)
+        if rows is None:
+            return None
+        size = self._size_of(rec, p, mn, rows, raising=False)
+        if size is _MISSING:
+            return None
+        ops: list[_Op] = []
+        cols: list[int] = []
+        if p.operands:
+            try:
+                toks = self._tokens(rec, p.operands, p.operand_col)
+            except AssemblyError:
+                return None
+            for g in _split_commas(toks[:-1]):
+                if not g:
+                    return None
+                cols.append(g[0].col)
+                self.compiling = True
+                try:
+                    template = self._operand_uncached(rec, g, _no_symbols)
+                except AssemblyError:
+                    return None
+                finally:
+                    self.compiling = False
+                ps = self.operand_parser
+                f = template.value if callable(template.value) else None
+                ex = _Expr(f, ps.pure, ps.used_here) if f is not None else None  # type: ignore[attr-defined]
+                ops.append(_Op(template, ex, ps.used_here, cols[-1]))
+        modes = [o.mode for o in ops]
+        if mn in _TO_A_FORM and len(ops) == 2 and modes[1] is Mode.AREG:
+            mn = _TO_A_FORM[mn]
+        if mn == "cmp" and len(ops) == 2 and all(m is Mode.APOSTINC for m in modes):
+            mn = "cmpm"
+        if mn == "movem" and len(ops) == 2:
+            regs = (Mode.DREG, Mode.AREG)
+            for k in (0, 1):
+                if modes[k] in regs and modes[1 - k] not in regs:
+                    r = ops[k].const
+                    assert r is not None
+                    mask = Operand(Mode.REGLIST, value=1 << (r.reg + (8 if r.mode is Mode.AREG else 0)))
+                    ops[k] = _Op(mask, None, False, ops[k].col)
+        return _Insn(mn, size, alias, ops, cols)  # type: ignore[arg-type]
+
+    def _size_of(self, rec: _Rec, p: _Parsed, mn: str, rows: object, raising: bool = True) -> object:
+        """The instruction's size from its suffix (branches: .W unless .s/.b); a bad suffix raises, or returns
+        ``_MISSING`` when not ``raising``."""
+        is_branch = any(r.is_branch for r in rows)  # type: ignore[attr-defined]
+        size: Size | None = None
+        if p.size is not None:
+            legal = {s for r in rows for s in r.sizes if s is not None}  # type: ignore[attr-defined]
+            if is_branch:
+                legal |= {Size.B} if Size.S in legal else set()
+            letter = p.size
+            if letter not in ("b", "w", "l", "s") or Size(letter) not in legal:
+                if not raising:
+                    return _MISSING
+                allowed = "/".join("." + s.value for s in sorted(legal, key=lambda s: "bwls".index(s.value)))
+                raise rec.where().error(
+                    f"bad size suffix '.{p.size}' for '{mn}' (allowed: {allowed or 'none'})", p.size_col
+                )
+            size = Size(letter)
+            if is_branch and size is Size.B:
+                size = Size.S
+        elif is_branch:
+            size = Size.W
+        return size
+
+    def _encoding_error(self, rec: _Rec, p: _Parsed, exc: EncodingError, cols: list[int]) -> AssemblyError:
+        col = p.operand_col if p.operands else p.op_col
+        m = re.search(r"\boperand (\d+)\b", str(exc))
+        if m is not None and 1 <= int(m.group(1)) <= len(cols):
+            col = cols[int(m.group(1)) - 1]  # point at the operand the encoder names
+        written = f"{p.op_text} {p.operands}".strip()
+        return rec.where().error(f"cannot encode '{written}': {exc}", col)
+
+    def _pc_warning(self, rec: _Rec, col: int, disp: int) -> None:
+        self.warnings.append(
+            f"{rec.file}:{rec.line}:{col}: warning: the number in x(pc) is taken as the target address "
+            f"${disp & 0xFFFFFF:06X} (GNU as would take a plain number as the displacement)"
+        )
+
+    def _instruction_plain(self, rec: _Rec, p: _Parsed) -> None:
         mn = p.op or ""
         if mn in _ALIASES:
             canon, warn = _ALIASES[mn]
@@ -958,23 +1386,7 @@ class _Assembler:
         rows = BY_MNEMONIC.get(mn)
         if rows is None:
             raise rec.where().error(f"unknown mnemonic '{p.op_text}'", p.op_col)
-        is_branch = any(r.is_branch for r in rows)
-        size: Size | None = None
-        if p.size is not None:
-            legal = {s for r in rows for s in r.sizes if s is not None}
-            if is_branch:
-                legal |= {Size.B} if Size.S in legal else set()
-            letter = p.size
-            if letter not in ("b", "w", "l", "s") or Size(letter) not in legal:
-                allowed = "/".join("." + s.value for s in sorted(legal, key=lambda s: "bwls".index(s.value)))
-                raise rec.where().error(
-                    f"bad size suffix '.{p.size}' for '{mn}' (allowed: {allowed or 'none'})", p.size_col
-                )
-            size = Size(letter)
-            if is_branch and size is Size.B:
-                size = Size.S
-        elif is_branch:
-            size = Size.W
+        size = self._size_of(rec, p, mn, rows)
         if self.section.name == "bss":
             raise rec.where().error("instruction in the bss section", p.op_col)
         self._require_even(rec, "instruction", p.op_col)
@@ -1003,12 +1415,7 @@ class _Assembler:
                     n = _shared(_SHARED_LENGTH)[instr] = length(instr)
                 data = bytes(n)
         except EncodingError as exc:
-            col = p.operand_col if p.operands else p.op_col
-            m = re.search(r"\boperand (\d+)\b", str(exc))
-            if m is not None and 1 <= int(m.group(1)) <= len(self.operand_cols):
-                col = self.operand_cols[int(m.group(1)) - 1]  # point at the operand the encoder names
-            written = f"{p.op_text} {p.operands}".strip()
-            raise rec.where().error(f"cannot encode '{written}': {exc}", col) from None
+            raise self._encoding_error(rec, p, exc, self.operand_cols) from None
         cycles = None
         if self.final:
             self.source_map[addr] = SourceLine(rec.file, rec.line, rec.text)
@@ -1033,24 +1440,16 @@ class _Assembler:
         return out
 
     def _operand(self, rec: _Rec, toks: list[Token]) -> Operand:
-        """One operand; cached for the later passes when it used no symbol and no ``*`` (its value cannot
-        change) and is not PC-relative (that form may warn in the final pass)."""
-        key = (rec, toks[0].col)
-        resolve = self._resolver(rec, strict=False)
-        hit = self.operand_cache.get(key)
-        if hit is not None and _replay(hit, resolve, self._here()):
-            return hit[2]
-        deps: list[tuple[str, Token, int]] = []
-        op = self._operand_uncached(rec, toks, _recording(resolve, deps))
-        if op.mode not in (Mode.PCDISP, Mode.PCINDEX):
-            self.operand_cache[key] = (tuple(deps), self._here() if self.operand_parser.used_here else None, op)
-        return op
+        return self._operand_uncached(rec, toks, self._resolver(rec, strict=False))
 
     def _operand_uncached(self, rec: _Rec, toks: list[Token], resolve: Callable[[str, Token], int]) -> Operand:
+        """Parse one operand (evaluating its expression; while ``self.compiling``, building its evaluator,
+        which takes the place of the value in the returned template)."""
         end = Token("end", "", toks[-1].col + len(toks[-1].text))
         t = toks + [end]
         where = rec.where()
-        ps = self.operand_parser = ExprParser(t, where, resolve, self._here())
+        ps = self.operand_parser = (compile_parser(t, where, _symbol_node) if self.compiling
+                                    else ExprParser(t, where, resolve, self._here()))
         self.label_ref = False
 
         def reg_at(i: int) -> tuple[Mode, int] | None:
@@ -1157,11 +1556,8 @@ class _Assembler:
         if pc:
             if disp is None:
                 raise where.error("PC-relative operand needs a target: write label(pc)", col)
-            if not (ps.used_here or self.label_ref) and self.final:
-                self.warnings.append(
-                    f"{rec.file}:{rec.line}:{col}: warning: the number in x(pc) is taken as the target address "
-                    f"${disp & 0xFFFFFF:06X} (GNU as would take a plain number as the displacement)"
-                )
+            if not (ps.used_here or self.label_ref) and self.final and not self.compiling:
+                self._pc_warning(rec, col, disp)
             return Operand(Mode.PCINDEX if index else Mode.PCDISP, value=disp, index=index)
         if postinc:
             return Operand(Mode.APOSTINC, reg=num)
@@ -1282,6 +1678,19 @@ def decode_source(data: bytes, filename: str) -> str:
             text, col = text[1:], col - 1
         raise AssemblyError(f"byte ${data[start]:02X} is not UTF-8 (save the file as UTF-8)", filename, line, col,
                             text) from None
+
+
+def _symbol_node(name: str, tok: Token) -> Callable[[_Assembler], int]:
+    """The evaluator of a symbol in a compiled expression (what the plain resolver does, its dictionary key
+    worked out once)."""
+    low = name.lower()
+    if low in _RESERVED or name.startswith(".") or name.endswith("$"):
+        return lambda ev: ev.sym(name, tok)
+    return lambda ev: ev.sym_global(name, low, tok)
+
+
+def _no_symbols(name: str, tok: Token) -> int:  # pragma: no cover - a compiling parser resolves nothing
+    raise AssertionError(name)
 
 
 def _macro_note(calls: list[tuple[str, str]]) -> str:

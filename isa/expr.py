@@ -361,3 +361,151 @@ class ExprParser:
             self.expect("rparen", "')'")
             return v
         raise self.error(f"expected an expression, found {self._describe(t)}", t)
+
+
+# --- compiled expressions --------------------------------------------------------------------------------------------
+#: An evaluator built by :func:`compile_expr`: ``f(ev) -> int`` where ``ev`` provides ``ev.sym(name, token) -> int``
+#: (the symbol resolver), ``ev.star() -> int`` (the current location) and ``ev.where() -> Where`` (for errors).
+Evaluator = Callable[[object], int]
+
+
+def _raise_at(ev: object, message: str, tok: Token) -> int:
+    raise ev.where().error(message, tok.col)  # type: ignore[attr-defined]
+
+
+def _node_binary(op_tok: Token, a: Evaluator, b: Evaluator) -> Evaluator:  # noqa: C901 - one case per operator
+    """``a op b`` evaluated left operand first, raising exactly what :meth:`ExprParser._apply` raises."""
+    op = op_tok.text
+    if op == "+":
+        return lambda ev: a(ev) + b(ev)
+    if op == "-":
+        return lambda ev: a(ev) - b(ev)
+    if op == "&":
+        return lambda ev: a(ev) & b(ev)
+    if op == "|":
+        return lambda ev: a(ev) | b(ev)
+    if op == "^":
+        return lambda ev: a(ev) ^ b(ev)
+    if op == "*":
+        def mul(ev: object) -> int:
+            r = a(ev) * b(ev)
+            if abs(r) >= 1 << 128:
+                return _raise_at(ev, "expression value too large", op_tok)
+            return r
+        return mul
+    if op in ("/", "%"):
+        def div(ev: object) -> int:
+            x = a(ev)
+            y = b(ev)
+            if y == 0:
+                return _raise_at(ev, "division by zero in expression", op_tok)
+            q = _c_div(x, y)
+            return q if op == "/" else x - q * y
+        return div
+    if op in ("<<", ">>"):
+        def shift(ev: object) -> int:
+            x = a(ev)
+            y = b(ev)
+            if y < 0 or y > _MAX_SHIFT:
+                return _raise_at(ev, f"shift count {y} out of range 0..{_MAX_SHIFT}", op_tok)
+            return x << y if op == "<<" else x >> y
+        return shift
+    compare = {"==": int.__eq__, "!=": int.__ne__, "<>": int.__ne__, "<": int.__lt__, "<=": int.__le__,
+               ">": int.__gt__, ">=": int.__ge__}[op]
+    return lambda ev: int(compare(a(ev), b(ev)))
+
+
+def _node_unary(op: str, v: Evaluator) -> Evaluator:
+    if op == "-":
+        return lambda ev: -v(ev)
+    if op == "+":
+        return v
+    if op == "~":
+        return lambda ev: ~v(ev)
+    return lambda ev: int(v(ev) == 0)
+
+
+class _Compiler(ExprParser):
+    """:class:`ExprParser`'s grammar (``parse``, ``_binary``, ``expect``, the depth limit: inherited, so it accepts
+    exactly the token lists the interpreter accepts) building an evaluator instead of a value. Everything the
+    interpreter checks while parsing raises here (as :class:`AssemblyError`: the caller then evaluates that
+    text the interpreter's way, which raises it at its place); what it checks while evaluating (division by
+    zero, shift counts, size, the resolver's errors) the evaluator checks, in the same order (left to right,
+    operands before their operator)."""
+
+    def __init__(self, tokens: list[Token], where: Where,
+                 symbol: Callable[[str, Token], Evaluator] | None = None) -> None:
+        super().__init__(tokens, where, _no_resolve, 0)
+        self.pure = True  #: no symbol and no ``*`` in what was compiled
+        self.symbol = symbol or _symbol_node
+
+    def _apply(self, op_tok: Token, a: int, b: int) -> int:
+        return _node_binary(op_tok, a, b)  # type: ignore[arg-type,return-value]
+
+    def unary(self) -> int:
+        t = self.tok
+        if t.kind == "op" and t.text in ("-", "+", "~", "!"):
+            self.next()
+            self.depth += 1
+            if self.depth > _MAX_DEPTH:
+                raise self.error("expression nested too deeply")
+            v = self.unary()
+            self.depth -= 1
+            return _node_unary(t.text, v)  # type: ignore[arg-type,return-value]
+        return self.primary()
+
+    def primary(self) -> int:
+        t = self.tok
+        if t.kind == "ident":
+            self.next()
+            self.pure = False
+            return self.symbol(t.text, t)  # type: ignore[return-value]
+        if t.kind == "op" and t.text == "*":
+            self.next()
+            self.pure = False
+            self.used_here = True
+            return (lambda ev: ev.star())  # type: ignore[return-value]
+        if t.kind == "lparen":
+            self.next()
+            v = self.parse()
+            self.expect("rparen", "')'")
+            return v
+        value = super().primary()  # a number or a character constant (its checks), or the interpreter's error
+        return (lambda ev: value)  # type: ignore[return-value]
+
+
+def _symbol_node(name: str, tok: Token) -> Evaluator:
+    return lambda ev: ev.sym(name, tok)  # type: ignore[attr-defined]
+
+
+def _no_resolve(name: str, tok: Token) -> int:  # pragma: no cover - the compiler never resolves
+    raise AssertionError(name)
+
+
+def compile_parser(tokens: list[Token], where: Where,
+                   symbol: Callable[[str, Token], Evaluator] | None = None) -> ExprParser:
+    """A parser over ``tokens`` whose :meth:`~ExprParser.parse` returns an evaluator (see :data:`Evaluator`)
+    rather than a value; ``used_here`` is set when the parsed text holds ``*``, ``pure`` stays True when it holds
+    neither ``*`` nor a symbol. ``symbol(name, token)`` makes the evaluator of a symbol (default: one calling
+    ``ev.sym(name, token)``)."""
+    return _Compiler(tokens, where, symbol)
+
+
+class _ConstEv:
+    """The evaluation context of a pure expression: anything it would need is a bug; errors are signalled."""
+
+    def where(self) -> Where:
+        return Where("", 0, "")
+
+    def sym(self, name: str, tok: Token) -> int:  # pragma: no cover - pure expressions resolve nothing
+        raise AssertionError(name)
+
+    star = sym
+
+
+def constant_value(f: Evaluator) -> int | None:
+    """The value of a pure evaluator, or None if evaluating it raises (then it raises each time it runs)."""
+    try:
+        return f(_ConstEv())
+    except AssemblyError:
+        return None

@@ -689,9 +689,7 @@ def test_operand_modes_parse_into_the_contract_types() -> None:
 def _clear_shared_memos() -> None:
     import isa.assembler as A
 
-    for memo in (A._SHARED_FILES, A._SHARED_PARSE, A._SHARED_TOKENS, A._SHARED_OPERANDS, A._SHARED_VALUES,
-                 A._SHARED_CODE, A._SHARED_LENGTH, A._SHARED_CYCLES):
-        memo.clear()
+    A.clear_memos()
 
 
 def test_process_wide_memo_gives_what_a_fresh_process_gives(tmp_path):
@@ -722,3 +720,155 @@ def test_process_wide_memo_gives_what_a_fresh_process_gives(tmp_path):
     assert assemble(src, defines={"FAST": 0, "GAIN": 200}).code == assemble(src, defines={"FAST": 0, "GAIN": 200}).code
     with pytest.raises(AssemblyError, match="undefined symbol 'GAIN'"):
         assemble(src, defines={"FAST": 1})
+
+
+# ------------------------------------------------------------------------------------------------- compiled lines
+def _outcome(src: str, filename: str = "c.s", defines: dict[str, int] | None = None,
+             include_paths: tuple[str, ...] = ()) -> object:
+    """Everything an assembly gives: the Program's fields (in order) or the error text."""
+    try:
+        p = assemble(src, filename=filename, origin=0x400, include_paths=include_paths, defines=defines)
+    except AssemblyError as e:
+        return str(e)
+    return (p.segments, p.origin, p.code, list(p.symbols.items()), p.listing, list(p.source_map.items()), p.warnings)
+
+
+_MAC = "M macro\n move.\\0 \\1,\\2\nl\\@: dc.w l\\@-*\n endm\n"
+_COMPILED_CORPUS = [
+    _MAC + "s: M.l #K*3,d0\n M.w #-1,d1\n lea 100(pc),a0\n lea s(pc),a1\n lea *+4(pc),a2\n shl.w #1,d0\n"
+    " section data\nt: dc.b \"ab\",K,'c'\n even\nu: dc.w u-s,*-t\n dcb.w 2,K\n ds.l K+1\n section bss\n"
+    " org $7000\nv: ds.w 2\n section code\n move.w (v).w,d0\n lea t,a0\n bra.s s\n",
+    " move.l #1/K,d0\n",                     # division by zero when K = 0: an evaluation error
+    " move.l #1<<K2,d0\n",                   # shift count out of range
+    " moveq #K2,d0\n",                       # encoding error (out of range) in the final pass only
+    " dc.b K2\n",                            # data out of range
+    " ds.w L\nL equ 2\n",                    # a layout symbol defined too late
+    " move.l #undef,d0\n",                   # undefined symbol
+    _MAC + "x: M.l #1,d0\n M.l (a0,d0\n",    # a syntax error inside a macro expansion (macro note)
+    "a: nop\n.l: bra.s .l\n1$: dbf d0,1$\nb: lea .m(pc),a0\n.m: rts\n IFD K\n nop\n ELSE\n illegal\n ENDIF\n",
+    "s set 1\ns set s+K\n dc.w s,t\nt equ s*2\n movem.l d0,-(a7)\n movem.l (a7)+,a3\n cmp.w (a0)+,(a1)+\n",
+    " lea $404(pc,d0.w),a0\n move.l #*,d0\n dc.l *\n",  # a plain number as a PC-relative target: a warning
+    " dc.b 300\n",
+    " move.l #(1,d0\n", " dc.w ,\n", " dc.w 1,\n", " move.l d0,\n", " dc.b 'a\n", " dcb.w\n", " ds.w 1,2\n",
+    " add.w #1,sr\n", " move.l #1+,d0\n", " bra.x l\n", " frob d0\n", " dc.b \"\u0100\"\n",
+]
+
+
+@pytest.mark.parametrize("defines", [{"K": 1, "K2": 5}, {"K": 0, "K2": 200}, {"K": 3, "K2": 70000}])
+def test_compiled_lines_give_the_plain_result(defines: dict[str, int], monkeypatch: pytest.MonkeyPatch) -> None:
+    """Lines compiled once per process (fields, expressions, operand templates, data items, macro expansions),
+    with only the values evaluated per pass, give what the plain path (every line parsed and evaluated in every
+    pass) gives: the same Program fields, warnings and errors. Compiled with cold memos, then with memos warmed
+    by other define sets."""
+    import isa.assembler as A
+
+    _clear_shared_memos()
+    compiled = [_outcome(src, defines=defines) for src in _COMPILED_CORPUS]
+    warm = [_outcome(src, defines=defines) for src in _COMPILED_CORPUS]
+    monkeypatch.setattr(A, "_COMPILE", False)
+    _clear_shared_memos()
+    plain = [_outcome(src, defines=defines) for src in _COMPILED_CORPUS]
+    assert compiled == plain and warm == plain
+    assert sum(isinstance(x, str) for x in plain) >= 14 and sum(not isinstance(x, str) for x in plain) >= 3
+
+
+def test_compiled_lines_give_the_plain_result_for_the_firmware(monkeypatch: pytest.MonkeyPatch) -> None:
+    import isa.assembler as A
+    from firmware_model.build import ASM_DIR, ROM_START
+    from firmware_model.config import BuildConfig
+    from firmware_model.constants import build_constants
+
+    builds = []
+    for program in ("kalman_baro", "kalman_accel", "recursive", "recursive_seed_literal"):
+        consts = build_constants(BuildConfig(program=program))
+        top = ASM_DIR / f"{program}.s"
+        builds.append((top.read_text() + consts.data_source(), str(top), consts.equates()))
+    demo = Path(__file__).resolve().parents[1] / "isa" / "demo" / "demo.s"
+    builds.append((demo.read_text(), str(demo), {}))
+
+    def run() -> list[object]:
+        out = []
+        for text, name, equates in builds:
+            p = assemble(text, filename=name, origin=ROM_START, include_paths=[str(ASM_DIR)], defines=equates)
+            out.append((p.segments, p.code, list(p.symbols.items()), p.listing, list(p.source_map.items()),
+                        p.warnings))
+        return out
+
+    _clear_shared_memos()
+    compiled = run()
+    monkeypatch.setattr(A, "_COMPILE", False)
+    _clear_shared_memos()
+    assert run() == compiled
+
+
+def test_line_memo_keeps_nothing_of_one_assembly_for_another(tmp_path: Path) -> None:
+    """The process-wide memos are keyed by text: the same text under other macros, defines, files and lines
+    gives what it gives alone. A macro of the same name with another body, or none; the same text with other
+    defines (values are never baked in); the same macro call with another size suffix or arguments; errors the
+    second time name the second file and line (and macro call)."""
+    _clear_shared_memos()
+    call = "        SCALE.w #K,d1\n"
+    one = assemble("SCALE macro\n move.\\0 \\1,\\2\n endm\n" + call, defines={"K": 1})
+    two = assemble("SCALE macro\n add.\\0 \\1,\\2\n endm\n" + call, defines={"K": 1})
+    assert one.code == h("323C 0001") and two.code == h("D27C 0001")     # move.w #1,d1 / add.w #1,d1
+    with pytest.raises(AssemblyError) as e:
+        assemble("* no macro here\n" + call, filename="n.s", defines={"K": 1})
+    assert e.value.message == "unknown mnemonic 'SCALE.w'" and (e.value.file, e.value.line) == ("n.s", 2)
+    assert assemble("SCALE macro\n move.\\0 \\1,\\2\n endm\n" + call.replace(".w", ".l"),
+                    defines={"K": 1}).code == h("223C 0000 0001")            # \0 = l: move.l #1,d1
+    assert assemble("SCALE macro\n move.\\0 \\1,\\2\n endm\n" + call, defines={"K": 9}).code == h("323C 0009")
+    assert assemble("SCALE macro\n move.\\0 \\1,\\2\n endm\n" + call.replace("#K,d1", "#7,d2"),
+                    defines={"K": 1}).code == h("343C 0007")                 # other arguments: move.w #7,d2
+    src = " nop\n dc.w 10/D\n"
+    assert assemble(src, defines={"D": 5}).code == h("4E71 0002")
+    for name, lead in (("a.s", ""), ("b.s", " nop\n nop\n")):
+        with pytest.raises(AssemblyError) as e:
+            assemble(lead + src, filename=name, defines={"D": 0})
+        assert e.value.message == "division by zero in expression"
+        assert (e.value.file, e.value.line, e.value.col) == (name, src.count("\n") + lead.count("\n"), 9)
+    bad = "        move.l  #1+,d0\n"
+    for name, lead in (("a.s", ""), ("b.s", "* two\n* lines\n")):
+        with pytest.raises(AssemblyError) as e:
+            assemble(lead + bad, filename=name)
+        assert (e.value.file, e.value.line, e.value.col) == (name, lead.count("\n") + 1, 20)
+    inc = tmp_path / "m.inc"
+    inc.write_text("BAD macro\n move.l #\\1+,d0\n endm\n")
+    for k in (3, 5):
+        with pytest.raises(AssemblyError) as e:
+            assemble(f' include "{inc}"\n' + " nop\n" * (k - 2) + " BAD 1\n", filename="c.s")
+        assert (e.value.file, e.value.line) == (str(inc), 2)
+        assert e.value.message.endswith(f"(in macro 'BAD' called at c.s:{k})")
+
+
+def _passes(src: str, monkeypatch: pytest.MonkeyPatch) -> list[bool]:
+    """Whether each pass of assembling ``src`` ran as the final one."""
+    import isa.assembler as A
+
+    finals: list[bool] = []
+    run_pass = A._Assembler._pass
+
+    def counting(self: object) -> None:
+        finals.append(self.final)  # type: ignore[attr-defined]
+        run_pass(self)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(A._Assembler, "_pass", counting)
+    assemble(src, origin=0x400)
+    monkeypatch.undo()
+    return finals
+
+
+def test_no_final_pass_while_data_labels_move(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Pass 1 places data at the origin (the code's end is not known yet): the data labels it defines are wrong,
+    so pass 2 cannot be the last and runs as a plain pass; pass 3 is the final one. Labels after an ORG do not
+    move, and code-only programs take two passes, as before. The Programs equal the unspeculated ones."""
+    import isa.assembler as A
+
+    data = " lea t,a0\n move.w (v).w,d0\n section data\nt: dc.w 1\n section bss\n org $7000\nv: ds.w 1\n"
+    placed = " lea t,a0\n section data\n org $6000\nt: dc.w 1\n section bss\n org $7000\nv: ds.w 1\n"
+    code = "a: bra b\nb: lea a,a0\n"
+    assert _passes(data, monkeypatch) == [False, False, True]
+    assert _passes(placed, monkeypatch) == [False, True]
+    assert _passes(code, monkeypatch) == [False, True]
+    fast = [_symbols_and_segments(src) for src in (data, placed, code)]
+    monkeypatch.setattr(A, "_SPECULATE", False)
+    assert [_symbols_and_segments(src) for src in (data, placed, code)] == fast
