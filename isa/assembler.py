@@ -34,6 +34,14 @@
   would read as the displacement). Aliases:
   ``shl``/``shr`` = ``lsl``/``lsr`` (with a warning), ``dbf`` = ``dbra``, ``bhs``/``blo`` = ``bcc``/``bcs`` (also
   for ``DBcc``/``Scc``). Shifts need an explicit count (``lsl.w #1,d0``); ``asl (a0)`` is the memory form.
+
+Modules (no cycles; each docstring states its side of the contract): this module keeps ``assemble``, the
+driver and its passes, line dispatch, symbols, expressions, the location counter, data (``DC``/``DS``/``DCB``),
+instructions (compiled and plain) and the resulting Program; :mod:`isa.asm_lex` the source text (decoding,
+lines, statement fields, the vocabulary); :mod:`isa.asm_compiled` the compiled forms of lines and the
+process-wide memos (``clear_memos``); :mod:`isa.asm_operands` the operand syntax and :mod:`isa.asm_directives`
+the other directives, conditionals and macros, both mixins of ``_Assembler``. They import each other only in
+that order (lex <- compiled <- operands, directives <- assembler); none imports this module.
 """
 
 from __future__ import annotations
@@ -41,122 +49,73 @@ from __future__ import annotations
 import bisect
 import os
 import re
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import NamedTuple
 
+from isa.asm_compiled import (
+    _MISSING,
+    _SHARED_ARGS,
+    _SHARED_CODE,
+    _SHARED_CYCLES,
+    _SHARED_DATA,
+    _SHARED_EXPANSIONS,
+    _SHARED_EXPRS,
+    _SHARED_INSNS,
+    _SHARED_LENGTH,
+    _SHARED_LENIENT,
+    _SHARED_PARSE,
+    _SHARED_TOKENS,
+    _TEMPLATE_LIMIT,
+    _DataT,
+    _Expr,
+    _Insn,
+    _Op,
+    _no_symbols,
+    _shared,
+    _symbol_node,
+    clear_memos,
+)
+from isa.asm_directives import _Cond, _Directives, _End, _Macro
+from isa.asm_lex import (
+    _ALIASES,
+    _K_COND,
+    _K_ENDM,
+    _K_EQU,
+    _K_MACRO,
+    _K_NONE,
+    _K_OTHER,
+    _IF_OPS,
+    _RESERVED,
+    ADDRESS_LIMIT,
+    _Parsed,
+    _Rec,
+    _kind,
+    _parse_fields_uncached,
+    _recs_of,
+    _split_commas,
+    decode_source,
+)
+from isa.asm_operands import _OperandSyntax
 from isa.encoder import encode, length
 from isa.errors import AssemblyError, EncodingError
-from isa.expr import ExprParser, Token, Where, compile_parser, constant_value, tokenize
+from isa.expr import ExprParser, Token, Where, compile_parser, tokenize
 from isa.listing import format_listing
-from isa.operands import IndexReg, Instruction, Mode, Operand, Size
+from isa.operands import Instruction, Mode, Operand, Size
 from isa.program import ListingLine, Program, Segment, SourceLine, Symbol
 from isa.table import BY_MNEMONIC
 
-__all__ = ["assemble", "decode_source", "format_listing"]
+__all__ = ["ADDRESS_LIMIT", "AssemblyError", "assemble", "clear_memos", "decode_source", "format_listing"]
 
-#: Highest address + 1 of the 24-bit address space.
-ADDRESS_LIMIT = 1 << 24
 _MAX_PASSES = 12
 #: Run passes after the first as the final one (see ``_Assembler.run``); a test switches it off to compare.
 _SPECULATE = True
-_MAX_INCLUDE_DEPTH = 32
-_MAX_MACRO_DEPTH = 64
 _MAX_EXPANDED_LINES = 1_000_000
 
 _SECTIONS = ("code", "data", "bss")
-_SECTION_NAMES = {"code": "code", "text": "code", "data": "data", "bss": "bss"}
 
-_ALIASES: dict[str, tuple[str, bool]] = {  # alias -> (canonical mnemonic, warn)
-    "shl": ("lsl", True),
-    "shr": ("lsr", True),
-    "dbf": ("dbra", False),
-    "bhs": ("bcc", False),
-    "blo": ("bcs", False),
-    "dbhs": ("dbcc", False),
-    "dblo": ("dbcs", False),
-    "shs": ("scc", False),
-    "slo": ("scs", False),
-}
 _TO_A_FORM = {"move": "movea", "add": "adda", "sub": "suba", "cmp": "cmpa"}
-
-_DIRECTIVES = frozenset(
-    "equ set dc ds dcb org even align section text code data bss include macro endm if ifne ifeq ifgt ifge iflt "
-    "ifle ifd ifnd else endif endc end fail".split()
-)
-_IF_OPS = frozenset("if ifne ifeq ifgt ifge iflt ifle ifd ifnd".split())
-_REGISTERS = {f"d{i}": (Mode.DREG, i) for i in range(8)} | {f"a{i}": (Mode.AREG, i) for i in range(8)}
-_REGISTERS["sp"] = (Mode.AREG, 7)
-_UNSUPPORTED_REGS = frozenset({"sr", "ccr", "usp", "ssp"})
-_RESERVED = frozenset(_REGISTERS) | _UNSUPPORTED_REGS | {"pc"}
-
-_LABEL_RE = re.compile(r"(\.?[A-Za-z_][A-Za-z0-9_]*|\.[0-9]+|[0-9]+\$)")
-_INDENTED_LABEL_RE = re.compile(r" *" + _LABEL_RE.pattern + ":")
-_OP_RE = re.compile(r"([A-Za-z_][A-Za-z0-9_]*)(?:\.([A-Za-z0-9_]*))?")
-_NEWLINE_RE = re.compile(r"\r\n|\r|\n")
-_MACRO_ARG_RE = re.compile(r"\\(@|[0-9]|[A-Za-z_][A-Za-z0-9_]*)")
 _DATA_RANGE = {1: (-0x80, 0xFF), 2: (-0x8000, 0xFFFF), 4: (-0x8000_0000, 0xFFFF_FFFF)}
-
-
-class _Rec(NamedTuple):
-    """One source line to process: where it really comes from, its text, and a macro-expansion note. (A tuple:
-    made for every macro-expanded line of every pass, and hashed by C code where a key holds it.)"""
-
-    file: str
-    line: int
-    text: str
-    note: str = ""
-
-    def where(self, text: str | None = None) -> Where:
-        return Where(self.file, self.line, self.text if text is None else text, self.note)
-
-
-@dataclass
-class _Parsed:
-    """The fields of one statement; columns are 1-based."""
-
-    label: str | None = None
-    label_col: int = 1
-    label_colon: bool = False
-    op: str | None = None  # lower case
-    op_text: str = ""
-    op_col: int = 1
-    size: str | None = None  # lower case size letter(s) as written
-    size_col: int = 1
-    operands: str = ""
-    operand_col: int = 1
-    kind: int = 0  # what _line does with it: _K_NONE, _K_COND, ... (from ``op``)
-    #: The compiled instruction or DC/DS/DCB item template (None: not looked up yet; False: the plain way). It is
-    #: a function of op, size, operand field and its column, so it is shared by every line holding those.
-    template: object = field(default=None, compare=False, repr=False)
-
-
-_K_NONE, _K_COND, _K_MACRO, _K_ENDM, _K_EQU, _K_DIRECTIVE, _K_OTHER = range(7)
-
-
-def _kind(op: str | None) -> int:
-    if op is None:
-        return _K_NONE
-    if op in _IF_OPS or op in ("else", "endif", "endc"):
-        return _K_COND
-    if op == "macro":
-        return _K_MACRO
-    if op == "endm":
-        return _K_ENDM
-    if op in ("equ", "set", "="):
-        return _K_EQU
-    if op in _DIRECTIVES:
-        return _K_DIRECTIVE
-    return _K_OTHER  # an instruction or a macro call (macro names cannot be directives or mnemonics)
-
-
-@dataclass
-class _Macro:
-    name: str
-    params: list[str]
-    body: list[_Rec]
-    rec: _Rec
 
 
 @dataclass
@@ -186,197 +145,11 @@ class _Sym:
     rec: _Rec | None
 
 
-@dataclass
-class _Cond:
-    active: bool  # lines in this branch are assembled
-    parent_active: bool
-    taken: bool  # some branch of this IF was already active
-    seen_else: bool
-    rec: _Rec
-    col: int
-
-
-class _End(Exception):
-    """The END directive: stop reading source."""
-
-
-def _find_comment(text: str) -> int:
-    """Index of the ``;`` starting the comment (outside quotes), or ``len(text)``."""
-    quote = ""
-    for i, ch in enumerate(text):
-        if quote:
-            if ch == quote:
-                quote = ""
-        elif ch in "'\"":
-            quote = ch
-        elif ch == ";":
-            return i
-    return len(text)
-
-
-def _split_args(text: str) -> list[tuple[str, int]]:
-    """Split a macro argument field at top-level commas: (argument, offset) pairs; ``<a,b>`` groups one argument."""
-    out: list[tuple[str, int]] = []
-    depth = 0
-    quote = ""
-    start = 0
-    for i, ch in enumerate(text):
-        if quote:
-            if ch == quote:
-                quote = ""
-        elif ch in "'\"":
-            quote = ch
-        elif ch in "(<":
-            depth += 1
-        elif ch in ")>":
-            depth = max(depth - 1, 0)
-        elif ch == "," and depth == 0:
-            out.append((text[start:i], start))
-            start = i + 1
-    out.append((text[start:], start))
-    result = []
-    for arg, off in out:
-        stripped = arg.strip()
-        if len(stripped) >= 2 and stripped[0] == "<" and stripped[-1] == ">":
-            stripped = stripped[1:-1]
-        result.append((stripped, off))
-    return result
-
-
-def _split_commas(tokens: list[Token]) -> list[list[Token]]:
-    """Split tokens (without the trailing ``end``) at commas outside parentheses."""
-    groups: list[list[Token]] = [[]]
-    depth = 0
-    for t in tokens:
-        if t.kind == "lparen":
-            depth += 1
-        elif t.kind == "rparen":
-            depth -= 1
-        if t.kind == "comma" and depth == 0:
-            groups.append([])
-        else:
-            groups[-1].append(t)
-    return groups
-
-
-#: Process-wide memos of the pure per-line work, shared by every assembly in the process (the firmware's 98
-#: builds of one handful of sources differ only in their defines and a data table). Every value is a function of
-#: its key alone, and a key holds everything the value depends on: a line's fields, its tokens and the compiled
-#: form of its expressions, operands and data items depend on its text only (and a field's starting column),
-#: never on the file, line number or macro note, which only go into error messages -- and errors are never
-#: memoised: a line that cannot be compiled is marked so and assembled the plain way every time, which raises
-#: with the current line's file:line. Symbol values and ``*`` are never part of a compiled form: a compiled
-#: expression is evaluated afresh in every pass (:mod:`isa.expr` ``compile_parser``). Cleared past
-#: _SHARED_LIMIT keys (the include files past _SHARED_FILES_LIMIT).
-_SHARED_FILES: dict[tuple[str, bytes], list["_Rec"]] = {}
-_SHARED_PARSE: dict[str, "_Parsed"] = {}  # line text -> fields (strict)
-_SHARED_LENIENT: dict[str, "_Parsed"] = {}  # line text -> fields (lenient: inactive IF branches, macro bodies)
-_SHARED_TOKENS: dict[tuple[str, int], list[Token]] = {}  # (field, column) -> tokens
-_SHARED_EXPRS: dict[tuple[str, int], "_Expr | None"] = {}  # (field, column) -> one expression, None: plain way
-#: (op, size, operand field, its column) -> instruction template / DC/DS/DCB template (False: the plain way)
-_SHARED_INSNS: dict[tuple[str, str | None, str, int], "_Insn | bool"] = {}
-_SHARED_DATA: dict[tuple[str, str | None, str, int], "_DataT | bool"] = {}
-_SHARED_ARGS: dict[str, list[str]] = {}  # macro call's operand field -> arguments
-_SHARED_EXPANSIONS: dict[tuple, tuple[str, ...]] = {}  # type: ignore[type-arg]  # (body, params, args, size, \@)
-#: ... and of the encoder and the timing table (the plain path), pure functions of a (frozen) Instruction:
-#: (instruction, address) -> its bytes; instruction -> its length; instruction -> its cycle range.
-_SHARED_CODE: dict[tuple[Instruction, int], bytes] = {}
-_SHARED_LENGTH: dict[Instruction, int] = {}
-_SHARED_CYCLES: dict[Instruction, "tuple[int, int] | None"] = {}
-_SHARED_LIMIT = 200_000
-_SHARED_FILES_LIMIT = 256
-#: Entries kept per instruction template (operand values -> length / bytes / cycles) before it is cleared.
-_TEMPLATE_LIMIT = 256
-_MISSING = object()
 #: Use the compiled forms (False: every line the plain way, the reference a test compares against).
 _COMPILE = True
 
 
-def _shared(memo: dict) -> dict:  # type: ignore[type-arg]
-    if len(memo) > _SHARED_LIMIT:
-        memo.clear()
-    return memo
-
-
-def clear_memos() -> None:
-    """Empty every process-wide memo (what a fresh process starts with)."""
-    for memo in (_SHARED_FILES, _SHARED_PARSE, _SHARED_LENIENT, _SHARED_TOKENS, _SHARED_EXPRS, _SHARED_INSNS,
-                 _SHARED_DATA, _SHARED_ARGS, _SHARED_EXPANSIONS, _SHARED_CODE, _SHARED_LENGTH, _SHARED_CYCLES):
-        memo.clear()
-
-
-class _Expr:
-    """A compiled expression: ``const`` its value when it uses no symbol and no ``*`` and evaluates without
-    error, else ``f(assembler)`` evaluates it (see :mod:`isa.expr`)."""
-
-    __slots__ = ("f", "const", "here")
-
-    def __init__(self, f: Callable[[object], int], pure: bool, here: bool) -> None:
-        self.f = f
-        self.const = constant_value(f) if pure else None
-        self.here = here  # the text holds '*'
-
-
-class _Op:
-    """A compiled operand: ``const`` the Operand when it has no expression (a register, a register list) or a
-    pure non-PC-relative one; else mode, register and index fixed and the value ``f`` evaluated per use."""
-
-    __slots__ = ("mode", "reg", "index", "f", "const", "pc", "here", "col")
-
-    def __init__(self, template: Operand, f: "_Expr | None", here: bool, col: int) -> None:
-        self.mode = template.mode
-        self.reg = template.reg
-        self.index = template.index
-        self.pc = template.mode in (Mode.PCDISP, Mode.PCINDEX)
-        self.f = f.f if f is not None else None
-        self.here = here
-        self.col = col
-        self.const: Operand | None = None
-        if f is None:
-            self.const = template
-        elif f.const is not None and not self.pc:  # a PC-relative operand may warn: evaluated in each pass
-            self.const = Operand(template.mode, template.reg, f.const, template.index)
-
-
-class _Insn:
-    """A compiled instruction line: mnemonic after aliases and the A-form/CMPM/MOVEM choices (which depend on
-    the operands' modes only), size, compiled operands and the operand columns; per tuple of the values of its
-    non-constant operands: the Instruction and its length, its cycle range, and its bytes at an address."""
-
-    __slots__ = ("mn", "size", "alias", "ops", "cols", "lens", "codes", "cycles")
-
-    def __init__(self, mn: str, size: Size | None, alias: str | None, ops: list[_Op], cols: list[int]) -> None:
-        self.mn = mn
-        self.size = size
-        self.alias = alias  # the alias written, when it warns
-        self.ops = ops
-        self.cols = cols
-        self.lens: dict[tuple[int, ...], tuple[Instruction, int]] = {}
-        self.codes: dict[tuple[tuple[int, ...], int], bytes] = {}
-        self.cycles: dict[tuple[int, ...], tuple[int, int] | None] = {}
-
-    def instruction(self, values: tuple[int, ...]) -> Instruction:
-        it = iter(values)
-        ops = tuple(o.const if o.const is not None else Operand(o.mode, o.reg, next(it), o.index) for o in self.ops)
-        return Instruction(self.mn, self.size, ops)
-
-
-class _DataT:
-    """A compiled DC/DS/DCB line: the width, the count and value expressions, the DC items (bytes of a string,
-    or an expression and its column) and, when every DC item is a constant in range, the bytes."""
-
-    __slots__ = ("width", "count", "value", "value_col", "items", "const")
-
-    def __init__(self, width: int) -> None:
-        self.width = width
-        self.count: _Expr | None = None
-        self.value: _Expr | None = None
-        self.value_col = 0
-        self.items: list[tuple[bytes | None, _Expr | None, int]] = []
-        self.const: bytes | None = None
-
-
-class _Assembler:
+class _Assembler(_Directives, _OperandSyntax):
     """State of one assembly (all passes)."""
 
     def __init__(
@@ -393,7 +166,7 @@ class _Assembler:
             include_paths = [include_paths]
         self.include_paths = [Path(p) for p in include_paths]
         self.defines = dict(defines or {})
-        self.main_recs = self._recs_of(text, filename)
+        self.main_recs = _recs_of(text, filename)
         self.file_cache: dict[str, list[_Rec]] = {}
         for memo in (_SHARED_PARSE, _SHARED_LENIENT, _SHARED_TOKENS, _SHARED_EXPRS, _SHARED_INSNS, _SHARED_DATA,
                      _SHARED_ARGS, _SHARED_EXPANSIONS, _SHARED_CODE, _SHARED_LENGTH, _SHARED_CYCLES):
@@ -407,15 +180,6 @@ class _Assembler:
         self.label_ref = False  # set by the resolver when an expression used a label
 
     # --- driver -----------------------------------------------------------------------------------------------
-    @staticmethod
-    def _recs_of(text: str, filename: str) -> list[_Rec]:
-        # Lines end at \n, \r\n or \r only (str.splitlines also breaks at \f, \v, \x1c.. and U+2028, which
-        # would put every later line number off from what an editor shows).
-        lines = _NEWLINE_RE.split(text[1:] if text.startswith("\ufeff") else text)
-        if lines and lines[-1] == "":
-            lines.pop()
-        return [_Rec(filename, i + 1, line) for i, line in enumerate(lines)]
-
     def run(self) -> Program:
         """Run passes until symbol values and section bases are stable, then a final encoding pass."""
         if not isinstance(self.origin, int) or not 0 <= self.origin < ADDRESS_LIMIT:
@@ -600,75 +364,9 @@ class _Assembler:
         memo = _SHARED_LENIENT if lenient else _SHARED_PARSE
         p = memo.get(rec.text)
         if p is None:
-            p = self._parse_fields_uncached(rec, lenient)
+            p = _parse_fields_uncached(rec, lenient)
             p.kind = _kind(p.op)
             memo[rec.text] = p
-        return p
-
-    def _parse_fields_uncached(self, rec: _Rec, lenient: bool) -> _Parsed:
-        text = rec.text.replace("\t", " ") if "\t" in rec.text else rec.text
-        p = _Parsed()
-        stripped = text.lstrip()
-        if not stripped or stripped[0] in "*;":
-            return p
-        body = text[: _find_comment(text)].rstrip()
-        i = 0
-        if body and body[0] != " ":
-            m = _LABEL_RE.match(body)
-            if m is None:
-                if lenient:
-                    return p
-                raise rec.where().error(f"bad label or statement starting with {body[0]!r}", 1)
-            p.label = m.group(1)
-            p.label_col = 1
-            i = m.end()
-            if i < len(body) and body[i] == ":":
-                p.label_colon = True
-                i += 1
-            elif i < len(body) and body[i] not in " =":
-                if lenient:
-                    return p
-                raise rec.where().error(f"bad character {body[i]!r} in label", i + 1)
-        else:
-            m = _INDENTED_LABEL_RE.match(body)
-            if m is not None:
-                p.label = m.group(1)
-                p.label_col = m.start(1) + 1
-                p.label_colon = True
-                i = m.end()
-        while i < len(body) and body[i] == " ":
-            i += 1
-        if i >= len(body):
-            low = (p.label or "").lower()
-            if not lenient and not p.label_colon and (low in BY_MNEMONIC or low in _DIRECTIVES or low in _ALIASES):
-                raise rec.where().error(
-                    f"'{p.label}' in column 1 is taken as a label; indent instructions and directives", 1
-                )
-            return p
-        if body[i] == "=":
-            p.op, p.op_text, p.op_col = "=", "=", i + 1
-            i += 1
-        else:
-            m = _OP_RE.match(body, i)
-            if m is None:
-                if lenient:
-                    return p
-                raise rec.where().error(f"expected an instruction or directive, found {body[i]!r}", i + 1)
-            p.op = m.group(1).lower()
-            p.op_text = m.group(0)
-            p.op_col = i + 1
-            if m.group(2) is not None:
-                p.size = m.group(2).lower()
-                p.size_col = m.start(2) + 1
-            i = m.end()
-            if i < len(body) and body[i] != " ":
-                if lenient:
-                    return p
-                raise rec.where().error(f"unexpected {body[i]!r} after '{p.op_text}'", i + 1)
-        while i < len(body) and body[i] == " ":
-            i += 1
-        p.operands = body[i:]
-        p.operand_col = i + 1
         return p
 
     def _list(self, rec: _Rec, address: int | None, data: bytes = b"", cycles: tuple[int, int] | None = None) -> None:
@@ -852,73 +550,7 @@ class _Assembler:
         if addr & 1:
             raise rec.where().error(f"{what} at odd address ${addr:X} (insert EVEN)", col)
 
-    # --- directives ---------------------------------------------------------------------------------------------
-    def _equ(self, rec: _Rec, p: _Parsed) -> None:
-        if p.label is None:
-            raise rec.where().error(f"'{p.op_text}' needs a symbol name in the label field", p.op_col)
-        if p.size is not None:
-            raise rec.where().error(f"bad size suffix '.{p.size}' on '{p.op}'", p.size_col)
-        value = self._eval(rec, p.operands, p.operand_col)
-        kind = "set" if p.op == "set" else "equ"
-        self._define(rec, p.label, p.label_col, value, "absolute", kind)
-        self._list(rec, None)
-
-    def _directive(self, rec: _Rec, p: _Parsed) -> None:
-        op = p.op
-        assert op is not None
-        sized = op in ("dc", "ds", "dcb")
-        if p.size is not None and (not sized or p.size not in ("b", "w", "l")):
-            raise rec.where().error(f"bad size suffix '.{p.size}' on '{op}'", p.size_col)
-        no_operands = op in ("even", "text", "code", "data", "bss", "end")
-        if no_operands and p.operands:
-            raise rec.where().error(f"'{op}' takes no operands", p.operand_col)
-        if op in ("dc", "ds", "dcb"):
-            self._data(rec, p)
-        elif op == "org":
-            addr = self._eval(rec, p.operands, p.operand_col, strict=True, what="address")
-            if not 0 <= addr < ADDRESS_LIMIT:
-                raise rec.where().error(f"ORG address {addr} outside the 24-bit address space", p.operand_col)
-            self.section.pending = addr
-            self.section.org_seen = True
-            self._list(rec, addr)
-        elif op in ("even", "align"):
-            n = 2
-            if op == "align":
-                n = self._eval(rec, p.operands, p.operand_col, strict=True, what="alignment")
-                if n < 1 or n & (n - 1) or n > 0x10000:
-                    raise rec.where().error(f"alignment {n} is not a power of two in 1..65536", p.operand_col)
-            pad = -self._here() % n
-            addr = self._emit(rec, b"", p.op_col, reserve=pad) if pad else self._here()
-            self._list(rec, addr, bytes(pad) if self.section.name != "bss" else b"")
-        elif op == "section":
-            self._section(rec, p)
-        elif op in ("text", "code", "data", "bss"):
-            self.section = self.sections[_SECTION_NAMES.get(op, op)]
-            self._list(rec, None)
-        elif op == "include":
-            self._include(rec, p)
-        elif op == "fail":
-            raise rec.where().error(f"FAIL: {p.operands}" if p.operands else "FAIL", p.op_col)
-        elif op == "end":
-            self._list(rec, None)
-            raise _End
-        else:  # pragma: no cover - every directive is handled above
-            raise rec.where().error(f"directive '{op}' not handled", p.op_col)
-
-    def _section(self, rec: _Rec, p: _Parsed) -> None:
-        parts = [s.strip().lower() for s in p.operands.split(",")]
-        name = None
-        for part in reversed(parts):
-            part = part.lstrip(".")
-            if part in _SECTION_NAMES:
-                name = _SECTION_NAMES[part]
-                break
-        if name is None:
-            col = p.operand_col if p.operands else p.op_col
-            raise rec.where().error(f"unknown section '{p.operands}' (use code/text, data or bss)", col)
-        self.section = self.sections[name]
-        self._list(rec, None)
-
+    # --- data (DC, DS, DCB) ---------------------------------------------------------------------------------------
     def _data(self, rec: _Rec, p: _Parsed) -> None:
         t = p.template
         if t is None:
@@ -1065,154 +697,6 @@ class _Assembler:
             else:
                 raise rec.where().error(f"value {value} out of range {lo}..{hi} for {width}-byte data", col)
         return (value & ((1 << (8 * width)) - 1)).to_bytes(width, "big")
-
-    def _include(self, rec: _Rec, p: _Parsed) -> None:
-        name = p.operands.strip()
-        if len(name) >= 2 and name[0] == name[-1] and name[0] in "'\"" or (name[:1] == "<" and name[-1:] == ">"):
-            name = name[1:-1]
-        if not name:
-            raise rec.where().error("INCLUDE needs a file name", p.op_col)
-        base = Path(rec.file).parent if rec.file and not rec.file.startswith("<") else Path(".")
-        candidates = [Path(name)] if os.path.isabs(name) else [base / name] + [d / name for d in self.include_paths]
-        path = next((c for c in candidates if c.is_file()), None)
-        if path is None:
-            tried = ", ".join(str(c) for c in candidates)
-            raise rec.where().error(f"cannot find INCLUDE file '{name}' (tried {tried})", p.operand_col)
-        key = os.path.abspath(path)
-        if key in self.include_stack:
-            chain = " -> ".join(self.include_stack + [key])
-            raise rec.where().error(f"include recursion: {chain}", p.operand_col)
-        if len(self.include_stack) > _MAX_INCLUDE_DEPTH:
-            raise rec.where().error("INCLUDE nested too deeply", p.operand_col)
-        recs = self.file_cache.get(key)
-        if recs is None:
-            try:
-                data = path.read_bytes()
-            except OSError as exc:
-                raise rec.where().error(f"cannot read INCLUDE file '{path}': {exc.strerror or exc}",
-                                        p.operand_col) from None
-            if len(_SHARED_FILES) > _SHARED_FILES_LIMIT:  # keys hold whole files: a smaller bound
-                _SHARED_FILES.clear()
-            recs = _SHARED_FILES.get((str(path), data))
-            if recs is None:
-                text = decode_source(data, str(path))
-                recs = _SHARED_FILES[(str(path), data)] = self._recs_of(text, str(path))
-            self.file_cache[key] = recs
-        self._list(rec, None)
-        self.include_stack.append(key)
-        saved_calls, self.macro_calls = self.macro_calls, []
-        try:
-            self._unit(recs, "file")
-        finally:
-            self.include_stack.pop()
-            self.macro_calls = saved_calls
-
-    # --- conditionals ----------------------------------------------------------------------------------------------
-    def _cond_op(self, rec: _Rec, p: _Parsed, cond_base: int) -> None:
-        op = p.op
-        if op in _IF_OPS:
-            parent = self._active()
-            value = False
-            if parent:
-                if op in ("ifd", "ifnd"):
-                    toks = self._tokens(rec, p.operands, p.operand_col)
-                    if len(toks) != 2 or toks[0].kind != "ident":
-                        raise rec.where().error(f"{op.upper()} needs one symbol name", p.operand_col)
-                    full, _ = self._qualify(toks[0].text)
-                    defined = full.lower() in self.cur
-                    value = defined if op == "ifd" else not defined
-                else:
-                    v = self._eval(rec, p.operands, p.operand_col, strict=True, what="condition")
-                    value = {
-                        "if": v != 0,
-                        "ifne": v != 0,
-                        "ifeq": v == 0,
-                        "ifgt": v > 0,
-                        "ifge": v >= 0,
-                        "iflt": v < 0,
-                        "ifle": v <= 0,
-                    }[op]
-            self.conds.append(_Cond(parent and value, parent, value, False, rec, p.op_col))
-            return
-        if len(self.conds) <= cond_base:
-            raise rec.where().error(f"{op.upper()} without IF", p.op_col)
-        if p.operands:
-            raise rec.where().error(f"'{op}' takes no operands", p.operand_col)
-        cond = self.conds[-1]
-        if op == "else":
-            if cond.seen_else:
-                raise rec.where().error("second ELSE for the same IF", p.op_col)
-            cond.seen_else = True
-            cond.active = cond.parent_active and not cond.taken
-            cond.taken = True
-        else:
-            self.conds.pop()
-
-    # --- macros ----------------------------------------------------------------------------------------------------
-    def _macro_def(self, rec: _Rec, p: _Parsed) -> None:
-        if p.size is not None:
-            raise rec.where().error(f"bad size suffix '.{p.size}' on 'macro'", p.size_col)
-        params_text = p.operands
-        if p.label is not None:
-            name, col = p.label, p.label_col
-        else:
-            m = re.match(r"([A-Za-z_][A-Za-z0-9_]*)\s*,?\s*", params_text)
-            if m is None:
-                raise rec.where().error("MACRO needs a name", p.operand_col)
-            name, col = m.group(1), p.operand_col
-            params_text = params_text[m.end() :]
-        low = name.lower()
-        if low in BY_MNEMONIC or low in _DIRECTIVES or low in _ALIASES or low in _RESERVED:
-            raise rec.where().error(f"macro name '{name}' is a reserved word", col)
-        if low in self.macros:
-            raise rec.where().error(f"macro '{name}' already defined", col)
-        params = [a.strip() for a in params_text.split(",")] if params_text.strip() else []
-        for prm in params:
-            if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", prm):
-                raise rec.where().error(f"bad macro parameter name '{prm}'", p.operand_col)
-        self.defining = _Macro(name, [x.lower() for x in params], [], rec)
-
-    def _expand(self, rec: _Rec, p: _Parsed) -> None:
-        mac = self.macros[p.op or ""]
-        args = _SHARED_ARGS.get(p.operands)
-        if args is None:
-            args = _SHARED_ARGS[p.operands] = [a for a, _ in _split_args(p.operands)] if p.operands.strip() else []
-        if len(args) > 9 and not mac.params:
-            raise rec.where().error("more than 9 macro arguments", p.operand_col)
-        calls = self.macro_calls
-        if len(calls) >= _MAX_MACRO_DEPTH:
-            first_name, first_at = calls[0]
-            raise Where(rec.file, rec.line, rec.text).error(
-                f"macro '{mac.name}' nested {len(calls)} levels deep (recursive macro?); the outermost call is "
-                f"'{first_name}' at {first_at}", p.op_col)
-        self.unique += 1
-        unique = f"_{self.unique:03d}"
-        named = {prm: (args[i] if i < len(args) else "") for i, prm in enumerate(mac.params)}
-
-        def sub(m: re.Match[str]) -> str:
-            key = m.group(1)
-            if key == "@":
-                return unique
-            if key.isdigit():
-                n = int(key)
-                if n == 0:
-                    return p.size or ""
-                return args[n - 1] if n <= len(args) else ""
-            return named.get(key.lower(), m.group(0))
-
-        calls.append((mac.name, f"{rec.file}:{rec.line}"))
-        note = _macro_note(calls)
-        # The expanded texts are a function of the body's texts, the parameter names, the arguments, the size
-        # suffix and the \@ number: memoised on exactly those.
-        key = (tuple(r.text for r in mac.body), tuple(mac.params), tuple(args), p.size, unique)
-        texts = _SHARED_EXPANSIONS.get(key)
-        if texts is None:
-            texts = _SHARED_EXPANSIONS[key] = tuple(_MACRO_ARG_RE.sub(sub, r.text) for r in mac.body)
-        body = [_Rec(r.file, r.line, text, note) for r, text in zip(mac.body, texts)]
-        try:
-            self._unit(body, "macro")
-        finally:
-            calls.pop()
 
     # --- instructions ----------------------------------------------------------------------------------------------
     def _instruction(self, rec: _Rec, p: _Parsed) -> None:
@@ -1367,12 +851,6 @@ class _Assembler:
         written = f"{p.op_text} {p.operands}".strip()
         return rec.where().error(f"cannot encode '{written}': {exc}", col)
 
-    def _pc_warning(self, rec: _Rec, col: int, disp: int) -> None:
-        self.warnings.append(
-            f"{rec.file}:{rec.line}:{col}: warning: the number in x(pc) is taken as the target address "
-            f"${disp & 0xFFFFFF:06X} (GNU as would take a plain number as the displacement)"
-        )
-
     def _instruction_plain(self, rec: _Rec, p: _Parsed) -> None:
         mn = p.op or ""
         if mn in _ALIASES:
@@ -1424,178 +902,6 @@ class _Assembler:
                 cycles = _shared(_SHARED_CYCLES)[instr] = _cycle_range(instr)
         self._emit(rec, data, p.op_col)
         self._list(rec, addr, data, cycles)
-
-    def _operands(self, rec: _Rec, p: _Parsed) -> list[Operand]:
-        self.operand_cols: list[int] = []
-        if not p.operands:
-            return []
-        toks = self._tokens(rec, p.operands, p.operand_col)
-        groups = _split_commas(toks[:-1])
-        out = []
-        for g in groups:
-            if not g:
-                raise rec.where().error("missing operand", toks[0].col if toks else p.operand_col)
-            self.operand_cols.append(g[0].col)
-            out.append(self._operand(rec, g))
-        return out
-
-    def _operand(self, rec: _Rec, toks: list[Token]) -> Operand:
-        return self._operand_uncached(rec, toks, self._resolver(rec, strict=False))
-
-    def _operand_uncached(self, rec: _Rec, toks: list[Token], resolve: Callable[[str, Token], int]) -> Operand:
-        """Parse one operand (evaluating its expression; while ``self.compiling``, building its evaluator,
-        which takes the place of the value in the returned template)."""
-        end = Token("end", "", toks[-1].col + len(toks[-1].text))
-        t = toks + [end]
-        where = rec.where()
-        ps = self.operand_parser = (compile_parser(t, where, _symbol_node) if self.compiling
-                                    else ExprParser(t, where, resolve, self._here()))
-        self.label_ref = False
-
-        def reg_at(i: int) -> tuple[Mode, int] | None:
-            tok = t[i]
-            return _REGISTERS.get(tok.text.lower()) if tok.kind == "ident" else None
-
-        def is_pc(i: int) -> bool:
-            return t[i].kind == "ident" and t[i].text.lower() == "pc"
-
-        def finish() -> None:
-            if ps.tok.kind != "end":
-                raise ps.error(f"unexpected '{ps.tok.text}' in operand")
-
-        first = t[0]
-        if first.kind == "ident" and first.text.lower() in _UNSUPPORTED_REGS:
-            raise where.error(f"register '{first.text}' is not supported by this 68000 subset", first.col)
-        # #immediate
-        if first.kind == "hash":
-            ps.next()
-            value = ps.parse()
-            finish()
-            return Operand(Mode.IMM, value=value)
-        # Dn, An, register list
-        r = reg_at(0)
-        if r is not None:
-            if t[1].kind == "end":
-                return Operand(r[0], reg=r[1])
-            if t[1].kind == "op" and t[1].text in ("-", "/"):
-                return Operand(Mode.REGLIST, value=self._reglist(rec, t))
-            raise where.error(f"unexpected '{t[1].text}' after register '{first.text}'", t[1].col)
-        if is_pc(0):
-            raise where.error("'pc' is only allowed as a base register: write label(pc)", first.col)
-        # -(An)
-        if first.kind == "op" and first.text == "-" and t[1].kind == "lparen" and reg_at(2) and t[3].kind == "rparen":
-            mode, num = reg_at(2)  # type: ignore[misc]
-            if mode is not Mode.AREG:
-                raise where.error("predecrement needs an address register", t[2].col)
-            if t[4].kind != "end":
-                raise where.error(f"unexpected '{t[4].text}' after -(An)", t[4].col)
-            return Operand(Mode.APREDEC, reg=num)
-        # (An) (An)+ (An,Xn) (PC...) (d,An) (d,An,Xn) (d,PC) (d,PC,Xn)
-        if first.kind == "lparen":
-            if reg_at(1) is not None or is_pc(1):
-                ps.next()
-                return self._indirect(rec, ps, None, first.col)
-            save = ps.pos
-            ps.next()
-            disp = ps.parse()
-            if ps.tok.kind == "comma":
-                ps.next()
-                return self._indirect(rec, ps, disp, first.col)
-            ps.pos = save  # a parenthesized expression: (expr), (expr).w, (a+b)*2 ...
-        value = ps.parse()
-        if ps.tok.kind == "lparen":
-            ps.next()
-            return self._indirect(rec, ps, value, first.col)
-        if ps.tok.kind == "size":
-            size_tok = ps.next()
-            finish()
-            if size_tok.value == "w":
-                return Operand(Mode.ABSW, value=value)
-            if size_tok.value == "l":
-                return Operand(Mode.ABSL, value=value)
-            raise where.error(f"bad size suffix '{size_tok.text}' on an absolute address (use .w or .l)", size_tok.col)
-        finish()
-        return Operand(Mode.ABSL, value=value)
-
-    def _indirect(self, rec: _Rec, ps: ExprParser, disp: int | None, col: int) -> Operand:
-        """Parse after ``(`` [or ``d(`` / ``(d,``]: base register, optional index, ``)``, optional ``+``."""
-        where = rec.where()
-        base = ps.next()
-        low = base.text.lower() if base.kind == "ident" else ""
-        if low == "pc":
-            pc = True
-            num = 0
-        elif low in _REGISTERS and _REGISTERS[low][0] is Mode.AREG:
-            pc = False
-            num = _REGISTERS[low][1]
-        else:
-            raise where.error(f"expected an address register or PC, found '{base.text or 'end of line'}'", base.col)
-        index: IndexReg | None = None
-        if ps.tok.kind == "comma":
-            ps.next()
-            xt = ps.next()
-            xr = _REGISTERS.get(xt.text.lower()) if xt.kind == "ident" else None
-            if xr is None:
-                raise where.error(f"expected an index register, found '{xt.text or 'end of line'}'", xt.col)
-            long = False
-            if ps.tok.kind == "size":
-                st = ps.next()
-                if st.value not in ("w", "l"):
-                    raise where.error(f"bad index size '{st.text}' (use .w or .l)", st.col)
-                long = st.value == "l"
-            index = IndexReg(xr[0] is Mode.AREG, xr[1], long)
-        ps.expect("rparen", "')'")
-        postinc = False
-        if ps.tok.kind == "op" and ps.tok.text == "+":
-            if disp is not None or index is not None or pc:
-                raise ps.error("postincrement only applies to (An)")
-            ps.next()
-            postinc = True
-        if ps.tok.kind != "end":
-            raise ps.error(f"unexpected '{ps.tok.text}' in operand")
-        if pc:
-            if disp is None:
-                raise where.error("PC-relative operand needs a target: write label(pc)", col)
-            if not (ps.used_here or self.label_ref) and self.final and not self.compiling:
-                self._pc_warning(rec, col, disp)
-            return Operand(Mode.PCINDEX if index else Mode.PCDISP, value=disp, index=index)
-        if postinc:
-            return Operand(Mode.APOSTINC, reg=num)
-        if index is not None:
-            return Operand(Mode.AINDEX, reg=num, value=disp or 0, index=index)
-        if disp is None:
-            return Operand(Mode.AIND, reg=num)
-        return Operand(Mode.ADISP, reg=num, value=disp)
-
-    def _reglist(self, rec: _Rec, t: list[Token]) -> int:
-        where = rec.where()
-        mask = 0
-        i = 0
-
-        def reg_index(tok: Token) -> int:
-            r = _REGISTERS.get(tok.text.lower()) if tok.kind == "ident" else None
-            if r is None:
-                raise where.error(f"expected a register in register list, found '{tok.text or 'end of line'}'", tok.col)
-            return r[1] + (8 if r[0] is Mode.AREG else 0)
-
-        while True:
-            lo = reg_index(t[i])
-            i += 1
-            hi = lo
-            if t[i].kind == "op" and t[i].text == "-":
-                hi_tok = t[i + 1]
-                hi = reg_index(hi_tok)
-                if hi < lo:
-                    raise where.error("register range must go upwards (e.g. d0-d3)", hi_tok.col)
-                i += 2
-            for k in range(lo, hi + 1):
-                mask |= 1 << k
-            if t[i].kind == "end":
-                return mask
-            if t[i].kind == "op" and t[i].text == "/":
-                i += 1
-                continue
-            raise where.error(f"unexpected '{t[i].text}' in register list", t[i].col)
 
     # --- result ----------------------------------------------------------------------------------------------------
     def _program(self) -> Program:
@@ -1661,45 +967,6 @@ class _Assembler:
                 if not s.local:
                     next_global = s.value
         return out
-
-
-def decode_source(data: bytes, filename: str) -> str:
-    """The text of a source file's bytes: UTF-8 (a leading byte-order mark is dropped). A byte sequence that is
-    not UTF-8 (say one Latin-1 byte in a comment) raises :class:`~isa.errors.AssemblyError` at its
-    ``file:line:col``, naming the byte, rather than a byte offset into the file."""
-    try:
-        return data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        start = exc.start
-        before = _NEWLINE_RE.split(data[:start].decode("utf-8"))
-        line, col = len(before), len(before[-1]) + 1
-        text = _NEWLINE_RE.split(data.decode("utf-8", errors="replace"))[line - 1]
-        if line == 1 and text.startswith("\ufeff"):
-            text, col = text[1:], col - 1
-        raise AssemblyError(f"byte ${data[start]:02X} is not UTF-8 (save the file as UTF-8)", filename, line, col,
-                            text) from None
-
-
-def _symbol_node(name: str, tok: Token) -> Callable[[_Assembler], int]:
-    """The evaluator of a symbol in a compiled expression (what the plain resolver does, its dictionary key
-    worked out once)."""
-    low = name.lower()
-    if low in _RESERVED or name.startswith(".") or name.endswith("$"):
-        return lambda ev: ev.sym(name, tok)
-    return lambda ev: ev.sym_global(name, low, tok)
-
-
-def _no_symbols(name: str, tok: Token) -> int:  # pragma: no cover - a compiling parser resolves nothing
-    raise AssertionError(name)
-
-
-def _macro_note(calls: list[tuple[str, str]]) -> str:
-    """Where an expanded line comes from: the macro calls innermost first; beyond three levels only the two
-    innermost and the outermost are named (a runaway recursion does not repeat the same call 64 times)."""
-    parts = [f"in macro '{name}' called at {at}" for name, at in reversed(calls)]
-    if len(parts) > 3:
-        parts = parts[:2] + [f"{len(parts) - 3} more macro levels"] + parts[-1:]
-    return "; ".join(parts)
 
 
 def _cycle_range(instr: Instruction) -> tuple[int, int] | None:
