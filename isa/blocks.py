@@ -142,6 +142,7 @@ def _block_source(entries: list[_Entry], facts: MapFacts, lazy_ok: bool = True
             mark(i, n, cy)
             r = role.get(i)
             if r is None:
+                assert g.fused is None, "a fused test not taken by its branch"
                 g.cur = i
                 g.defer = _defer_flags(entries, i, hi, role, targets)
                 g.wrote = False
@@ -186,7 +187,7 @@ def _block_source(entries: list[_Entry], facts: MapFacts, lazy_ok: bool = True
                 if h == "bra":
                     copy(r[1], n + 1, cy + taken)
                     return True, n + 1, cy + taken
-                g.emit(f"if {_COND_EXPR[cond]}:")  # type: ignore[index]
+                g.emit(f"if {g.branch_test(cond)}:")  # type: ignore[arg-type]
                 g.ind += 1
                 copy(r[1], n + 1, cy + taken)
                 g.ind -= 1
@@ -200,7 +201,7 @@ def _block_source(entries: list[_Entry], facts: MapFacts, lazy_ok: bool = True
                     loopback(n + 1, cy + taken)
                     return True, n + 1, cy + taken
                 if h == "bcc":
-                    g.emit(f"if {_COND_EXPR[cond]}:")  # type: ignore[index]
+                    g.emit(f"if {g.branch_test(cond)}:")  # type: ignore[arg-type]
                     g.ind += 1
                     loopback(n + 1, cy + taken)
                     g.ind -= 1
@@ -235,7 +236,7 @@ def _block_source(entries: list[_Entry], facts: MapFacts, lazy_ok: bool = True
             j = r[1]
             g.dyn = True
             if kind == "if" and j == i + 1:
-                g.emit(f"if {_COND_EXPR[cond]}:")  # type: ignore[index]
+                g.emit(f"if {g.branch_test(cond)}:")  # type: ignore[arg-type]
                 g.ind += 1
                 adjust(0, taken - not_taken)
                 g.ind -= 1
@@ -243,7 +244,7 @@ def _block_source(entries: list[_Entry], facts: MapFacts, lazy_ok: bool = True
                 cy += not_taken
                 i = j
                 continue
-            g.emit(f"if {_COND_EXPR[cond ^ 1]}:")  # type: ignore[operator]
+            g.emit(f"if {g.branch_test(cond, False)}:")  # type: ignore[arg-type]
             g.ind += 1
             pos = body_start()
             if kind == "if":
