@@ -26,6 +26,10 @@ Contract with :mod:`isa.blocks` (whose :func:`_block_source` drives it) and :mod
   has an empty segment, and no line that can raise belongs to another entry than its own. ``later`` (set per
   entry from :func:`isa.block_plan._read_later`) only decides whether a value read by another instruction is
   bound to a temporary first (computed once) or composed (read once): cost, not correctness.
+* Flag/branch fusion (:meth:`_BlockGen.fuse_setup`): a value-layer instruction whose N/Z/V/C only the Bcc right
+  after it reads (``nxt``: none of them live after the branch, by the planner's liveness) assigns no flag; the
+  branch's ``if`` (:meth:`_BlockGen.branch_test`, also called by :func:`isa.blocks._block_source`) tests the
+  value or compares the operands itself. X is kept, or assigned by an ADD/SUB when live.
 * Imports: :mod:`isa.block_plan` (flag constants, :func:`_quiet_write`, :func:`_may_fault`), :mod:`isa.semantics`,
   :mod:`isa.timing`; never :mod:`isa.blocks`.
 """
