@@ -26,6 +26,10 @@ Contract with :mod:`isa.blocks` (whose :func:`_block_source` drives it) and :mod
   has an empty segment, and no line that can raise belongs to another entry than its own. ``later`` (set per
   entry from :func:`isa.block_plan._read_later`) only decides whether a value read by another instruction is
   bound to a temporary first (computed once) or composed (read once): cost, not correctness.
+* Flag/branch fusion (:meth:`_BlockGen.fuse_setup`): a value-layer instruction whose N/Z/V/C only the Bcc right
+  after it reads (``nxt``: none of them live after the branch, by the planner's liveness) assigns no flag; the
+  branch's ``if`` (:meth:`_BlockGen.branch_test`, also called by :func:`isa.blocks._block_source`) tests the
+  value or compares the operands itself. X is kept, or assigned by an ADD/SUB when live.
 * Imports: :mod:`isa.block_plan` (flag constants, :func:`_quiet_write`, :func:`_may_fault`), :mod:`isa.semantics`,
   :mod:`isa.timing`; never :mod:`isa.blocks`.
 """
@@ -71,14 +75,59 @@ _SYM = frozenset("move moveq add addi addq sub subi subq and andi or ori eor eor
                  "exg mulu muls asl asr lsl lsr".split())
 
 
-#: A compare whose flags only the next Bcc reads (_BlockGen.nxt): the branch's condition code -> (the comparison of
-#: the operands, over their unsigned (u) or signed (s) values, that equals the condition; N/Z/V/C bits for which the
-#: condition holds; bits for which it does not). VC/VS (and T/F) are left to the flag computation.
-_CMP_COND: dict[int, tuple[str, str, int, int]] = {
-    2: ("u", ">", 0, 4), 3: ("u", "<=", 4, 0), 4: ("u", ">=", 0, 1), 5: ("u", "<", 1, 0),
-    6: ("u", "!=", 0, 4), 7: ("u", "==", 4, 0), 12: ("s", ">=", 0, 8), 13: ("s", "<", 8, 0),
-    14: ("s", ">", 0, 4), 15: ("s", "<=", 4, 0),
+#: Flag/branch fusion (:meth:`_BlockGen.fuse_setup`): a compare whose flags only the next Bcc reads: the branch's
+#: condition code -> (the comparison of the operands, over their unsigned (u) or signed (s) values, that equals the
+#: condition). VC/VS, MI/PL (and T/F) are left to the flag computation.
+_CMP_COND: dict[int, tuple[str, str]] = {
+    2: ("u", ">"), 3: ("u", "<="), 4: ("u", ">="), 5: ("u", "<"), 6: ("u", "!="), 7: ("u", "=="),
+    12: ("s", ">="), 13: ("s", "<"), 14: ("s", ">"), 15: ("s", "<="),
 }
+_CMP_CONDS = frozenset(_CMP_COND)
+_NOT_OP = {">": "<=", "<=": ">", ">=": "<", "<": ">=", "!=": "==", "==": "!="}
+#: Conditions decided by N/Z of a value with V and C cleared (MOVE, TST, AND, ...): HI = NE, LS = EQ, GE = PL,
+#: LT = MI, GT = "0 < v < sign", LE its negation (CC/CS/VC/VS are constant: left to the flag computation).
+_NZ_CONDS = frozenset((2, 3, 6, 7, 10, 11, 12, 13, 14, 15))
+#: Conditions decided by N or Z alone (an ADD/SUB's: C and V are its own there).
+_NZ_ONLY = frozenset((6, 7, 10, 11))
+#: Value-layer handlers that write their data register and may give a fused test (fuse_setup): N/Z of the result.
+_FUSE_ARITH = frozenset("add addi addq sub subi subq".split())
+_FUSE_NZ = frozenset("move and andi or ori eor eori not ext swap mulu muls".split()) | _FUSE_ARITH
+_WALRUS = re.compile(r"(\w+) :=")
+
+
+def _paren(x: str) -> bool:
+    """True when ``x`` is one parenthesized expression (its first parenthesis closes at its end)."""
+    if not x.startswith("("):
+        return False
+    depth = 0
+    for k, ch in enumerate(x):
+        depth += ch == "("
+        depth -= ch == ")"
+        if depth == 0:
+            return k == len(x) - 1
+    return False
+
+
+def _nz_tests(first: str, nb: int, cond: int) -> tuple[str, str]:
+    """(test true when ``cond`` holds, test true when it does not) for the N/Z of the exact ``nb``-byte value whose
+    expression (evaluated once, in the test) is ``first``, V and C cleared (``cond`` in :data:`_NZ_CONDS`)."""
+    S = SIGN[nb]
+    if first.isdigit():  # a known value: a known outcome
+        v = int(first)
+        holds = {2: v != 0, 3: v == 0, 6: v != 0, 7: v == 0, 10: v < S, 11: v >= S, 12: v < S, 13: v >= S,
+                 14: 0 < v < S, 15: not 0 < v < S}[cond]
+        return ("True", "False") if holds else ("False", "True")
+    if cond in (2, 6):
+        return first, f"not {first}"
+    if cond in (3, 7):
+        return f"not {first}", first
+    if cond in (11, 13):
+        return f"{first} >= {S}", f"{first} < {S}"
+    if cond in (10, 12):
+        return f"{first} < {S}", f"{first} >= {S}"
+    if cond == 14:
+        return f"0 < {first} < {S}", f"not 0 < {first} < {S}"
+    return f"not 0 < {first} < {S}", f"0 < {first} < {S}"
 
 
 class _Val:
@@ -152,6 +201,11 @@ class _BlockGen:
         self.later: Any = lambda r: True
         # (condition, flags live after it) of the Bcc right after this instruction on the straight line, or None
         self.nxt: tuple[int, int] | None = None
+        # Flag/branch fusion (fuse_setup): ``fusing`` the condition (and kind) this instruction's flags may be
+        # fused into; ``fused`` (condition, test when it holds, test when it does not) for the next Bcc's ``if``
+        # (branch_test), which then reads no flag: the instruction assigns none.
+        self.fusing: tuple[int, str] | None = None
+        self.fused: tuple[int, str, str] | None = None
         self.shifted: dict[str, tuple[str, str, int, int, int]] = {}  # shift result -> (kind, operand, lo, hi, n)
 
     # ---- emission helpers
@@ -568,6 +622,8 @@ class _BlockGen:
         the caller drops the register's pending value."""
         if not need & _FLAGS_NZVC:
             return x
+        if self.fusing is not None:  # only the next Bcc reads them: it tests the value itself
+            return self.fuse_nz(x, nb, reg)
         if self.defer:  # deferred: pf = x (logic_flags)
             self.logic_flags(x, nb, need)
             return x
@@ -585,6 +641,52 @@ class _BlockGen:
         else:  # N is dead: only Z is asked for
             self.emit(f"sr = (sr & 0xFF10) | (0 if ({t} := {x}) else 4)")
         return t
+
+    def fuse_setup(self, conds: frozenset[int], keep: int | None) -> None:
+        """Flag/branch fusion. When this instruction's N/Z/V/C are read only by the Bcc right after it on the
+        straight line (``nxt``: none of them is live after the branch on either path, by the planner's liveness,
+        which makes every flag live at block exits, around instructions that may fault and after a loop's back
+        edge) and the branch's condition is in ``conds``, the instruction's flag code assigns no flag: it gives
+        the branch's test instead (``fused``, taken by :meth:`branch_test`); X and any flag live after the branch
+        are left as they are or computed by the instruction as before. Between the two nothing can fault or
+        leave, so nothing can observe the flags not assigned. First every pending value but register ``keep``'s
+        is assigned (they would be at the branch anyway): the assignments the branch makes before its ``if``
+        then change no local that the test reads."""
+        self.fusing = None
+        nx = self.nxt
+        if nx is None or nx[1] & _FLAGS_NZVC or nx[0] not in conds or self.lazy is not None or self.defer:
+            return
+        self.flush(set(self.pend) - {keep})
+        self.fusing = nx[0]
+
+    def fuse_nz(self, x: str, nb: int, reg: int | None, used: bool = True) -> str:
+        """The fused form of :meth:`vflags`: the next Bcc tests the exact ``nb``-byte value ``x`` itself (its N/Z,
+        V and C clear). Returns an expression of the value, as :meth:`vflags` does: the register's local when the
+        test assigns it (``(d0 := x)``: ``reg`` given and free), else an atom (``x`` or a temporary assigned now).
+        ``used`` False: only the test reads the value (TST): it is computed in the test."""
+        cond, self.fusing = self.fusing, None
+        assert cond is not None
+        if _ATOM.match(x):
+            v = first = x
+        elif not used:
+            v = first = x if _paren(x) else f"({x})"
+        elif reg is not None and self.free(reg):
+            v = self.wg(reg)
+            first = f"({v} := {x})"
+        else:
+            v = first = self.tmp()
+            self.emit(f"{v} = {x}")
+        self.fused = (cond, *_nz_tests(first, nb, cond))
+        return v
+
+    def branch_test(self, cond: int, holds: bool = True) -> str:
+        """The ``if`` test of a Bcc with condition ``cond`` (``holds``: true when it holds; else when it does not):
+        the fused test of the instruction before (:meth:`fuse_setup`), or the test of ``sr``."""
+        f, self.fused = self.fused, None
+        if f is not None:
+            assert f[0] == cond, "a fused test taken by another branch"
+            return f[1] if holds else f[2]
+        return _COND_EXPR[cond] if holds else _COND_EXPR[cond ^ 1]
 
     def free(self, r: int) -> bool:
         """True when no pending value other than register ``r``'s own names ``r``'s local (it may be assigned)."""
@@ -607,6 +709,11 @@ class _BlockGen:
         if not self.pend:
             return
         texts = {q: self.u(v) for q, v in self.pend.items()}  # before any assignment (may bind temporaries)
+        if self.fused is not None:  # the branch's fused test follows these assignments: they must not touch it
+            changed = {_RN[q] for q, t in texts.items() if t != _RN[q]}
+            named = set(re.findall(r"\b\w+\b", " ".join(texts.values())))
+            assert not changed.intersection(re.findall(r"\b\w+\b", self.fused[1])) and \
+                not named.intersection(_WALRUS.findall(self.fused[1])), "a fused test over a changing local"
         if regs is None:
             todo = set(self.pend)
         else:
@@ -664,6 +771,8 @@ class _BlockGen:
             return None
         if dst.mode is _M.DREG and src.mode in (_M.ABSW, _M.ABSL, _M.PCDISP):
             r = dst.reg
+            if need & _FLAGS_NZVC:
+                self.fuse_setup(_NZ_CONDS, r)
             ld = self.load(nb, self.addr(src, nb, pc, "ea"))
             if nb == 4:
                 self.pend.pop(r, None)  # overwritten whole; the names of its old local in pending values:
@@ -714,6 +823,8 @@ class _BlockGen:
         r = dst.reg
         same = src is not None and src.mode is _M.DREG and src.reg == r
         nzvc = need & _FLAGS_NZVC
+        if nzvc and h in _FUSE_NZ:
+            self.fuse_setup(_NZ_ONLY if h in _FUSE_ARITH else _NZ_CONDS, r)
 
         def operand(o: Operand, dest: int | None, n: int = nb) -> _Val:
             if o.mode is _M.IMM:
@@ -733,16 +844,16 @@ class _BlockGen:
             return timing.cycles(ins)
         if h in ("cmp", "cmpi"):
             if nzvc:
+                self.fuse_setup(_CMP_CONDS, None)
                 s, d = operand(src, None), self.take(r, None)
                 ls, ld = self.low(s, nb), self.low(d, nb)
-                fused = _CMP_COND.get(self.nxt[0]) if self.nxt is not None and not self.nxt[1] & _FLAGS_NZVC \
-                    else None
-                if fused is not None:  # only the next Bcc reads them: flags that give its condition's outcome
-                    kind, op, yes, no = fused
+                if self.fusing is not None:  # only the next Bcc reads them: it compares the operands itself
+                    cond, self.fusing = self.fusing, None
+                    kind, op = _CMP_COND[cond]
                     if kind == "s":
                         ls = _lit(_sx(int(ls), nb)) if ls.isdigit() else f"(({ls} ^ {SIGN[nb]}) - {SIGN[nb]})"
                         ld = _lit(_sx(int(ld), nb)) if ld.isdigit() else f"(({ld} ^ {SIGN[nb]}) - {SIGN[nb]})"
-                    self.emit(f"sr = (sr & 0xFF10) | ({yes} if {ld} {op} {ls} else {no})")
+                    self.fused = (cond, f"{ld} {op} {ls}", f"{ld} {_NOT_OP[op]} {ls}")
                 elif nzvc == CF:
                     self.emit(f"sr = (sr & 0xFF1E) | (1 if {ld} < {ls} else 0)")
                 elif nzvc == ZF:
@@ -759,7 +870,13 @@ class _BlockGen:
                     self.arith_flags("cmp", nb, ls, ld, need)
             return timing.cycles(ins)
         if h == "tst":
-            self.vflags(self.low(self.take(r, None), nb), nb, need)
+            if nzvc:
+                self.fuse_setup(_NZ_CONDS, None)
+            x = self.low(self.take(r, None), nb)
+            if self.fusing is not None:
+                self.fuse_nz(x, nb, None, used=False)
+            else:
+                self.vflags(x, nb, need)
             return timing.cycles(ins)
         if h == "move":
             s = operand(src, r)
@@ -847,6 +964,18 @@ class _BlockGen:
                 d = self.bind(d) if s is not d else d
             de, se = self.low(d, nb), self.low(s, nb)
             dhi, shi = self.lowhi(d, nb), self.lowhi(s, nb)
+            if flags and self.fusing is not None:  # only the next Bcc reads N or Z: it tests the result; X (C with
+                # it: dead after the branch) is assigned when it is live
+                if need & XF:
+                    t = self.tmp()
+                    self.emit(f"{t} = {de} + {se}" if add else f"{t} = {de} - {se}")
+                    self.arith_flags("add" if add else "sub", nb, se, de, XF, t, None)
+                    rme = f"({t} & {M})"
+                else:
+                    rme = f"(({de} + {se}) & {M})" if add else f"(({de} - {se}) & {M})"
+                x = self.fuse_nz(rme, nb, r if nb == 4 else None)
+                self.setx(r, x, _Val(x, 0, M) if nb == 4 else self.merge(d, nb, x, M))
+                return timing.cycles(ins)
             if not flags:
                 if add:
                     x = f"({de} + {se})" if dhi + shi <= M else f"(({de} + {se}) & {M})"
@@ -1047,6 +1176,7 @@ class _BlockGen:
         n_done = idx + 1
         if self.sym:
             sc = self.symbolic(ins, h, need, pc)
+            self.fusing = None  # (a fused test not given: the flags were assigned)
             if sc is not None:
                 return sc, False
             self.pre_flush(ins, h, pc)
@@ -1289,7 +1419,7 @@ class _BlockGen:
             if h == "bra":
                 self.exit(target, n_done, prefix + base)
                 return base, True
-            self.emit(f"if {_COND_EXPR[cond]}:")  # type: ignore[index]
+            self.emit(f"if {self.branch_test(cond)}:")  # type: ignore[arg-type]
             self.ind += 1
             self.exit(target, n_done, prefix + timing.cycles(ins, taken=True))
             self.ind -= 1
