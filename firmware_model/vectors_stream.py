@@ -100,10 +100,10 @@ class FirmwareStepper:
         """``step`` on each sample of the chunk (global index ``start`` ...); returns (words (m, n_words), cycles)."""
         from firmware_model.build import ACCEL_ADC, BARO_ADC, BARO_PA
 
-        write, call, read_state = self.cpu.write, self.cpu.call, self._read_state
+        write, read_state = self.cpu.write, self._read_state
         baro_reg, baro_size, baro_mask = ((BARO_PA, 4, 0xFFFFFFFF) if self.build.consts.PASCAL
                                           else (BARO_ADC, 2, 0xFFFF))
-        step, limit = self.build.step_address, self.max_cycles
+        call_step = self.cpu.caller(self.build.step_address, self.max_cycles)  # call(step, max_cycles=...)
         adc_l, acc_l = adc.tolist(), (np.asarray(acc) & 0xFFFF).tolist()
         out: list[tuple[int, ...]] = [()] * len(adc_l)
         cyc = [0] * len(adc_l)
@@ -112,7 +112,7 @@ class FirmwareStepper:
             for i in range(len(adc_l)):
                 write(baro_reg, adc_l[i] & baro_mask, baro_size)
                 write(ACCEL_ADC, acc_l[i], 2)
-                cyc[i] = call(step, max_cycles=limit)
+                cyc[i] = call_step()
                 out[i] = read_state()
         except Exception as exc:
             raise self._fault(exc, f"sample {start + i}") from exc

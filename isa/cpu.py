@@ -648,7 +648,8 @@ class CPU:
              max_instructions: int | None = None) -> int:
         """Call the subroutine at ``address`` as JSR would (push :data:`CALL_SENTINEL` as the return address), run
         until its RTS returns there, restore PC, and return the clocks from its first instruction up to and
-        including that RTS (the JSR itself is not counted). A TRAP or limit inside raises a CPUFault."""
+        including that RTS (the JSR itself is not counted). A TRAP or limit inside raises a CPUFault. A host that
+        calls one routine many times: :meth:`caller`."""
         saved_pc = self._pc
         R = self._R
         sp = (R[15] - 4) & M32
@@ -665,33 +666,10 @@ class CPU:
             self._min_sp[0] = sp
         address &= 0xFFFFFF
         self._pc = address
-        # The entry block, when it is compiled and the budget covers one pass, runs straight from here (exactly
-        # what the first pass of _run's block loop would do, without its set-up): a routine that is one block
-        # (the firmware step) returns to the sentinel from it; otherwise _run goes on from where it left.
-        e = self._blocks.get(address)
-        if e is not None and e[0] is not None and not self.profiling and self.block_compile:
-            maxn = (1 << 62) if max_instructions is None else int(max_instructions)
-            maxc = (1 << 62) if max_cycles is None else int(max_cycles)
-            if e[1] <= maxn and e[2] < maxc and not address < CALL_SENTINEL < e[3]:
-                self.last_trap = None
-                self._smc[0] = 0
-                try:
-                    r = e[0](maxn, maxc, CALL_SENTINEL)
-                except BaseException as exc:
-                    self._call_block_raised(exc, address)
-                    raise
-                pc = r & 0xFFFFFF
-                if pc == CALL_SENTINEL:
-                    cyc = r >> 56
-                    self.instructions += (r >> 24) & 0xFFFFFFFF
-                    self.cycles += cyc
-                    self._pc = saved_pc
-                    return cyc
-                return self._call_go_on(r, address, saved_pc, max_instructions, max_cycles)
         return self._call_run(address, saved_pc, max_instructions, max_cycles)
 
     def _call_block_raised(self, exc: BaseException, address: int) -> None:
-        """The entry block of :meth:`call` (or a :meth:`caller`) raised ``exc``: unwind the block (registers,
+        """The entry block run by a :meth:`caller` raised ``exc``: unwind the block (registers,
         PC, counters) as :meth:`_run` does; a CPU fault is raised here as its :class:`CPUFault`, anything else
         (e.g. KeyboardInterrupt) is left for the caller to re-raise."""
         if isinstance(exc, _Fault):
@@ -708,8 +686,9 @@ class CPU:
 
     def _call_go_on(self, r: int, address: int, saved_pc: int, max_instructions: int | None,
                     max_cycles: int | None) -> int:
-        """The entry block of a call returned ``r`` (packed next PC, instructions, clocks) elsewhere than to the
-        sentinel: go on in :meth:`_run` from there, counting what the block did."""
+        """The entry block run by a :meth:`caller` returned ``r`` (packed next PC, instructions, clocks) elsewhere
+        than to the sentinel: go on in :meth:`_run` from there, counting what the block did (so limits, the
+        ``LimitExceeded`` message, "started at" the entry, and the counters are those of one :meth:`_run`)."""
         self._pc = r & 0xFFFFFF
         reason, trap, _, cycles, _ = self._run(max_instructions, max_cycles, CALL_SENTINEL, False,
                                                (r >> 24) & 0xFFFFFFFF, r >> 56, address)
@@ -720,7 +699,7 @@ class CPU:
         return cycles
 
     def _call_run(self, address: int, saved_pc: int, max_instructions: int | None, max_cycles: int | None) -> int:
-        """A call whose return address is pushed and PC set: run it all in :meth:`_run`."""
+        """A call whose return address is pushed and PC set: run it in :meth:`_run`."""
         reason, trap, _, cycles, _ = self._run(max_instructions, max_cycles, CALL_SENTINEL, False)
         if reason != "until_pc":
             raise self._fault(CPUFault, f"call(${address:06X}) stopped by TRAP #{trap} before "

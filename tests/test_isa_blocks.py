@@ -1005,29 +1005,32 @@ trap:   addq.l  #1,d6           ; a TRAP in the second block: call raises
 @pytest.mark.parametrize("routine", ["one", "two", "bad", "trap"])
 @pytest.mark.parametrize("max_cycles", [None, 10, 60])
 def test_call_entry_block_equals_closures(routine: str, max_cycles: int | None) -> None:
-    """CPU.call runs a compiled entry block directly (no run-loop set-up) from the second call on: returned
-    clocks, registers, memory, counters, min_sp, PC and any fault (class, message, PC) equal the closures' path,
-    for a one-block routine, a routine that goes on in a second block, a fault inside the entry block, a TRAP
-    after it, and cycle limits that stop inside the routine."""
+    """CPU.caller runs a compiled entry block directly (no run-loop set-up) from the second call on; CPU.call
+    runs the routine through the run loop: returned clocks, registers, memory, counters, min_sp, PC and any fault
+    (class, message, PC) of both equal the closures' path, for a one-block routine, a routine that goes on in a
+    second block, a fault inside the entry block, a TRAP after it, and cycle limits that stop inside the
+    routine."""
     prog = isa.assemble(CALL_SRC, origin=oracles.CODE)
+    address = prog.symbols[routine].address
     out = []
-    for blocks in (True, False):
+    for blocks, lean in ((True, True), (True, False), (False, False)):
         cpu = oracles.make_cpu(isa)
         cpu.block_compile = blocks
         cpu.load(prog)
         cpu.a[7], cpu.a[1], cpu.d[1] = 0x6F00, 0x6001, 5
         cpu.pc = 0x1234
+        run = cpu.caller(address, max_cycles=max_cycles) if lean else None
         seen = []
         for k in range(3):
             cpu.d[1] = (cpu.d[1] - 5 * k) & M32  # 5, 0 (D0 = 3: NE), ...
             try:
-                seen.append(("ok", cpu.call(prog.symbols[routine].address, max_cycles=max_cycles)))
+                seen.append(("ok", run() if run is not None else cpu.call(address, max_cycles=max_cycles)))
             except CPUFault as exc:
                 seen.append((type(exc).__name__, str(exc), exc.pc))
                 cpu.a[7] = 0x6F00
             seen.append(_snapshot(cpu))
         out.append(seen)
-    assert out[0] == out[1]
+    assert out[0] == out[2] and out[1] == out[2]
     if routine == "one" and max_cycles is None:
         # MOVEQ 4, ADD.L Dn,Dn 8, BNE.S taken 10, MOVE.L Dn,abs.L 20, RTS 16 (UM tables 8-4, 8-2, 8-10)
         assert out[0][0][0] == "ok" and out[0][2] == ("ok", 4 + 8 + 10 + 20 + 16)
