@@ -49,9 +49,10 @@ from __future__ import annotations
 import bisect
 import os
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from isa.asm_compiled import (
     _MISSING,
@@ -550,18 +551,31 @@ class _Assembler(_Directives, _OperandSyntax):
         if addr & 1:
             raise rec.where().error(f"{what} at odd address ${addr:X} (insert EVEN)", col)
 
-    # --- data (DC, DS, DCB) ---------------------------------------------------------------------------------------
-    def _data(self, rec: _Rec, p: _Parsed) -> None:
+    @staticmethod
+    def _template_or_plain(rec: _Rec, p: _Parsed, shared: dict[Any, Any], make: Callable[[_Rec, _Parsed], Any],
+                           plain: Callable[[_Rec, _Parsed], None]) -> Any:
+        """The compiled template of an instruction or data line, shared by every line of the same (op, size,
+        operand field, column), which is all it depends on, and kept on the line's fields; or None after running
+        the line the plain way (``plain``) when it does not compile or compiling is off."""
         t = p.template
         if t is None:
             key = (p.op, p.size, p.operands, p.operand_col)
-            t = _SHARED_DATA.get(key)
+            t = shared.get(key)
             if t is None:
-                t = _SHARED_DATA[key] = self._compile_data(rec, p) or False
+                t = shared[key] = make(rec, p) or False
             p.template = t
         if t is False or not _COMPILE:
-            self._data_plain(rec, p)
-            return
+            plain(rec, p)
+            return None
+        return t
+
+    # --- data (DC, DS, DCB) ---------------------------------------------------------------------------------------
+    def _data(self, rec: _Rec, p: _Parsed) -> None:
+        t = p.template
+        if t is None or t is False or not _COMPILE:
+            t = self._template_or_plain(rec, p, _SHARED_DATA, self._compile_data, self._data_plain)
+            if t is None:
+                return
         assert isinstance(t, _DataT)
         # What _data_plain does, in the same order, with the line's expressions compiled.
         op = p.op
@@ -701,15 +715,10 @@ class _Assembler(_Directives, _OperandSyntax):
     # --- instructions ----------------------------------------------------------------------------------------------
     def _instruction(self, rec: _Rec, p: _Parsed) -> None:
         t = p.template
-        if t is None:
-            key = (p.op, p.size, p.operands, p.operand_col)
-            t = _SHARED_INSNS.get(key)
+        if t is None or t is False or not _COMPILE:
+            t = self._template_or_plain(rec, p, _SHARED_INSNS, self._compile_instruction, self._instruction_plain)
             if t is None:
-                t = _SHARED_INSNS[key] = self._compile_instruction(rec, p) or False
-            p.template = t
-        if t is False or not _COMPILE:
-            self._instruction_plain(rec, p)
-            return
+                return
         assert isinstance(t, _Insn)
         # What _instruction_plain does, in the same order, with the mnemonic, size and operands compiled.
         final = self.final

@@ -331,8 +331,12 @@ class ExprParser:
                 raise self.error("expression nested too deeply")
             v = self.unary()
             self.depth -= 1
-            return {"-": -v, "+": v, "~": ~v, "!": int(v == 0)}[t.text]
+            return self._apply_unary(t.text, v)
         return self.primary()
+
+    def _apply_unary(self, op: str, v: int) -> int:
+        """The value of unary ``op`` applied to ``v`` (a compiling parser combines nodes instead)."""
+        return {"-": -v, "+": v, "~": ~v, "!": int(v == 0)}[op]
 
     def primary(self) -> int:
         """Parse a number, symbol, character constant, ``*`` or parenthesized expression."""
@@ -442,17 +446,8 @@ class _Compiler(ExprParser):
     def _apply(self, op_tok: Token, a: int, b: int) -> int:
         return _node_binary(op_tok, a, b)  # type: ignore[arg-type,return-value]
 
-    def unary(self) -> int:
-        t = self.tok
-        if t.kind == "op" and t.text in ("-", "+", "~", "!"):
-            self.next()
-            self.depth += 1
-            if self.depth > _MAX_DEPTH:
-                raise self.error("expression nested too deeply")
-            v = self.unary()
-            self.depth -= 1
-            return _node_unary(t.text, v)  # type: ignore[arg-type,return-value]
-        return self.primary()
+    def _apply_unary(self, op: str, v: int) -> int:
+        return _node_unary(op, v)  # type: ignore[arg-type,return-value]
 
     def primary(self) -> int:
         t = self.tok

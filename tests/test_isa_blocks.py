@@ -108,8 +108,9 @@ def ours_blocks(m: oracles.Machine, end: int, limit: int) -> tuple[object, ...]:
 _REF: list[oracles.M68000PyRef] = []
 
 
-def ref_run(m: oracles.Machine, end: int, limit: int) -> tuple[object, ...]:
-    """m68000-python stepping from ``m`` until PC == ``end`` or it takes an exception."""
+def ref_run(m: oracles.Machine, end: int, limit: int, upto: bool = False) -> tuple[object, ...]:
+    """m68000-python stepping from ``m`` until PC == ``end`` or it takes an exception (``upto``: or after
+    ``limit`` instructions, returning the state there; else reaching the limit fails the test)."""
     from m68000_python import CPUState
 
     if not _REF:
@@ -129,7 +130,7 @@ def ref_run(m: oracles.Machine, end: int, limit: int) -> tuple[object, ...]:
         vector = oracles._vector_state(after.pc)
         if vector is not None or after.halted:
             return (oracles._fault_of_vector(vector) if vector is not None else "other",)
-        if after.pc == end:
+        if after.pc == end or (upto and n == limit):
             return (None, tuple(after.d), tuple(after.a) + (after.usp,), after.pc, after.sr & 0x1F,
                     bytes(mem[: oracles.EXCLUDED_LO]), cycles, n)
         assert n < limit, "reference did not reach the end of the block"

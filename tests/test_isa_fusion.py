@@ -30,7 +30,7 @@ from isa.strategies import instructions
 from profiles import examples
 
 import oracles
-from test_isa_blocks import EDGE, M32, _diff, _run_both, layout, machine
+from test_isa_blocks import EDGE, M32, _diff, _run_both, layout, machine, ref_run
 from test_isa_value_layer import OBSERVERS, _block_text, _four
 
 REG_IMM = frozenset({Mode.DREG, Mode.IMM})
@@ -127,30 +127,7 @@ def _ours_upto(m: oracles.Machine, end: int, limit: int) -> tuple[object, ...]:
 
 def _ref_upto(m: oracles.Machine, end: int, limit: int) -> tuple[object, ...]:
     """m68000-python stepping from ``m`` until PC == ``end``, an exception, or ``limit`` instructions."""
-    from m68000_python import CPUState
-
-    ref = oracles.M68000PyRef() if not _REF else _REF[0]
-    _REF[:] = [ref]
-    mem = ref.mem
-    mem[:] = m.memory
-    cpu = ref.cpu
-    pc = m.pc
-    cpu.restore_state(CPUState(d=tuple(m.d), a=tuple(m.a[:7]), usp=m.a[7], ssp=oracles.SSP, sr=m.ccr, pc=pc,
-                               ir=(mem[pc] << 8) | mem[pc + 1], irc=(mem[pc + 2] << 8) | mem[pc + 3]))
-    cycles = n = 0
-    while True:
-        cycles += cpu.step()
-        n += 1
-        after = cpu.capture_state()
-        vector = oracles._vector_state(after.pc)
-        if vector is not None or after.halted:
-            return (oracles._fault_of_vector(vector) if vector is not None else "other",)
-        if after.pc == end or n == limit:
-            return (None, tuple(after.d), tuple(after.a) + (after.usp,), after.pc, after.sr & 0x1F,
-                    bytes(mem[: oracles.EXCLUDED_LO]), cycles, n)
-
-
-_REF: list[oracles.M68000PyRef] = []
+    return ref_run(m, end, limit, upto=True)
 
 
 @settings(max_examples=examples(60, ci=15), deadline=None, suppress_health_check=[HealthCheck.too_slow])
