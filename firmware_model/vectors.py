@@ -1010,9 +1010,11 @@ def generate(specs: Sequence[CaseSpec], generator: str = "emulation", progress: 
                 done[id(spec)] = res
                 bar.step(res.spec.name, len(res.spec.stream))
         pool.close()
+        pool.join()  # every result is in: the workers leave on their own (terminate() after close() once hung)
+        pool = None
         return [done[id(s)] for s in order]
     finally:
-        if pool is not None:
+        if pool is not None:  # an error or an interrupt: end the workers at once
             pool.terminate()
             pool.join()
         if bar is not None:

@@ -427,9 +427,12 @@ def ordered_map(fn: Callable[[Any], Any], items: Sequence[Any], jobs: int = 1,
             if on_result:
                 on_result(i, res)
         pool.close()
+        pool.join()  # every result is in: the workers leave on their own (terminate() after close() once hung)
+        pool = None
     finally:
-        pool.terminate()
-        pool.join()
+        if pool is not None:  # an error or an interrupt: end the workers at once
+            pool.terminate()
+            pool.join()
     return out
 
 
