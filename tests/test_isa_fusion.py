@@ -17,7 +17,6 @@ edge, X kept; and the generated text shows that fusion happens where it may and 
 from __future__ import annotations
 
 import dataclasses
-import random
 
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -30,8 +29,8 @@ from isa.strategies import instructions
 from profiles import examples
 
 import oracles
-from test_isa_blocks import EDGE, M32, _diff, _run_both, layout, machine, ref_run
-from test_isa_value_layer import OBSERVERS, _block_text, _four
+from test_isa_blocks import EDGE, M32, _diff, _run_both, layout, machine, ours_blocks, ref_run
+from test_isa_value_layer import OBSERVERS, _block_text, _four, code_image, random_limits
 
 REG_IMM = frozenset({Mode.DREG, Mode.IMM})
 CONDS = "hi ls cc cs ne eq vc vs pl mi ge lt gt le".split()
@@ -94,40 +93,14 @@ def test_fused_branches_equal_closures(items: list[object], d: list[int], ccr: i
                                        max_c: int, until_k: int, a0: int) -> None:
     """Setters before branches, flags observed after them or not, faults, limits and until_pc: blocks (fusion on)
     and closures leave everything identical (registers, SR, PC, memory, counters, fault class, message, PC)."""
-    code = _layout(items, oracles.CODE) + bytes([0x4E, 0x40])  # trap #0 at the end
-    rng = random.Random(seed)
-    image = bytes(oracles.base_image(seed, [(oracles.CODE, code)]))
-    a = [a0, oracles.DATA_LO + 2 * rng.randrange(0, 0x400)] + [oracles.DATA_LO] * 5 + [0x6F00]
-    until = oracles.CODE + 2 * until_k if until_k < 30 else None
-    kwargs = dict(max_instructions=max_n, max_cycles=max_c, until_pc=until, stop_at_limit=bool(seed & 1))
-    blocks, closures = _run_both(image, d, a, ccr, kwargs)
+    image, a = code_image(_layout(items, oracles.CODE), seed, a0)
+    blocks, closures = _run_both(image, d, a, ccr, random_limits(seed, max_n, max_c, until_k))
     assert blocks == closures
     if isinstance(items[-1], tuple) and items[-1][0] == "back":  # a loop: every instruction limit, so that some
         # run stops right where the block leaves at the head after its back edge (SR seen as it is there)
         for n in range(1, 41):
             blocks, closures = _run_both(image, d, a, ccr, dict(max_instructions=n, stop_at_limit=True))
             assert blocks == closures, n
-
-
-def _ours_upto(m: oracles.Machine, end: int, limit: int) -> tuple[object, ...]:
-    """:func:`test_isa_blocks.ours_blocks`, stopping at ``end`` or after ``limit`` instructions (a loop may not end)."""
-    cpu = oracles.make_cpu(isa)
-    cpu.write_bytes(0, m.memory)
-    for i in range(8):
-        cpu.d[i], cpu.a[i] = m.d[i], m.a[i]
-    cpu.sr = 0x2700 | m.ccr
-    cpu.pc = m.pc
-    try:
-        res = cpu.run(max_instructions=limit, until_pc=end, stop_at_limit=True)
-    except isa.errors.CPUFault as exc:
-        return (next((k for cls, k in oracles.OursAdapter.get().faults if isinstance(exc, cls)), "other"),)
-    return (None, tuple(cpu.d), tuple(cpu.a), cpu.pc, cpu.sr & 0x1F, cpu.read_bytes(0, oracles.EXCLUDED_LO),
-            res.cycles, res.instructions)
-
-
-def _ref_upto(m: oracles.Machine, end: int, limit: int) -> tuple[object, ...]:
-    """m68000-python stepping from ``m`` until PC == ``end``, an exception, or ``limit`` instructions."""
-    return ref_run(m, end, limit, upto=True)
 
 
 @settings(max_examples=examples(60, ci=15), deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -138,7 +111,7 @@ def test_fused_branches_vs_m68000py(items: list[object], d: list[int], ccr: int,
     code = _layout(items, oracles.CODE)
     m = machine(code, seed, d, ccr)
     end = oracles.CODE + len(code)
-    ours, ref = _ours_upto(m, end, 150), _ref_upto(m, end, 150)
+    ours, ref = ours_blocks(m, end, 150, upto=True), ref_run(m, end, 150, upto=True)
     assert ours == ref, f"{_diff(ours, ref)}\n  code {code.hex(' ')} d={[hex(v) for v in d]} ccr={ccr:#x}"
 
 

@@ -142,14 +142,24 @@ def test_value_chains_equal_closures(items: list[object], d: list[int], ccr: int
                                      max_c: int, until_k: int, a0: int) -> None:
     """Chains with faulting observers (odd/unmapped A0, DIVU by zero), forward branches, random limits and
     until_pc: blocks (value layer on) and closures leave everything identical."""
-    code = layout(items, oracles.CODE) + bytes([0x4E, 0x40])  # trap #0 at the end
-    rng = random.Random(seed)
-    image = bytes(oracles.base_image(seed, [(oracles.CODE, code)]))
-    a = [a0, oracles.DATA_LO + 2 * rng.randrange(0, 0x400)] + [oracles.DATA_LO] * 5 + [0x6F00]
-    until = oracles.CODE + 2 * until_k if until_k < 30 else None
-    kwargs = dict(max_instructions=max_n, max_cycles=max_c, until_pc=until, stop_at_limit=bool(seed & 1))
-    blocks, closures = _run_both(image, d, a, ccr, kwargs)
+    image, a = code_image(layout(items, oracles.CODE), seed, a0)
+    blocks, closures = _run_both(image, d, a, ccr, random_limits(seed, max_n, max_c, until_k))
     assert blocks == closures
+
+
+def code_image(code: bytes, seed: int, a0: int) -> tuple[bytes, list[int]]:
+    """The memory image with ``code`` (and a TRAP #0 after it) at CODE and random data, and the address registers:
+    A0 = ``a0``, A1 somewhere in the data, A2-A6 at its start, A7 near its top."""
+    rng = random.Random(seed)
+    image = bytes(oracles.base_image(seed, [(oracles.CODE, code + bytes([0x4E, 0x40]))]))
+    return image, [a0, oracles.DATA_LO + 2 * rng.randrange(0, 0x400)] + [oracles.DATA_LO] * 5 + [0x6F00]
+
+
+def random_limits(seed: int, max_n: int, max_c: int, until_k: int) -> dict[str, object]:
+    """``run`` keywords: the instruction and clock limits, ``until_pc`` at the ``until_k``-th word of the code
+    (none from 30 on), ``stop_at_limit`` from the seed's low bit."""
+    until = oracles.CODE + 2 * until_k if until_k < 30 else None
+    return dict(max_instructions=max_n, max_cycles=max_c, until_pc=until, stop_at_limit=bool(seed & 1))
 
 
 @settings(max_examples=examples(50, ci=15), deadline=None, suppress_health_check=[HealthCheck.too_slow])
