@@ -22,6 +22,7 @@ Imports only :mod:`isa.errors`, :mod:`isa.expr`, :mod:`isa.operands` and :mod:`i
 from __future__ import annotations
 
 import re
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -113,8 +114,8 @@ def _kind(op: str | None) -> int:
     return _K_OTHER  # an instruction or a macro call (macro names cannot be directives or mnemonics)
 
 
-def _find_comment(text: str) -> int:
-    """Index of the ``;`` starting the comment (outside quotes), or ``len(text)``."""
+def _unquoted(text: str) -> Iterator[tuple[int, str]]:
+    """``(index, character)`` of each character of ``text`` that is neither a quote nor inside '...' or "..."."""
     quote = ""
     for i, ch in enumerate(text):
         if quote:
@@ -122,7 +123,14 @@ def _find_comment(text: str) -> int:
                 quote = ""
         elif ch in "'\"":
             quote = ch
-        elif ch == ";":
+        else:
+            yield i, ch
+
+
+def _find_comment(text: str) -> int:
+    """Index of the ``;`` starting the comment (outside quotes), or ``len(text)``."""
+    for i, ch in _unquoted(text):
+        if ch == ";":
             return i
     return len(text)
 
@@ -131,15 +139,9 @@ def _split_args(text: str) -> list[tuple[str, int]]:
     """Split a macro argument field at top-level commas: (argument, offset) pairs; ``<a,b>`` groups one argument."""
     out: list[tuple[str, int]] = []
     depth = 0
-    quote = ""
     start = 0
-    for i, ch in enumerate(text):
-        if quote:
-            if ch == quote:
-                quote = ""
-        elif ch in "'\"":
-            quote = ch
-        elif ch in "(<":
+    for i, ch in _unquoted(text):
+        if ch in "(<":
             depth += 1
         elif ch in ")>":
             depth = max(depth - 1, 0)
