@@ -17,9 +17,10 @@ import hashlib
 import os
 import pickle
 import sys
-import tempfile
 from pathlib import Path
 from typing import Any, Callable
+
+from isa.codecache import write_atomic
 
 
 def cache_dir() -> Path | None:
@@ -60,23 +61,9 @@ def memo(sub: str, key: Callable[[], str], accept: Callable[[Any], bool], comput
 
 
 def store(path: Path, obj: Any) -> None:
-    """Pickle ``obj`` to ``path`` atomically; failures (read-only disk, ...) only cost the cache."""
-    tmp = None
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True, mode=0o700)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=".pickle")
-        with os.fdopen(fd, "wb") as fh:
-            pickle.dump(obj, fh, protocol=pickle.HIGHEST_PROTOCOL)
-        os.replace(tmp, path)
-        tmp = None
-    except (OSError, pickle.PicklingError):
-        pass
-    finally:
-        if tmp is not None:
-            try:
-                os.unlink(tmp)
-            except OSError:
-                pass
+    """Pickle ``obj`` to ``path`` atomically (:func:`isa.codecache.write_atomic`); failures (read-only disk, ...)
+    only cost the cache."""
+    write_atomic(path, lambda fh: pickle.dump(obj, fh, protocol=pickle.HIGHEST_PROTOCOL), (pickle.PicklingError,))
 
 
 @functools.lru_cache(maxsize=1)

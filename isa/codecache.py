@@ -40,8 +40,9 @@ import os
 import sys
 import tempfile
 from collections import OrderedDict
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 __all__ = ["MAX_BLOCKS", "MAX_DECODED", "clear", "enabled", "map_key", "stats", "use_disk"]
 
@@ -178,25 +179,35 @@ def load_block_code(key: str) -> tuple[Any, ...] | None:
     return value
 
 
-def store_block_code(key: str, value: tuple[Any, ...]) -> None:
-    """Write ``value`` under ``key`` (temp file + os.replace; any OSError only costs the cache)."""
-    if disk_dir is None:
-        return
-    folder = disk_dir / key[:2]
+def write_atomic(path: Path, write: Callable[[BinaryIO], object],
+                 errors: tuple[type[BaseException], ...] = ()) -> bool:
+    """Write ``path`` as ``write(fh)`` writes it: into a temp file ``.tmp-*`` in the same folder (the folder made,
+    mode 0700, if missing), then ``os.replace``d over ``path``, so a reader never sees a partial file and
+    concurrent writers of the same content leave one whole file. Returns False, leaving no temp file, when that
+    fails with an OSError or one of ``errors`` (a cache write: the caller only loses the cache). The disk caches
+    of :mod:`isa` and of ``firmware_model`` (its ``diskcache``) write through this."""
     tmp = None
     try:
-        folder.mkdir(parents=True, exist_ok=True, mode=0o700)
-        fd, tmp = tempfile.mkstemp(prefix=".tmp-", dir=folder)
+        path.parent.mkdir(parents=True, exist_ok=True, mode=0o700)
+        fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=path.suffix, dir=path.parent)
         with os.fdopen(fd, "wb") as fh:
-            fh.write(marshal.dumps(value))
-        os.replace(tmp, folder / f"{key}.marshal")
+            write(fh)
+        os.replace(tmp, path)
         tmp = None
-        stats["disk_stores"] += 1
-    except (OSError, ValueError):
-        pass
+        return True
+    except (OSError, *errors):
+        return False
     finally:
         if tmp is not None:
             try:
                 os.unlink(tmp)
             except OSError:
                 pass
+
+
+def store_block_code(key: str, value: tuple[Any, ...]) -> None:
+    """Write ``value`` under ``key`` (:func:`write_atomic`; a failure only costs the cache)."""
+    if disk_dir is None:
+        return
+    if write_atomic(disk_dir / key[:2] / f"{key}.marshal", lambda fh: fh.write(marshal.dumps(value)), (ValueError,)):
+        stats["disk_stores"] += 1
