@@ -141,7 +141,7 @@ class CPU:
 
     def __init__(self, mapped: bool = True) -> None:
         """``mapped=True``: all 16 MiB are RAM. ``mapped=False``: nothing is mapped; call :meth:`map`."""
-        self.memory = Memory(lambda: self._pc, self._invalidate, self._host_invalidate)
+        self.memory = Memory(lambda: self._pc, self._invalidate, self._host_invalidate, prefault=mapped)
         self._mem = self.memory.mem
         self._flags = self.memory.flags
         self._flags32 = self.memory.flags32
