@@ -9,6 +9,7 @@ import json
 import os
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -34,17 +35,20 @@ for program, n in json.loads(sys.argv[1]):
     acc = rng.integers(-2000, 6000, n)
     t = run_model(c, adc, acc)
     rows.append([program, n, "numba" in sys.modules, t.words.tolist(), t.first_wrap])
-print(json.dumps(rows))
+with open(sys.argv[2], "w") as out:  # a file, not stdout: an unbuffered stdout (PYTHONUNBUFFERED) interrupted
+    json.dump(rows, out)             # by a signal may write part of a large print and drop the rest
 """
 
 
 def _probe(calls: list[tuple[str, int]]) -> list[list[object]]:
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     env.pop("FWEMU_NO_NUMBA", None)
-    r = subprocess.run([sys.executable, "-c", _PROBE, json.dumps(calls)], env=env, capture_output=True, text=True,
-                       timeout=600)
-    assert r.returncode == 0, r.stderr
-    return json.loads(r.stdout)
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "rows.json"
+        r = subprocess.run([sys.executable, "-c", _PROBE, json.dumps(calls), str(out)], env=env,
+                           capture_output=True, text=True, timeout=600)
+        assert r.returncode == 0, r.stderr
+        return json.loads(out.read_text())
 
 
 def _compiled_words(program: str, n: int) -> list[list[int]]:
