@@ -38,10 +38,14 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
-
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+
+from firmware_model.blas_threads import single_threaded_blas  # noqa: E402
+
+single_threaded_blas()  # before numpy loads: no OpenBLAS pool busy-waiting on the cores being measured
+
+import numpy as np  # noqa: E402
 
 from firmware_model.config import BuildConfig  # noqa: E402
 from firmware_model.constants import build_constants  # noqa: E402

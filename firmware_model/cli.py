@@ -18,6 +18,10 @@ import sys
 from collections.abc import Sequence
 from typing import Any
 
+from firmware_model.blas_threads import single_threaded_blas
+
+single_threaded_blas()  # before any subcommand imports numpy (firmware_model/blas_threads.py says why)
+
 #: Modules that contribute subcommands, in help order.
 COMMAND_MODULES: tuple[str, ...] = (
     "isa.cli",

@@ -34,6 +34,13 @@ from hypothesis import settings
 
 from profiles import PROFILE
 
+from firmware_model.blas_threads import single_threaded_blas  # noqa: E402
+
+# One BLAS thread in this process, the xdist workers and the CLI subprocesses the tests start (they inherit it):
+# an idle OpenBLAS thread busy-waits after each threaded call and takes the other worker's core
+# (firmware_model/blas_threads.py). Here, before numpy's first import (tests/test_cli_structure.py checks it).
+single_threaded_blas()
+
 settings.load_profile(PROFILE)
 
 # Load the model's compiled kernels in every test process, whatever files are selected: run_model's "auto" engine

@@ -165,3 +165,31 @@ def test_input_registers_addressing_as_the_spec_says() -> None:
         assert program.code[:4] == bytes.fromhex("3038F000"), operand
     with pytest.raises(isa.errors.IsaError, match="does not fit abs.w"):
         isa.assemble(" move.w $F000.w,d0\n", origin=0x1000)
+
+
+_BLAS_PROBE = """
+import os, sys
+import firmware_model.cli   # the CLI module: asks for one BLAS thread before anything imports numpy
+import numpy as np
+np.linalg.solve(np.eye(300) * 2.0, np.ones(300))   # a call large enough for OpenBLAS to use its pool
+print(len(os.listdir("/proc/self/task")), os.environ.get("OPENBLAS_NUM_THREADS"))
+"""
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").is_dir() or (os.cpu_count() or 1) < 2,
+                    reason="needs Linux /proc and 2+ cores (OpenBLAS starts no pool on one core)")
+@pytest.mark.parametrize("preset", [None, "2"])
+def test_the_cli_runs_numpy_with_one_blas_thread_unless_told_otherwise(preset: str | None) -> None:
+    """firmware_model/blas_threads.py: the CLI process (and the workers it spawns, which inherit the variable) has
+    no OpenBLAS thread pool busy-waiting beside it; a user's OPENBLAS_NUM_THREADS is kept."""
+    env = {k: v for k, v in os.environ.items() if k not in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
+    env["PYTHONPATH"] = str(ROOT)
+    if preset is not None:
+        env["OPENBLAS_NUM_THREADS"] = preset
+    r = subprocess.run([sys.executable, "-c", _BLAS_PROBE], capture_output=True, text=True, env=env, timeout=120)
+    assert r.returncode == 0, r.stderr
+    threads, value = r.stdout.split()
+    if preset is None:
+        assert (threads, value) == ("1", "1")
+    else:   # the user's setting is kept, and it is what OpenBLAS used: one main thread + one pool thread
+        assert (threads, value) == ("2", "2")
