@@ -18,6 +18,7 @@ unit, where "unit" = barometer count x BARO_SIGN (docs/firmware-spec.md §2).
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -548,53 +549,120 @@ def kalman_switched_bound(consts: "FirmwareConstants", fm: FloatTrace, adc: np.n
         g_acc = qg["ACC_G"]
         acc0_f = prev[:, names.index("ACC0")]
         a_err_base = rho(g_acc.s) + abs(g_acc.value - fg["ACC_G"]) * np.abs(acc - acc0_f)
-    phis = np.zeros((0, 3, 3))
-    ws = np.zeros((0, 3))
+    # Loop invariants, hoisted: the same expressions as before, evaluated once (or once per (used, trans)).
+    absF = np.abs(F)
+    eye3 = np.eye(3)
+    rho_cal = rho(int(consts.CAL_P))
+    if accel:
+        acc_g = fg["ACC_G"]
+        acc_cal = abs(acc_g) * rho_cal
+    steps: dict[tuple[bool, bool], tuple] = {}
+
+    def step_consts(used: bool, trans: bool) -> tuple:
+        """``(A, |IKH| @ u, barometer columns or None, accelerometer columns or None)`` of a (used, trans)
+        combination, built at its first sample (so a gain is read, or found missing, where it was before)."""
+        if (used, trans) not in steps:
+            bcols = acols = None
+            if used:
+                names1 = b1t if trans else b1
+                Hs = [H1]
+                Ks = [col(names1)]
+                bcols = (rcol(names1), dcol(names1), np.abs(col(names1)))
+            else:
+                Hs, Ks = [], []
+            if accel:
+                Hs.append(H2)
+                Ks.append(col(b2))
+                acols = (rcol(b2), dcol(b2), np.abs(col(b2)))
+            if Hs:
+                H = np.vstack(Hs)
+                Kt = np.stack(Ks, axis=1)
+                IKH = np.eye(3) - Kt @ H
+            else:
+                IKH = np.eye(3)
+            steps[used, trans] = (IKH @ F, np.abs(IKH) @ u, bcols, acols)
+        return steps[used, trans]
+
+    # The barometer's table value at every valid sample in one call (elementwise: the same floats as one call per
+    # sample). A table that fails on some valid sample falls back to the per-sample call, which raises where it did.
+    h_all = None
+    if adc.ndim == 1:
+        try:
+            h_all = _alt_table_float(consts)(np.where(ok, adc, 0.0))
+        except Exception:  # noqa: BLE001 - re-raised by the per-sample lookup at the sample that needs it
+            h_all = None
+    # The terms sum_s |Phi(t, s+1)| w_s live in preallocated buffers instead of arrays regrown every sample:
+    # phi[cur][:k] is the stack of products (oldest first, as the concatenations built it), ws[:k] the w_s,
+    # wmax[:k] their row maxima. Every array handed to matmul and einsum is a C-contiguous (k, 3, 3) / (k, 3)
+    # block at the start of its buffer, shaped and strided like the fresh arrays before: the same BLAS and einsum
+    # kernels run on the same numbers, so every float is unchanged.
+    cap = n + 1
+    phi = [np.empty((cap, 3, 3)), np.empty((cap, 3, 3))]
+    cur = 0
+    aphi = np.empty((cap, 3, 3))
+    ws = np.empty((cap, 3))
+    wmax = np.empty(cap)
+    k = 0
     B = np.zeros(3)
     for t in range(n):
         if cal_prev[t] < ncal:
             if ok[t] and cal_prev[t] + 1 == ncal:       # calibration completes: the GND/ACC0 rounding
-                phis = np.eye(3)[None].copy()
-                ws = np.array([[rho(int(consts.CAL_P)) + rho_alt, 0.0, 0.0]])
+                phi[cur][0] = eye3
+                ws[0] = (rho_cal + rho_alt, 0.0, 0.0)
+                wmax[0] = ws[0].max()
+                k = 1
                 B = ws[0].copy()
             bound[t] = B if cal_prev[t] + 1 >= ncal and ok[t] else np.array([rho_alt, 0.0, 0.0])  # X1 = alt(adc0)
             continue
         x1p = prev[t, 0] + prev[t, 1] * dt + prev[t, 2] * dt * dt / 2
-        pred_b = np.abs(F) @ B + u
+        pred_b = absF @ B + u
         margin[t] = pred_b[0] + rho_alt
-        used = ok[t] and not (ev[t] & _BARO_REJECT)
+        used = bool(ok[t] and not (ev[t] & _BARO_REJECT))
         trans = bool(ev[t] & _MACH)
+        A, iku, bcols, acols = step_consts(used, trans)
         r = np.zeros(3)
         if used:
-            names1 = b1t if trans else b1
-            Hs = [H1]
-            Ks = [col(names1)]
-            e1_int = abs(_alt_mirror_e1(consts, adc[t], x1p)) + margin[t]
-            r += rcol(names1) + dcol(names1) * e1_int + np.abs(col(names1)) * rho_alt
-        else:
-            Hs, Ks = [], []
+            e1 = h_all[t] - x1p if h_all is not None else _alt_mirror_e1(consts, adc[t], x1p)
+            e1_int = abs(e1) + margin[t]
+            rc, dc, ac = bcols
+            r += rc + dc * e1_int + ac * rho_alt
         if accel:
-            Hs.append(H2)
-            Ks.append(col(b2))
-            e2_int = abs((acc[t] - acc0_f[t]) * fg["ACC_G"] - (prev[t, 2])) + pred_b[2] + a_err_base[t] \
-                + abs(fg["ACC_G"]) * rho(int(consts.CAL_P))
-            a_err = a_err_base[t] + abs(fg["ACC_G"]) * rho(int(consts.CAL_P))
-            r += rcol(b2) + dcol(b2) * e2_int + np.abs(col(b2)) * a_err
-        if Hs:
-            H = np.vstack(Hs)
-            Kt = np.stack(Ks, axis=1)
-            IKH = np.eye(3) - Kt @ H
-        else:
-            IKH = np.eye(3)
-        A = IKH @ F
-        wt = np.abs(IKH) @ u + r
-        phis = np.concatenate([A[None] @ phis, np.eye(3)[None]], axis=0) if len(phis) else np.eye(3)[None]
-        ws = np.concatenate([ws, wt[None]], axis=0) if len(ws) else wt[None]
-        B = np.einsum("sij,sj->i", np.abs(phis), ws)
+            e2_int = abs((acc[t] - acc0_f[t]) * acc_g - (prev[t, 2])) + pred_b[2] + a_err_base[t] + acc_cal
+            a_err = a_err_base[t] + acc_cal
+            rc, dc, ac = acols
+            r += rc + dc * e2_int + ac * a_err
+        wt = iku + r
+        nxt = phi[1 - cur]
+        if k:
+            np.matmul(A, phi[cur][:k], out=nxt[:k])
+        nxt[k] = eye3
+        cur = 1 - cur
+        ws[k] = wt
+        wmax[k] = wt.max()
+        k += 1
+        absphis = np.abs(phi[cur][:k], out=aphi[:k])
+        B = np.einsum("sij,sj->i", absphis, ws[:k])
         # drop terms whose contribution has decayed below 1e-15 of the bound (they only shrink further)
-        keep = np.abs(phis).max(axis=(1, 2)) * ws.max(axis=1) > 1e-15 * max(B.max(), 1e-300)
+        thr = 1e-15 * max(B.max(), 1e-300)
+        # Shortcut, exact: a finite B means every entry of every |Phi| and w is finite (each enters B once), so a
+        # term's maximum entry is >= its |Phi[0, 0]|, and rounding is monotone: |Phi[0, 0]| * wmax > thr > 0
+        # (so wmax > 0) implies max|Phi| * wmax > thr. When that holds for every term, nothing is dropped.
+        if all(map(math.isfinite, B.tolist())) and (absphis[:, 0, 0] * wmax[:k] > thr).all():
+            bound[t] = B
+            continue
+        # the per-term maximum of the 9 entries as a tree of elementwise maxima (exact, NaN-propagating: the same
+        # values as .max(axis=(1, 2)), which reduces each short row separately and costs ~30 ns a term)
+        a9 = absphis.reshape(k, 9)
+        m4 = np.maximum(a9[:, :4], a9[:, 4:8])
+        amax = np.maximum(np.maximum(np.maximum(m4[:, 0], m4[:, 1]), np.maximum(m4[:, 2], m4[:, 3])), a9[:, 8])
+        keep = amax * wmax[:k] > thr
         keep[-1] = True
-        phis, ws = phis[keep], ws[keep]
+        if not keep.all():
+            m = int(np.count_nonzero(keep))
+            phi[cur][:m] = phi[cur][:k][keep]
+            ws[:m] = ws[:k][keep]
+            wmax[:m] = wmax[:k][keep]
+            k = m
         bound[t] = B
     return SwitchedBound(bound, margin, n)
 
