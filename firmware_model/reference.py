@@ -313,15 +313,21 @@ def steady_state(cfg: "BuildConfig", tol: float = 1e-13, max_iter: int = 10_000_
     F, H, Q, R = kalman_matrices(cfg)
     P = np.eye(3) * R[0, 0]
     K = np.zeros((3, H.shape[0]))
+    # Loop invariants (thousands of iterations near k = 8): the identity, and H.T / F.T as the same views.
+    I3, HT, FT = np.eye(3), H.T, F.T
+    k_old = K.ravel().tolist()
     for _ in range(max_iter):
-        S = H @ P @ H.T + R
-        K_new = P @ H.T @ np.linalg.inv(S)
-        Pu = (np.eye(3) - K_new @ H) @ P
-        P = F @ Pu @ F.T + Q
+        S = H @ P @ HT + R
+        K_new = P @ HT @ np.linalg.inv(S)
+        Pu = (I3 - K_new @ H) @ P
+        P = F @ Pu @ FT + Q
         P = (P + P.T) / 2
-        if np.max(np.abs(K_new - K) / np.maximum(np.abs(K_new), 1e-300)) < tol:
+        # max_ij(|K_new - K| / max(|K_new|, 1e-300)) < tol, on the 3 or 6 gains as Python floats: the same
+        # elementwise operations, and all(x < tol) is max(x) < tol (a NaN fails both)
+        k_new = K_new.ravel().tolist()
+        if all(abs(a - b) / max(abs(a), 1e-300) < tol for a, b in zip(k_new, k_old)):
             return K_new, P
-        K = K_new
+        k_old = k_new
     raise UserError(f"steady-state Riccati iteration did not converge in {max_iter} steps for {cfg}")
 
 
