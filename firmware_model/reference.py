@@ -200,93 +200,117 @@ def _alt_table_float(consts: "FirmwareConstants"):
 def _mirror_kalman(consts: "FirmwareConstants", g: dict[str, float], adc: np.ndarray,
                    acc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """docs/firmware-spec.md §6 in float64: the table interpolated without rounding, the calibration means and
-    every shift exact; the same integer thresholds and counters (CAL, REJ, NEG) as the firmware."""
+    every shift exact; the same integer thresholds and counters (CAL, REJ, NEG) as the firmware. The table is
+    looked up for every sample at once; the filter runs stream by stream (:func:`_mirror_kalman_one`)."""
     accel = consts.program == "kalman_accel"
     n_streams, n = adc.shape
-    dt = 2.0 ** -int(consts.K)
-    half_dt2 = 2.0 ** -(2 * int(consts.K) + 1)
     baro_ok_all = (adc >= consts.BARO_MIN) & (adc <= consts.BARO_MAX)
     lookup = _alt_table_float(consts)
     h_all = np.where(baro_ok_all, lookup(np.where(baro_ok_all, adc, 0.0)), 0.0)
-    ncal = 1 << int(consts.CAL_P)
-    x1 = h_all[:, 0].copy()
-    gnd = x1.copy()
-    x2 = np.zeros(n_streams)
-    x3 = np.zeros(n_streams)
-    acc0 = acc[:, 0].copy()
-    sumz = np.zeros(n_streams)
-    suma = np.zeros(n_streams)
-    cal = np.zeros(n_streams, dtype=np.int64)
-    rej = np.zeros(n_streams, dtype=np.int64)
-    neg = np.zeros(n_streams, dtype=np.int64)
-    ev = np.zeros(n_streams, dtype=np.int64)
-    apfrac = np.zeros(n_streams)
-
-    def row() -> list[np.ndarray]:
-        cols = [x1, x2, x3] + ([acc0] if accel else []) + [ev.astype(float), apfrac, gnd, sumz]
-        return cols + ([suma] if accel else []) + [cal.astype(float), rej.astype(float), neg.astype(float)]
-
-    init = np.stack(row(), axis=-1)
+    zeros = np.zeros(n_streams)
+    x1 = h_all[:, 0]
+    # the state before the first sample: X1 = GND = the first sample's altitude, ACC0 = the first acc, the rest 0
+    cols = [x1, zeros, zeros] + ([acc[:, 0]] if accel else []) + [zeros, zeros, x1, zeros]
+    init = np.stack(cols + ([zeros] if accel else []) + [zeros, zeros, zeros], axis=-1)
     out = np.empty((n_streams, n, init.shape[-1]))
     g1 = np.array([g["G11"], g["G21"], g["G31"]])
     g1t = np.array([g["G11T"], g["G21T"], g["G31T"]]) if accel else g1
     g2 = np.array([g["G12"], g["G22"], g["G32"]]) if accel else np.zeros(3)
+    for s in range(n_streams):
+        out[s] = _mirror_kalman_one(consts, g, accel, h_all[s], baro_ok_all[s], acc[s], g1, g1t, g2)
+    return init, out
+
+
+def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: bool, h_all: np.ndarray,
+                       baro_ok_all: np.ndarray, acc: np.ndarray, g1: np.ndarray, g1t: np.ndarray,
+                       g2: np.ndarray) -> list[tuple[float, ...]]:
+    """The Kalman mirror of ONE stream on Python floats (C doubles): the rows of the words in ``word_names`` order.
+
+    Until 2026-12-02 (issue 10) the mirror ran every stream at once as numpy arrays, one ``np.where`` per step
+    and sample; this loop does each step as the same IEEE double operation in the same order (``a if c else b``
+    for ``np.where(c, a, b)``, ``min(x, 65535.0)`` for ``np.minimum(65535.0, x)``, NaN kept), ~50x faster on
+    the tests' single streams. Every output was checked bit for bit against the array loop when it replaced it
+    (sha256 of the words of every call the tests make, plus multi-stream, NaN/inf and edge inputs); numpy's
+    overflow RuntimeWarnings are the only thing not reproduced."""
+    dt = 2.0 ** -int(consts.K)
+    half_dt2 = 2.0 ** -(2 * int(consts.K) + 1)
+    ncal = 1 << int(consts.CAL_P)
     e_gate, gate_n, apo_n = float(consts.E_GATE), int(consts.GATE_N), int(consts.APO_N)
-    for i in range(n):
+    mach_vlo, v_lift = consts.MACH_VLO, consts.V_LIFT
+    acc_g = g["ACC_G"] if accel else 0.0
+    g11, g21, g31 = g1.tolist()
+    g11t, g21t, g31t = g1t.tolist()
+    g12, g22, g32 = g2.tolist()
+    hs, oks, accs = h_all.tolist(), baro_ok_all.tolist(), acc.tolist()
+    x1 = gnd = hs[0]
+    x2 = x3 = sumz = suma = apfrac = 0.0
+    acc0 = accs[0]
+    cal = rej = neg = ev = 0
+    rows = []
+    for h, baro_ok, a in zip(hs, oks, accs):
         ev = ev & LATCHED_EVENTS
-        baro_ok = baro_ok_all[:, i]
-        ev = np.where(baro_ok, ev, ev | _BARO_INVALID)
-        h = h_all[:, i]
-        # 1. pad calibration (streams still calibrating take this branch only)
+        if not baro_ok:
+            ev = ev | _BARO_INVALID
+        # 1. pad calibration (a stream still calibrating takes this branch only)
         calib = cal < ncal
-        count = calib & baro_ok
-        sumz = np.where(count, sumz + h, sumz)
-        suma = np.where(count, suma + acc[:, i], suma)
-        cal = np.where(count, cal + 1, cal)
-        done = count & (cal == ncal)
-        gnd = np.where(done, sumz / ncal, gnd)
-        x1 = np.where(done, gnd, x1)
-        if accel:
-            acc0 = np.where(done, suma / ncal, acc0)
-        run = ~calib
+        if calib and baro_ok:
+            sumz = sumz + h
+            suma = suma + a
+            cal = cal + 1
+            if cal == ncal:
+                gnd = sumz / ncal
+                x1 = gnd
+                if accel:
+                    acc0 = suma / ncal
+        run = not calib
         # 2. predict
-        x1 = np.where(run, x1 + x2 * dt + x3 * half_dt2, x1)
-        x2 = np.where(run, x2 + x3 * dt, x2)
+        if run:
+            x1 = x1 + x2 * dt + x3 * half_dt2
+            x2 = x2 + x3 * dt
         # 3./4. innovation and gate
         e1 = h - x1
-        inside = (e1 >= -e_gate) & (e1 <= e_gate)
-        reject = run & baro_ok & ~inside & (rej < gate_n)
-        use = run & baro_ok & ~reject
-        rej = np.where(run & baro_ok & inside, 0, np.where(reject, rej + 1, rej))
-        ev = np.where(reject, ev | _BARO_REJECT, ev)
+        inside = e1 >= -e_gate and e1 <= e_gate
+        reject = run and baro_ok and not inside and rej < gate_n
+        use = run and baro_ok and not reject
+        if run and baro_ok and inside:
+            rej = 0
+        elif reject:
+            rej = rej + 1
+            ev = ev | _BARO_REJECT
         # 5. transonic weighting (kalman_accel)
-        lift = (ev & _LIFTOFF) != 0
-        trans = run & lift & (x2 > consts.MACH_VLO) & accel
-        ev = np.where(trans, ev | _MACH, ev)
+        trans = run and (ev & _LIFTOFF) != 0 and x2 > mach_vlo and accel
+        if trans:
+            ev = ev | _MACH
         # 6./7. correct
-        e2 = (acc[:, i] - acc0) * g["ACC_G"] - x3 if accel else np.zeros(n_streams)
-        c1 = np.where(use, e1, 0.0)
-        gb = np.where(trans[:, None], g1t[None, :], g1[None, :])
-        x1 = np.where(run, x1 + gb[:, 0] * c1 + g2[0] * e2, x1)
-        x2 = np.where(run, x2 + gb[:, 1] * c1 + g2[1] * e2, x2)
-        x3 = np.where(run, x3 + gb[:, 2] * c1 + g2[2] * e2, x3)
-        # 8. liftoff
-        ev = np.where(run & ((ev & _LIFTOFF) == 0) & (x2 > consts.V_LIFT), ev | _LIFTOFF, ev)
-        lift = (ev & _LIFTOFF) != 0
-        # 9. apogee after APO_N consecutive negative velocities
-        fl = run & lift & ((ev & _APOGEE) == 0)
-        neg = np.where(fl, np.where(x2 < 0, neg + 1, 0), neg)
-        ev = np.where(fl & (x2 < 0) & (neg >= apo_n), ev | _APOGEE, ev)
-        # 10. low-rate prediction
-        d = -x3 * dt
-        hit = fl & ((ev & (_APOGEE | _PREDICTED)) == 0) & (x2 > 0) & (x2 < d)
-        if hit.any():
-            with np.errstate(divide="ignore", invalid="ignore"):
-                frac = np.minimum(65535.0, 65536.0 * x2 / np.where(hit, d, 1.0))
-            apfrac = np.where(hit, frac, apfrac)
-            ev = np.where(hit, ev | _PREDICTED, ev)
-        out[:, i] = np.stack(row(), axis=-1)
-    return init, out
+        e2 = (a - acc0) * acc_g - x3 if accel else 0.0
+        c1 = e1 if use else 0.0
+        if run:
+            if trans:
+                x1 = x1 + g11t * c1 + g12 * e2
+                x2 = x2 + g21t * c1 + g22 * e2
+                x3 = x3 + g31t * c1 + g32 * e2
+            else:
+                x1 = x1 + g11 * c1 + g12 * e2
+                x2 = x2 + g21 * c1 + g22 * e2
+                x3 = x3 + g31 * c1 + g32 * e2
+            # 8. liftoff
+            if (ev & _LIFTOFF) == 0 and x2 > v_lift:
+                ev = ev | _LIFTOFF
+            # 9. apogee after APO_N consecutive negative velocities
+            if (ev & _LIFTOFF) != 0 and (ev & _APOGEE) == 0:
+                neg = neg + 1 if x2 < 0 else 0
+                if x2 < 0 and neg >= apo_n:
+                    ev = ev | _APOGEE
+                # 10. low-rate prediction
+                d = -x3 * dt
+                if (ev & (_APOGEE | _PREDICTED)) == 0 and x2 > 0 and x2 < d:
+                    apfrac = min(65536.0 * x2 / d, 65535.0)
+                    ev = ev | _PREDICTED
+        if accel:
+            rows.append((x1, x2, x3, acc0, ev, apfrac, gnd, sumz, suma, cal, rej, neg))
+        else:
+            rows.append((x1, x2, x3, ev, apfrac, gnd, sumz, cal, rej, neg))
+    return rows
 
 
 # ---------------------------------------------------------------------------------------------------- ideal Kalman
