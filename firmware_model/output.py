@@ -169,7 +169,13 @@ def _is_main_thread() -> bool:
 
 @contextlib.contextmanager
 def interruptible() -> Iterator[None]:
-    """SIGINT/SIGTERM raise :class:`Interrupted` once (a second signal during the clean-up is ignored)."""
+    """SIGINT/SIGTERM raise :class:`Interrupted` once (a second signal during the clean-up is ignored).
+
+    An :class:`Interrupted` that Python cannot raise (the handler ran inside a finalizer or a callback, e.g.
+    importlib's module-lock weakref callback) goes to ``sys.unraisablehook``, which would print an "Exception
+    ignored in ..." traceback before the run's one line; it is recorded in :func:`pending_signal` and ends the run
+    at the next :func:`raise_if_interrupted`, so the hook installed here drops it silently (every other
+    unraisable exception goes to the previous hook, as before)."""
     if not _is_main_thread():
         yield
         return
@@ -181,12 +187,20 @@ def interruptible() -> Iterator[None]:
         if fired["n"] == 1 and not _deferring[0]:
             raise Interrupted(signum)
 
+    previous_hook = sys.unraisablehook
+
+    def unraisable(info: Any) -> None:
+        if not (isinstance(info.exc_type, type) and issubclass(info.exc_type, Interrupted) and _pending):
+            previous_hook(info)
+
     old = {s: signal.getsignal(s) for s in SIGNALS}
     for s in SIGNALS:
         signal.signal(s, handler)
+    sys.unraisablehook = unraisable
     try:
         yield
     finally:
+        sys.unraisablehook = previous_hook
         for s, h in old.items():
             signal.signal(s, h if h is not None else signal.SIG_DFL)
 
