@@ -690,17 +690,15 @@ class CPU:
         than to the sentinel: go on in :meth:`_run` from there, counting what the block did (so limits, the
         ``LimitExceeded`` message, "started at" the entry, and the counters are those of one :meth:`_run`)."""
         self._pc = r & 0xFFFFFF
-        reason, trap, _, cycles, _ = self._run(max_instructions, max_cycles, CALL_SENTINEL, False,
-                                               (r >> 24) & 0xFFFFFFFF, r >> 56, address)
-        if reason != "until_pc":
-            raise self._fault(CPUFault, f"call(${address:06X}) stopped by TRAP #{trap} before "
-                              "returning", (self._pc - 2) & 0xFFFFFF)
-        self._pc = saved_pc
-        return cycles
+        return self._call_run(address, saved_pc, max_instructions, max_cycles, (r >> 24) & 0xFFFFFFFF, r >> 56,
+                              address)
 
-    def _call_run(self, address: int, saved_pc: int, max_instructions: int | None, max_cycles: int | None) -> int:
-        """A call whose return address is pushed and PC set: run it in :meth:`_run`."""
-        reason, trap, _, cycles, _ = self._run(max_instructions, max_cycles, CALL_SENTINEL, False)
+    def _call_run(self, address: int, saved_pc: int, max_instructions: int | None, max_cycles: int | None,
+                  n: int = 0, cyc: int = 0, start_pc: int | None = None) -> int:
+        """A call whose return address is pushed and PC set: run it in :meth:`_run` (``n``, ``cyc``,
+        ``start_pc``: what an entry block already did, as :meth:`_run` takes them) until it returns to the
+        sentinel; PC restored to ``saved_pc``, the clocks returned."""
+        reason, trap, _, cycles, _ = self._run(max_instructions, max_cycles, CALL_SENTINEL, False, n, cyc, start_pc)
         if reason != "until_pc":
             raise self._fault(CPUFault, f"call(${address:06X}) stopped by TRAP #{trap} before "
                               "returning", (self._pc - 2) & 0xFFFFFF)
