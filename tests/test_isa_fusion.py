@@ -30,7 +30,7 @@ from profiles import examples
 
 import oracles
 from test_isa_blocks import EDGE, M32, _diff, _run_both, layout, machine, ours_blocks, ref_run
-from test_isa_value_layer import OBSERVERS, _block_text, _four, code_image, random_limits
+from test_isa_value_layer import OBSERVERS, _block_text, _four, code_image, random_limits, twin_cpus
 
 REG_IMM = frozenset({Mode.DREG, Mode.IMM})
 CONDS = "hi ls cc cs ne eq vc vs pl mi ge lt gt le".split()
@@ -160,11 +160,7 @@ def test_every_setter_before_every_branch(tail: str) -> None:
              "fault_fall": (" move.w (a0),d2\n", " add.l d3,d3\n"),
              "exit": ("", ""),
              "flags": (" sgt d2\n", " svs d2\n")}[tail]
-    cpus = []
-    for blocks in (True, False):
-        cpu = oracles.make_cpu(isa)
-        cpu.block_compile = blocks
-        cpus.append(cpu)
+    cpus = twin_cpus()
     at = oracles.CODE
     for p in PAIRS:
         for cc in CONDS:

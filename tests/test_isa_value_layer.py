@@ -316,6 +316,16 @@ READERS = ["move.w d1,d0", "move.b d1,d0", "add.w d1,d0", "sub.b d1,d0", "andi.w
            "neg.b d0", "mulu #3,d0", "muls #-3,d0", "mulu d0,d1", "add.l d0,d1", "move.l d0,d1", "exg d0,d1"]
 
 
+def twin_cpus() -> list[isa.CPU]:
+    """Two CPUs with the oracles' RAM map: compiled blocks on (first) and the per-instruction closures (second)."""
+    cpus = []
+    for blocks in (True, False):
+        cpu = oracles.make_cpu(isa)
+        cpu.block_compile = blocks
+        cpus.append(cpu)
+    return cpus
+
+
 def test_every_producer_before_every_reader() -> None:
     """Each range-producing instruction then each reader of the same register (plus shifts of shifts of every
     kind), with the flags after them dead (an ADD.L D2,D2 sets all five) and live (a TRAP right after: all live
@@ -323,11 +333,7 @@ def test_every_producer_before_every_reader() -> None:
     values = [0, 1, 0x7FFF, 0x8000, 0xFFFF, 0x7FFFFFFF, 0x80000000, M32]
     shifts = [f"{k}.l #{n},d0" for k in ("asl", "asr", "lsl", "lsr") for n in (1, 3, 8)]
     pairs = [(p, q) for p in PRODUCERS for q in READERS] + [(p, q) for p in shifts for q in shifts]
-    cpus = []
-    for blocks in (True, False):
-        cpu = oracles.make_cpu(isa)
-        cpu.block_compile = blocks
-        cpus.append(cpu)
+    cpus = twin_cpus()
     at = oracles.CODE
     for p, q in pairs:
         for tail in (" add.l d2,d2\n", ""):
