@@ -17,8 +17,8 @@
 Targets (issue 10): ours >= 10x m68000-python on each loop; >= 100,000 kalman_accel samples/s through the
 harness. No assertion on speed: a measurement, not a test. Exit status 1 if any result differs. Every timed run
 is measured in CPU time of the thread that runs it (``time.thread_time``; ``--wall`` for the wall clock): the
-machine is shared, and wall time would charge one system for another process's load. Repetitions of the compared systems
-are interleaved and the best of each is kept; the garbage collector is off inside the timed runs of every
+machine is shared, and wall time would charge one system for another process's load. Repetitions of the compared
+systems are interleaved and the best of each is kept; the garbage collector is off inside the timed runs of every
 system. The vectors lines are wall and CPU time of subprocesses.
 """
 
@@ -350,7 +350,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-vectors", action="store_true", help="skip the `fwemu vectors --all` wall time")
     ap.add_argument("--loops", action="store_true", help="only the loops")
     ap.add_argument("--firmware", action="store_true", help="only the firmware harness (section 2)")
-    ap.add_argument("--wall", action="store_true", help="time with the wall clock instead of the CPU time of the timed thread")
+    ap.add_argument("--wall", action="store_true",
+                    help="time with the wall clock instead of the CPU time of the timed thread")
     args = ap.parse_args(argv)
     global CLOCK
     if args.wall:

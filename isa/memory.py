@@ -53,7 +53,9 @@ _WORD = struct.Struct(">H")
 _FIRST_WRITE_TABLE = bytes((0 if b & (_MAPPED | _WRITABLE | _CODE) == _MAPPED | _WRITABLE else 1) for b in range(256))
 _FAST_BYTES = {n: bytes([_FAST_W]) * n for n in (1, 2, 4)}
 _CLEAR_WRITTEN_TABLE = bytes(b & ~_WRITTEN for b in range(256))
-_POPULATE = getattr(mmap, "MAP_POPULATE", 0)  # Linux: fault the pages in at mmap time, in one call
+#: mmap flags of a prefaulted anonymous map (Linux's MAP_POPULATE: the pages faulted in at mmap time, in one call);
+#: 0 where the platform has no MAP_POPULATE.
+_POPULATED = (mmap.MAP_PRIVATE | mmap.MAP_ANONYMOUS | mmap.MAP_POPULATE) if hasattr(mmap, "MAP_POPULATE") else 0
 
 
 class MapError(IsaError, ValueError):
@@ -78,8 +80,8 @@ class Memory:
         """``prefault``: the caller is about to map (nearly) the whole space, so the flag pages are all written
         at once: have the OS populate them when it can."""
         self.mem = mmap.mmap(-1, _TOP + _PAD)
-        if prefault and _POPULATE and hasattr(mmap, "MAP_PRIVATE") and hasattr(mmap, "MAP_ANONYMOUS"):
-            self.flags = mmap.mmap(-1, _TOP + _PAD, flags=mmap.MAP_PRIVATE | mmap.MAP_ANONYMOUS | _POPULATE)
+        if prefault and _POPULATED:
+            self.flags = mmap.mmap(-1, _TOP + _PAD, flags=_POPULATED)
         else:
             self.flags = mmap.mmap(-1, _TOP + _PAD)
         #: The flag bytes as native 16/32-bit words: one subscript checks 2 (4) flag bytes of an aligned word

@@ -58,7 +58,7 @@ from firmware_model.blas_threads import single_threaded_blas  # noqa: E402
 
 # One BLAS thread in this process, the xdist workers and the CLI subprocesses the tests start (they inherit it):
 # an idle OpenBLAS thread busy-waits after each threaded call and takes the other worker's core
-# (firmware_model/blas_threads.py). Here, before numpy's first import (tests/test_cli_structure.py checks it).
+# (firmware_model/blas_threads.py). Here, before numpy's first import (the next import of firmware_model).
 single_threaded_blas()
 
 settings.load_profile(PROFILE)
