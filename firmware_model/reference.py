@@ -213,17 +213,13 @@ def _mirror_kalman(consts: "FirmwareConstants", g: dict[str, float], adc: np.nda
     cols = [x1, zeros, zeros] + ([acc[:, 0]] if accel else []) + [zeros, zeros, x1, zeros]
     init = np.stack(cols + ([zeros] if accel else []) + [zeros, zeros, zeros], axis=-1)
     out = np.empty((n_streams, n, init.shape[-1]))
-    g1 = np.array([g["G11"], g["G21"], g["G31"]])
-    g1t = np.array([g["G11T"], g["G21T"], g["G31T"]]) if accel else g1
-    g2 = np.array([g["G12"], g["G22"], g["G32"]]) if accel else np.zeros(3)
     for s in range(n_streams):
-        out[s] = _mirror_kalman_one(consts, g, accel, h_all[s], baro_ok_all[s], acc[s], g1, g1t, g2)
+        out[s] = _mirror_kalman_one(consts, g, accel, h_all[s], baro_ok_all[s], acc[s])
     return init, out
 
 
 def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: bool, h_all: np.ndarray,
-                       baro_ok_all: np.ndarray, acc: np.ndarray, g1: np.ndarray, g1t: np.ndarray,
-                       g2: np.ndarray) -> list[tuple[float, ...]]:
+                       baro_ok_all: np.ndarray, acc: np.ndarray) -> list[tuple[float, ...]]:
     """The Kalman mirror of ONE stream on Python floats (C doubles): the rows of the words in ``word_names`` order.
 
     Until 2026-12-02 (issue 10) the mirror ran every stream at once as numpy arrays, one ``np.where`` per step
@@ -238,9 +234,10 @@ def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: 
     e_gate, gate_n, apo_n = float(consts.E_GATE), int(consts.GATE_N), int(consts.APO_N)
     mach_vlo, v_lift = consts.MACH_VLO, consts.V_LIFT
     acc_g = g["ACC_G"] if accel else 0.0
-    g11, g21, g31 = g1.tolist()
-    g11t, g21t, g31t = g1t.tolist()
-    g12, g22, g32 = g2.tolist()
+    g11, g21, g31 = (float(g[n]) for n in ("G11", "G21", "G31"))
+    # the transonic barometer gains and the accelerometer gains (kalman_accel; not read otherwise)
+    g11t, g21t, g31t = (float(g[n]) for n in ("G11T", "G21T", "G31T")) if accel else (g11, g21, g31)
+    g12, g22, g32 = (float(g[n]) for n in ("G12", "G22", "G32")) if accel else (0.0, 0.0, 0.0)
     hs, oks, accs = h_all.tolist(), baro_ok_all.tolist(), acc.tolist()
     x1 = gnd = hs[0]
     x2 = x3 = sumz = suma = apfrac = 0.0
