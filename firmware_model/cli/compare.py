@@ -112,8 +112,8 @@ def bias_table(program: str = "kalman_baro", ks: tuple[int, ...] = (5, 6, 7, 8),
     units_per_metre`` m/s^2, the default sensor's counts per metre at the pad) read through the build's sensor
     transfer function (the one its altitude table inverts; default pressure ADC) plus Gaussian noise of 2 counts
     (8 streams, seed 0), for floor and half_up, next to the linear steady-state prediction ``(I - (I-KH)F)^-1
-    ((I-KH) u + r)`` with uniform rounding errors (floor: mean -1/2 LSB per shift; half_up: 0) and the design
-    brief's prediction for the velocity, ``1/2 * 2^k / 256`` units/s = ``2^(k-1)`` LSB.
+    ((I-KH) u + r)`` with uniform rounding errors (floor: mean -1/2 LSB per shift; half_up: 0) and the prediction
+    we started from for the velocity, ``1/2 * 2^k / 256`` units/s = ``2^(k-1)`` LSB.
 
     (Until this was written the input was ``z = a t^2 / 2 + 1000`` counts into a ``baro_sign = +1`` build, whose
     table maps every count to a pressure below zero, i.e. to one clamped altitude: kalman_baro then tracked a
@@ -135,7 +135,7 @@ def bias_table(program: str = "kalman_baro", ks: tuple[int, ...] = (5, 6, 7, 8),
             + f", {seconds:g} s x 8 streams; bias = mean(integer - float mirror) over the second half",
             "",
             "| k | rounding | X1 bias (LSB) | X2 bias (LSB) | X2 bias (m/s) | X3 bias (LSB) "
-            "| linear prediction X1, X2, X3 (LSB) | design brief X2 (LSB) |", "|---|---|---|---|---|---|---|---|"]
+            "| linear prediction X1, X2, X3 (LSB) | predicted X2, ½·2^k/256 units/s (LSB) |", "|---|---|---|---|---|---|---|---|"]
     for k in ks:
         n = int(seconds * 2 ** k)
         t = np.arange(n) / 2 ** k

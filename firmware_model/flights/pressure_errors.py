@@ -3,10 +3,10 @@
 * :func:`transonic_pressure_error`: the Mach-transition error of Schultz n.d. ("a step increase in pressure altitude
   when going above Mach 1 and a step decrease when dropping below"): while the rocket flies above the switching
   Mach number the barometer reads the standard pressure of an altitude ``altitude_step_m`` higher than the true
-  one. Positive ``altitude_step_m`` (the default, +60 m) is the seed's sign: the pressure reads *low* above Mach 1
+  one. Positive ``altitude_step_m`` (the default, +60 m) is Schultz's sign (Schultz n.d.): the pressure reads *low* above Mach 1
   and steps back *up* when the rocket slows through Mach 1, which makes the pressure altitude drop by the step
   while the rocket still climbs -- the dangerous direction for a barometric apogee detector. A negative value
-  models the opposite sign. The seed gives no magnitude: 60 m (about 200 ft) is our choice, stated in
+  models the opposite sign. Schultz gives no magnitude: 60 m (about 200 ft) is our choice, stated in
   docs/flights-sim.md; ``shape`` "step" switches instantly, "ramp" blends linearly over ``width_mach``, and
   ``mach_on``/``mach_off`` give hysteresis (on while accelerating through ``mach_on``, off when slowing through
   ``mach_off``).

@@ -75,7 +75,7 @@ def _s(name, description, mach_class, rocket, tags, **kw) -> Scenario:
     return Scenario(name=name, description=description, mach_class=mach_class, rocket=rocket, tags=tags, **kw)
 
 
-_TS = {}  # default transonic effect: the seed-002 step with the module's default magnitude
+_TS = {}  # default transonic effect: the transonic step of Schultz n.d. with the module's default magnitude
 _SPIKES = {"count": 4, "magnitude_pa": 1500.0, "seed": 7}
 
 _CATALOGUE: tuple[Scenario, ...] = (
@@ -112,7 +112,7 @@ _CATALOGUE: tuple[Scenario, ...] = (
     _s("trans-l1350-m094", "L1350 rocket peaking at Mach ~0.94: near-sonic, no step", "transonic",
        {"motor": "L1350", "dry_mass_kg": 10.0, "diameter_m": 0.13},
        {"baro": ["analog-10", "analog-16"], "noise": ["noisy"], "k": [6]}),
-    _s("trans-m1670-m105", "M1670 rocket through Mach 1.05 with the seed-002 transonic pressure step", "transonic",
+    _s("trans-m1670-m105", "M1670 rocket through Mach 1.05 with the transonic pressure step of Schultz n.d.", "transonic",
        {"motor": "M1670", "dry_mass_kg": 12.0, "diameter_m": 0.127},
        {"baro": ["analog-10", "analog-16", "ms5607"], "noise": ["none", "noisy"], "k": [5, 6, 7]}, transonic=_TS),
     _s("trans-m1670-m105-clean", "trans-m1670-m105 without the pressure step (the pair isolates the effect)",
