@@ -18,7 +18,7 @@ from __future__ import annotations
 import os
 from dataclasses import replace
 from pathlib import Path
-from typing import Iterable, Sequence
+from typing import Any, Iterable, Sequence
 
 from firmware_model.errors import UserError
 from firmware_model.flights.evaluate import FlightSpec
@@ -31,6 +31,21 @@ SHARED_LOGS: tuple[str, ...] = (
     "altosui/2012-05-28-serial-319-flight-005.csv",
     "altosui/2012-10-20-serial-068-flight-004.csv",
     "cats/hedy-baro.csv",
+    # issue 21: the other formats. One row per file that holds a flight's barometer; a file read through its
+    # partner (hedy-imu, piccard-cats-imu_raw) is covered by that row; companions (events, states) are not logs.
+    "euroc21/piccard-telemega.csv",
+    "euroc21/piccard-telemega-serial-6733-flight-0004.eeprom",
+    "euroc21/piccard-telemetrum-nosecone-serial-5877-flight-0002.eeprom",
+    "euroc21/piccard-cats-baro_raw.csv",
+    "euroc21/sta-carl2-rrc3.csv",
+    "euroc21/sta-carl2-eggtimer.csv",
+    "euroc21/lynx-pressure_ms5803.csv",
+    "euroc21/lynx-pressure_static_port.csv",
+    "euroc21/lynx-eggtimer.csv",
+    "euroc21/euler-eggtimer.csv",
+    "rocketpy/juno3-rrc3.csv",
+    "rocketpy/ndrt-2020-raven.csv",
+    "ncsu/jackpot-launch-3-firm.csv",
 )
 
 #: Default sensing of a ``sim:NAME`` argument: (barometer preset, accelerometer preset, noisy, k).
@@ -62,7 +77,11 @@ def shared_logs() -> list[Path]:
 
 def log_label(path: Path) -> str:
     name = path.stem
-    return "hedy (CATS)" if name == "hedy-baro" else name
+    if name == "hedy-baro":
+        return "hedy (CATS)"
+    if name == "piccard-cats-baro_raw":
+        return "piccard (CATS raw)"
+    return name
 
 
 def pascal_supported() -> bool:
@@ -160,10 +179,11 @@ def named_set(name: str) -> list[FlightSpec]:
 
 def resolve_flights(items: Iterable[str], simulated: bool = False, logs: bool = False, ks: Sequence[int] = (7,),
                     baro: str | None = None, accel: str | None = None, noise: bool = True,
-                    format: str | None = None) -> list[FlightSpec]:
+                    format: str | None = None, **reader: Any) -> list[FlightSpec]:
     """FLIGHT arguments -> rows: files and ``sim:NAME`` (``sim:all``: every scenario) at each k in ``ks`` with the given sensing (files keep
     their own sensor and get no added noise unless a preset is named), ``set:NAME`` as defined, then every
-    scenario (``simulated``) and every shared log (``logs``)."""
+    scenario (``simulated``) and every shared log (``logs``). ``reader``: reader options for the FLIGHT files
+    (``sensor``, ``columns``, ``site_altitude_m``)."""
     specs: list[FlightSpec] = []
     for k in ks:
         if not isinstance(k, int) or not 0 <= k <= 10:
@@ -188,7 +208,8 @@ def resolve_flights(items: Iterable[str], simulated: bool = False, logs: bool = 
         for k in ks:
             own = baro is None and accel is None
             specs.append(FlightSpec(item, k=k, baro=baro, accel=accel, noise=noise and not own, format=format,
-                                    label=_label(log_label(path), k, ks)))
+                                    label=_label(log_label(path), k, ks),
+                                    **{key: v for key, v in reader.items() if v is not None}))
     if simulated:
         for k in ks:
             specs += [replace(s, k=k, label=_label(s.label or s.name, k, ks))

@@ -90,6 +90,8 @@ def liftoff_time(record: FlightRecord) -> float:
     if f is not None and np.sum(np.isfinite(f)) > 10:
         first = np.isfinite(f) & (t <= t[0] + 0.25)
         pad = float(np.median(f[first])) if first.any() else G0
+        if pad > 1.5 * G0:      # the log starts accelerating (after liftoff / during ignition): the nominal 1 g
+            pad = G0
         hi = np.nan_to_num(f, nan=-np.inf) > pad + 2.0 * G0
         for i in np.nonzero(hi)[0]:
             j = np.searchsorted(t, t[i] + 0.05)

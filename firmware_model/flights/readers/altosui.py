@@ -186,7 +186,8 @@ def read(path: Path) -> FlightRecord:
     else:
         baro_hint = "unknown"
     provenance = {
-        "source": str(path), "format": "altosui", "own_computer": "AltOS", "csv_version": version, "licence": licence, "origin": origin,
+        "source": str(path), "format": "altosui", "own_computer": "AltOS", "csv_version": version,
+        "licence": licence, "origin": origin,
         "rows": n, "altos_config": config, "baro_sensor_hint": baro_hint, "notes": notes,
         "repeated_timestamps_dropped": int(repeats), "conflicting_repeats": int(conflicting),
     }

@@ -87,8 +87,8 @@ def read(path: Path) -> FlightRecord:
                      "event is read from the temperature column")
     bad = np.nonzero(~(hpa > 0) & np.isfinite(hpa))[0]
     if bad.size:
-        raise fail(path, lines[int(bad[0])], f"pressure: {table.rows[int(bad[0])][1][table.index('pressure')].strip()!r}"
-                   " hPa is not positive")
+        field_text = table.rows[int(bad[0])][1][table.index("pressure")].strip()
+        raise fail(path, lines[int(bad[0])], f"pressure: {field_text} hPa is not positive")
     if np.any(np.diff(t) <= 0) and _text_sorted(table, t):
         order = np.argsort(t, kind="stable")
         t, hpa = t[order], hpa[order]
