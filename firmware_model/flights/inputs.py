@@ -144,7 +144,7 @@ def check_span(record: FlightRecord, a: float, b: float, k: int, max_gap_s: floa
 
 def _end_before_gap(record: FlightRecord, a: float, b: float, max_gap_s: float) -> tuple[float, str]:
     """The default end of the stream: the log's last row, or the row before the first gap longer than
-    ``max_gap_s`` when that gap comes after the lowest pressure (the apogee) of the rows before it: a logger that
+    ``max_gap_s`` when that gap comes 3 s or more after the lowest pressure (the apogee) of the rows before it: a logger that
     slows down or pauses after the flight (an AltOS nose cone still logging 37 minutes later) ends the stream there,
     said in the report. A gap before the apogee is left to :func:`check_span` (refused)."""
     t = np.asarray(record.time_s, dtype=np.float64)
@@ -158,7 +158,7 @@ def _end_before_gap(record: FlightRecord, a: float, b: float, max_gap_s: float) 
     if not ok.any() or t[i] <= a:
         return b, ""
     top = int(np.argmin(np.where(ok, p[: i + 1], np.inf)))
-    if t[top] + 5.0 > t[i]:
+    if t[top] + 3.0 > t[i]:     # the reference fits up to 2.5 s either side of the peak
         return b, ""
     return float(t[i]), (f"the stream ends at {show(float(t[i]))} s ({_where(record, i)}): the next row comes "
                          f"{show(round(float(d[i]), 6))} s later (more than the {show(max_gap_s)} s bridged), after "

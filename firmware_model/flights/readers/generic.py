@@ -169,7 +169,7 @@ def read(path: Path) -> FlightRecord:
     }
     return FlightRecord(name=meta.get("name", path.stem), time_s=t, pressure_pa=p, accel_mps2=acc,
                         temperature_c=values.get("temperature_c"), ground_pressure_pa=ground, truth=truth,
-                        provenance=provenance)
+                        provenance=provenance, row_lines=np.asarray(line_of))
 
 
 def _fmt(x: float) -> str:
