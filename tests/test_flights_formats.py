@@ -483,3 +483,31 @@ def test_property_bad_number_names_its_line(fmt: str, data: st.DataObject) -> No
         with pytest.raises(UserError) as exc:
             read_flight(p, format=fmt, **({"columns": COLMAP} if fmt == "columns" else {}))
         assert str(exc.value).startswith(f"{p}:{row}: "), str(exc.value)
+
+
+# ------------------------------------------------------------------------------------------------ late starts
+@needs_shared
+def test_log_trimmed_in_boost_uses_the_nominal_1g() -> None:
+    """serial 068 with its first 0.9 s cut off (it now starts in boost at 0.6 s): detected as a late start; with
+    the accelerometer's nominal 1 g on the pad the recursive filter fires on the same sample as on the whole log,
+    kalman_accel fires within 1 s of it (taking the pad from the first rows, both never fired: measured)."""
+    import dataclasses
+
+    from firmware_model.flights.evaluate import FlightSpec, evaluate_flight, methods_named
+
+    path = SHARED / "altosui/2012-10-20-serial-068-flight-004.csv"
+    rec = read_flight(path)
+    spec = FlightSpec(str(path), noise=False)
+    methods = methods_named(["rec_quarter", "kalman_accel"])
+    full = evaluate_flight(spec, methods, record=rec)
+    keep = rec.time_s >= 0.6
+    cut = dataclasses.replace(rec, time_s=rec.time_s[keep], pressure_pa=rec.pressure_pa[keep],
+                              accel_mps2=rec.accel_mps2[keep], temperature_c=None, row_lines=None,
+                              events={k: v for k, v in rec.events.items() if v >= 0.6})
+    fi = firmware_inputs(cut, 7)
+    assert any("starts after liftoff" in n and "nominal 1 g" in n for n in fi.report.notes)
+    got = evaluate_flight(spec, methods, record=cut)
+    assert got.detections["rec_quarter"].time_s == full.detections["rec_quarter"].time_s
+    assert abs(got.detections["kalman_accel"].time_s - full.detections["kalman_accel"].time_s) < 1.0
+    refused = firmware_inputs(cut, 7, late="refuse")
+    assert not refused.has_accel and any("accelerometer REFUSED" in n for n in refused.report.notes)

@@ -69,6 +69,8 @@ METHODS: dict[str, Method] = {m.name: m for m in (
     Method("ideal_kalman", "ideal float Kalman", "kalman_baro", engine="ideal"),
 )}
 DEFAULT_METHODS: tuple[str, ...] = tuple(METHODS)
+#: Programs that read the accelerometer (liftoff, velocity): n/a on a log without one, not "miss".
+ACCEL_PROGRAMS: frozenset[str] = frozenset({"recursive", "kalman_accel"})
 
 
 def methods_named(names: Iterable[str] | None) -> list[Method]:
@@ -399,7 +401,7 @@ def evaluate_inputs(record: FlightRecord, inputs: Any, spec: FlightSpec, methods
     notes: list[str] = []
     has_accel = bool(getattr(inputs, "has_accel", True))
     for method in methods:
-        if method.program == "kalman_accel" and not has_accel:
+        if method.program in ACCEL_PROGRAMS and not has_accel:
             detections[method.name] = Detection(method.name, -1, None, failed="the log has no accelerometer")
             notes.append(f"{method.name}: not run: the log has no accelerometer")
             continue

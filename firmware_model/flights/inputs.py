@@ -178,7 +178,8 @@ def late_start(record: FlightRecord, lift: float) -> str | None:
         if ok.any():
             g = float(np.median(f[ok])) / G0
             if abs(g - 1.0) > 0.15:
-                return f"the accelerometer reads {g:.2f} g before liftoff (already accelerating)"
+                return (f"the accelerometer reads {g:.2f} g before liftoff, not 1 g: already accelerating, "
+                        "or not the rocket's axis")
     return None
 
 

@@ -325,21 +325,22 @@ def reference_apogee(record: FlightRecord) -> ReferenceApogee:
 # ------------------------------------------------------------------------------------------------ a table
 def reference_table(paths: list[str], format: str | None = None) -> str:  # noqa: A002
     """The Markdown table of docs/flights.md for flight logs ``paths``: reference apogee, its uncertainty,
-    altitude, fitted curvature, spikes rejected, and AltOS's own apogee against it where the log has one.
+    altitude, fitted curvature, spikes rejected, and the log's own computer's apogee against it where the log has
+    one (AltOS's first drogue state, an RRC3's Drogue event, CATS's EV_APOGEE, ...: ``FlightRecord.own_apogee``).
     ``python -m firmware_model.flights.reference LOG...`` prints it."""
     from firmware_model.flights.readers import read_flight
 
     out = ["| log | reference apogee (s) | ± (s) | altitude AGL (m) | curvature (m/s²) | spikes rejected "
-           "| AltOS apogee (s) | AltOS − reference (s) |", "|---|---|---|---|---|---|---|---|"]
+           "| own computer's apogee (s) | own − reference (s) |", "|---|---|---|---|---|---|---|---|"]
     for path in paths:
         rec = read_flight(path, format=format)
         ref = reference_apogee(rec)
-        altos = rec.events.get("altos_apogee")
+        own = rec.own_apogee()
         warn = " ⚠" if "warning" in ref.notes else ""
         curv = ref.notes.get("curvature_mps2")
         out.append(f"| {rec.name} | {ref.time_s:.3f}{warn} | {ref.uncertainty_s:.3f} | {ref.altitude_m:.1f} | "
                    + ("—" if curv is None else f"{curv:.1f}") + f" | {ref.notes.get('spikes_rejected', 0)} | "
-                   + ("— | — |" if altos is None else f"{altos:.2f} | {altos - ref.time_s:+.2f} |"))
+                   + ("— | — |" if own is None else f"{own[0]} {own[1]:.2f} | {own[1] - ref.time_s:+.2f} |"))
     return "\n".join(out)
 
 
