@@ -21,7 +21,7 @@ from hypothesis import strategies as st
 from firmware_model.atmosphere import G0, altitude_m
 from firmware_model.errors import UserError
 from firmware_model.flights.inputs import firmware_inputs
-from firmware_model.flights.readers import FORMATS, _matches, detect_format, not_a_log, read_flight
+from firmware_model.flights.readers import _matches, detect_format, not_a_log, read_flight
 from firmware_model.flights.readers._common import read_text
 from firmware_model.flights.readers.columns import parse_map
 from firmware_model.flights.readers.eeprom import ms5607_pressure
@@ -203,7 +203,8 @@ def test_telemetrum_eeprom_words_reach_the_firmware_unchanged() -> None:
     src = np.searchsorted(t, fi.time_s[after], side="right") - 1
     assert np.array_equal(fi.adc[after], np.asarray(rec.pressure_pa)[src].astype(np.int64))
     # the words: the first sample after the log's start reads row 0 (D1 6284396, D2 8846756 -> 99881 Pa)
-    assert int(fi.adc[after][0]) == 99881 and fi.baro.kind == "pascal" and fi.config_overrides()["baro_kind"] == "pascal"
+    assert int(fi.adc[after][0]) == 99881 and fi.baro.kind == "pascal"
+    assert fi.config_overrides()["baro_kind"] == "pascal"
 
 
 # ------------------------------------------------------------------------------------------------ formats
@@ -259,7 +260,8 @@ def test_firm_board_accel_axis_warning() -> None:
     """The issue's example map takes raw_acceleration_z_gs, which reads ~0 g on the pad: the notes say so; the
     built-in map takes the rotated axis, +1 g on the pad."""
     path = SHARED / "ncsu/jackpot-launch-3-firm.csv"
-    rec = read_flight(path, columns="time_s=timestamp_seconds,pressure_pa=pressure_pascals,accel_g=raw_acceleration_z_gs")
+    rec = read_flight(path, columns="time_s=timestamp_seconds,pressure_pa=pressure_pascals,"
+                                    "accel_g=raw_acceleration_z_gs")
     assert any(n.startswith("WARNING: raw_acceleration_z_gs reads 0.05 g") for n in rec.provenance["notes"])
     own = read_flight(path)
     assert abs(np.median(own.accel_mps2[:20]) / G0 - 1.0) < 0.01
@@ -395,7 +397,7 @@ COLMAP = "time_s=a,pressure_pa=b,accel_g=c"
 
 @pytest.mark.parametrize("fmt", sorted(VALID))
 def test_valid_fuzz_seeds_read(fmt: str, tmp_path: Path) -> None:
-    p = _write(tmp_path, f"f-baro_raw.csv" if fmt == "cats_raw" else f"f-{fmt}.csv", VALID[fmt])
+    p = _write(tmp_path, "f-baro_raw.csv" if fmt == "cats_raw" else f"f-{fmt}.csv", VALID[fmt])
     rec = read_flight(p, columns=COLMAP) if fmt == "columns" else read_flight(p)
     assert rec.n >= 20
     if fmt != "columns":

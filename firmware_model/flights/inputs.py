@@ -144,8 +144,8 @@ def check_span(record: FlightRecord, a: float, b: float, k: int, max_gap_s: floa
 
 def _end_before_gap(record: FlightRecord, a: float, b: float, max_gap_s: float) -> tuple[float, str]:
     """The default end of the stream: the log's last row, or the row before the first gap longer than
-    ``max_gap_s`` when that gap comes 3 s or more after the lowest pressure (the apogee) of the rows before it: a logger that
-    slows down or pauses after the flight (an AltOS nose cone still logging 37 minutes later) ends the stream there,
+    ``max_gap_s`` when that gap comes 3 s or more after the lowest pressure (the apogee) of the rows before it: a
+    logger that slows down or pauses after the flight (an AltOS nose cone still logging 37 minutes later) ends the stream there,
     said in the report. A gap before the apogee is left to :func:`check_span` (refused)."""
     t = np.asarray(record.time_s, dtype=np.float64)
     p = np.asarray(record.pressure_pa, dtype=np.float64)
