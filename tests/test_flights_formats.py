@@ -445,7 +445,7 @@ BREAKS: list[tuple[str, int, str, str]] = [
     ("rrc3", 4, "0,3;1,5", "2 fields, the header"),
     ("eggtimer", 6, "200;abc;0;0;0;0;0;0;0;0;0", "Alt: cannot parse 'abc'"),
     ("eggtimer", 6, "10;100;0;0;0;0;0;0;0;0;0", "time does not increase (0.15 -> 0.01)"),
-    ("board", 5, "0.045000,-5", "pressure: '-5' Pa is not positive"),
+    ("board", 5, "0.045000,-5", "pressure: -5 Pa is not positive"),
     ("board", 5, "0.030000,99000", "time 0.030000 repeated with a different pressure"),
     ("board", 5, "0.0,99000", "time does not increase (0.03 -> 0)"),
     ("cats_raw", 5, "3,1010,BARO9,3900,99999", "are not one row per sensor"),
@@ -513,3 +513,41 @@ def test_log_trimmed_in_boost_uses_the_nominal_1g() -> None:
     assert abs(got.detections["kalman_accel"].time_s - full.detections["kalman_accel"].time_s) < 1.0
     refused = firmware_inputs(cut, 7, late="refuse")
     assert not refused.has_accel and any("accelerometer REFUSED" in n for n in refused.report.notes)
+
+
+def test_eeprom_bad_files_name_their_line(tmp_path: Path) -> None:
+    lines = VALID["eeprom"].splitlines()
+    p = _write(tmp_path, "a.eeprom", "\n".join(lines[:5] + ["41 zz 00"] + lines[6:]) + "\n")
+    with pytest.raises(UserError, match=rf"^{p}:6: 'zz' is not a hex byte"):
+        read_flight(p)
+    q = _write(tmp_path, "b.eeprom", "\n".join(lines[:1] + ['"log_format": 7, "ms5607": {,'] + lines[2:]) + "\n")
+    with pytest.raises(UserError, match=rf"^{q}:2: the configuration is not valid JSON"):
+        read_flight(q, format="eeprom")
+    r = _write(tmp_path, "c.eeprom", VALID["eeprom"].replace('"log_format": 7', '"log_format": 5'))
+    with pytest.raises(UserError, match=rf"^{r}:1: log_format 5 .*only 7 \(TeleMetrum v2/v3\), 19"):
+        read_flight(r)
+    s = _write(tmp_path, "d.eeprom", "\n".join(lines[:3]) + "\n")
+    with pytest.raises(UserError, match=rf"^{s}:3: no 16-byte records after the configuration"):
+        read_flight(s)
+
+
+def test_eeprom_several_flights(tmp_path: Path) -> None:
+    """Two flights in one file (each starts at an F record): the last by default, the other by number."""
+    lines = VALID["eeprom"].splitlines()
+    head, recs = lines[:3], lines[3:]
+    second = []
+    for i, rec in enumerate(recs):
+        b = bytearray(int(x, 16) for x in rec.split())
+        if i == 0:
+            b[4] = 2                                   # flight number 2
+        b[3] = 0x20                                    # later ticks
+        b[1] = 0
+        b[1] = (-(0x5A + sum(b))) & 0xFF
+        second.append(" ".join(f"{x:02x}" for x in b))
+    p = _write(tmp_path, "two.eeprom", "\n".join(head + recs + second) + "\n")
+    last = read_flight(p)
+    assert last.provenance["flights_in_file"] == [1, 2] and last.provenance["flight"] == 2
+    first = read_flight(p, flight=1)
+    assert first.provenance["flight"] == 1 and first.n == last.n == 29
+    with pytest.raises(UserError, match=r"flight 3 is not in this file \(flights \[1, 2\]\)"):
+        read_flight(p, flight=3)

@@ -130,7 +130,7 @@ def read(path: Path) -> FlightRecord:
         t[i] = parse_float(path, num, "time", fields[col["time"]])
         p[i] = parse_float(path, num, "pressure", fields[col["pressure"]])
         if not p[i] > 0:
-            raise fail(path, num, f"pressure: {p[i]!r} Pa is not positive")
+            raise fail(path, num, f"pressure: {fields[col['pressure']].strip()} Pa is not positive")
         acc[i] = parse_float(path, num, "acceleration", fields[col["acceleration"]])
         if temp is not None and col["temperature"] < len(fields):
             temp[i] = parse_float(path, num, "temperature", fields[col["temperature"]], allow_empty=True)

@@ -55,7 +55,7 @@ def read(path: Path, apogee_state: int = APOGEE_STATE) -> FlightRecord:
     lines = table.lines
     bad = np.nonzero(~(p > 0))[0]
     if bad.size:
-        raise fail(path, lines[int(bad[0])], f"pressure: {table.rows[int(bad[0])][1][1].strip()!r} Pa is not positive")
+        raise fail(path, lines[int(bad[0])], f"pressure: {table.rows[int(bad[0])][1][1].strip()} Pa is not positive")
     keep, repeats = check_time(path, lines, t, drop_repeats=True)
     notes = list(table.notes)
     if repeats:
