@@ -207,6 +207,22 @@ def test_telemetrum_eeprom_words_reach_the_firmware_unchanged() -> None:
     assert fi.config_overrides()["baro_kind"] == "pascal"
 
 
+@needs_shared
+def test_telemetrum_v1_adc_words_unchanged_with_hold() -> None:
+    """A TeleMetrum v1 log (AltosUI CSV of serial 882): with the telemetrum_v1 preset, no noise and hold
+    resampling, every word the firmware reads is the flight computer's own 16-bit ADC count, computed here from the
+    logged pressure by the shared README's formula round((P/1000*0.009 - 0.095)*2047*16)."""
+    rec = read_flight(SHARED / "altosui/2012-04-07-serial-882-flight-001.csv")
+    fi = firmware_inputs(rec, 7, baro=BaroSensor.preset("telemetrum_v1"), method="hold")
+    t = np.asarray(rec.time_s)
+    after = fi.time_s >= t[0]
+    src = np.searchsorted(t, fi.time_s[after], side="right") - 1
+    p = np.asarray(rec.pressure_pa)[src]
+    adc = np.array([round((x / 1000 * 0.009 - 0.095) * 2047 * 16) for x in p], dtype=np.int64)
+    assert np.array_equal(fi.adc[after], adc)
+    assert fi.adc[after][:3].tolist() == adc[:3].tolist() and 20000 < adc[0] < 40000
+
+
 # ------------------------------------------------------------------------------------------------ formats
 def test_rrc3_decimal_comma_hpa_and_events(tmp_path: Path) -> None:
     rows = ["Time;Altitude;Pressure;Velocity;Temperature;Events;Voltages;"]
@@ -350,17 +366,22 @@ def test_clock_jump_after_apogee_ends_the_stream(tmp_path: Path) -> None:
 
 
 def test_clock_jump_run_stays_small_and_exits_2(tmp_path: Path) -> None:
-    """``fwemu run`` on a log with a 10^6 s clock jump: one line naming file:line, exit 2, and the child's peak
-    RSS stays under 600 MB (the unbounded resampler reached 18 GB)."""
+    """``fwemu run`` and ``fwemu evaluate`` on a log with a 10^6 s clock jump: one line naming file:line, exit 2,
+    and the children's peak RSS stays under 600 MB (the unbounded resampler reached 18 GB and 4.2 GB)."""
     p = _jump_csv(tmp_path, 400, 1e6)
     before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
     proc = subprocess.run([sys.executable, "-c", "import sys; from firmware_model.cli import entry; "
                            "sys.argv[0] = 'fwemu'; sys.exit(entry())", "run", "--firmware", "kalman_baro",
                            "--input", str(p), "--model", "--quiet"],
                           capture_output=True, text=True, env={**os.environ, "PYTHONPATH": str(REPO)}, timeout=300)
-    peak_kib = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
     assert proc.returncode == 2, proc.stderr
     assert f"{p}:402: time jumps by 1000000.01 s" in proc.stderr and "Traceback" not in proc.stderr
+    ev = subprocess.run([sys.executable, "-c", "import sys; from firmware_model.cli import entry; "
+                         "sys.argv[0] = 'fwemu'; sys.exit(entry())", "evaluate", str(p), "--methods", "kalman_baro",
+                         "--out", str(tmp_path / "ev")],
+                        capture_output=True, text=True, env={**os.environ, "PYTHONPATH": str(REPO)}, timeout=300)
+    peak_kib = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+    assert ev.returncode == 2 and f"{p}:402: time jumps" in ev.stderr and "Traceback" not in ev.stderr
     assert max(peak_kib, before) < 600 * 1024
 
 
