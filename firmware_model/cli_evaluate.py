@@ -42,6 +42,11 @@ def add_reader_arguments(p: argparse.ArgumentParser) -> None:
                    help="launch site altitude above sea level (m) for altitude-only logs (Eggtimer, Raven, an "
                         "altitude column): their pressure comes from the standard atmosphere (default: the log's "
                         "own note of it, else sea level)")
+    p.add_argument("--flight", type=int, metavar="N", help="the flight of an AltOS .eeprom holding several "
+                                                           "(default: the last)")
+    p.add_argument("--late-start", choices=("nominal", "refuse"), default="nominal", dest="late",
+                   help="a log that starts after liftoff: its accelerometer's pad value is the sensor's nominal "
+                        "1 g (default), or the accelerometer is refused; the report says which")
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -66,7 +71,8 @@ def specs_from_args(args: argparse.Namespace) -> list:
 
     return resolve_flights(args.flights, simulated=args.simulated, logs=args.logs, ks=args.k or [7],
                            baro=args.baro, accel=args.accel, noise=not args.no_noise, format=args.format,
-                           sensor=args.sensor, columns=args.columns, site_altitude_m=args.site_altitude_m)
+                           sensor=args.sensor, columns=args.columns, site_altitude_m=args.site_altitude_m,
+                           flight=args.flight, late=args.late)
 
 
 def progress_printer(label: str):

@@ -109,8 +109,8 @@ def run_run(args: argparse.Namespace) -> int:
     """Run one flight through one build; write the CSV and print the summary."""
     from firmware_model.build import build_firmware
     from firmware_model.constants import build_constants
-    from firmware_model.flights.evaluate import (FlightSpec, altitude_of_counts, flight_inputs, load_record,
-                                                 reference_for, sensor_config)
+    from firmware_model.flights.evaluate import (ACCEL_PROGRAMS, FlightSpec, altitude_of_counts, flight_inputs,
+                                                 load_record, reference_for, sensor_config)
     from firmware_model.flights.runcsv import from_trace
 
     method = resolve_firmware(args.firmware)
@@ -118,9 +118,12 @@ def run_run(args: argparse.Namespace) -> int:
     k = args.k if args.k is not None else int(fields.get("k", 7))
     spec = FlightSpec(args.input, k=k, baro=args.baro, accel=args.accel, noise=not args.no_noise, seed=args.seed,
                       format=args.format, method=args.resample, sensor=args.sensor, columns=args.columns,
-                      site_altitude_m=args.site_altitude_m)
+                      site_altitude_m=args.site_altitude_m, flight=args.flight, late=args.late)
     record = load_record(args.input, args.format, **spec.reader_options())
     inputs = flight_inputs(record, spec)
+    if method.program in ACCEL_PROGRAMS and not inputs.has_accel:
+        raise UserError(f"{args.input}: --firmware {args.firmware} reads the accelerometer and this stream has none "
+                        "(the log has none, or --late-start refuse): use kalman_baro")
     fields.pop("k", None)
     fields.pop("program", None)
     cfg = method.config(k, sensor_config(inputs), **fields)

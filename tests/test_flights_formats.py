@@ -572,3 +572,22 @@ def test_eeprom_several_flights(tmp_path: Path) -> None:
     assert first.provenance["flight"] == 1 and first.n == last.n == 29
     with pytest.raises(UserError, match=r"flight 3 is not in this file \(flights \[1, 2\]\)"):
         read_flight(p, flight=3)
+
+
+@needs_shared
+def test_cli_reader_options_and_accel_programs_without_accel(capsys: pytest.CaptureFixture[str]) -> None:
+    from firmware_model.cli import main
+
+    juno = str(SHARED / "rocketpy/juno3-rrc3.csv")
+    assert main(["run", "--firmware", "kalman_baro", "--input", juno, "--model", "--quiet"]) == 0
+    out = capsys.readouterr().out
+    assert "RRC3 apogee (the log's own computer): 30.450 s" in out and "log: rrc3 format" in out
+    assert main(["run", "--firmware", "kalman_accel", "--input", juno, "--model", "--quiet"]) == 2
+    assert "reads the accelerometer and this stream has none" in capsys.readouterr().err
+    raven = str(SHARED / "rocketpy/ndrt-2020-raven.csv")
+    assert main(["run", "--firmware", "kalman_baro", "--input", raven, "--model", "--quiet",
+                 "--site-altitude", "250"]) == 0
+    out = capsys.readouterr().out
+    assert "SYNTHETIC BAROMETER" in out and "site altitude 250.0 m (given)" in out
+    assert main(["run", "--firmware", "kalman_baro", "--input", juno, "--sensor", "BARO1", "--model"]) == 2
+    assert "--sensor does not apply to a rrc3 log" in capsys.readouterr().err

@@ -183,7 +183,8 @@ def resolve_flights(items: Iterable[str], simulated: bool = False, logs: bool = 
     """FLIGHT arguments -> rows: files and ``sim:NAME`` (``sim:all``: every scenario) at each k in ``ks`` with the given sensing (files keep
     their own sensor and get no added noise unless a preset is named), ``set:NAME`` as defined, then every
     scenario (``simulated``) and every shared log (``logs``). ``reader``: reader options for the FLIGHT files
-    (``sensor``, ``columns``, ``site_altitude_m``)."""
+    (``sensor``, ``columns``, ``site_altitude_m``, ``flight``) and ``late`` (a late start's accelerometer, also
+    for ``logs``)."""
     specs: list[FlightSpec] = []
     for k in ks:
         if not isinstance(k, int) or not 0 <= k <= 10:
@@ -210,13 +211,14 @@ def resolve_flights(items: Iterable[str], simulated: bool = False, logs: bool = 
             specs.append(FlightSpec(item, k=k, baro=baro, accel=accel, noise=noise and not own, format=format,
                                     label=_label(log_label(path), k, ks),
                                     **{key: v for key, v in reader.items() if v is not None}))
+    late = reader.get("late") or "nominal"
     if simulated:
         for k in ks:
             specs += [replace(s, k=k, label=_label(s.label or s.name, k, ks))
                       for s in simulated_set(with_variants=False)[0]]
     if logs:
         for k in ks:
-            specs += [replace(s, label=_label(s.label or s.name, k, ks)) for s in logs_set(k)]
+            specs += [replace(s, label=_label(s.label or s.name, k, ks), late=late) for s in logs_set(k)]
     return specs
 
 

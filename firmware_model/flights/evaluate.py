@@ -201,10 +201,13 @@ class FlightSpec:
     method: str = "linear"
     sensor: str | None = None               # reader options (flights.readers.read_flight): multi-sensor logs,
     columns: str | None = None              # a column map,
-    site_altitude_m: float | None = None    # the site of an altitude-only log
+    site_altitude_m: float | None = None    # the site of an altitude-only log,
+    flight: int | None = None               # the flight of a multi-flight .eeprom
+    late: str = "nominal"                   # a log starting after liftoff: "nominal" 1 g pad, or "refuse" the accel
 
     def reader_options(self) -> dict[str, Any]:
-        return {"sensor": self.sensor, "columns": self.columns, "site_altitude_m": self.site_altitude_m}
+        return {"sensor": self.sensor, "columns": self.columns, "site_altitude_m": self.site_altitude_m,
+                "flight": self.flight}
 
     @property
     def name(self) -> str:
@@ -293,7 +296,8 @@ def flight_inputs(record: FlightRecord, spec: FlightSpec) -> Any:
     from firmware_model.flights.inputs import firmware_inputs
 
     baro, accel = sensors_for(spec)
-    return firmware_inputs(record, spec.k, baro=baro, accel=accel, method=spec.method, seed=spec.seed)
+    return firmware_inputs(record, spec.k, baro=baro, accel=accel, method=spec.method, seed=spec.seed,
+                           late=spec.late)
 
 
 @dataclass
