@@ -185,6 +185,12 @@ def read(path: Path, flight: int | None = None) -> FlightRecord:
     # the file's line of each record: the hex dump has a fixed number of bytes per line
     per_line = len(body.splitlines()[1].split()) if len(body.splitlines()) > 1 else 32
     lines = [body_line + 1 + (i * size) // max(per_line, 1) for i in line_list]
+    pa = np.asarray(p_list, dtype=np.float64)
+    bad = np.nonzero(~((pa > 0) & (pa < 200000)))[0]
+    if bad.size:
+        i = int(bad[0])
+        raise fail(path, lines[i], f"sensor record at {tt[i]:g} s: D1 {raw_list[i]}, compensated pressure "
+                                   f"{p_list[i]} Pa is not a barometer reading (0 .. 200000 Pa)")
     keep, repeats = check_time(path, lines, tt, drop_repeats=True)
     notes = [f"{kind} (log_format {fmt}), {cfg.get('product', '?')} serial {cfg.get('serial', '?')}, "
              f"flight {numbers[pick]}" + (f" of flights {numbers} in the file" if len(numbers) > 1 else ""),
@@ -212,6 +218,6 @@ def read(path: Path, flight: int | None = None) -> FlightRecord:
                   "log_format": fmt, "flight": numbers[pick], "flights_in_file": numbers,
                   "ground_pressure_pa": ground_pres, "baro_sensor_hint": "pascal", "baro_preset": "ms5607",
                   "raw_baro_d1": np.asarray(raw_list, dtype=np.int64)[keep].tolist(), "notes": notes}
-    return FlightRecord(name=path.stem, time_s=tt[keep], pressure_pa=np.asarray(p_list, dtype=np.float64)[keep],
+    return FlightRecord(name=path.stem, time_s=tt[keep], pressure_pa=pa[keep],
                         temperature_c=np.asarray(temp_list)[keep], accel_counts=acc, accel_calibration=cal,
                         events=events, provenance=provenance, row_lines=np.asarray(lines)[keep])
