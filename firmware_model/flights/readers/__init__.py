@@ -63,7 +63,8 @@ def not_a_log(path: str | Path) -> str | None:
         if why:
             return why
     first = next((ln.strip() for ln in text.splitlines() if ln.strip()), "")
-    if path.suffix.lower() in (".md", ".txt", "") or "license" in path.name.lower():
+    name = path.name.lower()
+    if path.suffix.lower() in (".md", ".txt", ".rst") or name.startswith(("license", "licence", "readme", "copying")):
         return f"a text document ({first[:40]!r}), not a log"
     return None
 
