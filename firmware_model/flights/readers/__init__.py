@@ -19,7 +19,7 @@ it). One module per format (docs/flights.md has each format's facts):
 
 :func:`not_a_log` says why a file is not a flight log (README, LICENSE, an Eggtimer info text, a CATS events
 file, a board's state file) so that a folder can be read file by file. Bad files raise one
-:class:`~firmware_model.errors.UserError` naming the file and line.
+:class:`~firmware_model.runtime.errors.UserError` naming the file and line (docs/flights.md).
 """
 
 from __future__ import annotations
@@ -27,12 +27,12 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from firmware_model.errors import UserError
 from firmware_model.flights.readers import (altosui, board, cats, cats_raw, columns, eeprom, eggtimer, generic,
                                             raven, rdas, rrc3)
 from firmware_model.flights.readers._common import read_text
 from firmware_model.flights.readers.generic import write_generic
 from firmware_model.flights.record import FlightRecord
+from firmware_model.runtime.errors import UserError
 
 #: Known formats.
 FORMATS: tuple[str, ...] = ("altosui", "eeprom", "cats", "cats_raw", "rrc3", "eggtimer", "raven", "board",

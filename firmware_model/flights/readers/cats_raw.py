@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from firmware_model.atmosphere import G0
+from firmware_model.spec.atmosphere import G0
 from firmware_model.flights.readers._common import Table, check_time, fail, gaps_note, licence_of, read_text
 from firmware_model.flights.readers.cats import axial_axis
 from firmware_model.flights.record import FlightRecord

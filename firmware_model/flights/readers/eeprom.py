@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from firmware_model.atmosphere import G0
+from firmware_model.spec.atmosphere import G0
 from firmware_model.flights.readers._common import check_time, fail, licence_of, read_text
 from firmware_model.flights.record import FlightRecord
 

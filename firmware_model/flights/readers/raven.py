@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from firmware_model.atmosphere import G0
+from firmware_model.spec.atmosphere import G0
 from firmware_model.flights.readers._common import (Table, check_time, fail, gaps_note, header_fields,
                                                     licence_of, parse_float, read_text, synthetic_pressure)
 from firmware_model.flights.record import FlightRecord
