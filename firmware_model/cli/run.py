@@ -15,10 +15,11 @@ from typing import Any
 
 import numpy as np
 
-from firmware_model.cli.args import nonnegative_int
+from firmware_model.cli.args import add_reader_arguments, nonnegative_int
 from firmware_model.firmware.assemble import build_firmware
 from firmware_model.firmware.harness import run_firmware
 from firmware_model.flights.evaluate import (
+    ACCEL_PROGRAMS,
     FlightSpec,
     altitude_of_counts,
     flight_inputs,
@@ -29,6 +30,7 @@ from firmware_model.flights.evaluate import (
 )
 from firmware_model.flights.runcsv import from_trace
 from firmware_model.model.run import run_model
+from firmware_model.runtime.errors import UserError
 from firmware_model.runtime.output import write_file
 from firmware_model.runtime.progress import Progress
 from firmware_model.spec.build_constants import build_constants
@@ -47,6 +49,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
                         "rec_quarter, rec_eighth, kalman_baro, kalman_accel)")
     p.add_argument("--input", required=True, metavar="FILE", help="flight file, or sim:NAME for a simulated scenario")
     p.add_argument("--format", help="reader override (default: detected)")
+    add_reader_arguments(p)
     p.add_argument("--config", type=Path, metavar="C",
                    help="build config JSON: its fields override the sensor description and the method's tuning")
     p.add_argument("--k", type=int, help="sample period 2^-k s (default: the config's, else 7)")
@@ -93,9 +96,13 @@ def run_run(args: argparse.Namespace) -> int:
     fields = _config_fields(args.config)
     k = args.k if args.k is not None else int(fields.get("k", 7))
     spec = FlightSpec(args.input, k=k, baro=args.baro, accel=args.accel, noise=not args.no_noise, seed=args.seed,
-                      format=args.format, method=args.resample)
-    record = load_record(args.input, args.format)
+                      format=args.format, method=args.resample, sensor=args.sensor, columns=args.columns,
+                      site_altitude_m=args.site_altitude_m, flight=args.flight, late=args.late)
+    record = load_record(args.input, args.format, **spec.reader_options())
     inputs = flight_inputs(record, spec)
+    if method.program in ACCEL_PROGRAMS and not inputs.has_accel:
+        raise UserError(f"{args.input}: --firmware {args.firmware} reads the accelerometer and this stream has none "
+                        "(the log has none, or --late-start refuse): use kalman_baro")
     fields.pop("k", None)
     fields.pop("program", None)
     cfg = method.config(k, sensor_config(inputs), **fields)
@@ -129,6 +136,11 @@ def summary(table: Any, record: Any, inputs: Any, cfg: Any, engine: str, elapsed
             else f"baro {cfg.baro_bits}-bit, {cfg.units_per_metre:.4g} counts/m")
     lines = [f"{record.name}: {cfg.program} (k={cfg.k}, dt={cfg.dt:g} s, {cfg.rounding}, {baro}) on the {engine}: "
              f"{table.time_s.size} samples in {elapsed:.2f} s"]
+    prov = getattr(record, "provenance", {}) or {}
+    if prov.get("format"):
+        lines.append(f"log: {prov['format']} format" + ("; SYNTHETIC BAROMETER (pressure made from the log's "
+                                                         "altitude)" if prov.get("synthetic_baro") else ""))
+    lines += [f"  {n}" for n in prov.get("notes", [])]
     report = getattr(inputs, "report", None)
     if report is not None:
         text = report.summary() if callable(getattr(report, "summary", None)) else str(report)
@@ -156,9 +168,9 @@ def summary(table: Any, record: Any, inputs: Any, cfg: Any, engine: str, elapsed
     lines.append(f"{kind}: {ref.time_s:.3f} s{alt}")
     if apo is not None:
         lines.append(f"error: {apo - ref.time_s:+.3f} s (detection - {kind.split(' ')[0]}; + late)")
-    altos = record.events.get("altos_apogee") if record.events else None
-    if altos is not None:
-        lines.append(f"AltOS apogee: {altos:.3f} s (error {altos - ref.time_s:+.3f} s)")
+    own = record.own_apogee() if hasattr(record, "own_apogee") else None
+    if own is not None:
+        lines.append(f"{own[0]} apogee (the log's own computer): {own[1]:.3f} s (error {own[1] - ref.time_s:+.3f} s)")
     for name in ("MACH_LOCKOUT", "BARO_INVALID"):
         spans = table.intervals(name)
         if spans:

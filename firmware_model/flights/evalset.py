@@ -18,7 +18,7 @@ from __future__ import annotations
 import os
 from dataclasses import replace
 from pathlib import Path
-from typing import Iterable, Sequence
+from typing import Any, Iterable, Sequence
 
 from firmware_model.flights.evaluate import FlightSpec
 from firmware_model.flights.scenarios import get_scenario, scenario_names
@@ -33,6 +33,21 @@ SHARED_LOGS: tuple[str, ...] = (
     "altosui/2012-05-28-serial-319-flight-005.csv",
     "altosui/2012-10-20-serial-068-flight-004.csv",
     "cats/hedy-baro.csv",
+    # issue 21: the other formats. One row per file that holds a flight's barometer; a file read through its
+    # partner (hedy-imu, piccard-cats-imu_raw) is covered by that row; companions (events, states) are not logs.
+    "euroc21/piccard-telemega.csv",
+    "euroc21/piccard-telemega-serial-6733-flight-0004.eeprom",
+    "euroc21/piccard-telemetrum-nosecone-serial-5877-flight-0002.eeprom",
+    "euroc21/piccard-cats-baro_raw.csv",
+    "euroc21/sta-carl2-rrc3.csv",
+    "euroc21/sta-carl2-eggtimer.csv",
+    "euroc21/lynx-pressure_ms5803.csv",
+    "euroc21/lynx-pressure_static_port.csv",
+    "euroc21/lynx-eggtimer.csv",
+    "euroc21/euler-eggtimer.csv",
+    "rocketpy/juno3-rrc3.csv",
+    "rocketpy/ndrt-2020-raven.csv",
+    "ncsu/jackpot-launch-3-firm.csv",
 )
 
 #: Default sensing of a ``sim:NAME`` argument: (barometer preset, accelerometer preset, noisy, k).
@@ -64,7 +79,11 @@ def shared_logs() -> list[Path]:
 
 def log_label(path: Path) -> str:
     name = path.stem
-    return "hedy (CATS)" if name == "hedy-baro" else name
+    if name == "hedy-baro":
+        return "hedy (CATS)"
+    if name == "piccard-cats-baro_raw":
+        return "piccard (CATS raw)"
+    return name
 
 
 def pascal_supported() -> bool:
@@ -157,10 +176,12 @@ def named_set(name: str) -> list[FlightSpec]:
 
 def resolve_flights(items: Iterable[str], simulated: bool = False, logs: bool = False, ks: Sequence[int] = (7,),
                     baro: str | None = None, accel: str | None = None, noise: bool = True,
-                    format: str | None = None) -> list[FlightSpec]:
+                    format: str | None = None, **reader: Any) -> list[FlightSpec]:
     """FLIGHT arguments -> rows: files and ``sim:NAME`` (``sim:all``: every scenario) at each k in ``ks`` with the given sensing (files keep
     their own sensor and get no added noise unless a preset is named), ``set:NAME`` as defined, then every
-    scenario (``simulated``) and every shared log (``logs``)."""
+    scenario (``simulated``) and every shared log (``logs``). ``reader``: reader options for the FLIGHT files
+    (``sensor``, ``columns``, ``site_altitude_m``, ``flight``) and ``late`` (a late start's accelerometer, also
+    for ``logs``)."""
     specs: list[FlightSpec] = []
     for k in ks:
         if not isinstance(k, int) or not 0 <= k <= 10:
@@ -185,14 +206,16 @@ def resolve_flights(items: Iterable[str], simulated: bool = False, logs: bool = 
         for k in ks:
             own = baro is None and accel is None
             specs.append(FlightSpec(item, k=k, baro=baro, accel=accel, noise=noise and not own, format=format,
-                                    label=_label(log_label(path), k, ks)))
+                                    label=_label(log_label(path), k, ks),
+                                    **{key: v for key, v in reader.items() if v is not None}))
+    late = reader.get("late") or "nominal"
     if simulated:
         for k in ks:
             specs += [replace(s, k=k, label=_label(s.label or s.name, k, ks))
                       for s in simulated_set(with_variants=False)[0]]
     if logs:
         for k in ks:
-            specs += [replace(s, label=_label(s.label or s.name, k, ks)) for s in logs_set(k)]
+            specs += [replace(s, label=_label(s.label or s.name, k, ks), late=late) for s in logs_set(k)]
     return specs
 
 

@@ -82,6 +82,8 @@ METHODS: dict[str, Method] = {m.name: m for m in (
     Method("ideal_kalman", "ideal float Kalman", "kalman_baro", engine="ideal"),
 )}
 DEFAULT_METHODS: tuple[str, ...] = tuple(METHODS)
+#: Programs that read the accelerometer (liftoff, velocity): n/a on a log without one, not "miss".
+ACCEL_PROGRAMS: frozenset[str] = frozenset({"recursive", "kalman_accel"})
 
 
 def methods_named(names: Iterable[str] | None) -> list[Method]:
@@ -205,6 +207,15 @@ class FlightSpec:
     label: str | None = None
     format: str | None = None
     method: str = "linear"
+    sensor: str | None = None               # reader options (flights.readers.read_flight): multi-sensor logs,
+    columns: str | None = None              # a column map,
+    site_altitude_m: float | None = None    # the site of an altitude-only log,
+    flight: int | None = None               # the flight of a multi-flight .eeprom
+    late: str = "nominal"                   # a log starting after liftoff: "nominal" 1 g pad, or "refuse" the accel
+
+    def reader_options(self) -> dict[str, Any]:
+        return {"sensor": self.sensor, "columns": self.columns, "site_altitude_m": self.site_altitude_m,
+                "flight": self.flight}
 
     @property
     def name(self) -> str:
@@ -216,13 +227,14 @@ class FlightSpec:
         return base
 
 
-def load_record(source: str, format: str | None = None) -> FlightRecord:
-    """A :class:`FlightRecord` from ``sim:NAME`` (simulated scenario) or a file path."""
+def load_record(source: str, format: str | None = None, **options: Any) -> FlightRecord:
+    """A :class:`FlightRecord` from ``sim:NAME`` (simulated scenario) or a file path (``options``: the reader's,
+    :func:`flights.readers.read_flight`)."""
     if source.startswith("sim:"):
 
         return simulate_scenario(source[4:])
 
-    return read_flight(source, format=format)
+    return read_flight(source, format=format, **options)
 
 
 #: Sensor noise of a "noisy" :class:`FlightSpec` with a named preset: pressure noise (Pa rms, about 0.3 m at sea
@@ -287,7 +299,8 @@ def flight_inputs(record: FlightRecord, spec: FlightSpec) -> Any:
     """The firmware inputs of ``record`` under ``spec`` (:func:`flights.inputs.firmware_inputs`)."""
 
     baro, accel = sensors_for(spec)
-    return firmware_inputs(record, spec.k, baro=baro, accel=accel, method=spec.method, seed=spec.seed)
+    return firmware_inputs(record, spec.k, baro=baro, accel=accel, method=spec.method, seed=spec.seed,
+                           late=spec.late)
 
 
 @dataclass
@@ -304,6 +317,7 @@ class FlightResult:
     n_samples: int
     report: str = ""
     notes: list[str] = field(default_factory=list)
+    own_computer: str = "AltOS"     # who made ``altos_s``: the log's own flight computer (AltOS, RRC3, CATS, ...)
 
     def error(self, method: str) -> float | None:
         """Detection time - reference time (s, late positive) of ``method`` (``"altos"`` for AltOS), or None."""
@@ -315,7 +329,8 @@ class FlightResult:
         ref = asdict(self.reference)
         return {"name": self.name, "source": self.source, "k": self.k, "sensor": self.sensor,
                 "n_samples": self.n_samples, "reference": ref,
-                "altos": None if self.altos_s is None else {"time_s": self.altos_s, "error_s": self.error("altos")},
+                "altos": None if self.altos_s is None else {"time_s": self.altos_s, "error_s": self.error("altos"),
+                                                            "computer": self.own_computer},
                 "methods": {m: dict(asdict(d), error_s=self.error(m)) for m, d in self.detections.items()},
                 "report": self.report, "notes": self.notes}
 
@@ -332,8 +347,9 @@ def _report_text(report: Any) -> str:
     return str(report)
 
 
-def _sensor_text(inputs: Any, spec: FlightSpec) -> str:
-    """``<barometer preset> / <accelerometer preset>, noisy|clean|log noise``."""
+def _sensor_text(inputs: Any, spec: FlightSpec, record: FlightRecord | None = None) -> str:
+    """``<barometer preset> / <accelerometer preset>, noisy|clean|log noise``, then ``SYNTHETIC baro`` for an
+    altitude-only log, the sensor of a multi-sensor log, and ``no accel`` when the stream has none."""
     baro = getattr(getattr(inputs, "baro", None), "name", None) or spec.baro or "default"
     accel = getattr(getattr(inputs, "accel", None), "name", None) or spec.accel or "default"
     baro = baro.replace("mpx4115_", "").replace("bit", "-bit")
@@ -341,7 +357,16 @@ def _sensor_text(inputs: Any, spec: FlightSpec) -> str:
         noise = "noisy" if spec.noise else "clean"
     else:
         noise = "log noise" + (" + added" if spec.noise and (spec.baro or spec.accel) else "")
-    return f"{baro}/{accel}, {noise}"
+    extra = ""
+    if record is not None:
+        prov = record.provenance
+        if prov.get("synthetic_baro"):
+            extra += ", SYNTHETIC baro (from altitude)"
+        if prov.get("sensor") and prov.get("format") == "cats_raw":
+            extra += f", {prov['sensor']} of {'/'.join(prov.get('sensors', []))}"
+        if not getattr(inputs, "has_accel", True):
+            extra += ", no accel"
+    return f"{baro}/{accel}, {noise}{extra}"
 
 
 def evaluate_flight(spec: FlightSpec, methods: Sequence[Method] | None = None,
@@ -350,7 +375,7 @@ def evaluate_flight(spec: FlightSpec, methods: Sequence[Method] | None = None,
     """Evaluate one flight: read/simulate it, make its firmware inputs, run every method, compare with the
     reference. ``overrides``: BuildConfig fields applied to every method (e.g. ``rounding``)."""
     methods = list(methods or METHODS.values())
-    record = record if record is not None else load_record(spec.source, spec.format)
+    record = record if record is not None else load_record(spec.source, spec.format, **spec.reader_options())
     inputs = flight_inputs(record, spec)
     return evaluate_inputs(record, inputs, spec, methods, overrides, tuning)
 
@@ -380,7 +405,12 @@ def evaluate_inputs(record: FlightRecord, inputs: Any, spec: FlightSpec, methods
     time_s = np.asarray(inputs.time_s, dtype=np.float64)
     detections = {}
     notes: list[str] = []
+    has_accel = bool(getattr(inputs, "has_accel", True))
     for method in methods:
+        if method.program in ACCEL_PROGRAMS and not has_accel:
+            detections[method.name] = Detection(method.name, -1, None, failed="the log has no accelerometer")
+            notes.append(f"{method.name}: not run: the log has no accelerometer")
+            continue
         try:
             cfg = method.config(spec.k, sensor, **{**tuning_overrides(method, spec.k, tuning), **(overrides or {})})
             det = run_method(method, cfg, adc, acc, time_s)
@@ -390,10 +420,18 @@ def evaluate_inputs(record: FlightRecord, inputs: Any, spec: FlightSpec, methods
         if det.wrap:
             notes.append(f"{method.name}: integer wrap at {det.wrap}")
         detections[method.name] = det
-    altos = record.events.get("altos_apogee") if record.events else None
-    return FlightResult(spec.name, spec.source, spec.k, _sensor_text(inputs, spec), reference_for(record),
-                        None if altos is None else float(altos), detections, int(adc.shape[0]),
-                        _report_text(getattr(inputs, "report", None)), notes)
+    own = record.own_apogee()
+    notes += [f"log: {n}" for n in record.provenance.get("notes", []) if _worth_noting(n)]
+    return FlightResult(spec.name, spec.source, spec.k, _sensor_text(inputs, spec, record), reference_for(record),
+                        None if own is None else own[1], detections, int(adc.shape[0]),
+                        _report_text(getattr(inputs, "report", None)), notes,
+                        "AltOS" if own is None else own[0])
+
+
+def _worth_noting(note: str) -> bool:
+    """Reader notes that change what the firmware sees (copied into the evaluation's notes)."""
+    return any(w in note for w in ("SYNTHETIC", "REFUSED", "WARNING", "median of", "barometer: ", "cut short",
+                                   "sorted", "nominal calibration"))
 
 
 def _evaluate_job(job: tuple[FlightSpec, tuple[str, ...], tuple[tuple[str, Any], ...], str]) -> FlightResult:
@@ -476,7 +514,7 @@ def table_methods(results: Sequence[FlightResult]) -> list[tuple[str, str]]:
         for m in r.detections:
             if m not in present:
                 present.append(m)
-    cols = [("altos", "AltOS")] if any(r.altos_s is not None for r in results) else []
+    cols = [("altos", "own computer")] if any(r.altos_s is not None for r in results) else []
     order = [m for m in METHODS if m in present] + [m for m in present if m not in METHODS]
     return cols + [(m, METHODS[m].label if m in METHODS else m) for m in order]
 
@@ -501,7 +539,8 @@ def render_markdown(results: Sequence[FlightResult], command: str | None = None)
                  _fmt(ref.altitude_m, 0)]
         for m, _ in cols:
             if m == "altos":
-                cells.append("—" if r.altos_s is None else f"{r.altos_s:.2f} ({_fmt_err(r.error('altos'))})")
+                cells.append("—" if r.altos_s is None else
+                             f"{r.own_computer} {r.altos_s:.2f} ({_fmt_err(r.error('altos'))})")
             elif m not in r.detections:
                 cells.append("—")
             else:
