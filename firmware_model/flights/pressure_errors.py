@@ -7,7 +7,7 @@
   static pressure and the time since an event:
 
   1. *port error* ``cp_port * q``: the static port reads a fraction of the dynamic pressure ``q = 0.7 p M^2``
-     too high at subsonic speed (prometheus: ~0.05 of q at Mach 0.5), fading out above the transonic range
+     too high at subsonic speed (prometheus: ~0.04 of q at Mach 0.45), fading out above the transonic range
      (``dip_mach_off``): the unseen supersonic logs dip for 1-2 s, not for the whole supersonic phase;
   2. *transonic dip* ``dip_cp * bump(M) * q``: an extra error that grows from ``dip_mach_on`` (0.8), peaks at
      ``dip_mach_peak`` (1.0) and is gone by ``dip_mach_off``; the pressure reads high, the barometric altitude
@@ -178,8 +178,8 @@ class BaroErrorModel:
 #: Plausible range of each parameter (what scenarios and the hypothesis strategy draw from), with its source:
 #: the shared logs (docs/flights.md) and the unseen logs of ../shared/flights/README.md.
 BARO_ERROR_RANGES: dict[str, tuple[float, float]] = {
-    "cp_port": (0.0, 0.06),          # prometheus ~0.05 of q at Mach 0.5
-    "dip_cp": (0.02, 0.10),          # totals at Mach 1: prometheus ~0.07, piccard ~0.14 of q; unseen 100-800 m
+    "cp_port": (0.0, 0.06),          # prometheus ~0.04 of q at Mach 0.45
+    "dip_cp": (0.02, 0.10),          # totals near Mach 1: prometheus ~0.06, piccard ~0.15 of q; unseen 100-800 m
     "dip_mach_on": (0.7, 0.9),
     "dip_mach_peak": (0.95, 1.05),
     "dip_mach_off": (1.15, 1.5),

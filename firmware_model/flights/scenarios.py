@@ -410,6 +410,15 @@ def scenario_mach(name: str) -> np.ndarray:
     return _simulate_cached(name)[1]
 
 
+def _effect_label(e: dict[str, Any]) -> str:
+    if e["effect"] == "real_flight_errors":
+        return (f"real-flight errors (dip {e['max_dip_m']:.0f} m at Mach {e['max_dip_mach']:.2f}, "
+                f"jump {e['model']['jump_m']:+.0f} m)")
+    if e["effect"] == "transonic_pressure_error":
+        return f"step {e['altitude_step_m']:+.0f} m (Kumar-style)"
+    return e["effect"].replace("pressure_", "")
+
+
 def scenario_table() -> str:
     """The catalogue as a Markdown table: simulator, class, peak Mach, apogee altitude and time, effects."""
     lines = ["| scenario | simulator | class | peak Mach | apogee (m AGL) | apogee time (s) | pressure effects |",
@@ -418,8 +427,7 @@ def scenario_table() -> str:
         s = get_scenario(n)
         r = simulate_scenario(n)
         summ = r.provenance["summary"]
-        eff = ", ".join(e["effect"].replace("_pressure_error", "").replace("pressure_", "")
-                        for e in r.provenance.get("effects", [])) or "-"
+        eff = ", ".join(_effect_label(e) for e in r.provenance.get("effects", [])) or "-"
         lines.append(f"| {n} | {s.simulator} | {s.mach_class} | {summ['max_mach']:.2f} | "
                      f"{r.truth.apogee_altitude_m:.0f} | {r.truth.apogee_time_s:.2f} | {eff} |")
     return "\n".join(lines)
