@@ -23,7 +23,6 @@ from firmware_model.inputs import ACC_PROGRAMS, flight_params_for, read_stream_c
 from firmware_model.tuning import TUNINGS, describe_tuning, load_tuned_config
 
 
-
 def register(subparsers: Any) -> None:
     """Add the ``compare`` subcommand to an argparse ``subparsers`` object."""
     p = subparsers.add_parser("compare", help="integer model vs float mirror vs ideal filter error statistics",

@@ -8,9 +8,8 @@ what the evaluation recommends. ``recommended_config("kalman_accel", 6)`` gives 
 
 from __future__ import annotations
 
-from typing import Any
-
 from pathlib import Path
+from typing import Any
 
 from firmware_model.config import BuildConfig, check_documented_range, load_config, read_config_file
 from firmware_model.errors import UserError

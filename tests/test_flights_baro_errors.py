@@ -5,6 +5,7 @@ supersonic_flights() strategy, the apogee table's danger columns and the --tunin
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -23,7 +24,9 @@ from firmware_model.flights.evaluate import (Detection, FlightResult, Reference,
                                              render_markdown, summarize)
 from firmware_model.flights.motors import load_motor
 from firmware_model.strategies import supersonic_flights
+from tests import profiles
 from tests.profiles import examples
+
 
 # ------------------------------------------------------------------------------------------------ a flight
 def _flight(record_hz: float = 1000.0, delay: float = 0.0):
@@ -42,7 +45,7 @@ def _alt_err(out, rec) -> np.ndarray:
     return np.asarray(atm.altitude_m(out.pressure_pa)) - np.asarray(atm.altitude_m(rec.pressure_pa))
 
 
-QUIET = dict(jump_m=0.0, burst_sigma_m=0.0, ejection_m=0.0)
+QUIET = {"jump_m": 0.0, "burst_sigma_m": 0.0, "ejection_m": 0.0}
 
 
 def test_port_and_dip_follow_the_dynamic_pressure(flight):
@@ -69,7 +72,7 @@ def test_port_and_dip_follow_the_dynamic_pressure(flight):
 
 
 def test_no_port_error_above_the_transonic_range():
-    rec, mach = _flight(record_hz=200.0)
+    rec, _ = _flight(record_hz=200.0)
     fast = np.linspace(0.0, 2.0, rec.n)                   # a made-up Mach series: the model takes any
     out = pe.real_flight_errors(rec, fast, pe.BaroErrorModel(**QUIET))
     above = fast >= pe.BaroErrorModel().dip_mach_off
@@ -254,9 +257,9 @@ def test_table_counts_dangerous_detections_first():
     assert md.startswith("**Detections more than 1 s before the reference apogee**: kalman_baro 2 of 4 "
                          "(+1 on flagged references); kalman_accel 1 of 4.")
     assert "2.900 (-22.100) ‼ boost M1.00" in md and "12.000 (-13.000) ‼ |" in md and "19.200 (-0.800) |" in md
-    summary = [line for line in md.splitlines() if line.startswith("| kalman_baro |")][0]
+    summary = next(line for line in md.splitlines() if line.startswith("| kalman_baro |"))
     assert summary.startswith("| kalman_baro | 2 (boosty); +1 flagged | 1 of 3 known | 1 | 4 | 4 |")
-    head = [line for line in md.splitlines() if line.startswith("| method |")][0]
+    head = next(line for line in md.splitlines() if line.startswith("| method |"))
     assert head.startswith("| method | > 1 s early (flight) | before burnout | above Mach 0.8 | flights |")
     csv_rows = render_csv(rs).splitlines()
     cols = csv_rows[0].split(",")
@@ -328,7 +331,7 @@ def analysis():
 
 
 def _sig(an, log, event):
-    return [s for s in an.signatures if s.log == log and s.event == event][0]
+    return next(s for s in an.signatures if s.log == log and s.event == event)
 
 
 def test_measured_signatures_as_documented(analysis):
@@ -346,15 +349,12 @@ def test_measured_signatures_as_documented(analysis):
         cats = _sig(analysis, f"piccard-cats-{baro}", "transonic dip")
         assert abs(cats.magnitude_m - dip.magnitude_m) < 30.0
     # the barometric altitude went below the pad during boost on piccard (the README's "once below the pad")
-    tr = [t for t in analysis.traces if t.name == "piccard-telemega"][0]
+    tr = next(t for t in analysis.traces if t.name == "piccard-telemega")
     boost = (tr.time_s > 1.0) & (tr.time_s < 4.0)
     assert tr.baro_m[boost].min() < -50.0
 
 
 def test_signature_figure_and_table(analysis):
-    import os
-
-    from tests import profiles
     if profiles.PROFILE == "thorough" or os.environ.get("FWEMU_SLOW") == "1":   # matplotlib: seconds
         assert bs.figure(analysis)[:8] == b"\x89PNG\r\n\x1a\n"
     table = bs.markdown_table(analysis.signatures).splitlines()

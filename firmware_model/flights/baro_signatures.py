@@ -39,9 +39,10 @@ from __future__ import annotations
 import argparse
 import csv
 import io
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -271,7 +272,7 @@ def measure(tr: Trace, traj: Trajectory) -> list[Signature]:
                          + ("" if recovered else f"; not back within 10 % by {WINDOW_S:.0f} s")))
     # jump
     dt = float(np.median(np.diff(tw)))
-    n = max(1, int(round(JUMP_WINDOW_S / dt)))
+    n = max(1, round(JUMP_WINDOW_S / dt))
     rise = rw[n:] - rw[:-n]
     j = int(np.argmax(rise))
     # the rise's own extent: from the local minimum to the local maximum inside the window
@@ -281,7 +282,7 @@ def measure(tr: Trace, traj: Trajectory) -> list[Signature]:
     out.append(Signature(tr.name, "jump", float(tw[j0]), float(rw[j1] - rw[j0]), float(tw[j1] - tw[j0]),
                          float(mw[j0]), float(mw[j1]), f"largest rise within {JUMP_WINDOW_S} s"))
     # noise bursts
-    med = _running_median(rw, int(round(NOISE_MEDIAN_S / dt)))
+    med = _running_median(rw, round(NOISE_MEDIAN_S / dt))
     dev = rw - med
     k = int(np.argmax(np.abs(dev)))
     pad = (t < 0) & (t > t[0])
