@@ -30,7 +30,8 @@ The CATS computer of the same piccard flight has no usable accelerometer traject
 counts of three sensors); its barometers are compared with the TeleMega's calibrated trajectory after aligning
 the two clocks by the lag that best matches the two barometric altitudes on the coast (12-30 s).
 
-``python -m firmware_model.flights.baro_signatures [--png FILE]`` prints the Markdown table and writes the figure.
+``python -m firmware_model.flights.baro_signatures [--png FILE] [--model-png FILE]`` prints the Markdown table and
+writes the figures (the second: the measured residuals beside the model's error on four scenarios).
 AltOS is GPL: this reads the CSV columns (a format fact), nothing of its code.
 """
 
@@ -48,6 +49,8 @@ import numpy as np
 
 from firmware_model import atmosphere as atm
 from firmware_model.errors import UserError
+from firmware_model.flights.evalset import shared_dir
+from firmware_model.flights.scenarios import scenario_mach, simulate_scenario
 from firmware_model.output import write_file
 
 #: Residual window after liftoff (s).
@@ -418,11 +421,52 @@ def figure(an: Analysis) -> bytes:
     return buf.getvalue()
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    from firmware_model.flights.evalset import shared_dir
+#: Scenarios shown beside the measured residuals in :func:`model_figure`.
+MODEL_FIGURE_SCENARIOS: tuple[str, ...] = ("rb-m1670-m105", "rb-m1670-m105-jumpdown", "rb-m6400-m167",
+                                           "rb-m2245-m19-9400m")
 
+
+def model_figure(an: Analysis, names: Sequence[str] = MODEL_FIGURE_SCENARIOS) -> bytes:
+    """PNG: the measured residuals (left) beside the barometric-altitude error the model puts on some scenarios
+    (right), 0-15 s, with Mach on a second axis."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(12, 4.6), sharey=True)
+    for tr in an.traces:
+        if tr.name.startswith("piccard-cats"):
+            continue
+        traj = an.trajectories[tr.name]
+        w = (tr.time_s >= -0.5) & (tr.time_s <= WINDOW_S)
+        line, = ax.plot(tr.time_s[w], tr.baro_m[w] - traj.z_m[w], lw=1,
+                        label=f"{tr.name} (peak Mach {traj.mach.max():.2f})")
+    ax.set_title("measured: barometric - accelerometer altitude", fontsize=9)
+    for name in names:
+        rec = simulate_scenario(name)
+        mach = scenario_mach(name)
+        site = float(atm.altitude_m(rec.ground_pressure_pa))
+        err = np.asarray(atm.altitude_m(rec.pressure_pa)) - site - rec.truth.altitude_m
+        w = (rec.time_s >= -0.5) & (rec.time_s <= WINDOW_S)
+        bx.plot(rec.time_s[w], err[w], lw=1, label=f"{name} (peak Mach {mach.max():.2f})")
+    bx.set_title("model (pressure_errors.real_flight_errors) on scenarios", fontsize=9)
+    for a in (ax, bx):
+        a.axhline(0, color="k", lw=0.5)
+        a.set_xlabel("s after liftoff / ignition")
+        a.legend(fontsize=7, loc="lower right")
+    ax.set_ylabel("barometric altitude error, m")
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110)
+    plt.close(fig)
+    return buf.getvalue()
+
+
+def main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--png", type=Path, help="write the figure here")
+    ap.add_argument("--model-png", type=Path, help="write the measured-vs-model figure here")
     args = ap.parse_args(argv)
     base = shared_dir()
     if base is None:
@@ -435,6 +479,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.png:
         write_file(args.png, figure(an))
         print(f"wrote {args.png}")
+    if args.model_png:
+        write_file(args.model_png, model_figure(an))
+        print(f"wrote {args.model_png}")
     return 0
 
 
