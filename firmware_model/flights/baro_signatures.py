@@ -24,7 +24,8 @@ Measured per log (:func:`measure`):
   on the pad;
 * **ejection**: around each recovery event of the log (AltOS's first ``drogue`` and ``main`` rows, CATS's
   ``EV_APOGEE``) the largest deviation of the barometric altitude from a quadratic fitted over the 3 s before
-  the event, within 1.5 s after it, and how long it stays above half of that.
+  the event, within 1.5 s after it, and how long it stays above half of that; the rms of that deviation over the
+  1.5 s is the noise at separation.
 
 The CATS computer of the same piccard flight has no usable accelerometer trajectory of its own here (raw IMU
 counts of three sensors); its barometers are compared with the TeleMega's calibrated trajectory after aligning
@@ -317,7 +318,8 @@ def measure(tr: Trace, traj: Trajectory) -> list[Signature]:
         fit_rms = float(np.sqrt(np.mean((tr.baro_m[before] - np.polyval(c, t[before] - te)) ** 2)))
         out.append(Signature(tr.name, f"ejection ({ev})", float(ta[q]), float(d[q]),
                              float(ta[b2] - ta[a2]) + 1.0 / rate, None, None,
-                             f"vs a quadratic over the 3 s before (fit rms {fit_rms:.1f} m); {rate:.0f} samples/s"))
+                             f"vs a quadratic over the 3 s before (fit rms {fit_rms:.1f} m); separation noise: rms "
+                             f"{float(np.sqrt(np.mean(d ** 2))):.1f} m over 1.5 s; {rate:.0f} samples/s"))
     return out
 
 
