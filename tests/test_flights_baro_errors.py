@@ -20,9 +20,10 @@ from firmware_model.flights import pressure_errors as pe
 from firmware_model.flights import scenarios as sc
 from firmware_model.flights import sim1dof as s1
 from firmware_model.flights.evalset import k_set, shared_dir
-from firmware_model.flights.evaluate import (Detection, FlightResult, Reference, render_csv, render_json,
-                                             render_markdown, summarize)
+from firmware_model.flights.evaluate import (Detection, FlightResult, Reference, flight_context, render_csv,
+                                             render_json, render_markdown, summarize)
 from firmware_model.flights.motors import load_motor
+from firmware_model.flights.readers import read_flight
 from firmware_model.strategies import supersonic_flights
 from tests import profiles
 from tests.profiles import examples
@@ -360,3 +361,17 @@ def test_signature_figure_and_table(analysis):
     table = bs.markdown_table(analysis.signatures).splitlines()
     assert table[0].startswith("| log | event | at s | magnitude m | duration s | Mach at start |")
     assert len(table) == 2 + len(analysis.signatures)
+
+
+def test_log_mach_and_burnout_estimates_agree_with_the_signature_analysis(analysis):
+    """The apogee table's estimate on logs (evaluate.flight_context: the specific force integrated from the
+    log's boost) against baro_signatures' own trajectory (integrated from the last still pad sample)."""
+    base = _base()
+    for rel, name in (("euroc21/piccard-telemega.csv", "piccard-telemega"),
+                      ("altosui/prometheus-2022-06-24-telemetrum.csv", "prometheus-2022-06-24-telemetrum")):
+        rec = read_flight(base / rel)
+        burn, mach, source = flight_context(rec, str(base / rel))
+        assert source == "accelerometer estimate"
+        assert float(mach.max()) == pytest.approx(float(analysis.trajectories[name].mach.max()), abs=0.03)
+        coast = rec.events["altos_coast"]               # AltOS's own coast state: burnout within 0.7 s
+        assert abs(burn - coast) < 0.7
