@@ -20,11 +20,12 @@ from __future__ import annotations
 from collections.abc import Iterable, Sequence
 
 import numpy as np
+from hypothesis import assume
 from hypothesis import strategies as st
 
 from firmware_model.config import PROGRAMS, ROUNDINGS, BuildConfig
 from firmware_model.flights.pressure_errors import BARO_ERROR_RANGES, draw_error_model, real_flight_errors
-from firmware_model.flights.sim1dof import mach_of
+from firmware_model.flights.sim1dof import Box, Launch, mach_of, rocket_from_unit, simulate_1dof
 
 __all__ = ["build_configs", "adc_streams", "accel_streams", "edge_streams", "flight_like_streams", "flights",
            "supersonic_flights", "pascal_streams", "pascal_flight_streams"]
@@ -226,10 +227,6 @@ def supersonic_flights(mach: tuple[float, float] = (0.95, 2.0),
     in thrust and time). Each example is a :class:`FlightRecord` whose ``truth`` is the error-free flight and
     whose ``provenance["effects"][-1]`` lists the error model and its largest dip; the Mach series is
     ``sim1dof.mach_of(record)``. About 0.1 s per flight with numba."""
-    from hypothesis import assume
-
-    from firmware_model.flights.sim1dof import Box, Launch, rocket_from_unit, simulate_1dof
-
     box = Box(motors=tuple(motors), mach=tuple(mach), site_altitude_m=tuple(site_altitude_m))
     unit = st.floats(0.0, 1.0, exclude_max=True, allow_nan=False)
 
