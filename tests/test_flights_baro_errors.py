@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from firmware_model import atmosphere as atm
 from firmware_model.cli import main
@@ -147,6 +148,33 @@ def test_bad_parameters_are_user_errors(flight):
         pe.BaroErrorModel(jump_m=float("nan"))
     with pytest.raises(UserError, match="mach has shape"):
         pe.real_flight_errors(rec, mach[:-1])
+
+
+_FLIGHT_200HZ = _flight(record_hz=200.0)
+_UNIT = st.floats(0.0, 1.0, exclude_max=True, allow_nan=False)
+
+
+@settings(max_examples=examples(25))
+@given(st.lists(_UNIT, min_size=len(pe.BARO_ERROR_RANGES), max_size=len(pe.BARO_ERROR_RANGES)),
+       st.integers(0, 2**32 - 1))
+def test_any_model_in_the_ranges_reads_high_in_proportion_to_q(u, seed):
+    """For every model of the ranges: the Mach-dependent part reads high by between cp_port (below the dip) and
+    cp_port + dip_cp times q, and never above the transonic range; the whole model dips 50-1300 m on this
+    Mach-1.05 sea-level flight; the same seed gives the same bytes."""
+    rec, mach = _FLIGHT_200HZ
+    model = pe.draw_error_model(u=u)
+    quiet = pe.BaroErrorModel(**{**model.to_dict(), **QUIET})
+    dp = pe.real_flight_errors(rec, mach, quiet, seed=seed).pressure_pa - rec.pressure_pa
+    q = 0.7 * rec.pressure_pa * mach ** 2
+    moving = q > 100.0
+    ratio = dp[moving] / q[moving]
+    assert np.all(ratio >= -1e-9) and np.all(ratio <= model.cp_port + model.dip_cp + 1e-9)
+    slow = moving & (mach <= model.dip_mach_on)
+    assert np.allclose(dp[slow] / q[slow], model.cp_port, rtol=1e-6, atol=1e-12)
+    assert np.all(dp[mach >= model.dip_mach_off] == 0)
+    full = pe.real_flight_errors(rec, mach, model, seed=seed)
+    assert -1300.0 < full.provenance["effects"][-1]["max_dip_m"] < -50.0
+    assert np.array_equal(pe.real_flight_errors(rec, mach, model, seed=seed).pressure_pa, full.pressure_pa)
 
 
 def test_draws_stay_inside_the_ranges():
