@@ -20,7 +20,7 @@ from firmware_model.flights import baro_signatures as bs
 from firmware_model.flights import pressure_errors as pe
 from firmware_model.flights import scenarios as sc
 from firmware_model.flights import sim1dof as s1
-from firmware_model.flights.evalset import k_set, shared_dir
+from firmware_model.flights.evalset import k_set, named_set, scenario_variants, shared_dir
 from firmware_model.flights.evaluate import (Detection, FlightResult, Reference, flight_context, render_csv,
                                              render_json, render_markdown, summarize)
 from firmware_model.flights.motors import load_motor
@@ -205,6 +205,22 @@ def test_real_baro_scenarios_cover_the_brief():
     sims = [x for x in specs if x.source.startswith("sim:")]
     assert {x.k for x in sims} == {5, 6, 7} and len(sims) >= 36
     assert len({x.source for x in sims}) == len(rb)
+
+
+def test_full_set_is_every_sensing_at_k_5_6_7():
+    full = named_set("full")
+    assert named_set("realbaro") == k_set(only_real_baro=True)[0]
+    sims = [x for x in full if x.source.startswith("sim:")]
+    assert {x.source[4:] for x in sims} == set(sc.scenario_names())
+    assert {x.k for x in full} == {5, 6, 7}
+    keys = [(x.source, x.baro, x.accel, x.noise, x.k) for x in sims]
+    assert len(keys) == len(set(keys))                        # each distinct sensing once per k
+    for n in sc.scenario_names():
+        tagged = {v[:3] for v in scenario_variants(n)}
+        got = {(x.baro, x.accel, x.noise) for x in sims if x.source == f"sim:{n}"}
+        assert got == tagged, n
+    with pytest.raises(UserError, match="known: eval, sim, logs, quick, full, realbaro"):
+        named_set("nope")
 
 
 @pytest.mark.parametrize("name", [n for n in sc.scenario_names()
