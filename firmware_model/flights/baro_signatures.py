@@ -8,7 +8,7 @@ then scaled (``z_cal = (1 + s) z``, least squares) on the slow coast before the 
 :data:`CAL_MACH`, where the pressure error is small). The scale (-3 to -8 %) is mostly the real atmosphere: a
 barometric altitude is a standard-atmosphere altitude, and the air at Spaceport America was ~25 K warmer than
 standard (plus the flight's tilt). The accelerometer speed is not scaled: it matches AltOS's own ``speed`` column
-to 0.5 m/s. The residual ``r = baro - z_cal`` over the first :data:`WINDOW_S` s is the barometer's
+to 0.5-1.5 m/s. The residual ``r = baro - z_cal`` over the first :data:`WINDOW_S` s is the barometer's
 error; Mach = accelerometer speed / standard speed
 of sound at the pad altitude + z (warmer air would lower it by a few per cent).
 
@@ -202,7 +202,7 @@ def trajectory(tr: Trace) -> Trajectory:
     v[i0 + 1:] = np.cumsum(0.5 * (a[i0 + 1:] + a[i0:-1]) * dt[i0:])
     z[i0 + 1:] = np.cumsum(0.5 * (v[i0 + 1:] + v[i0:-1]) * dt[i0:])
     i_ap = int(np.nonzero((t > t[i0] + 1.0) & (v < 0))[0][0]) if np.any((t > t[i0] + 1.0) & (v < 0)) else t.size - 1
-    # Mach from the accelerometer speed (it matches AltOS's own speed column to 0.5 m/s on these logs) and the
+    # Mach from the accelerometer speed (it matches AltOS's own speed column to 0.5-1.5 m/s on these logs) and the
     # standard speed of sound at the pad + z
     mach = v / np.asarray(atm.speed_of_sound_mps(tr.pad_m + z))
     cal = ((np.arange(t.size) > int(np.argmax(v))) & (np.arange(t.size) < i_ap) & (mach < CAL_MACH)
