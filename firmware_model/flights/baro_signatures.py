@@ -48,11 +48,11 @@ from typing import Any
 
 import numpy as np
 
-from firmware_model import atmosphere as atm
-from firmware_model.errors import UserError
 from firmware_model.flights.evalset import shared_dir
 from firmware_model.flights.scenarios import scenario_mach, simulate_scenario
-from firmware_model.output import write_file
+from firmware_model.runtime.errors import UserError
+from firmware_model.runtime.output import write_file
+from firmware_model.spec import atmosphere as atm
 
 #: Residual window after liftoff (s).
 WINDOW_S: float = 15.0

@@ -25,8 +25,11 @@
   Parts 3-5 are altitude offsets at the current altitude, turned into pressure through the standard atmosphere.
   The Mach number comes from the simulator (1-DOF: |v|/c; RocketPy: its airspeed Mach), so it works on both.
 * :func:`transonic_pressure_error`: the **step (Kumar-style, not realistic)**: a pressure-altitude step of
-  ``altitude_step_m`` (default +60 m) while above Mach 1, from the one-line description in the 2002 NARAM report
-  (Schultz 2002). Kept so the old scenarios keep their meaning and as a contrast; it resembles nothing measured.
+  ``altitude_step_m`` (default +60 m, our choice; positive = the pressure reads low above Mach 1, the source's sign)
+  while above Mach 1, from the one-line description of Schultz n.d. ("a step increase in pressure altitude when
+  going above Mach 1 and a step decrease when dropping below"); ``shape`` "step" or "ramp" (over ``width_mach``),
+  ``mach_on``/``mach_off`` hysteresis. Kept so the old scenarios keep their meaning and as a contrast; it
+  resembles nothing measured.
 * :func:`pressure_spikes`: isolated single-sample outliers (a sensor glitch or a bad ADC read), for robustness
   tests: each chosen sample's pressure is offset by +-``magnitude_pa``.
 
@@ -41,12 +44,13 @@ from typing import Any
 
 import numpy as np
 
-from firmware_model import atmosphere as atm
-from firmware_model.errors import UserError
 from firmware_model.flights.record import FlightRecord
 from firmware_model.flights.sim1dof import mach_of
+from firmware_model.runtime.errors import UserError
+from firmware_model.spec import atmosphere as atm
 
-#: Default of the step (Kumar-style, not realistic), in pressure altitude (m, positive = reads higher above Mach 1).
+#: Default of the step (Kumar-style, not realistic), in pressure altitude (m, positive = reads higher above Mach 1;
+#: Schultz n.d.'s sign).
 DEFAULT_TRANSONIC_STEP_M: float = 60.0
 
 
