@@ -23,7 +23,8 @@ from firmware_model.model.streams import ACC_PROGRAMS, G0, flight_params_for, re
 from firmware_model.runtime.errors import UserError
 from firmware_model.spec.atmosphere import pressure_pa
 from firmware_model.spec.build_constants import build_constants
-from firmware_model.spec.config import PROGRAMS, ROUNDINGS, BuildConfig, load_config
+from firmware_model.spec.config import PROGRAMS, ROUNDINGS, BuildConfig
+from firmware_model.spec.tuning import TUNINGS, describe_tuning, load_tuned_config
 
 
 def register(subparsers: Any) -> None:
@@ -35,6 +36,10 @@ def register(subparsers: Any) -> None:
     p.add_argument("--program", choices=PROGRAMS, help="program (default: the config's, else kalman_baro)")
     p.add_argument("--k", type=int, help="sample period 2^-k s (0..10; default: the config's, else 7)")
     p.add_argument("--rounding", choices=ROUNDINGS, help="rounding (default: the config's, else floor)")
+    p.add_argument("--tuning", choices=TUNINGS, default="default",
+                   help="as fwemu evaluate: default = the BuildConfig defaults; recommended = "
+                        "firmware_model.spec.tuning.RECOMMENDED for the program at k (a k without an entry keeps the "
+                        "defaults); the config file and the flags override it")
     src = p.add_mutually_exclusive_group()
     src.add_argument("--input", type=Path, help="CSV with an 'adc' column and optionally an 'acc' column")
     src.add_argument("--synthetic", type=nonnegative_int, metavar="SEED", help="a synthetic flight from this seed (default 0)")
@@ -180,12 +185,13 @@ def bias_table(program: str = "kalman_baro", ks: tuple[int, ...] = (5, 6, 7, 8),
 def run(args: argparse.Namespace) -> int:
     """Entry point of ``fwemu compare``; prints the report to stdout and returns 0."""
     if args.bias_table:
-        if args.input is not None or args.config is not None:
+        if args.input is not None or args.config is not None or args.tuning != "default":
             raise UserError("compare: --bias-table uses its own constant-acceleration input and default builds; "
-                            "drop --input/--config")
+                            "drop --input/--config/--tuning")
         print(bias_table(args.program or "kalman_baro"))
         return 0
-    cfg = load_config(args.config, {"program": args.program, "k": args.k, "rounding": args.rounding})
+    cfg = load_tuned_config(args.config, {"program": args.program, "k": args.k, "rounding": args.rounding},
+                            args.tuning)
     if args.input is not None:
         stream = read_stream_csv(args.input, cfg.baro_word_bits, cfg.k, require_acc=cfg.program in ACC_PROGRAMS)
         true_ap = None
@@ -194,6 +200,7 @@ def run(args: argparse.Namespace) -> int:
                                   flight_params_for(cfg))
         true_ap = stream.truth["apogee_sample"]
     result = compare(cfg, stream.adc, stream.acc)
+    print(describe_tuning(cfg.program, cfg.k, args.tuning))
     print(format_report(cfg, result))
     if true_ap is not None:
         print(f"true apogee sample (synthetic): {true_ap}")

@@ -6,6 +6,9 @@
   the MS5607-like pascal sensor, noise-free and noisy, k = 4..8), then every shared real log at k = 7 (the
   TeleMetrum v1 transfer function, no added noise: the logs carry real noise).
 * ``set:sim`` the simulated part, ``set:logs`` the logs, ``set:quick`` a few short flights (tests, smoke runs).
+* ``set:full`` (:func:`k_set`): every scenario x each distinct tagged sensing x k = 5, 6, 7, and every shared log
+  x k = 5, 6, 7 (issue 20's before/after set); ``set:realbaro`` the same for the scenarios with the barometer
+  errors of real flight only.
 
 **Pascal sensor**: the MS5607-like digital barometer reports pascals in a 32-bit word, which the firmware reads
 since issue 9 item 1 (``BuildConfig.baro_kind`` pascal, docs/firmware-spec.md §2). :func:`pascal_supported` (true
@@ -145,6 +148,34 @@ def logs_set(k: int = 7) -> list[FlightSpec]:
     return [FlightSpec(str(p), k=k, noise=False, label=log_label(p)) for p in shared_logs()]
 
 
+def k_set(ks: Sequence[int] = (5, 6, 7), only_real_baro: bool = False) -> tuple[list[FlightSpec], list[str]]:
+    """Every scenario (``only_real_baro``: only those with the barometer errors of real flight,
+    ``Scenario.baro_errors``) with each distinct sensing its tags suggest (barometer, accelerometer, noise; the
+    tagged k is replaced) at every k of ``ks``, then every shared log at each k. ``set:full`` and
+    ``set:realbaro``: the sets the issue-20 before/after tables are made on. Returns (rows, skipped rows)."""
+    specs: list[FlightSpec] = []
+    skipped: list[str] = []
+    pascal_ok = pascal_supported()
+    for i, n in enumerate(_scenario_names()):
+        if only_real_baro and get_scenario(n).baro_errors is None:
+            continue
+        sensings: list[tuple[str, str, bool]] = []
+        for v in scenario_variants(n):
+            if v[:3] not in sensings:
+                sensings.append(v[:3])
+        for j, sensing in enumerate(sensings):
+            for k in ks:
+                vk = (*sensing, k)
+                if sensing[0] == "ms5607" and not pascal_ok:
+                    skipped.append(f"{_row_label(n, vk)}: the pascal sensor needs the field-ready firmware")
+                    continue
+                specs.append(FlightSpec(f"sim:{n}", k=k, baro=sensing[0], accel=sensing[1], noise=sensing[2],
+                                        seed=100 * i + j, label=_row_label(n, vk)))
+    for k in ks:
+        specs += [replace(s, label=f"{s.label} k{k}") for s in logs_set(k)]
+    return specs, skipped
+
+
 def evaluation_set() -> tuple[list[FlightSpec], list[str]]:
     """The README table's rows and the rows skipped (with reasons)."""
     sim, skipped = simulated_set()
@@ -162,7 +193,7 @@ def quick_set() -> list[FlightSpec]:
 
 
 def named_set(name: str) -> list[FlightSpec]:
-    """``eval``, ``sim``, ``logs``, ``quick``."""
+    """``eval``, ``sim``, ``logs``, ``quick``, ``full``, ``realbaro`` (:func:`k_set`)."""
     if name == "eval":
         return evaluation_set()[0]
     if name == "sim":
@@ -171,7 +202,11 @@ def named_set(name: str) -> list[FlightSpec]:
         return logs_set()
     if name == "quick":
         return quick_set()
-    raise UserError(f"set:{name}: unknown evaluation set; known: eval, sim, logs, quick")
+    if name == "full":
+        return k_set()[0]
+    if name == "realbaro":
+        return k_set(only_real_baro=True)[0]
+    raise UserError(f"set:{name}: unknown evaluation set; known: eval, sim, logs, quick, full, realbaro")
 
 
 def resolve_flights(items: Iterable[str], simulated: bool = False, logs: bool = False, ks: Sequence[int] = (7,),
@@ -224,5 +259,6 @@ def _label(name: str, k: int, ks: Sequence[int]) -> str:
 
 
 __all__ = ["SHARED_LOGS", "DEFAULT_SIM", "BARO_TAGS", "NOISE_TAGS", "shared_dir", "shared_logs",
-           "pascal_supported", "scenario_variants", "simulated_set", "logs_set", "evaluation_set", "quick_set", "named_set",
+           "pascal_supported", "scenario_variants", "simulated_set", "logs_set", "k_set", "evaluation_set",
+           "quick_set", "named_set",
            "resolve_flights"]
