@@ -20,9 +20,18 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+from firmware_model import output
 from firmware_model.cli_args import nonnegative_int, positive_float, positive_int
 from firmware_model.config import PROGRAMS, ROUNDINGS, BuildConfig, load_config
 from firmware_model.errors import UserError
+from firmware_model.portcheck.adapter import load_adapter
+from firmware_model.portcheck.build import build_port
+from firmware_model.portcheck.check import check_port
+from firmware_model.portcheck.repro import describe, write_repro
+from firmware_model.tuning import recommended_config
+from firmware_model.vectors import case_config, pascal_case_config
 
 SENSORS: tuple[str, ...] = ("adc16", "adc12", "pascal")
 TUNINGS: tuple[str, ...] = ("default", "recommended")
@@ -62,9 +71,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
 
 def config_from_args(args: argparse.Namespace) -> tuple[BuildConfig, list[Any]]:
     """The build config of the run and the streams to check first (a case's)."""
-    from firmware_model.tuning import recommended_config
-    from firmware_model.vectors import case_config, pascal_case_config
-
     streams: list[Any] = []
     if args.case:
         if args.config or any(getattr(args, f) is not None for f in ("program", "k", "rounding", "sensor",
@@ -84,8 +90,6 @@ def config_from_args(args: argparse.Namespace) -> tuple[BuildConfig, list[Any]]:
             raise UserError(f"{path}: not a golden-vector case (no build_config object)")
         cfg = BuildConfig.from_dict(doc["build_config"], where=f"{path}: build_config")
         if isinstance(doc.get("adc"), list) and isinstance(doc.get("acc"), list) and doc["adc"]:
-            import numpy as np
-
             streams.append((np.asarray(doc["adc"], dtype=np.int64), np.asarray(doc["acc"], dtype=np.int64)))
         return cfg, streams
     program = args.program or "kalman_baro"
@@ -117,12 +121,6 @@ def config_from_args(args: argparse.Namespace) -> tuple[BuildConfig, list[Any]]:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``fwemu check-port``; returns the exit code."""
-    from firmware_model import output
-    from firmware_model.portcheck.adapter import load_adapter
-    from firmware_model.portcheck.build import build_port
-    from firmware_model.portcheck.check import check_port
-    from firmware_model.portcheck.repro import describe, write_repro
-
     if not args.sources and not args.lib:
         raise UserError("check-port: give the port's C sources (SRC.c ...) or --lib LIB.so")
     if args.sources and args.lib:

@@ -16,6 +16,7 @@ import sys
 from firmware_model.cli_args import positive_int
 from firmware_model.config import PROGRAMS
 from firmware_model.errors import UserError
+from firmware_model.vectors_unity import write_unity_runner
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -52,8 +53,6 @@ def run(args: argparse.Namespace) -> int:
     from firmware_model import vectors
 
     if args.unity and not (args.all or args.firmware or args.check):
-        from firmware_model.vectors_unity import write_unity_runner
-
         print(f"wrote {write_unity_runner(args.out or 'vectors', args.unity)}", file=sys.stderr)
         return 0
     if not (args.all or args.firmware or args.check):
@@ -84,7 +83,5 @@ def run(args: argparse.Namespace) -> int:
     size = sum(data if isinstance(data, int) else len(data) for data in files.values())
     print(f"wrote {n_cases} case(s), {len(files)} files, {size / 1e6:.2f} MB to {args.out}", file=sys.stderr)
     if args.unity:
-        from firmware_model.vectors_unity import write_unity_runner
-
         print(f"wrote {write_unity_runner(args.out, args.unity)}", file=sys.stderr)
     return 0

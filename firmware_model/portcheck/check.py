@@ -56,6 +56,8 @@ class Mismatch:
     #: Length of the stream hypothesis first failed on, and after hypothesis shrank it (before the cut).
     first_len: int = 0
     shrunk_len: int = 0
+    #: "hypothesis" (found and shrunk by the search) or "given" (a stream passed in, e.g. a case's; cut only).
+    source: str = "hypothesis"
 
 
 @dataclass
@@ -144,6 +146,8 @@ def check_port(port: Port, cfg: BuildConfig, *, examples: int | None = 1000, sec
     t0 = time.perf_counter()
     for adc, acc in extra_streams:
         mm = mismatch_of(port, cfg, consts, np.asarray(adc), np.asarray(acc))
+        if mm is not None:
+            mm.source = "given"
         res.examples += 1
         res.samples += len(adc)
         if mm is not None:
@@ -169,14 +173,15 @@ def check_port(port: Port, cfg: BuildConfig, *, examples: int | None = 1000, sec
             raise _PortDiffers(f"sample {diff.sample} word {diff.word}")
 
     r = 0
+    given_n = res.examples
     while True:
-        if examples is not None and res.examples >= examples:
+        if examples is not None and res.examples - given_n >= examples:
             res.stopped_by = "examples"
             break
         if seconds is not None and time.perf_counter() - t0 >= seconds:
             res.stopped_by = "time"
             break
-        n = ROUND_EXAMPLES if examples is None else min(ROUND_EXAMPLES, examples - res.examples)
+        n = ROUND_EXAMPLES if examples is None else min(ROUND_EXAMPLES, examples - (res.examples - given_n))
         s = settings(max_examples=n, database=None, deadline=None, derandomize=False,
                      suppress_health_check=list(HealthCheck), phases=(Phase.generate, Phase.shrink),
                      report_multiple_bugs=False, verbosity=Verbosity.quiet, print_blob=False)

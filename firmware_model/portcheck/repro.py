@@ -43,8 +43,10 @@ def describe(mm: Mismatch) -> list[str]:
     lines = [f"DIFFERENCE {where}, word {d.word}: expected {d.expected} (model), actual {d.actual} (port)",
              f"  build: program {cfg.program}, rounding {cfg.rounding}, k {cfg.k}, "
              f"{'pascal' if cfg.pascal else f'{cfg.baro_bits}-bit ADC'} barometer",
-             f"  stream: {len(mm.adc)} samples (hypothesis found one of {mm.first_len}, shrank it to "
-             f"{mm.shrunk_len}, cut after the first difference)",
+             (f"  stream: {len(mm.adc)} samples (hypothesis found one of {mm.first_len}, shrank it to "
+              f"{mm.shrunk_len}, cut after the first difference)" if mm.source == "hypothesis" else
+              f"  stream: {len(mm.adc)} samples (the given stream of {mm.first_len}, cut after the first "
+              "difference)"),
              f"  {'pascal' if cfg.pascal else 'adc'}: {runs(mm.adc)}",
              f"  acc: {runs(mm.acc)}",
              "  words " + " ".join(mm.names),
@@ -63,7 +65,7 @@ def _c_array(ctype: str, name: str, values: Any, per_line: int = 12) -> str:
     return f"static const {ctype} {name}[{len(vals)}] = {{\n{body}\n}};"
 
 
-def test_sources(mm: Mismatch, adapter: Adapter, name: str) -> tuple[str, str]:
+def unit_test_sources(mm: Mismatch, adapter: Adapter, name: str) -> tuple[str, str]:
     """``(unity_test_c, plain_test_c)`` reproducing ``mm`` through ``adapter``."""
     cfg, consts = mm.cfg, mm.consts
     program = cfg.program
@@ -141,11 +143,11 @@ def write_repro(mm: Mismatch, adapter: Adapter, out: str | Path, seed: int) -> l
     """Write the three files into ``out`` (atomically, one by one); returns their paths."""
     out = Path(out)
     name, doc = case_file(mm, seed)
-    unity, plain = test_sources(mm, adapter, f"test_{name}")
+    unity, plain = unit_test_sources(mm, adapter, f"test_{name}")
     paths = [out / f"test_{name}_unity.c", out / f"test_{name}.c", out / f"{name}.json"]
     for path, data in zip(paths, (unity, plain, doc)):
         write_file(path, data)
     return paths
 
 
-__all__ = ["case_file", "describe", "runs", "test_sources", "write_repro"]
+__all__ = ["case_file", "describe", "runs", "unit_test_sources", "write_repro"]
