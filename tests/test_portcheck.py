@@ -373,3 +373,16 @@ def test_vectors_unity_runner_passes_shipped_port_and_fails_broken_one(tmp_path:
     fails = re.search(r"(\d+) Tests (\d+) Failures", bad.stdout)
     assert fails and int(fails.group(2)) > 0
     assert re.search(r"FAIL: Expected -?\d+ Was -?\d+:case kalman_accel_\w+ sample \d+ word \w+", bad.stdout)
+
+
+@needs_cc
+@needs_unity
+def test_vectors_unity_runner_of_a_user_set(tmp_path: Path) -> None:
+    csv = tmp_path / "s.csv"
+    csv.write_text("adc,acc\n30000,2048\n30001,2048\n29990,2100\n29950,4000\n29900,4000\n")
+    out = tmp_path / "set"
+    assert main(["vectors", "--firmware", "kalman_baro", "--input", str(csv), "--out", str(out), "--unity",
+                 str(out / "unity"), "--generator", "model"]) == 0
+    inc = [f"-I{out / 'c'}", f"-I{CDIR}", f"-I{out / 'cases'}", f"-I{UNITY}", str(UNITY / "unity.c")]
+    good = _build_and_run(STRICT + inc + [str(CDIR / "fw.c"), str(out / "unity" / RUNNER_NAME)], tmp_path / "run")
+    assert good.returncode == 0 and "1 Tests 0 Failures 0 Ignored" in good.stdout
