@@ -15,12 +15,14 @@ from __future__ import annotations
 
 import argparse
 import json
+import shutil
 import sys
 import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from hypothesis.configuration import set_hypothesis_home_dir, storage_directory
 
 from firmware_model import output
 from firmware_model.cli_args import nonnegative_int, positive_float, positive_int
@@ -130,6 +132,18 @@ def run(args: argparse.Namespace) -> int:
     adapter = load_adapter(args.adapter) if args.adapter else None
     output.declare_output(args.out)
     port = build_port(args.sources, lib=args.lib, adapter=adapter, include_dirs=args.include, cflags=args.cflags)
+    home = storage_directory(intent_to_write=False).home_directory
+    try:
+        if port.workdir is not None:  # hypothesis's caches go with the build, not into the user's current folder
+            set_hypothesis_home_dir(port.workdir / ".hypothesis")
+        return _check(args, cfg, streams, examples, port)
+    finally:
+        set_hypothesis_home_dir(home)
+        if port.workdir is not None:  # the build folder (a fresh temporary one) and hypothesis's caches in it
+            shutil.rmtree(port.workdir, ignore_errors=True)
+
+
+def _check(args: argparse.Namespace, cfg: BuildConfig, streams: list[Any], examples: int | None, port: Any) -> int:
     what = f"{cfg.program} {cfg.rounding} k={cfg.k} {'pascal' if cfg.pascal else f'{cfg.baro_bits}-bit ADC'}"
     last = [0.0]
     tty = sys.stderr.isatty()

@@ -11,18 +11,19 @@ import json
 import re
 import shutil
 import subprocess
+import tempfile
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from firmware_model.cli import main
+from firmware_model.cli import build_parser, main
+from firmware_model.cli_check_port import config_from_args
 from firmware_model.config import PROGRAMS, ROUNDINGS
 from firmware_model.constants import build_constants
 from firmware_model.model import run_model
 from firmware_model.portcheck.build import build_port
 from firmware_model.portcheck.check import check_port, compare
-from firmware_model.portcheck.repro import write_repro
 from firmware_model.trace import word_names
 from firmware_model.vectors import case_config, case_schema, pascal_case_config, validate
 from firmware_model.vectors_unity import RUNNER_NAME
@@ -137,7 +138,7 @@ def test_same_seed_replays_the_same_difference(tmp_path: Path) -> None:
 
 def _build_and_run(cmd: list[str], exe: Path) -> subprocess.CompletedProcess[str]:
     subprocess.run(cmd + ["-o", str(exe)], check=True, capture_output=True, text=True)
-    return subprocess.run([str(exe)], capture_output=True, text=True, timeout=60)
+    return subprocess.run([str(exe)], capture_output=True, text=True, timeout=60, check=False)
 
 
 @needs_cc
@@ -173,11 +174,31 @@ def test_cli_difference_files_reproduce_it(tmp_path: Path, capsys: pytest.Captur
 
 
 @needs_cc
-def test_cli_shipped_port_exit_0(capsys: pytest.CaptureFixture[str]) -> None:
+def test_cli_shipped_port_exit_0(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                 capsys: pytest.CaptureFixture[str]) -> None:
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "tmp").mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / "tmp"))
     code = main(["check-port", str(CDIR / "fw.c"), "--program", "kalman_accel", "--sensor", "pascal",
                  "--rounding", "half_up", "--examples", "20", "--quiet"])
     assert code == 0
     assert "no difference in 20 streams" in capsys.readouterr().out
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["tmp"]      # no .hypothesis, no port-check/
+    assert list((tmp_path / "tmp").iterdir()) == []                   # the build folder is removed
+
+
+@pytest.mark.parametrize("argv, want", [
+    (["--program", "kalman_accel", "--k", "6", "--tuning", "recommended"],
+     {"program": "kalman_accel", "k": 6, "rounding": "half_up", "ratio": 1000.0}),
+    (["--program", "recursive", "--k", "7", "--tuning", "recommended", "--sensor", "adc12"],
+     {"program": "recursive", "k": 7, "shift": 5, "baro_bits": 12}),
+    (["--program", "kalman_baro", "--sensor", "pascal", "--rounding", "half_up"],
+     {"program": "kalman_baro", "k": 5, "baro_kind": "pascal", "rounding": "half_up"}),
+])
+def test_build_flags(argv: list[str], want: dict) -> None:
+    args = build_parser().parse_args(["check-port", "x.c", *argv])
+    cfg, streams = config_from_args(args)
+    assert {k: getattr(cfg, k) for k in want} == want and streams == []
 
 
 @needs_cc

@@ -212,7 +212,7 @@ def glue_core(adapter: Adapter, programs: tuple[str, ...] = PROGRAMS, prefix: st
     if "ALT" in adapter.consts:
         lines.append(f"    {_fill(adapter.consts['ALT'], c='(*fwpc_c)')} = alt;")
     lines += ["    (void)v;", "    (void)alt;", "}", ""]
-    lines += [f"/* the state words after init / step, in the order of the model (firmware_model.trace) */",
+    lines += ["/* the state words after init / step, in the order of the model (firmware_model.trace) */",
               f"static int32_t {prefix}_words(int32_t program, const {adapter.state_type} *fwpc_s, int32_t nw, "
               "int32_t *out)", "{"]
     if adapter.words is None:
@@ -237,7 +237,8 @@ def glue_core(adapter: Adapter, programs: tuple[str, ...] = PROGRAMS, prefix: st
     lines += [f"static int32_t {prefix}_run(int32_t program, const int32_t *v, const int32_t *alt, int32_t n, "
               "const int32_t *baro, const int16_t *acc, int32_t nw, int32_t *out)", "{",
               f"    static {adapter.consts_type} fwpc_c;", f"    static {adapter.state_type} fwpc_s;",
-              "    int32_t i, k = 0;", "    memset(&fwpc_c, 0, sizeof fwpc_c);", "    memset(&fwpc_s, 0, sizeof fwpc_s);",
+              "    int32_t i, k = 0;", "    memset(&fwpc_c, 0, sizeof fwpc_c);",
+              "    memset(&fwpc_s, 0, sizeof fwpc_s);",
               f"    {prefix}_set(&fwpc_c, v, alt);", "    if (n < 1) {", "        return 0;", "    }",
               "    switch (program) {"]
     for p in programs:
@@ -282,7 +283,7 @@ def glue_source(adapter: Adapter) -> str:
                   "const char *fwpc_word_name(int32_t program, int32_t i)", "{"]
         for p in PROGRAMS:
             if p in adapter.programs:
-                ws = [w for w in word_names(p)]
+                ws = list(word_names(p))
                 arr = ", ".join(json.dumps(w) for w in ws)
                 names += [f"    static const char *const w{PROGRAM_IDS[p]}[] = {{{arr}}};",
                           f"    if (program == {PROGRAM_IDS[p]} && i >= 0 && i < {len(ws)}) "

@@ -176,8 +176,13 @@ def build_port(sources: list[str | Path] = (), lib: str | Path | None = None, ad
         cmd = [cc, *STRICT_FLAGS, *extra, "-fPIC", "-shared", *incs, str(glue), "-o", str(out), str(libp),
                f"-Wl,-rpath,{libp.parent}"]
         what = f"the glue for {libp.name}"
-    _compile(cmd, what)
-    return _load(out, adapter, wd, what)
+    try:
+        _compile(cmd, what)
+        return _load(out, adapter, wd, what)
+    except BaseException:
+        if workdir is None:  # our own temporary folder: nothing in it is worth keeping
+            shutil.rmtree(wd, ignore_errors=True)
+        raise
 
 
 __all__ = ["STRICT_FLAGS", "Port", "build_port", "host_compiler", "const_slots"]
