@@ -58,6 +58,9 @@ MUTANTS: list[tuple[str, str, str, str, str, str]] = [
     ("gate_lt", "the barometer rate gate compared with < instead of <=", "recursive", "floor",
      "    if (d >= -(int64_t)c->E_GATE && d <= (int64_t)c->E_GATE) {",
      "    if (d >= -(int64_t)c->E_GATE && d < (int64_t)c->E_GATE) {"),
+    ("kalman_gate_lt", "the Kalman innovation gate compared with < instead of <=", "kalman_baro", "floor",
+     "        if ((int64_t)e1 >= -(int64_t)c->E_GATE && (int64_t)e1 <= (int64_t)c->E_GATE) {",
+     "        if ((int64_t)e1 >= -(int64_t)c->E_GATE && (int64_t)e1 < (int64_t)c->E_GATE) {"),
     ("gate_n_le", "the gate re-opens one sample late (REJ <= GATE_N instead of <)", "kalman_accel", "half_up",
      "        } else if ((int32_t)st->REJ < c->GATE_N) {\n            st->REJ = (uint16_t)(st->REJ + 1u);\n"
      "            st->EVENTS |= FW_EV_BARO_REJECT;\n        } else {",
