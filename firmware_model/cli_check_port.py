@@ -131,7 +131,8 @@ def run(args: argparse.Namespace) -> int:
     examples = args.examples if args.examples is not None else (None if args.time else 1000)
     adapter = load_adapter(args.adapter) if args.adapter else None
     output.declare_output(args.out)
-    port = build_port(args.sources, lib=args.lib, adapter=adapter, include_dirs=args.include, cflags=args.cflags)
+    includes = list(args.include) + ([str(Path(args.adapter).resolve().parent)] if args.adapter else [])
+    port = build_port(args.sources, lib=args.lib, adapter=adapter, include_dirs=includes, cflags=args.cflags)
     home = storage_directory(intent_to_write=False).home_directory
     try:
         if port.workdir is not None:  # hypothesis's caches go with the build, not into the user's current folder

@@ -109,6 +109,15 @@ def test_shipped_port_passes(shipped, program: str, rounding: str, kind: str) ->
 
 
 @needs_cc
+@pytest.mark.parametrize("k, bits", ((4, 12), (8, 16)))
+@pytest.mark.parametrize("program", PROGRAMS)
+def test_shipped_port_passes_other_k_and_widths(shipped, program: str, k: int, bits: int) -> None:
+    cfg = case_config(program, "half_up" if k == 4 else "floor", k, bits)
+    res = check_port(shipped, cfg, examples=examples(10), seed=11)
+    assert res.mismatch is None and res.examples == examples(10)
+
+
+@needs_cc
 @pytest.mark.parametrize("mid", [m[0] for m in MUTANTS])
 def test_broken_port_is_caught_and_shrunk(tmp_path: Path, shipped, mid: str) -> None:
     _, _what, program, rounding, old, new = next(m for m in MUTANTS if m[0] == mid)
