@@ -22,6 +22,7 @@ from firmware_model.cli_check_port import config_from_args
 from firmware_model.config import PROGRAMS, ROUNDINGS
 from firmware_model.constants import build_constants
 from firmware_model.model import run_model
+from firmware_model.portcheck.adapter import const_slots
 from firmware_model.portcheck.build import build_port
 from firmware_model.portcheck.check import check_port, compare
 from firmware_model.trace import word_names
@@ -278,15 +279,18 @@ RENAMES = {
     "BARO_MAX": "baro_hi", "ALT_SHIFT": "tab_shift", "ALT_N": "tab_n", "CAL_P": "cal_bits", "E_GATE": "gate_e",
     "GATE_N": "gate_n", "APO_N": "apo_n", "ALT": "table",
 }
-#: ... and its own types: 16-bit gain mantissas, long state words, unsigned int counters.
-RETYPES = [("    int32_t m;\n    int32_t s;", "    int16_t mant;\n    uint8_t sh;"),
-           ("    int32_t est, ext_, vel;", "    long est, ext_, vel;"),
-           ("    int32_t h_q8, v_q8, a_q8;", "    int_fast32_t h_q8, v_q8, a_q8;"),
-           ("    uint16_t flags;", "    unsigned int flags;"),
-           ("    uint16_t n_cal, n_rej, n_neg;", "    unsigned long n_cal, n_rej, n_neg;")]
-WORDS = {"EST": "est", "EXT": "ext_", "VEL": "vel", "X1": "h_q8", "X2": "v_q8", "X3": "a_q8", "ACC0": "acc_pad",
-         "EVENTS": "flags", "APFRAC": "apo_frac", "GND": "ground", "SUMZ": "sum_h", "SUMA": "sum_a", "CAL": "n_cal",
-         "REJ": "n_rej", "NEG": "n_neg", "ZL": "last_z"}
+#: ... and its own types: 16-bit gain mantissas, and in the state struct `long` for the 32-bit words and `unsigned
+#: long` for the 16-bit ones (whatever fields the struct has: a word added to the spec gets them too).
+RETYPE_GAIN = ("    int32_t m;\n    int32_t s;", "    int16_t mant;\n    uint8_t sh;")
+
+
+def _retype_state(header: str) -> str:
+    start = header.index("typedef struct {", header.index("altf_params_t;"))
+    end = header.index("} altf_state_t;", start)
+    block = re.sub(r"^    int32_t ", "    long ", header[start:end], flags=re.M)
+    block = re.sub(r"^    uint16_t ", "    unsigned long ", block, flags=re.M)
+    assert block.count("long ") >= 4, block
+    return header[:start] + block + header[end:]
 
 
 def team_port(tmp: Path, mutate: tuple[str, str] | None = None) -> tuple[Path, Path]:
@@ -303,25 +307,23 @@ def team_port(tmp: Path, mutate: tuple[str, str] | None = None) -> tuple[Path, P
         text = token.sub(lambda m: RENAMES[m.group(1)], text)
         text = re.sub(r"\.m\b", ".mant", re.sub(r"\.s\b", ".sh", text)).replace('#include "fw.h"', '#include "altf.h"')
         texts[name] = text
-    for old, new in RETYPES:
-        assert texts["fw.h"].count(old) == 1, old
-        texts["fw.h"] = texts["fw.h"].replace(old, new)
+    assert texts["fw.h"].count(RETYPE_GAIN[0]) == 1
+    texts["fw.h"] = _retype_state(texts["fw.h"].replace(*RETYPE_GAIN))
     (tmp / "altf.c").write_text(texts["fw.c"])
     (tmp / "altf.h").write_text(texts["fw.h"])
     consts = {}
-    for name, new in RENAMES.items():
-        if re.fullmatch(r"G\d\dT?|ACC_G", name):
-            consts[f"{name}.m"] = f"{{c}}.{new}.mant"
-            consts[f"{name}.s"] = f"{{c}}.{new}.sh"
-        elif name.isupper() and name not in WORDS and not name.startswith("FW_"):
-            consts[name] = f"{{c}}.{new}"
+    for slot in const_slots():  # every constant check-port sets, under the team's name
+        name, _, part = slot.partition(".")
+        consts[slot] = f"{{c}}.{RENAMES.get(name, name)}" + (f".{'mant' if part == 'm' else 'sh'}" if part else "")
+    consts["ALT"] = f"{{c}}.{RENAMES['ALT']}"
+    words = {w: f"{{s}}.{RENAMES.get(w, w)}" for p in PROGRAMS for w in word_names(p)}
     adapter = {"include": ["altf.h"], "state_type": "altf_state_t", "consts_type": "altf_params_t",
                "programs": {"recursive": "ALTF_REC", "kalman_baro": "ALTF_KB", "kalman_accel": "ALTF_KA",
                             "recursive_seed_literal": "ALTF_LIT"},
                "consts": consts,
                "init": "altf_reset({program}, &{c}, &{s}, {baro}, {acc});",
                "step": "altf_sample({program}, &{c}, &{s}, {baro}, {acc});",
-               "words": {w: f"{{s}}.{f}" for w, f in WORDS.items()}}
+               "words": words}
     (tmp / "adapter.json").write_text(json.dumps(adapter, indent=1))
     return tmp / "altf.c", tmp / "adapter.json"
 
@@ -395,16 +397,20 @@ def test_vectors_unity_runner_passes_shipped_port_and_fails_broken_one(tmp_path:
     runner = tmp_path / RUNNER_NAME
     n_cases = json.loads((ROOT / "vectors" / "manifest.json").read_text())["n_cases"]
     assert runner.read_text().count("    RUN_TEST(test_") == n_cases
-    inc = [f"-I{CDIR}", f"-I{ROOT / 'vectors' / 'cases'}", f"-I{UNITY}", str(UNITY / "unity.c")]
-    good = _build_and_run(STRICT + inc + [str(CDIR / "fw.c"), str(runner)], tmp_path / "good")
+    # the runner (all the cases' data) is compiled once; the shipped and the broken port are linked with it
+    obj = tmp_path / "runner.o"
+    subprocess.run(STRICT + ["-c", f"-I{CDIR}", f"-I{ROOT / 'vectors' / 'cases'}", f"-I{UNITY}", str(runner), "-o",
+                             str(obj)], check=True, capture_output=True)
+    unity = [f"-I{UNITY}", str(UNITY / "unity.c"), str(obj)]
+    good = _build_and_run(STRICT + [f"-I{CDIR}", str(CDIR / "fw.c"), *unity], tmp_path / "good")
     assert good.returncode == 0, good.stdout[-2000:]
     assert f"{n_cases} Tests 0 Failures 0 Ignored" in good.stdout
     _, _, _, _, old, new = next(m for m in MUTANTS if m[0] == "cal_off_by_one")
     bad_src = patched_port(tmp_path / "broken", old, new)
-    bad = _build_and_run(STRICT + [f"-I{bad_src.parent}"] + inc + [str(bad_src), str(runner)], tmp_path / "bad")
+    bad = _build_and_run(STRICT + [f"-I{bad_src.parent}", str(bad_src), *unity], tmp_path / "bad")
     assert bad.returncode != 0
     fails = re.search(r"(\d+) Tests (\d+) Failures", bad.stdout)
-    assert fails and int(fails.group(2)) > 0
+    assert fails and int(fails.group(1)) == n_cases and int(fails.group(2)) > 0
     assert re.search(r"FAIL: Expected -?\d+ Was -?\d+:case kalman_accel_\w+ sample \d+ word \w+", bad.stdout)
 
 
