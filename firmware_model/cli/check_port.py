@@ -24,16 +24,16 @@ from typing import Any
 import numpy as np
 from hypothesis.configuration import set_hypothesis_home_dir, storage_directory
 
-from firmware_model.runtime import output
 from firmware_model.cli.args import nonnegative_int, positive_float, positive_int
-from firmware_model.spec.config import PROGRAMS, ROUNDINGS, BuildConfig, load_config
+from firmware_model.runtime import output
 from firmware_model.runtime.errors import UserError
+from firmware_model.spec.config import PROGRAMS, ROUNDINGS, BuildConfig, load_config
+from firmware_model.spec.tuning import recommended_config
+from firmware_model.vectors.cases import case_config, pascal_case_config
 from firmware_model.vectors.portcheck.adapter import load_adapter
 from firmware_model.vectors.portcheck.build import build_port
 from firmware_model.vectors.portcheck.check import check_port
 from firmware_model.vectors.portcheck.repro import describe, write_repro
-from firmware_model.spec.tuning import recommended_config
-from firmware_model.vectors.cases import case_config, pascal_case_config
 
 SENSORS: tuple[str, ...] = ("adc16", "adc12", "pascal")
 TUNINGS: tuple[str, ...] = ("default", "recommended")

@@ -17,16 +17,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from firmware_model.cli.main import build_parser, main
 from firmware_model.cli.check_port import config_from_args
-from firmware_model.spec.config import PROGRAMS, ROUNDINGS
-from firmware_model.spec.build_constants import build_constants
+from firmware_model.cli.main import build_parser, main
 from firmware_model.model.run import run_model
+from firmware_model.model.trace import word_names
+from firmware_model.spec.build_constants import build_constants
+from firmware_model.spec.config import PROGRAMS, ROUNDINGS
+from firmware_model.vectors.cases import case_config, pascal_case_config
 from firmware_model.vectors.portcheck.adapter import const_slots
 from firmware_model.vectors.portcheck.build import build_port
 from firmware_model.vectors.portcheck.check import check_port, compare
-from firmware_model.model.trace import word_names
-from firmware_model.vectors.cases import case_config, pascal_case_config
 from firmware_model.vectors.schema import case_schema, validate
 from firmware_model.vectors.unity import RUNNER_NAME
 from tests.support.profiles import examples

@@ -27,9 +27,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from firmware_model.spec.config import PROGRAMS, read_config_file
-from firmware_model.runtime.errors import UserError
 from firmware_model.model.trace import STATE_WORDS, word_names
+from firmware_model.runtime.errors import UserError
+from firmware_model.spec.config import PROGRAMS, read_config_file
 from firmware_model.vectors.cases import GAIN_NAMES, PROGRAM_IDS, SCALAR_CONSTANTS
 
 #: Version of the glue's ABI (``fwpc_abi()``); bumped when the three functions change.

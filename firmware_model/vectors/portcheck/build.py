@@ -20,10 +20,17 @@ from typing import Any
 
 import numpy as np
 
-from firmware_model.runtime.errors import UserError
-from firmware_model.vectors.portcheck.adapter import GLUE_ABI, Adapter, api_adapter, const_slots, consts_vector, glue_source
 from firmware_model.model.trace import word_names
+from firmware_model.runtime.errors import UserError
 from firmware_model.vectors.cases import PROGRAM_IDS
+from firmware_model.vectors.portcheck.adapter import (
+    GLUE_ABI,
+    Adapter,
+    api_adapter,
+    const_slots,
+    consts_vector,
+    glue_source,
+)
 
 #: Flags every port is compiled with (then ``--cflags``): the golden-vector harness's (vectors/c/Makefile).
 STRICT_FLAGS: tuple[str, ...] = ("-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-O2")

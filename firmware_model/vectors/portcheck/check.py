@@ -15,14 +15,15 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from hypothesis import HealthCheck, Phase, Verbosity, given, seed as hyp_seed, settings
+from hypothesis import HealthCheck, Phase, Verbosity, given, settings
+from hypothesis import seed as hyp_seed
 
-from firmware_model.spec.config import BuildConfig
-from firmware_model.spec.build_constants import build_constants
 from firmware_model.model.run import run_model
+from firmware_model.model.trace import word_names
+from firmware_model.spec.build_constants import build_constants
+from firmware_model.spec.config import BuildConfig
 from firmware_model.vectors.portcheck.build import Port
 from firmware_model.vectors.portcheck.streams import port_streams
-from firmware_model.model.trace import word_names
 
 #: Examples per round (the granularity of the time budget and of the progress report).
 ROUND_EXAMPLES: int = 25

@@ -15,11 +15,11 @@ import numpy as np
 
 from firmware_model.model.streams import Stream
 from firmware_model.runtime.output import write_file
-from firmware_model.vectors.portcheck.adapter import Adapter, const_slots, consts_vector, glue_core, includes
-from firmware_model.vectors.portcheck.check import Mismatch
 from firmware_model.vectors.case_json import case_json
 from firmware_model.vectors.cases import PROGRAM_IDS, CaseSpec, case_name
 from firmware_model.vectors.compute import compute_case
+from firmware_model.vectors.portcheck.adapter import Adapter, const_slots, consts_vector, glue_core, includes
+from firmware_model.vectors.portcheck.check import Mismatch
 
 
 def runs(values: np.ndarray) -> str:

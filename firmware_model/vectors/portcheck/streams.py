@@ -26,10 +26,10 @@ import math
 import numpy as np
 from hypothesis import strategies as st
 
+from firmware_model.flights.strategies import PASCAL_EDGES, edge_streams, pascal_streams
+from firmware_model.model.streams import EDGE_KINDS, edge_stream, pascal_edge_stream
 from firmware_model.spec.atmosphere import pressure_pa
 from firmware_model.spec.config import BuildConfig
-from firmware_model.model.streams import EDGE_KINDS, edge_stream, pascal_edge_stream
-from firmware_model.flights.strategies import PASCAL_EDGES, edge_streams, pascal_streams
 
 G0 = 9.80665
 ACC_MIN, ACC_MAX = -32768, 32767
