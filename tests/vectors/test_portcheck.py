@@ -344,8 +344,15 @@ def test_team_port_under_other_names_and_types_runs_through_the_adapter(tmp_path
     code = main(["check-port", str(src), "--adapter", str(adapter), "--program", program, "--rounding", rounding,
                  "--time", "60", "--quiet", "--out", str(tmp_path / "out2")])
     assert code == 1
-    unity = next((tmp_path / "out2").glob("test_*_unity.c")).read_text()
-    assert "altf_sample(ALTF_REC, &fwpc_c, &fwpc_s, baro[i], acc[i]);" in unity
+    unity = next((tmp_path / "out2").glob("test_*_unity.c"))
+    assert "altf_sample(ALTF_REC, &fwpc_c, &fwpc_s, baro[i], acc[i]);" in unity.read_text()
+    plain = next(p for p in (tmp_path / "out2").glob("test_*.c") if not p.name.endswith("_unity.c"))
+    bad = _build_and_run(STRICT + [f"-I{src.parent}", str(src), str(plain)], tmp_path / "plain_bad")
+    assert bad.returncode == 1 and "expected" in bad.stdout
+    if (UNITY / "unity.c").is_file():
+        bad = _build_and_run(STRICT + [f"-I{src.parent}", f"-I{UNITY}", str(src), str(UNITY / "unity.c"), str(unity)],
+                             tmp_path / "unity_bad")
+        assert bad.returncode != 0 and "1 Failures" in bad.stdout
 
 
 @pytest.mark.parametrize("doc, message", [
