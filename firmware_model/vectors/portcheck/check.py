@@ -193,7 +193,7 @@ def check_port(port: Port, cfg: BuildConfig, *, examples: int | None = 1000, sec
             run()
         except _PortDiffers:
             pass
-        except BaseException as exc:  # hypothesis wraps a failure it cannot reproduce (a port that is not
+        except Exception as exc:  # hypothesis wraps a failure it cannot reproduce (a port that is not
             if state["last"] is None:  # deterministic); anything before a difference is a real error
                 raise
             res.notes.append(f"hypothesis: {type(exc).__name__}: {exc}".splitlines()[0])
