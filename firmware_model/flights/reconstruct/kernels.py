@@ -81,8 +81,9 @@ def boxminus(a, b, out):
 
 
 @njit(cache=True)
-def propagate(x, acc, gyr, dt, site_asl, out):
-    """One IMU step of the flat state ``x`` into ``out`` (:mod:`.ukf` docstring)."""
+def propagate(x, acc, gyr, dt, site_asl, wE, out):
+    """One IMU step of the flat state ``x`` into ``out`` (:mod:`.ukf` docstring); ``wE`` the earth's rate in the
+    site frame (Coriolis ``-2 wE x v``)."""
     wx, wy, wz = gyr[0] - x[13], gyr[1] - x[14], gyr[2] - x[15]
     fx, fy, fz = acc[0] - x[10], acc[1] - x[11], acc[2] - x[12]
     h = _exp(wx * 0.5 * dt, wy * 0.5 * dt, wz * 0.5 * dt)
@@ -90,6 +91,9 @@ def propagate(x, acc, gyr, dt, site_asl, out):
     ax, ay, az = _rot(qh[0], qh[1], qh[2], qh[3], fx, fy, fz)
     zz = x[2] + site_asl
     az -= G0 * (EARTH_R / (EARTH_R + zz)) ** 2
+    ax -= 2.0 * (wE[1] * x[5] - wE[2] * x[4])
+    ay -= 2.0 * (wE[2] * x[3] - wE[0] * x[5])
+    az -= 2.0 * (wE[0] * x[4] - wE[1] * x[3])
     out[0] = x[0] + x[3] * dt + 0.5 * ax * dt * dt
     out[1] = x[1] + x[4] * dt + 0.5 * ay * dt * dt
     out[2] = x[2] + x[5] * dt + 0.5 * az * dt * dt
@@ -106,13 +110,13 @@ def propagate(x, acc, gyr, dt, site_asl, out):
 
 
 @njit(cache=True)
-def predict_points(x, chi, acc, gyr, dt, site_asl, ref, dev):
+def predict_points(x, chi, acc, gyr, dt, site_asl, wE, ref, dev):
     """Propagate the nominal ``x`` into ``ref`` and each sigma point ``x [+] chi[i]``; ``dev[i]`` = its propagated
     state [-] ``ref``."""
-    propagate(x, acc, gyr, dt, site_asl, ref)
+    propagate(x, acc, gyr, dt, site_asl, wE, ref)
     xi = np.empty(16)
     yi = np.empty(16)
     for i in range(chi.shape[0]):
         boxplus(x, chi[i], xi)
-        propagate(xi, acc, gyr, dt, site_asl, yi)
+        propagate(xi, acc, gyr, dt, site_asl, wE, yi)
         boxminus(yi, ref, dev[i])

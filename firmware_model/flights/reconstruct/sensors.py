@@ -49,6 +49,8 @@ class ImuModel:
     gyro_scale: float = 0.0
     gyro_range: float = radians(2000.0)
     gyro_lsb: float = 0.0
+    accel_bias_walk: float = 0.0      # m/s^2/sqrt(s): what the filter assumes of bias drift (the model's biases
+    gyro_bias_walk: float = 0.0       # rad/s/sqrt(s)  are constant per flight)
     name: str = "custom"
 
     def to_dict(self) -> dict[str, Any]:
@@ -73,7 +75,8 @@ class GpsModel:
 IMU_PRESETS: dict[str, ImuModel] = {
     "chari": ImuModel(name="chari"),
     "bno055": ImuModel(accel_bias=0.25, accel_scale=0.005, accel_lsb=0.01, gyro_bias=radians(0.5),
-                       gyro_scale=0.005, gyro_lsb=radians(1 / 16), name="bno055"),
+                       gyro_scale=0.005, gyro_lsb=radians(1 / 16), accel_bias_walk=1e-3,
+                       gyro_bias_walk=radians(0.005), name="bno055"),
 }
 GPS_PRESETS: dict[str, GpsModel] = {
     "chari": GpsModel(name="chari"),

@@ -42,6 +42,7 @@ def filter_noise_for(imu: ImuModel, gps: GpsModel | None, heading_sigma_deg: flo
                        gyro_noise=imu.gyro_noise, gyro_lsb=imu.gyro_lsb,
                        gyro_bias_sigma=max(imu.gyro_bias, radians(0.01)), gyro_scale_sigma=imu.gyro_scale,
                        accel_range=imu.accel_range, heading_sigma=radians(heading_sigma_deg),
+                       accel_bias_walk=max(imu.accel_bias_walk, 1e-5), gyro_bias_walk=max(imu.gyro_bias_walk, 1e-7),
                        gps_sigma=(gps.sigma_h_m, gps.sigma_h_m, gps.sigma_v_m) if gps is not None else (4, 4, 4))
 
 
@@ -73,7 +74,7 @@ def sensed_flight(truth: Truth6, imu: ImuModel, gps: GpsModel | None, baro: Baro
             k = step_of.get(int(ti))
             if k is not None:
                 gps_arr[k] = p
-    baro_arr = sig = None
+    baro_arr = sig = pres = None
     if baro is not None:
         tb, pb = baro_samples(truth, baro, baro_hz, rng)
         p0 = float(np.median(pb[tb < truth.t[0] + pad_align_s]))
@@ -81,16 +82,16 @@ def sensed_flight(truth: Truth6, imu: ImuModel, gps: GpsModel | None, baro: Baro
         sb = np.sqrt(baro_sigma_m(baro.noise_pa, pb) ** 2 + baro_sigma_m(1 / np.sqrt(12), pb) ** 2 + 0.05 ** 2)
         baro_arr = np.full(n, np.nan)
         sig = np.full(n, np.nan)
-        for ti, h, s in zip(np.rint((tb - truth.t[0]) / dt_truth).astype(int), hb, sb):
+        pres = np.full(n, np.nan)
+        for j, ti in enumerate(np.rint((tb - truth.t[0]) / dt_truth).astype(int)):
             k = step_of.get(int(ti))
             if k is not None:
-                baro_arr[k] = h
-                sig[k] = s
+                baro_arr[k], sig[k], pres[k] = hb[j], sb[j], pb[j]
     noise = filter_noise_for(imu, gps, heading_sigma_deg)
     heading = heading_of(truth) + rng.normal(0.0, noise.heading_sigma)
     n_pad = int(np.sum(t < truth.t[0] + pad_align_s))
     return Sensed(t=t, imu=data, meas=Measurements(gps=gps_arr, baro=baro_arr, baro_sigma=sig), n_pad=n_pad,
-                  heading_rad=heading, noise=noise, truth_idx=tidx)
+                  heading_rad=heading, noise=noise, truth_idx=tidx, notes={"pressure_pa": pres, "earth_rate": truth.earth_rate})
 
 
 def reconstruct_sensed(s: Sensed, site_asl_m: float, smooth: bool = True,
@@ -98,7 +99,8 @@ def reconstruct_sensed(s: Sensed, site_asl_m: float, smooth: bool = True,
     acc = s.imu.accel if accel is None else accel
     gyr = s.imu.gyro if gyro is None else gyro
     al = align(acc, gyr, s.n_pad, s.noise, s.heading_rad, site_asl_m)
-    return run_ukf(s.t, acc, gyr, s.imu.saturated, s.meas, al, s.noise, site_asl_m, smooth=smooth)
+    return run_ukf(s.t, acc, gyr, s.imu.saturated, s.meas, al, s.noise, site_asl_m, smooth=smooth,
+                   earth_rate=s.notes.get("earth_rate"))
 
 
 @dataclass

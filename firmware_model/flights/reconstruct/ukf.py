@@ -10,6 +10,7 @@ instead of adding to a quaternion and renormalising; the quaternion itself is ne
   +-sqrt(n) columns of chol(P), equal weights 1/(2n): the unscented transform with kappa = 0, whose weights are all
   positive so the predicted covariance stays positive definite), each mapped onto a full state and propagated:
   ``w = gyro - bg``, ``f = accel - ba``, ``q' = q (x) exp(w dt)``, ``a = R(q (x) exp(w dt / 2)) f + (0, 0, -g(z))``,
+  minus the Coriolis term ``2 W x v`` of the earth's rate W (RocketPy integrates in the rotating site frame),
   ``v' = v + a dt``, ``r' = r + v dt + a dt^2 / 2``; the nominal is propagated alongside and the sigma points'
   attitudes are read back as rotation vectors relative to it (``log(q_i (x) q_ref^*)``); mean and covariance of the
   15 errors, plus the process noise of the IMU's white noise, quantisation and bias random walks; the predicted
@@ -186,8 +187,11 @@ def _sigma_offsets(P: np.ndarray) -> np.ndarray:
 
 
 def run_ukf(t: np.ndarray, accel: np.ndarray, gyro: np.ndarray, saturated: np.ndarray, meas: Measurements,
-            al: Alignment, noise: FilterNoise, site_asl_m: float, smooth: bool = True) -> Run:
+            al: Alignment, noise: FilterNoise, site_asl_m: float, smooth: bool = True,
+            earth_rate: np.ndarray | None = None) -> Run:
+    """Filter (and smooth) one flight; ``earth_rate``: the earth's rotation in the site frame (rad/s; None: 0)."""
     n = t.size
+    wE = np.zeros(3) if earth_rate is None else np.asarray(earth_rate, dtype=np.float64)
     accel = np.ascontiguousarray(accel, dtype=np.float64)
     gyro = np.ascontiguousarray(gyro, dtype=np.float64)
     x = al.x0.copy()
@@ -218,7 +222,7 @@ def run_ukf(t: np.ndarray, accel: np.ndarray, gyro: np.ndarray, saturated: np.nd
     for k in range(1, n):
         dt = float(t[k] - t[k - 1])
         chi = _sigma_offsets(P)
-        kern.predict_points(x, chi, accel[k], gyro[k], dt, site_asl_m, ref, dev)
+        kern.predict_points(x, chi, accel[k], gyro[k], dt, site_asl_m, wE, ref, dev)
         mean = dev.mean(axis=0)
         dev -= mean
         acc_var = va + (noise.accel_scale_sigma * fmag_all[k]) ** 2

@@ -1,0 +1,185 @@
+"""One reconstruction, of a real log or a simulated flight: what ``fwemu reconstruct`` and ``fwemu evaluate
+--reference smoother`` call.
+
+Modes (``Reconstruction.mode``):
+
+* ``full``: IMU (3-axis accelerometer + gyroscope), GPS and barometer: position, velocity and attitude (simulated
+  flights with GPS);
+* ``vertical-imu``: 3-axis IMU and barometer, no GPS: the same filter (attitude from the gyroscope, specific force
+  rotated into the site frame), but only the vertical channel is observable and reported;
+* ``vertical-axial``: no gyroscope (or no usable 3-axis IMU): altitude and vertical velocity from the axial
+  accelerometer taken as vertical and the barometer (:mod:`.vertical`).
+
+The apogee (:mod:`.apogee`) comes from the smoother of the best mode available; a log gets both vertical modes when
+it has a gyroscope, so their difference (what the axial-as-vertical assumption does on that flight) is reported.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from math import radians
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from firmware_model.errors import UserError
+from firmware_model.flights.reconstruct.apogee import ApogeeEstimate, velocity_zero_crossing
+from firmware_model.flights.reconstruct.logs import read_imu_log
+from firmware_model.flights.reconstruct.rotation import tilt_deg
+from firmware_model.flights.reconstruct.sensors import baro_altitude, geopotential_to_geometric, gps_preset, imu_preset
+from firmware_model.flights.reconstruct.simulated import errors, reconstruct_sensed, sensed_flight
+from firmware_model.flights.reconstruct.truth import gravity, truth_run
+from firmware_model.flights.reconstruct.flightset import case_named, flight_set
+from firmware_model.flights.reconstruct.ukf import FilterNoise, Measurements, align, run_ukf, unflat
+from firmware_model.flights.reconstruct.vertical import run_vertical
+from firmware_model.flights.reference import ground_pressure, liftoff_time, noise_scale
+from firmware_model import atmosphere as atm
+
+G = 9.80665
+
+
+@dataclass
+class Reconstruction:
+    name: str
+    mode: str
+    t: np.ndarray
+    columns: dict[str, np.ndarray]          # per-sample outputs (CSV columns)
+    apogee: ApogeeEstimate
+    apogee_axial: ApogeeEstimate | None = None
+    truth: dict[str, Any] | None = None     # simulated: truth arrays and the errors
+    notes: list[str] = field(default_factory=list)
+    cpu_s: float = 0.0
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+def _sd(P: np.ndarray) -> np.ndarray:
+    return np.sqrt(np.clip(np.einsum("nii->ni", P), 0.0, None))
+
+
+def _ukf_columns(run, which: str) -> dict[str, np.ndarray]:
+    X = unflat(run.xf if which == "f" else run.xs)
+    sd = _sd(run.Pf if which == "f" else run.Ps)
+    cols = {}
+    for i, a in enumerate("xyz"):
+        cols[f"{which}_{a}_m"] = X["r"][:, i]
+        cols[f"{which}_v{a}_mps"] = X["v"][:, i]
+        cols[f"{which}_sigma_{a}_m"] = sd[:, i]
+        cols[f"{which}_sigma_v{a}_mps"] = sd[:, 3 + i]
+    for i in range(4):
+        cols[f"{which}_q{i}"] = X["q"][:, i]
+    for i, a in enumerate("xyz"):
+        cols[f"{which}_sigma_att_{a}_deg"] = np.degrees(sd[:, 6 + i])
+    cols[f"{which}_tilt_deg"] = tilt_deg(X["q"])
+    return cols
+
+
+def reconstruct_sim(name: str, imu: str = "chari", gps: str | None = "chari", seed: int = 0) -> Reconstruction:
+    """A flight of the simulated set (:func:`~.flightset.flight_set`), sensed with the named presets."""
+    try:
+        case = case_named(name)
+    except KeyError:
+        raise UserError(f"sim:{name}: unknown simulated flight; known: "
+                        f"{', '.join(c.name for c in flight_set())}") from None
+    truth = truth_run(case)
+    s = sensed_flight(truth, imu_preset(imu, accel_range=32 * G), gps_preset(gps) if gps else None, seed=seed)
+    t0 = time.process_time()
+    run = reconstruct_sensed(s, truth.site_asl_m)
+    cpu = time.process_time() - t0
+    E = errors(run, s, truth)
+    cols = {**_ukf_columns(run, "f"), **_ukf_columns(run, "s")}
+    X = unflat(run.xs)
+    sd = _sd(run.Ps)
+    ap = velocity_zero_crossing(s.t, X["r"][:, 2], X["v"][:, 2], sd[:, 2], sd[:, 5], where=f"sim:{name}")
+    idx = s.truth_idx
+    tr = {"pos": truth.pos[idx] - truth.pos[0], "vel": truth.vel[idx], "tilt_deg": tilt_deg(truth.quat[idx]),
+          "apogee_time_s": truth.apogee_time_s, "errors": E}
+    for i, a in enumerate("xyz"):
+        cols[f"truth_{a}_m"] = tr["pos"][:, i]
+        cols[f"truth_v{a}_mps"] = tr["vel"][:, i]
+    cols["truth_tilt_deg"] = tr["tilt_deg"]
+    mode = "full" if gps else "vertical-imu"
+    return Reconstruction(name=name, mode=mode, t=s.t, columns=cols, apogee=ap, truth=tr, cpu_s=cpu,
+                          notes=[f"simulated: RocketPy 6-DOF, IMU preset {imu} (range 32 g), GPS "
+                                 f"{gps or 'none'}, seed {seed}"] + ([] if gps else ["no GPS: vertical channel only"]))
+
+
+def _fill(x: np.ndarray) -> np.ndarray:
+    x = np.array(x, dtype=np.float64)
+    for j in range(x.shape[1]):
+        ok = np.isfinite(x[:, j])
+        if not ok.any():
+            raise UserError("IMU column without a single number")
+        x[~ok, j] = np.interp(np.nonzero(~ok)[0], np.nonzero(ok)[0], x[ok, j])
+    return x
+
+
+def reconstruct_log(path: str | Path, format: str | None = None) -> Reconstruction:  # noqa: A002
+    """A real log (module docstring): vertical channel, from the 3-axis IMU where the log has a gyroscope."""
+    log = read_imu_log(path, format)
+    rec = log.record
+    where = rec.provenance.get("source", str(path))
+    t = np.asarray(rec.time_s, dtype=np.float64)
+    p = np.asarray(rec.pressure_pa, dtype=np.float64)
+    p0 = ground_pressure(rec)
+    site = float(geopotential_to_geometric(float(atm.altitude_m(p0))))
+    hb = baro_altitude(np.where(p > 0, p, np.nan), p0)
+    lift = liftoff_time(rec)
+    pad = t < lift - 0.2
+    noise_m = max(noise_scale(np.where(np.isfinite(hb), hb, 0.0), pad), 0.3) if pad.sum() >= 10 else 1.0
+    sig = np.full(t.size, noise_m)
+    notes = list(log.notes) + [f"barometer sigma {noise_m:.2f} m (pad noise, at least 0.3 m); liftoff {lift:.2f} s"]
+    n_pad = int(pad.sum())
+    f_ax = rec.specific_force_mps2()
+    t0 = time.process_time()
+    vert = None
+    if f_ax is not None:
+        vert = run_vertical(t, f_ax, hb, sig, site, n_pad)
+    cols: dict[str, np.ndarray] = {"baro_altitude_m": hb}
+    ap_axial = None
+    if vert is not None:
+        sdv = _sd(vert.Ps)
+        cols.update({"axial_z_m": vert.xs[:, 0], "axial_vz_mps": vert.xs[:, 1], "axial_sigma_z_m": sdv[:, 0],
+                     "axial_sigma_vz_mps": sdv[:, 1]})
+        ap_axial = velocity_zero_crossing(t, vert.xs[:, 0], vert.xs[:, 1], sdv[:, 0], sdv[:, 1],
+                                          source="smoother (axial as vertical)", where=where)
+    if log.accel is not None and log.gyro is not None:
+        acc = _fill(log.accel)
+        gyr = _fill(log.gyro)
+        pad_acc = acc[pad]
+        fn = FilterNoise(accel_noise=max(float(np.median(np.std(pad_acc, axis=0))) if n_pad >= 10 else 0.3, 0.1),
+                         accel_bias_sigma=0.3, accel_scale_sigma=0.01, gyro_noise=radians(0.3),
+                         gyro_bias_sigma=radians(0.5), gyro_scale_sigma=0.01, heading_sigma=radians(60.0))
+        if n_pad >= 10:
+            al = align(acc, gyr, n_pad, fn, 0.0, site)
+        else:
+            fake = np.tile([0.0, 0.0, float(gravity(site))], (10, 1))
+            al = align(fake, np.zeros((10, 3)), 10, fn, 0.0, site)
+            al.P0[6:8, 6:8] += np.eye(2) * radians(5.0) ** 2
+            al.P0[12:15, 12:15] = np.eye(3) * fn.gyro_bias_sigma ** 2
+            al.P0[3:6, 3:6] = np.eye(3) * 2.0 ** 2
+            notes.append(f"only {n_pad} pad samples: no pad alignment; the rail taken as vertical +-5 deg, "
+                         "gyro bias unknown (+-0.5 deg/s)")
+        sat = np.any(np.abs(acc) >= np.nanmax(np.abs(acc)) * 0.999, axis=1) & (np.abs(acc).max(axis=1) > 8 * G)
+        run = run_ukf(t, acc, gyr, sat, Measurements(gps=None, baro=hb, baro_sigma=sig), al, fn, site)
+        cols.update(_ukf_columns(run, "f"))
+        cols.update(_ukf_columns(run, "s"))
+        X = unflat(run.xs)
+        sd = _sd(run.Ps)
+        ap = velocity_zero_crossing(t, X["r"][:, 2], X["v"][:, 2], sd[:, 2], sd[:, 5], where=where)
+        mode = "vertical-imu"
+        notes.append("no GPS used: vertical channel only (horizontal position and heading are not observable)")
+        notes.append(f"measurements rejected: {run.rejected}")
+        if log.tilt_log is not None:
+            cols["log_tilt_deg"] = log.tilt_log
+    elif ap_axial is not None:
+        ap = ap_axial
+        mode = "vertical-axial"
+        notes.append("no gyroscope: vertical channel only, axial specific force taken as vertical")
+    else:
+        raise UserError(f"{where}: no accelerometer: nothing to reconstruct (the barometric parabola is the only "
+                        "reference for this log)")
+    cpu = time.process_time() - t0
+    return Reconstruction(name=rec.name, mode=mode, t=t, columns=cols, apogee=ap, apogee_axial=ap_axial,
+                          notes=notes, cpu_s=cpu, extra={"record": rec})
