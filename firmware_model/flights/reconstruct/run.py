@@ -34,10 +34,12 @@ from firmware_model.flights.reconstruct.truth import gravity, truth_run
 from firmware_model.flights.reconstruct.flightset import case_named, flight_set
 from firmware_model.flights.reconstruct.ukf import FilterNoise, Measurements, align, run_ukf, unflat
 from firmware_model.flights.reconstruct.vertical import run_vertical
-from firmware_model.flights.reference import ground_pressure, liftoff_time, noise_scale
+from firmware_model.flights.reference import deployment_time, ground_pressure, liftoff_time, noise_scale
 from firmware_model import atmosphere as atm
 
 G = 9.80665
+#: Acceleration noise (m/s^2) added after the log's own recovery-charge event.
+AFTER_DEPLOY_SIGMA: float = 20.0
 
 
 @dataclass
@@ -105,6 +107,43 @@ def reconstruct_sim(name: str, imu: str = "chari", gps: str | None = "chari", se
                                  f"{gps or 'none'}, seed {seed}"] + ([] if gps else ["no GPS: vertical channel only"]))
 
 
+def residual_scale(t: np.ndarray, baro: np.ndarray, z: np.ndarray, sz: np.ndarray, sig: np.ndarray,
+                   t_apo: float, half_s: float = 5.0) -> float:
+    """How much a real log's smoothed altitude disagrees with its barometer near apogee beyond what the model
+    expects: sqrt(mean NIS) of ``baro - z`` (variance ``sz^2 + sig^2``) within ``half_s`` of the apogee, at least 1.
+    The filter's sigmas assume white barometer noise and a well-modelled accelerometer; a real log's errors are
+    neither, and this factor widens the apogee's sigma by the misfit it leaves."""
+    m = np.isfinite(baro) & (np.abs(t - t_apo) <= half_s)
+    if m.sum() < 5:
+        return 1.0
+    nis = (baro[m] - z[m]) ** 2 / (sz[m] ** 2 + sig[m] ** 2)
+    return max(1.0, float(np.sqrt(np.mean(nis))))
+
+
+def _refit_sigma(t: np.ndarray, baro: np.ndarray, z: np.ndarray, vz: np.ndarray, sig: np.ndarray) -> np.ndarray:
+    """The barometer's sigma after liftoff for a second pass: the robust scale (1.4826 MAD) of the first pass's
+    residuals ``baro - z`` from the end of the fast flight (|vz| < 100 m/s) to the end of the log, at least the pad's
+    figure. A real barometer in flight is noisier than on the pad (airflow over the port, ejection)."""
+    moving = np.nonzero(np.abs(vz) > 5.0)[0]
+    if moving.size == 0:
+        return sig
+    start = int(moving[0])
+    m = np.isfinite(baro) & (np.arange(t.size) >= start) & (np.abs(vz) < 100.0)
+    if m.sum() < 20:
+        return sig
+    r = baro[m] - z[m]
+    mad = 1.4826 * float(np.median(np.abs(r - np.median(r))))
+    out = sig.copy()
+    out[start:] = np.maximum(sig[start:], mad)
+    return out
+
+
+def _scaled(ap: ApogeeEstimate, k: float) -> ApogeeEstimate:
+    return ApogeeEstimate(time_s=ap.time_s, sigma_s=ap.sigma_s * k, altitude_m=ap.altitude_m,
+                          sigma_altitude_m=ap.sigma_altitude_m * k, vz_slope_mps2=ap.vz_slope_mps2,
+                          source=ap.source + (f", sigma x{k:.1f} (barometer misfit)" if k > 1.05 else ""))
+
+
 def _fill(x: np.ndarray) -> np.ndarray:
     x = np.array(x, dtype=np.float64)
     for j in range(x.shape[1]):
@@ -115,8 +154,11 @@ def _fill(x: np.ndarray) -> np.ndarray:
     return x
 
 
-def reconstruct_log(path: str | Path, format: str | None = None) -> Reconstruction:  # noqa: A002
-    """A real log (module docstring): vertical channel, from the 3-axis IMU where the log has a gyroscope."""
+def reconstruct_log(path: str | Path, format: str | None = None,  # noqa: A002
+                    deploy_s: float | None = None) -> Reconstruction:
+    """A real log (module docstring): vertical channel, from the 3-axis IMU where the log has a gyroscope.
+    ``deploy_s``: when a recovery charge fired (s on the log's axis), overriding the log's own events (e.g. the
+    other flight computer's charge, which this one felt but did not log)."""
     log = read_imu_log(path, format)
     rec = log.record
     where = rec.provenance.get("source", str(path))
@@ -132,10 +174,19 @@ def reconstruct_log(path: str | Path, format: str | None = None) -> Reconstructi
     notes = list(log.notes) + [f"barometer sigma {noise_m:.2f} m (pad noise, at least 0.3 m); liftoff {lift:.2f} s"]
     n_pad = int(pad.sum())
     f_ax = rec.specific_force_mps2()
+    deploy = deploy_s if deploy_s is not None else deployment_time(rec)
+    extra = np.zeros(t.size)
+    if deploy is not None:
+        extra[t > deploy] = AFTER_DEPLOY_SIGMA
+        whence = "given" if deploy_s is not None else "the log's own event"
+        notes.append(f"recovery charge at {deploy:.2f} s ({whence}): accelerometer trusted to "
+                     f"+-{AFTER_DEPLOY_SIGMA:g} m/s^2 only after it (ejection, parachute, tumbling)")
     t0 = time.process_time()
     vert = None
     if f_ax is not None:
-        vert = run_vertical(t, f_ax, hb, sig, site, n_pad)
+        vert = run_vertical(t, f_ax, hb, sig, site, n_pad, accel_sigma_extra=extra)
+        sig_v = _refit_sigma(t, hb, vert.xs[:, 0], vert.xs[:, 1], sig)
+        vert = run_vertical(t, f_ax, hb, sig_v, site, n_pad, accel_sigma_extra=extra)
     cols: dict[str, np.ndarray] = {"baro_altitude_m": hb}
     ap_axial = None
     if vert is not None:
@@ -144,6 +195,10 @@ def reconstruct_log(path: str | Path, format: str | None = None) -> Reconstructi
                      "axial_sigma_vz_mps": sdv[:, 1]})
         ap_axial = velocity_zero_crossing(t, vert.xs[:, 0], vert.xs[:, 1], sdv[:, 0], sdv[:, 1],
                                           source="smoother (axial as vertical)", where=where)
+        k_ax = residual_scale(t, hb, vert.xs[:, 0], sdv[:, 0], sig_v, ap_axial.time_s)
+        ap_axial = _scaled(ap_axial, k_ax)
+        notes.append(f"axial-as-vertical channel: barometer sigma in flight {sig_v[-1]:.2f} m (from the first pass's "
+                     f"residuals), misfit near apogee x{k_ax:.2f}; rejected {vert.rejected}")
     if log.accel is not None and log.gyro is not None:
         acc = _fill(log.accel)
         gyr = _fill(log.gyro)
@@ -162,12 +217,21 @@ def reconstruct_log(path: str | Path, format: str | None = None) -> Reconstructi
             notes.append(f"only {n_pad} pad samples: no pad alignment; the rail taken as vertical +-5 deg, "
                          "gyro bias unknown (+-0.5 deg/s)")
         sat = np.any(np.abs(acc) >= np.nanmax(np.abs(acc)) * 0.999, axis=1) & (np.abs(acc).max(axis=1) > 8 * G)
-        run = run_ukf(t, acc, gyr, sat, Measurements(gps=None, baro=hb, baro_sigma=sig), al, fn, site)
+        run = run_ukf(t, acc, gyr, sat, Measurements(gps=None, baro=hb, baro_sigma=sig), al, fn, site,
+                      accel_sigma_extra=extra)
+        X1 = unflat(run.xs)
+        sig_u = _refit_sigma(t, hb, X1["r"][:, 2], X1["v"][:, 2], sig)
+        run = run_ukf(t, acc, gyr, sat, Measurements(gps=None, baro=hb, baro_sigma=sig_u), al, fn, site,
+                      accel_sigma_extra=extra)
         cols.update(_ukf_columns(run, "f"))
         cols.update(_ukf_columns(run, "s"))
         X = unflat(run.xs)
         sd = _sd(run.Ps)
         ap = velocity_zero_crossing(t, X["r"][:, 2], X["v"][:, 2], sd[:, 2], sd[:, 5], where=where)
+        k_imu = residual_scale(t, hb, X["r"][:, 2], sd[:, 2], sig_u, ap.time_s)
+        ap = _scaled(ap, k_imu)
+        notes.append(f"3-axis IMU channel: barometer sigma in flight {sig_u[-1]:.2f} m (from the first pass's "
+                     f"residuals), misfit near apogee x{k_imu:.2f}")
         mode = "vertical-imu"
         notes.append("no GPS used: vertical channel only (horizontal position and heading are not observable)")
         notes.append(f"measurements rejected: {run.rejected}")

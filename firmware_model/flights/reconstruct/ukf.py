@@ -19,8 +19,11 @@ instead of adding to a quaternion and renormalising; the quaternion itself is ne
 * Update: GPS position and barometric altitude are linear in the error state, so the unscented transform of the
   measurement is exact and equals the Kalman update (Joseph form); the error is folded into the nominal
   (multiplicatively for the attitude) and reset to zero. Innovations beyond the gate (NIS above ``gate_nis``) are
-  rejected and counted. The barometer is not used while the estimated speed exceeds ``baro_max_mach`` of the
-  local speed of sound (real static ports read shock and stagnation pressure there).
+  rejected and counted; after ``reacquire`` barometer rejections in a row the estimate, not the barometer, is
+  taken to be wrong: its altitude and vertical-velocity variances are widened by the innovation and the sample is
+  used (counted as ``reacquired``). The barometer is not used while the estimated speed exceeds ``baro_max_mach`` of the
+  local speed of sound (real static ports read shock and stagnation pressure there; without GPS the vertical
+  speed, the horizontal velocity being unobservable).
 * Smoother (Sarkka's unscented RTS): with the stored cross-covariance ``D_k`` of the errors at k and the predicted
   errors at k+1, ``G = D P_pred^-1``; the smoothed error at k is ``G (x_s(k+1) [-] x_pred(k+1))`` added to the
   filtered nominal, ``P_s(k) = P(k) + G (P_s(k+1) - P_pred(k+1)) G^T``.
@@ -65,6 +68,7 @@ class FilterNoise:
     gps_sigma: tuple[float, float, float] = (4.0, 4.0, 4.0)
     gate_nis: float = 30.0
     baro_max_mach: float = 0.7
+    reacquire: int = 50
 
 
 def flat(r, v, q, ba, bg) -> np.ndarray:
@@ -188,8 +192,9 @@ def _sigma_offsets(P: np.ndarray) -> np.ndarray:
 
 def run_ukf(t: np.ndarray, accel: np.ndarray, gyro: np.ndarray, saturated: np.ndarray, meas: Measurements,
             al: Alignment, noise: FilterNoise, site_asl_m: float, smooth: bool = True,
-            earth_rate: np.ndarray | None = None) -> Run:
-    """Filter (and smooth) one flight; ``earth_rate``: the earth's rotation in the site frame (rad/s; None: 0)."""
+            earth_rate: np.ndarray | None = None, accel_sigma_extra: np.ndarray | None = None) -> Run:
+    """Filter (and smooth) one flight; ``earth_rate``: the earth's rotation in the site frame (rad/s; None: 0);
+    ``accel_sigma_extra``: per-step extra acceleration noise (m/s^2), e.g. after a recovery charge fired."""
     n = t.size
     wE = np.zeros(3) if earth_rate is None else np.asarray(earth_rate, dtype=np.float64)
     accel = np.ascontiguousarray(accel, dtype=np.float64)
@@ -206,7 +211,8 @@ def run_ukf(t: np.ndarray, accel: np.ndarray, gyro: np.ndarray, saturated: np.nd
     Pp[0] = P
     Dk = np.zeros((n, N_ERR, N_ERR))
     w = 1.0 / (2 * N_ERR)
-    rejected = {"gps": 0, "baro": 0, "baro_mach": 0}
+    rejected = {"gps": 0, "baro": 0, "baro_mach": 0, "reacquired": 0}
+    streak = 0
     nis_log: list[tuple[int, str, float, bool]] = []
     va = noise.accel_noise ** 2 + noise.accel_lsb ** 2 / 12
     vg = noise.gyro_noise ** 2 + noise.gyro_lsb ** 2 / 12
@@ -228,6 +234,8 @@ def run_ukf(t: np.ndarray, accel: np.ndarray, gyro: np.ndarray, saturated: np.nd
         acc_var = va + (noise.accel_scale_sigma * fmag_all[k]) ** 2
         if saturated[k]:
             acc_var += noise.saturated_sigma ** 2
+        if accel_sigma_extra is not None:
+            acc_var += accel_sigma_extra[k] ** 2
         q = np.empty(N_ERR)
         q[0:3] = acc_var * dt ** 4 / 4
         q[3:6] = acc_var * dt * dt
@@ -260,7 +268,8 @@ def run_ukf(t: np.ndarray, accel: np.ndarray, gyro: np.ndarray, saturated: np.nd
             else:
                 rejected["gps"] += 1
         if baro is not None and baro[k] == baro[k]:
-            speed = math.sqrt(x[3] * x[3] + x[4] * x[4] + x[5] * x[5])
+            # without GPS the horizontal velocity is not observable (its estimate may wander): gate on |vz|
+            speed = math.sqrt(x[3] * x[3] + x[4] * x[4] + x[5] * x[5]) if gps is not None else abs(x[5])
             if speed > noise.baro_max_mach * _sound(x[2] + site_asl_m):
                 rejected["baro_mach"] += 1
             else:
@@ -268,7 +277,14 @@ def run_ukf(t: np.ndarray, accel: np.ndarray, gyro: np.ndarray, saturated: np.nd
                 r2 = float(meas.baro_sigma[k]) ** 2
                 S = P[2, 2] + r2
                 nis = y * y / S
-                ok = nis <= noise.gate_nis
+                if nis > noise.gate_nis and streak >= noise.reacquire:
+                    P[2, 2] += y * y
+                    P[5, 5] += (y / 2.0) ** 2
+                    S = P[2, 2] + r2
+                    rejected["reacquired"] += 1
+                    streak = 0
+                ok = y * y / S <= noise.gate_nis
+                streak = 0 if ok else streak + 1
                 nis_log.append((k, "baro", nis, ok))
                 if ok:
                     K = P[:, 2] / S
