@@ -73,7 +73,7 @@ def _plots(r: Reconstruction) -> dict[str, bytes]:
         marks["truth"] = r.truth["apogee_time_s"]
     full = r.mode == "full"
     if "s_z_m" in c:
-        rr = np.stack([c["s_x_m"], c["s_y_m"], c["s_z_m"]], axis=1)
+        rr = np.stack([c.get("s_x_m", np.zeros(r.t.size)), c.get("s_y_m", np.zeros(r.t.size)), c["s_z_m"]], axis=1)
         rt = r.truth["pos"] if r.truth is not None else None
         files["trajectory.png"] = plot_trajectory(rr, rt, f"{r.name}: trajectory ({r.mode})", horizontal=full)
         z, sz, vz, svz = c["s_z_m"], c["s_sigma_z_m"], c["s_vz_mps"], c["s_sigma_vz_mps"]

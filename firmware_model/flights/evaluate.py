@@ -35,6 +35,8 @@ import numpy as np
 from firmware_model.config import BuildConfig
 from firmware_model.errors import UserError
 from firmware_model.flights.record import FlightRecord
+from firmware_model.flights.reconstruct.reference import MODES as SMOOTHER_MODES
+from firmware_model.flights.reconstruct.reference import smoother_reference
 
 
 # ---------------------------------------------------------------------------------------------------- methods
@@ -156,14 +158,27 @@ class Reference:
     source: str                 # "truth" or the reference_apogee rule
     notes: str = ""             # the rule's warning and how the fit was made, readable
     usable: bool = True         # False when the reference carries a warning (not a free flight near its peak)
+    disagree: bool = False      # the smoother's and the parabola's apogees differ beyond their uncertainties
 
 
-def reference_for(record: FlightRecord) -> Reference:
-    """Truth for simulated flights, the robust parabola (:func:`flights.reference.reference_apogee`) otherwise."""
+def reference_for(record: FlightRecord, mode: str = "parabola") -> Reference:
+    """Truth for simulated flights; otherwise the robust parabola (:func:`flights.reference.reference_apogee`),
+    or with ``mode`` "smoother" the reconstruction's apogee (:mod:`flights.reconstruct.reference`), "auto": the
+    smoother where the log has an accelerometer and it reconstructs, else the parabola."""
     truth = record.truth
     if truth is not None and truth.apogee_time_s is not None:
         return Reference(float(truth.apogee_time_s), None if truth.apogee_altitude_m is None
                          else float(truth.apogee_altitude_m), 0.0, "truth")
+    if mode not in SMOOTHER_MODES:
+        raise UserError(f"--reference {mode!r}: known: {', '.join(SMOOTHER_MODES)}")
+    if mode == "smoother" or (mode == "auto" and record.has_accel):
+        try:
+            sm = smoother_reference(record)
+            return Reference(sm.time_s, sm.altitude_m, sm.uncertainty_s, f"smoother {sm.mode}", sm.note,
+                             True, sm.disagree)
+        except UserError:
+            if mode == "smoother":
+                raise
     from firmware_model.flights.reference import reference_apogee
 
     ref = reference_apogee(record)
@@ -197,6 +212,7 @@ class FlightSpec:
     label: str | None = None
     format: str | None = None
     method: str = "linear"
+    reference: str = "parabola"   # real logs: "parabola", "smoother" or "auto" (reference_for)
 
     @property
     def name(self) -> str:
@@ -389,7 +405,8 @@ def evaluate_inputs(record: FlightRecord, inputs: Any, spec: FlightSpec, methods
             notes.append(f"{method.name}: integer wrap at {det.wrap}")
         detections[method.name] = det
     altos = record.events.get("altos_apogee") if record.events else None
-    return FlightResult(spec.name, spec.source, spec.k, _sensor_text(inputs, spec), reference_for(record),
+    return FlightResult(spec.name, spec.source, spec.k, _sensor_text(inputs, spec),
+                        reference_for(record, spec.reference),
                         None if altos is None else float(altos), detections, int(adc.shape[0]),
                         _report_text(getattr(inputs, "report", None)), notes)
 
@@ -532,7 +549,8 @@ def render_markdown(results: Sequence[FlightResult], command: str | None = None)
     for r in results:
         ref = r.reference
         cells = [r.name, str(r.k), r.sensor,
-                 f"{ref.time_s:.3f} ±{ref.uncertainty_s:.3f} ({ref.source}){'' if ref.usable else ' ⚠'}",
+                 f"{ref.time_s:.3f} ±{ref.uncertainty_s:.3f} ({ref.source}){'' if ref.usable else ' ⚠'}"
+                 f"{' ≠ parabola' if ref.disagree else ''}",
                  _fmt(ref.altitude_m, 0)]
         for m, _ in cols:
             if m == "altos":
@@ -548,7 +566,9 @@ def render_markdown(results: Sequence[FlightResult], command: str | None = None)
         lines.append("| " + " | ".join(cells) + " |")
     out = ["Detection time s (error s = detection - reference; + late, miss = never fired). ⚠: the reference "
            "carries a warning (the fit is not a free flight near its peak, docs/flights.md); such rows are left out "
-           "of the summary's last column only.", ""] + lines
+           "of the summary's last column only." + (" ≠ parabola: the smoother's and the parabola's apogees differ "
+           "by more than their uncertainties (the reference's notes in apogee.json give both)."
+           if any(r.reference.disagree for r in results) else ""), ""] + lines
     out += ["", "| method | flights | detected | median abs error s | worst abs error s (flight) | median error s "
             "| early / late | most early s (flight) | worst abs error s, usable references |",
             "|---|---|---|---|---|---|---|---|---|"]

@@ -223,8 +223,12 @@ def reconstruct_log(path: str | Path, format: str | None = None,  # noqa: A002
         sig_u = _refit_sigma(t, hb, X1["r"][:, 2], X1["v"][:, 2], sig)
         run = run_ukf(t, acc, gyr, sat, Measurements(gps=None, baro=hb, baro_sigma=sig_u), al, fn, site,
                       accel_sigma_extra=extra)
-        cols.update(_ukf_columns(run, "f"))
-        cols.update(_ukf_columns(run, "s"))
+        for which in ("f", "s"):
+            # vertical channel only: the horizontal states are not observable without GPS and are left out
+            cols.update({k: v for k, v in _ukf_columns(run, which).items()
+                         if not any(f"_{a}_" in k for a in ("x", "y", "vx", "vy", "sigma_x", "sigma_y",
+                                                             "sigma_vx", "sigma_vy"))
+                         or "att" in k})
         X = unflat(run.xs)
         sd = _sd(run.Ps)
         ap = velocity_zero_crossing(t, X["r"][:, 2], X["v"][:, 2], sd[:, 2], sd[:, 5], where=where)
