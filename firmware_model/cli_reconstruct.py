@@ -15,7 +15,6 @@ from pathlib import Path
 import numpy as np
 
 from firmware_model.errors import UserError
-from firmware_model.flights.reconstruct.apogee import agree
 from firmware_model.flights.reconstruct.run import Reconstruction, reconstruct_log, reconstruct_sim
 from firmware_model.flights.reconstruct.sensors import GPS_PRESETS, IMU_PRESETS
 from firmware_model.output import staged_folder
@@ -102,8 +101,9 @@ def run_reconstruct(args: argparse.Namespace) -> int:
 
         try:
             ref = reference_apogee(r.extra["record"])
+            # the rule of evaluate --reference: they disagree beyond the parabola's uncertainty plus 2 sigma
             parabola = {"time_s": ref.time_s, "uncertainty_s": ref.uncertainty_s,
-                        "agree": agree(r.apogee.time_s, r.apogee.sigma_s, ref.time_s, ref.uncertainty_s / 2)}
+                        "agree": abs(r.apogee.time_s - ref.time_s) <= ref.uncertainty_s + 2 * r.apogee.sigma_s}
         except UserError as exc:
             parabola = {"error": str(exc)}
     out = args.out or Path("out/reconstruct") / r.name

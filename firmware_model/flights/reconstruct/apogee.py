@@ -8,7 +8,6 @@ by dv / |a_z|), with ``sigma_vz`` the estimate's own sigma at the crossing and `
 
 from __future__ import annotations
 
-import math
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -53,8 +52,3 @@ def velocity_zero_crossing(t: np.ndarray, z: np.ndarray, vz: np.ndarray, sig_z: 
     sz = float(sig_z[k] + frac * (sig_z[k + 1] - sig_z[k]))
     return ApogeeEstimate(time_s=tc, sigma_s=sv / abs(slope), altitude_m=alt, sigma_altitude_m=sz,
                           vz_slope_mps2=slope, source=source)
-
-
-def agree(a_time: float, a_sigma: float, b_time: float, b_sigma: float, k: float = 2.0) -> bool:
-    """True when two apogee times differ by no more than ``k`` x their combined uncertainty."""
-    return abs(a_time - b_time) <= k * math.hypot(a_sigma, b_sigma)
