@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from firmware_model.flights.reconstruct.rotation import attitude_error, log_q
+from firmware_model.flights.reconstruct.rotation import attitude_error, rotate, tilt_deg
 from firmware_model.flights.reconstruct.sensors import (GpsModel, ImuData, ImuModel, baro_altitude, baro_samples,
                                                         baro_sigma_m, gps_samples, imu_samples)
 from firmware_model.flights.reconstruct.truth import Truth6
@@ -46,13 +46,14 @@ def filter_noise_for(imu: ImuModel, gps: GpsModel | None, heading_sigma_deg: flo
                        gps_sigma=(gps.sigma_h_m, gps.sigma_h_m, gps.sigma_v_m) if gps is not None else (4, 4, 4))
 
 
-def heading_of(truth: Truth6) -> float:
-    """The true pad heading in :func:`~.ukf.align`'s convention (azimuth of body z, or of body x if vertical)."""
-    from firmware_model.flights.reconstruct.rotation import rotate
-    q = truth.quat[0]
-    ref = rotate(q, np.array([0.0, 0.0, 1.0]))
-    if np.hypot(ref[0], ref[1]) < 0.02:
-        ref = rotate(q, np.array([1.0, 0.0, 0.0]))
+def heading_axis_of(truth: Truth6) -> str:
+    """"z" for an inclined rail (more than 1 deg from vertical: its azimuth is what a team measures), else "x"."""
+    return "z" if tilt_deg(truth.quat[0]) > 1.0 else "x"
+
+
+def heading_of(truth: Truth6, axis: str) -> float:
+    """The true pad heading in :func:`~.ukf.align`'s convention: the azimuth of body ``axis``."""
+    ref = rotate(truth.quat[0], np.array([0.0, 0.0, 1.0] if axis == "z" else [1.0, 0.0, 0.0]))
     return float(np.arctan2(ref[0], ref[1]))
 
 
@@ -88,17 +89,19 @@ def sensed_flight(truth: Truth6, imu: ImuModel, gps: GpsModel | None, baro: Baro
             if k is not None:
                 baro_arr[k], sig[k], pres[k] = hb[j], sb[j], pb[j]
     noise = filter_noise_for(imu, gps, heading_sigma_deg)
-    heading = heading_of(truth) + rng.normal(0.0, noise.heading_sigma)
+    axis = heading_axis_of(truth)
+    heading = heading_of(truth, axis) + rng.normal(0.0, noise.heading_sigma)
     n_pad = int(np.sum(t < truth.t[0] + pad_align_s))
     return Sensed(t=t, imu=data, meas=Measurements(gps=gps_arr, baro=baro_arr, baro_sigma=sig), n_pad=n_pad,
-                  heading_rad=heading, noise=noise, truth_idx=tidx, notes={"pressure_pa": pres, "earth_rate": truth.earth_rate})
+                  heading_rad=heading, noise=noise, truth_idx=tidx, notes={"pressure_pa": pres, "earth_rate": truth.earth_rate,
+                                                             "heading_axis": axis})
 
 
 def reconstruct_sensed(s: Sensed, site_asl_m: float, smooth: bool = True,
                        accel: np.ndarray | None = None, gyro: np.ndarray | None = None) -> Run:
     acc = s.imu.accel if accel is None else accel
     gyr = s.imu.gyro if gyro is None else gyro
-    al = align(acc, gyr, s.n_pad, s.noise, s.heading_rad, site_asl_m)
+    al = align(acc, gyr, s.n_pad, s.noise, s.heading_rad, site_asl_m, heading_axis=s.notes.get("heading_axis", "x"))
     return run_ukf(s.t, acc, gyr, s.imu.saturated, s.meas, al, s.noise, site_asl_m, smooth=smooth,
                    earth_rate=s.notes.get("earth_rate"))
 

@@ -104,15 +104,18 @@ class Alignment:
 
 
 def align(accel: np.ndarray, gyro: np.ndarray, n_pad: int, noise: FilterNoise, heading_rad: float,
-          site_asl_m: float, r0: np.ndarray | None = None, r0_sigma: tuple[float, float, float] = (0.5, 0.5, 0.5)
-          ) -> Alignment:
+          site_asl_m: float, r0: np.ndarray | None = None, r0_sigma: tuple[float, float, float] = (0.5, 0.5, 0.5),
+          heading_axis: str = "x") -> Alignment:
     """Initial attitude and biases from the first ``n_pad`` IMU samples (the rocket still on the pad).
 
     Gyro bias = mean pad rate (earth rate, 7e-5 rad/s, ignored). Tilt from the mean specific force's direction
     (it points up, along -gravity); the heading about the vertical is ``heading_rad`` (the azimuth of the body z axis
     if the rail is inclined, else of body x), sigma ``noise.heading_sigma``. An accelerometer bias across gravity
     cannot be told from tilt on the pad: the prior carries that correlation (tilt error = horizontal bias / g);
-    the bias along gravity is |f| - g."""
+    the bias along gravity is |f| - g. ``heading_axis``: the body axis whose azimuth ``heading_rad`` is: "z" (the
+    rocket's axis: an inclined rail's azimuth) or "x" (the pad roll orientation; for a vertical rail, where the
+    axis has no azimuth). The caller decides from what it knows of the rail, never from the measured tilt (an
+    accelerometer bias fakes several degrees of it)."""
     if n_pad < 10:
         raise UserError(f"pad alignment needs at least 10 IMU samples on the pad, got {n_pad}")
     f = accel[:n_pad].mean(axis=0)
@@ -125,9 +128,7 @@ def align(accel: np.ndarray, gyro: np.ndarray, n_pad: int, noise: FilterNoise, h
     s = float(np.linalg.norm(axis))
     ang = float(np.arctan2(s, float(u @ ez)))
     q_tilt = exp_rv(axis / s * ang) if s > 1e-12 else np.array([1.0, 0.0, 0.0, 0.0])
-    ref = rotate(q_tilt, np.array([0.0, 0.0, 1.0]))      # body z in the site frame
-    if np.hypot(ref[0], ref[1]) < 0.02:                  # vertical rail: heading of body x
-        ref = rotate(q_tilt, np.array([1.0, 0.0, 0.0]))
+    ref = rotate(q_tilt, np.array([0.0, 0.0, 1.0] if heading_axis == "z" else [1.0, 0.0, 0.0]))
     az_now = float(np.arctan2(ref[0], ref[1]))           # azimuth from north (y) towards east (x)
     q0 = qmul(exp_rv(np.array([0.0, 0.0, az_now - heading_rad])), q_tilt)
     bg = gyro[:n_pad].mean(axis=0) if gyro is not None else np.zeros(3)
