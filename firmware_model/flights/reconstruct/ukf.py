@@ -252,7 +252,7 @@ def run_ukf(t: np.ndarray, accel: np.ndarray, gyro: np.ndarray, saturated: np.nd
         Dk[k] = w * (chi.T @ dev)
         x = boxplus(ref, mean)
         XP[k] = x
-        Pp[k] = P
+        Pp[k] = P.copy()
         # ---- measurements (linear in the error state)
         if gps is not None and gps[k, 0] == gps[k, 0]:
             y = gps[k] - x[0:3]
@@ -279,8 +279,12 @@ def run_ukf(t: np.ndarray, accel: np.ndarray, gyro: np.ndarray, saturated: np.nd
                 S = P[2, 2] + r2
                 nis = y * y / S
                 if nis > noise.gate_nis and streak >= noise.reacquire:
+                    # the widening is process noise of this step: the stored prediction gets it too, so that
+                    # the smoother's gain does not carry the jump back through the flight
                     P[2, 2] += y * y
                     P[5, 5] += (y / 2.0) ** 2
+                    Pp[k][2, 2] += y * y
+                    Pp[k][5, 5] += (y / 2.0) ** 2
                     S = P[2, 2] + r2
                     rejected["reacquired"] += 1
                     streak = 0

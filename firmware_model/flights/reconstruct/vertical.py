@@ -56,7 +56,7 @@ def run_vertical(t: np.ndarray, f_axial: np.ndarray, baro: np.ndarray, baro_sigm
         Q = va * np.array([[dt ** 4 / 4, dt ** 3 / 2, 0.0], [dt ** 3 / 2, dt * dt, 0.0], [0.0, 0.0, 0.0]])
         Q[2, 2] = bias_walk ** 2 * dt
         P = F @ P @ F.T + Q
-        XP[k], PP[k], FK[k] = x, P, F
+        XP[k], PP[k], FK[k] = x, P.copy(), F
         if np.isfinite(baro[k]):
             if abs(x[1]) > baro_max_mach * _sound(x[0] + site_asl_m):
                 rej["baro_mach"] += 1
@@ -69,6 +69,8 @@ def run_vertical(t: np.ndarray, f_axial: np.ndarray, baro: np.ndarray, baro_sigm
                     # has drifted (accelerometer beyond its range, a wrong bias): widen it and take the sample
                     P[0, 0] += y * y
                     P[1, 1] += (y / 2.0) ** 2
+                    PP[k][0, 0] += y * y          # process noise of this step (the smoother sees it)
+                    PP[k][1, 1] += (y / 2.0) ** 2
                     S = P[0, 0] + r2
                     rej["reacquired"] += 1
                     streak = 0
