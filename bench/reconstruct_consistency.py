@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from firmware_model.flights.plot import _png, _pyplot
 from firmware_model.flights.reconstruct.flightset import flight_set
 from firmware_model.flights.reconstruct.sensors import gps_preset, imu_preset
 from firmware_model.flights.reconstruct.study import nees_band_share, run_case
@@ -96,7 +97,6 @@ def main(argv: list[str] | None = None) -> int:
                                                       default=float) + "\n")
     print(json.dumps(summary, indent=1, default=float))
     if ok:
-        from firmware_model.flights.plot import _png, _pyplot
         plt = _pyplot()
         fig, axs = plt.subplots(1, 2, figsize=(11, 3.6))
         for ax, k, lab in ((axs[0], "f", "filter"), (axs[1], "s", "smoother")):

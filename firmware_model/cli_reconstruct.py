@@ -15,9 +15,10 @@ from pathlib import Path
 import numpy as np
 
 from firmware_model.errors import UserError
-from firmware_model.flights.reconstruct.run import Reconstruction, reconstruct_log, reconstruct_sim
-from firmware_model.flights.reconstruct.sensors import GPS_PRESETS, IMU_PRESETS
 from firmware_model.output import staged_folder
+
+# The reconstruction's modules (numba kernels, scipy, RocketPy's wrapper) are imported when the command runs, as
+# the other commands' modules do, so that building the parser for any command stays light.
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -28,15 +29,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     p.add_argument("--format", help="reader override for a log")
     p.add_argument("--deploy-s", type=float, metavar="S",
                    help="time a recovery charge fired (s on the log's axis), instead of the log's own event")
-    p.add_argument("--imu", default="chari", choices=sorted(IMU_PRESETS), help="sim: IMU preset (default chari)")
-    p.add_argument("--gps", default="chari", choices=sorted(GPS_PRESETS) + ["none"],
-                   help="sim: GPS preset, or none (vertical channel only)")
+    p.add_argument("--imu", default="chari", help="sim: IMU preset (chari, bno055; default chari)")
+    p.add_argument("--gps", default="chari",
+                   help="sim: GPS preset (chari, chari-dropouts), or none (vertical channel only)")
     p.add_argument("--seed", type=int, default=0, help="sim: sensor noise seed")
     p.add_argument("--no-plots", action="store_true", help="CSV and JSON only")
     p.set_defaults(func=run_reconstruct)
 
 
-def states_csv(r: Reconstruction) -> str:
+def states_csv(r) -> str:
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     names = list(r.columns)
@@ -47,7 +48,7 @@ def states_csv(r: Reconstruction) -> str:
     return buf.getvalue()
 
 
-def summary(r: Reconstruction, parabola: dict | None) -> dict:
+def summary(r, parabola: dict | None) -> dict:
     out = {"name": r.name, "mode": r.mode, "apogee": r.apogee.to_dict(),
            "apogee_axial_as_vertical": r.apogee_axial.to_dict() if r.apogee_axial else None,
            "cpu_s": r.cpu_s, "samples": int(r.t.size), "notes": r.notes}
@@ -59,7 +60,7 @@ def summary(r: Reconstruction, parabola: dict | None) -> dict:
     return out
 
 
-def _plots(r: Reconstruction) -> dict[str, bytes]:
+def _plots(r) -> dict[str, bytes]:
     from firmware_model.flights.reconstruct.plots import plot_errors, plot_states, plot_trajectory
 
     c = r.columns
@@ -91,14 +92,15 @@ def _plots(r: Reconstruction) -> dict[str, bytes]:
 
 
 def run_reconstruct(args: argparse.Namespace) -> int:
+    from firmware_model.flights.reconstruct.run import reconstruct_log, reconstruct_sim
+    from firmware_model.flights.reference import reference_apogee
+
     src = str(args.flight)
     parabola = None
     if src.startswith("sim:"):
         r = reconstruct_sim(src[4:], imu=args.imu, gps=None if args.gps == "none" else args.gps, seed=args.seed)
     else:
         r = reconstruct_log(src, args.format, deploy_s=args.deploy_s)
-        from firmware_model.flights.reference import reference_apogee
-
         try:
             ref = reference_apogee(r.extra["record"])
             # the rule of evaluate --reference: they disagree beyond the parabola's uncertainty plus 2 sigma

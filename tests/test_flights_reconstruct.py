@@ -19,6 +19,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from firmware_model.errors import UserError
+from firmware_model.flights.evaluate import reference_for
+from firmware_model.flights.readers import read_flight
 from firmware_model.flights.reconstruct import kernels
 from firmware_model.flights.reconstruct.apogee import velocity_zero_crossing
 from firmware_model.flights.reconstruct.rotation import (attitude_error, exp_rv, log_q, qconj, qmul, rotate,
@@ -28,6 +30,7 @@ from firmware_model.flights.reconstruct.sensors import (GpsModel, ImuModel, baro
 from firmware_model.flights.reconstruct.simulated import errors, inside_2sigma, reconstruct_sensed, sensed_flight
 from firmware_model.flights.reconstruct.synthetic import synthetic_truth
 from firmware_model.flights.reconstruct.truth import quat_to_matrix
+from firmware_model.flights.reconstruct.ukf import unflat
 from firmware_model.flights.reconstruct.vertical import run_vertical
 from firmware_model.flights.sensors import BaroSensor
 from profiles import PROFILE, examples
@@ -189,7 +192,6 @@ def test_consistency_check_catches_a_faulty_imu(truth, fault) -> None:
 
 def test_smoother_apogee_time(truth) -> None:
     s, run, E = _run(truth, 3)
-    from firmware_model.flights.reconstruct.ukf import unflat
     X = unflat(run.xs)
     sd = np.sqrt(np.einsum("nii->ni", run.Ps))
     ap = velocity_zero_crossing(s.t, X["r"][:, 2], X["v"][:, 2], sd[:, 2], sd[:, 5])
@@ -256,16 +258,13 @@ def test_cli_reconstructs_a_real_log(tmp_path) -> None:
     s = json.loads((tmp_path / "o" / "summary.json").read_text())
     assert s["mode"] == "vertical-axial" and any("vertical channel only" in n for n in s["notes"])
     head = (tmp_path / "o" / "states.csv").read_text().splitlines()[0].split(",")
-    assert head[0] == "time_s" and "axial_vz_mps" in head and "s_x_m" not in head
+    assert head[0] == "time_s" and "axial_vz_mps" in head and "s_x_m" not in head and "f_vy_mps" not in head
     # an apogee near the barometric parabola's (29.14 s +- 0.05, docs/reconstruction.md), with a sigma
     assert abs(s["apogee"]["time_s"] - s["parabola"]["time_s"]) < 1.0 and s["apogee"]["sigma_s"] > 0
 
 
 @pytest.mark.skipif(not PROMETHEUS_TM.exists(), reason="shared flights not present")
 def test_evaluate_reference_modes() -> None:
-    from firmware_model.flights.evaluate import reference_for
-    from firmware_model.flights.readers import read_flight
-
     rec = read_flight(PROMETHEUS_TM)
     par = reference_for(rec)
     assert par.source == "baro_parabola"

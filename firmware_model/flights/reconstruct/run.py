@@ -102,6 +102,8 @@ def reconstruct_sim(name: str, imu: str = "chari", gps: str | None = "chari", se
         cols[f"truth_v{a}_mps"] = tr["vel"][:, i]
     cols["truth_tilt_deg"] = tr["tilt_deg"]
     mode = "full" if gps else "vertical-imu"
+    if not gps:
+        cols = _vertical_only(cols)
     return Reconstruction(name=name, mode=mode, t=s.t, columns=cols, apogee=ap, truth=tr, cpu_s=cpu,
                           notes=[f"simulated: RocketPy 6-DOF, IMU preset {imu} (range 32 g), GPS "
                                  f"{gps or 'none'}, seed {seed}"] + ([] if gps else ["no GPS: vertical channel only"]))
@@ -142,6 +144,12 @@ def _scaled(ap: ApogeeEstimate, k: float) -> ApogeeEstimate:
     return ApogeeEstimate(time_s=ap.time_s, sigma_s=ap.sigma_s * k, altitude_m=ap.altitude_m,
                           sigma_altitude_m=ap.sigma_altitude_m * k, vz_slope_mps2=ap.vz_slope_mps2,
                           source=ap.source + (f", sigma x{k:.1f} (barometer misfit)" if k > 1.05 else ""))
+
+
+def _vertical_only(cols: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The columns without the horizontal position and velocity (not observable without GPS)."""
+    horizontal = ("_x_m", "_y_m", "_vx_mps", "_vy_mps")
+    return {k: v for k, v in cols.items() if not (k.endswith(horizontal) and not k.startswith("truth_"))}
 
 
 def _fill(x: np.ndarray) -> np.ndarray:
@@ -223,12 +231,7 @@ def reconstruct_log(path: str | Path, format: str | None = None,  # noqa: A002
         sig_u = _refit_sigma(t, hb, X1["r"][:, 2], X1["v"][:, 2], sig)
         run = run_ukf(t, acc, gyr, sat, Measurements(gps=None, baro=hb, baro_sigma=sig_u), al, fn, site,
                       accel_sigma_extra=extra)
-        for which in ("f", "s"):
-            # vertical channel only: the horizontal states are not observable without GPS and are left out
-            cols.update({k: v for k, v in _ukf_columns(run, which).items()
-                         if not any(f"_{a}_" in k for a in ("x", "y", "vx", "vy", "sigma_x", "sigma_y",
-                                                             "sigma_vx", "sigma_vy"))
-                         or "att" in k})
+        cols.update(_vertical_only({**_ukf_columns(run, "f"), **_ukf_columns(run, "s")}))
         X = unflat(run.xs)
         sd = _sd(run.Ps)
         ap = velocity_zero_crossing(t, X["r"][:, 2], X["v"][:, 2], sd[:, 2], sd[:, 5], where=where)
