@@ -74,20 +74,20 @@ def test_tilt_of_known_attitudes() -> None:
 @settings(max_examples=examples(40))
 @given(x=vec3, dv=vec3, dth=vec3.map(lambda a: a / 4))
 def test_kernel_boxplus_boxminus_invert(x, dv, dth) -> None:
-    state = np.concatenate([x, x * 2, exp_rv(x), x / 10, x / 100])
-    dx = np.concatenate([dv, -dv, dth, dv / 10, dth / 10])
-    out = np.empty(16)
+    state = np.concatenate([x, x * 2, exp_rv(x), x / 10, x / 100, x / 1000, -x / 1000])
+    dx = np.concatenate([dv, -dv, dth, dv / 10, dth / 10, dv / 1000, dth / 1000])
+    out = np.empty(22)
     kernels.boxplus(state, dx, out)
-    back = np.empty(15)
+    back = np.empty(21)
     kernels.boxminus(out, state, back)
     np.testing.assert_allclose(back, dx, atol=1e-9)
 
 
 def test_kernel_propagation_is_exact_for_constant_inputs() -> None:
     # constant body rate and specific force over one step, no gravity change: compare with the closed form
-    x = np.concatenate([np.zeros(3), [1.0, 2.0, 3.0], exp_rv(np.array([0.1, 0.2, 0.3])), np.zeros(6)])
+    x = np.concatenate([np.zeros(3), [1.0, 2.0, 3.0], exp_rv(np.array([0.1, 0.2, 0.3])), np.zeros(12)])
     acc, gyr, dt = np.array([0.5, -0.5, 20.0]), np.array([0.0, 0.0, 2.0]), 0.01
-    out = np.empty(16)
+    out = np.empty(22)
     kernels.propagate(x, acc, gyr, dt, 0.0, np.zeros(3), out)
     q_end = qmul(x[6:10], exp_rv(gyr * dt))
     np.testing.assert_allclose(out[6:10], q_end, atol=1e-12)

@@ -1,7 +1,7 @@
 """The filter's per-step arithmetic on flat states, compiled with numba when it is installed (plain Python else).
 
-A flat state is the 16-vector ``r(3) v(3) q(4) ba(3) bg(3)``; an error is the 15-vector
-``dr dv dth dba dbg`` (:mod:`.ukf`). These loops replace dozens of tiny numpy calls per IMU sample (1.4 ms a step
+A flat state is the 22-vector ``r(3) v(3) q(4) ba(3) bg(3) sa(3) sg(3)``; an error is the 21-vector
+``dr dv dth dba dbg dsa dsg`` (:mod:`.ukf`). These loops replace dozens of tiny numpy calls per IMU sample (1.4 ms a step
 in numpy, ~0.1 ms compiled).
 """
 
@@ -64,7 +64,7 @@ def boxplus(x, dx, out):
     n = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
     for i in range(4):
         out[6 + i] = q[i] / n
-    for i in range(6):
+    for i in range(12):
         out[10 + i] = x[10 + i] + dx[9 + i]
 
 
@@ -76,7 +76,7 @@ def boxminus(a, b, out):
     q = _qmul(a[6], a[7], a[8], a[9], b[6], -b[7], -b[8], -b[9])
     lx, ly, lz = _log(q[0], q[1], q[2], q[3])
     out[6], out[7], out[8] = lx, ly, lz
-    for i in range(6):
+    for i in range(12):
         out[9 + i] = a[10 + i] - b[10 + i]
 
 
@@ -84,8 +84,13 @@ def boxminus(a, b, out):
 def propagate(x, acc, gyr, dt, site_asl, wE, out):
     """One IMU step of the flat state ``x`` into ``out`` (:mod:`.ukf` docstring); ``wE`` the earth's rate in the
     site frame (Coriolis ``-2 wE x v``)."""
-    wx, wy, wz = gyr[0] - x[13], gyr[1] - x[14], gyr[2] - x[15]
-    fx, fy, fz = acc[0] - x[10], acc[1] - x[11], acc[2] - x[12]
+    # the sensors read (1 + s) x + b: invert per axis
+    wx = (gyr[0] - x[13]) / (1.0 + x[19])
+    wy = (gyr[1] - x[14]) / (1.0 + x[20])
+    wz = (gyr[2] - x[15]) / (1.0 + x[21])
+    fx = (acc[0] - x[10]) / (1.0 + x[16])
+    fy = (acc[1] - x[11]) / (1.0 + x[17])
+    fz = (acc[2] - x[12]) / (1.0 + x[18])
     h = _exp(wx * 0.5 * dt, wy * 0.5 * dt, wz * 0.5 * dt)
     qh = _qmul(x[6], x[7], x[8], x[9], h[0], h[1], h[2], h[3])
     ax, ay, az = _rot(qh[0], qh[1], qh[2], qh[3], fx, fy, fz)
@@ -105,7 +110,7 @@ def propagate(x, acc, gyr, dt, site_asl, wE, out):
     n = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
     for i in range(4):
         out[6 + i] = q[i] / n
-    for i in range(6):
+    for i in range(12):
         out[10 + i] = x[10 + i]
 
 
@@ -114,8 +119,8 @@ def predict_points(x, chi, acc, gyr, dt, site_asl, wE, ref, dev):
     """Propagate the nominal ``x`` into ``ref`` and each sigma point ``x [+] chi[i]``; ``dev[i]`` = its propagated
     state [-] ``ref``."""
     propagate(x, acc, gyr, dt, site_asl, wE, ref)
-    xi = np.empty(16)
-    yi = np.empty(16)
+    xi = np.empty(22)
+    yi = np.empty(22)
     for i in range(chi.shape[0]):
         boxplus(x, chi[i], xi)
         propagate(xi, acc, gyr, dt, site_asl, wE, yi)

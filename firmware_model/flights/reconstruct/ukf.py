@@ -2,18 +2,19 @@
 measurements, a multiplicative attitude error, and a fixed-interval unscented RTS smoother (docs/reconstruction.md).
 
 State (nominal): site-frame position ``r``, velocity ``v``, attitude quaternion ``q`` (body -> site), accelerometer
-bias ``ba`` and gyroscope bias ``bg`` (body frame). Error state (15): ``dr, dv, dth, dba, dbg`` with the attitude
+and gyroscope biases ``ba``, ``bg`` and scale errors ``sa``, ``sg`` (body frame, per axis: a sensor reads
+``(1 + s) x + b``). Error state (21): ``dr, dv, dth, dba, dbg, dsa, dsg`` with the attitude
 error a site-frame rotation vector, ``q_true = exp(dth) (x) q`` (Chari's Future Work: a minimal attitude error
 instead of adding to a quaternion and renormalising; the quaternion itself is never added to).
 
 * Predict (every IMU sample, interval dt): sigma points of the error state around the nominal (2n points
   +-sqrt(n) columns of chol(P), equal weights 1/(2n): the unscented transform with kappa = 0, whose weights are all
   positive so the predicted covariance stays positive definite), each mapped onto a full state and propagated:
-  ``w = gyro - bg``, ``f = accel - ba``, ``q' = q (x) exp(w dt)``, ``a = R(q (x) exp(w dt / 2)) f + (0, 0, -g(z))``,
+  ``w = (gyro - bg) / (1 + sg)``, ``f = (accel - ba) / (1 + sa)``, ``q' = q (x) exp(w dt)``, ``a = R(q (x) exp(w dt / 2)) f + (0, 0, -g(z))``,
   minus the Coriolis term ``2 W x v`` of the earth's rate W (RocketPy integrates in the rotating site frame),
   ``v' = v + a dt``, ``r' = r + v dt + a dt^2 / 2``; the nominal is propagated alongside and the sigma points'
   attitudes are read back as rotation vectors relative to it (``log(q_i (x) q_ref^*)``); mean and covariance of the
-  15 errors, plus the process noise of the IMU's white noise, quantisation and bias random walks; the predicted
+  21 errors, plus the process noise of the IMU's white noise, quantisation and bias random walks; the predicted
   mean is the propagated nominal moved by the mean error. A saturated accelerometer sample adds
   ``saturated_sigma`` of acceleration noise for that step.
 * Update: GPS position and barometric altitude are linear in the error state, so the unscented transform of the
@@ -44,8 +45,10 @@ from firmware_model.flights.reconstruct import kernels as kern
 from firmware_model.flights.reconstruct.rotation import exp_rv, qmul, rotate
 from firmware_model.flights.reconstruct.truth import gravity
 
-N_ERR = 15
+N_ERR = 21
+N_STATE = 22
 SL_R, SL_V, SL_TH, SL_BA, SL_BG = slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12), slice(12, 15)
+SL_SA, SL_SG = slice(15, 18), slice(18, 21)
 
 
 @dataclass(frozen=True)
@@ -56,7 +59,7 @@ class FilterNoise:
     accel_lsb: float = 0.0
     accel_bias_sigma: float = 0.02
     accel_bias_walk: float = 1e-3       # m/s^2/sqrt(s)
-    accel_scale_sigma: float = 0.0      # relative: adds (s |f|)^2 to the acceleration noise (scale errors)
+    accel_scale_sigma: float = 0.0      # relative, 1 sigma: prior of the scale-factor states (constant per flight)
     gyro_noise: float = radians(0.1)
     gyro_lsb: float = 0.0
     gyro_bias_sigma: float = radians(0.05)
@@ -71,24 +74,25 @@ class FilterNoise:
     reacquire: int = 50
 
 
-def flat(r, v, q, ba, bg) -> np.ndarray:
-    """The flat 16-vector state ``r v q ba bg``."""
-    return np.concatenate([r, v, q, ba, bg]).astype(np.float64)
+def flat(r, v, q, ba, bg, sa=(0.0, 0.0, 0.0), sg=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """The flat 22-vector state ``r v q ba bg sa sg``."""
+    return np.concatenate([r, v, q, ba, bg, sa, sg]).astype(np.float64)
 
 
 def unflat(x: np.ndarray) -> dict[str, np.ndarray]:
-    """(..., 16) states -> dict of ``r, v, q, ba, bg`` arrays."""
-    return {"r": x[..., 0:3], "v": x[..., 3:6], "q": x[..., 6:10], "ba": x[..., 10:13], "bg": x[..., 13:16]}
+    """(..., 22) states -> dict of ``r, v, q, ba, bg, sa, sg`` arrays."""
+    return {"r": x[..., 0:3], "v": x[..., 3:6], "q": x[..., 6:10], "ba": x[..., 10:13], "bg": x[..., 13:16],
+            "sa": x[..., 16:19], "sg": x[..., 19:22]}
 
 
 def boxplus(x: np.ndarray, dx: np.ndarray) -> np.ndarray:
-    out = np.empty(16)
+    out = np.empty(N_STATE)
     kern.boxplus(x, np.ascontiguousarray(dx, dtype=np.float64), out)
     return out
 
 
 def boxminus(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    out = np.empty(15)
+    out = np.empty(N_ERR)
     kern.boxminus(a, b, out)
     return out
 
@@ -151,6 +155,8 @@ def align(accel: np.ndarray, gyro: np.ndarray, n_pad: int, noise: FilterNoise, h
     P0[SL_BA, SL_BA] = Sbb
     gb = noise.gyro_noise / np.sqrt(n_pad)
     P0[SL_BG, SL_BG] = np.eye(3) * (gb ** 2 + noise.gyro_bias_walk ** 2 * n_pad * 0.01 + 1e-10)
+    P0[SL_SA, SL_SA] = np.eye(3) * (noise.accel_scale_sigma ** 2 + 1e-10)
+    P0[SL_SG, SL_SG] = np.eye(3) * (noise.gyro_scale_sigma ** 2 + 1e-10)
     x0 = flat(np.zeros(3) if r0 is None else np.asarray(r0, float), np.zeros(3), q0, ba0, bg)
     return Alignment(x0=x0, P0=P0, pad_samples=n_pad,
                      notes={"tilt_deg": float(np.degrees(ang)), "specific_force_mps2": fn, "g_mps2": g})
@@ -168,8 +174,8 @@ class Measurements:
 
 @dataclass
 class Run:
-    """Filter and smoother output on the IMU time axis ``t`` (n,): flat states ``xf``/``xs`` (n, 16) and
-    covariances ``Pf``/``Ps`` (n, 15, 15) of the filter and the smoother (None without smoothing); ``rejected``
+    """Filter and smoother output on the IMU time axis ``t`` (n,): flat states ``xf``/``xs`` (n, 22) and
+    covariances ``Pf``/``Ps`` (n, 21, 21) of the filter and the smoother (None without smoothing); ``rejected``
     measurement counts; ``nis``: (step, kind, NIS, used) per measurement."""
 
     t: np.ndarray
@@ -202,8 +208,8 @@ def run_ukf(t: np.ndarray, accel: np.ndarray, gyro: np.ndarray, saturated: np.nd
     gyro = np.ascontiguousarray(gyro, dtype=np.float64)
     x = al.x0.copy()
     P = al.P0.copy()
-    XF = np.empty((n, 16))
-    XP = np.empty((n, 16))
+    XF = np.empty((n, N_STATE))
+    XP = np.empty((n, N_STATE))
     XF[0] = x
     XP[0] = x
     Pf = np.empty((n, N_ERR, N_ERR))
@@ -219,10 +225,8 @@ def run_ukf(t: np.ndarray, accel: np.ndarray, gyro: np.ndarray, saturated: np.nd
     vg = noise.gyro_noise ** 2 + noise.gyro_lsb ** 2 / 12
     gps_R = np.diag(np.square(noise.gps_sigma))
     eye = np.eye(N_ERR)
-    ref = np.empty(16)
+    ref = np.empty(N_STATE)
     dev = np.empty((2 * N_ERR, N_ERR))
-    fmag_all = np.linalg.norm(accel, axis=1)
-    wmag_all = np.linalg.norm(gyro, axis=1)
     gps = meas.gps
     baro = meas.baro
     diag = np.diag_indices(N_ERR)
@@ -232,7 +236,7 @@ def run_ukf(t: np.ndarray, accel: np.ndarray, gyro: np.ndarray, saturated: np.nd
         kern.predict_points(x, chi, accel[k], gyro[k], dt, site_asl_m, wE, ref, dev)
         mean = dev.mean(axis=0)
         dev -= mean
-        acc_var = va + (noise.accel_scale_sigma * fmag_all[k]) ** 2
+        acc_var = va
         if saturated[k]:
             acc_var += noise.saturated_sigma ** 2
         if accel_sigma_extra is not None:
@@ -240,9 +244,10 @@ def run_ukf(t: np.ndarray, accel: np.ndarray, gyro: np.ndarray, saturated: np.nd
         q = np.empty(N_ERR)
         q[0:3] = acc_var * dt ** 4 / 4
         q[3:6] = acc_var * dt * dt
-        q[6:9] = (vg + (noise.gyro_scale_sigma * wmag_all[k]) ** 2) * dt * dt
+        q[6:9] = vg * dt * dt
         q[9:12] = noise.accel_bias_walk ** 2 * dt
         q[12:15] = noise.gyro_bias_walk ** 2 * dt
+        q[15:21] = 1e-12 * dt
         P = w * (dev.T @ dev)
         P[diag] += q
         c = acc_var * dt ** 3 / 2
@@ -261,7 +266,7 @@ def run_ukf(t: np.ndarray, accel: np.ndarray, gyro: np.ndarray, saturated: np.nd
             ok = nis <= noise.gate_nis
             nis_log.append((k, "gps", nis, ok))
             if ok:
-                K = np.linalg.solve(S, P[0:3, :]).T             # (15, 3)
+                K = np.linalg.solve(S, P[0:3, :]).T             # (21, 3)
                 IKH = eye.copy()
                 IKH[:, 0:3] -= K
                 P = IKH @ P @ IKH.T + K @ gps_R @ K.T
