@@ -76,12 +76,15 @@ def main(argv: list[str] | None = None) -> int:
         pe = np.array([r["parabola_err_s"] for r in ok])
         pu = np.array([r["parabola"]["uncertainty_s"] for r in ok])
         fe = np.array([r["filter_err_s"] for r in ok])
-        summary["smoother_apogee"] = {"median_abs_s": float(np.median(np.abs(e))), "worst_abs_s": float(np.abs(e).max()),
+        summary["smoother_apogee"] = {"median_abs_s": float(np.median(np.abs(e))),
+                                      "worst_abs_s": float(np.abs(e).max()),
                                       "covered_2sigma": float(np.mean(np.abs(e) <= 2 * sg)),
                                       "covered_1sigma": float(np.mean(np.abs(e) <= sg)),
                                       "median_sigma_s": float(np.median(sg))}
-        summary["filter_apogee"] = {"median_abs_s": float(np.median(np.abs(fe))), "worst_abs_s": float(np.abs(fe).max())}
-        summary["parabola_apogee"] = {"median_abs_s": float(np.median(np.abs(pe))), "worst_abs_s": float(np.abs(pe).max()),
+        summary["filter_apogee"] = {"median_abs_s": float(np.median(np.abs(fe))),
+                                    "worst_abs_s": float(np.abs(fe).max())}
+        summary["parabola_apogee"] = {"median_abs_s": float(np.median(np.abs(pe))),
+                                      "worst_abs_s": float(np.abs(pe).max()),
                                       "covered": float(np.mean(np.abs(pe) <= pu)),
                                       "median_uncertainty_s": float(np.median(pu))}
         cpu = np.array([r["cpu_s"] for r in ok])

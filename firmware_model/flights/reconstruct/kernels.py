@@ -1,8 +1,8 @@
 """The filter's per-step arithmetic on flat states, compiled with numba when it is installed (plain Python else).
 
 A flat state is the 22-vector ``r(3) v(3) q(4) ba(3) bg(3) sa(3) sg(3)``; an error is the 21-vector
-``dr dv dth dba dbg dsa dsg`` (:mod:`.ukf`). These loops replace dozens of tiny numpy calls per IMU sample (1.4 ms a step
-in numpy, ~0.1 ms compiled).
+``dr dv dth dba dbg dsa dsg`` (:mod:`.ukf`). These loops replace dozens of tiny numpy calls per IMU sample
+(1.4 ms a step in numpy, ~0.1 ms compiled).
 """
 
 from __future__ import annotations

@@ -4,7 +4,8 @@ readers, plus the 3-axis IMU where the log has one.
 * AltosUI CSV (TeleMega): ``accel_x, accel_y, accel_z`` (m/s^2; x along the rocket's axis, nose up) and
   ``gyro_roll, gyro_pitch, gyro_yaw`` (deg/s; roll about the axis). Body frame here: z along the axis, so body
   (x, y, z) = log (y, z, x) and rates (pitch, yaw, -roll): the roll sign is not documented in the export; of the
-  16 orders and signs, this one's tilt agrees best with the log's own ``tilt`` column (Piccard 2021: 5.2 deg rms). AltosUI 1.9 writes rows with the TeleMega's seven IMU
+  16 orders and signs, this one's tilt agrees best with the log's own ``tilt`` column (Piccard 2021: 5.2 deg rms).
+  AltosUI 1.9 writes rows with the TeleMega's seven IMU
   columns (``gyro_roll .. tilt``) under a header that omits their names on some exports (EuRoC 2021 Piccard: 75
   names, 82 fields a row); when the row is exactly seven fields wider and the header lacks the gyro, the names are
   put back after ``accel_z`` (and said in the notes). An IMU block that never reads the pad's 1 g (Prometheus 2022:

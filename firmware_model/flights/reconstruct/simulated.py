@@ -7,7 +7,7 @@ IMU's steps, the pad's heading with its error drawn from the filter's prior); :f
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from math import radians
 from typing import Any
 
@@ -93,8 +93,8 @@ def sensed_flight(truth: Truth6, imu: ImuModel, gps: GpsModel | None, baro: Baro
     heading = heading_of(truth, axis) + rng.normal(0.0, noise.heading_sigma)
     n_pad = int(np.sum(t < truth.t[0] + pad_align_s))
     return Sensed(t=t, imu=data, meas=Measurements(gps=gps_arr, baro=baro_arr, baro_sigma=sig), n_pad=n_pad,
-                  heading_rad=heading, noise=noise, truth_idx=tidx, notes={"pressure_pa": pres, "earth_rate": truth.earth_rate,
-                                                             "heading_axis": axis})
+                  heading_rad=heading, noise=noise, truth_idx=tidx,
+                  notes={"pressure_pa": pres, "earth_rate": truth.earth_rate, "heading_axis": axis})
 
 
 def reconstruct_sensed(s: Sensed, site_asl_m: float, smooth: bool = True,

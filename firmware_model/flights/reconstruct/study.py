@@ -6,7 +6,6 @@ kalman_accel's axial-as-vertical assumption costs on the same flight."""
 from __future__ import annotations
 
 import time
-from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -15,9 +14,8 @@ from firmware_model.flights.evaluate import METHODS, FlightSpec, evaluate_flight
 from firmware_model.flights.record import FlightRecord, Truth
 from firmware_model.flights.reconstruct.apogee import velocity_zero_crossing
 from firmware_model.flights.reconstruct.rotation import tilt_deg
-from firmware_model.flights.reconstruct.sensors import (GpsModel, ImuModel, geometric_to_geopotential, gps_preset,
-                                                        imu_preset)
-from firmware_model.flights.reconstruct.simulated import (Sensed, errors, inside_2sigma, reconstruct_sensed,
+from firmware_model.flights.reconstruct.sensors import (GpsModel, ImuModel, geometric_to_geopotential)
+from firmware_model.flights.reconstruct.simulated import (errors, inside_2sigma, reconstruct_sensed,
                                                           sensed_flight)
 from firmware_model.flights.reconstruct.truth import Truth6, TruthCase, truth_run
 from firmware_model.flights.reconstruct.ukf import unflat

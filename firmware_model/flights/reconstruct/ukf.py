@@ -10,7 +10,8 @@ instead of adding to a quaternion and renormalising; the quaternion itself is ne
 * Predict (every IMU sample, interval dt): sigma points of the error state around the nominal (2n points
   +-sqrt(n) columns of chol(P), equal weights 1/(2n): the unscented transform with kappa = 0, whose weights are all
   positive so the predicted covariance stays positive definite), each mapped onto a full state and propagated:
-  ``w = (gyro - bg) / (1 + sg)``, ``f = (accel - ba) / (1 + sa)``, ``q' = q (x) exp(w dt)``, ``a = R(q (x) exp(w dt / 2)) f + (0, 0, -g(z))``,
+  ``w = (gyro - bg) / (1 + sg)``, ``f = (accel - ba) / (1 + sa)``, ``q' = q (x) exp(w dt)``,
+  ``a = R(q (x) exp(w dt / 2)) f + (0, 0, -g(z))``,
   minus the Coriolis term ``2 W x v`` of the earth's rate W (RocketPy integrates in the rotating site frame),
   ``v' = v + a dt``, ``r' = r + v dt + a dt^2 / 2``; the nominal is propagated alongside and the sigma points'
   attitudes are read back as rotation vectors relative to it (``log(q_i (x) q_ref^*)``); mean and covariance of the
