@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from firmware_model.model_kernels import njit
+from firmware_model.model.kernels import njit
 
 G0 = 9.80665
 EARTH_R = 6378137.0

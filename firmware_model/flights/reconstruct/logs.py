@@ -27,8 +27,8 @@ from typing import Any
 
 import numpy as np
 
-from firmware_model.atmosphere import G0
-from firmware_model.errors import UserError
+from firmware_model.spec.atmosphere import G0
+from firmware_model.runtime.errors import UserError
 from firmware_model.flights.readers import detect_format, read_flight
 from firmware_model.flights.readers import cats as cats_reader
 from firmware_model.flights.readers._common import read_text

@@ -11,10 +11,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from firmware_model.errors import UserError
+from firmware_model.runtime.errors import UserError
 from firmware_model.flights.record import FlightRecord
 from firmware_model.flights.reconstruct.run import reconstruct_log
-from firmware_model.flights.reference import ReferenceApogee, reference_apogee
+from firmware_model.flights.apogee_reference import ReferenceApogee, reference_apogee
 
 MODES: tuple[str, ...] = ("parabola", "smoother", "auto")
 

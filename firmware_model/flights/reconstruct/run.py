@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from firmware_model.errors import UserError
+from firmware_model.runtime.errors import UserError
 from firmware_model.flights.reconstruct.apogee import ApogeeEstimate, velocity_zero_crossing
 from firmware_model.flights.reconstruct.logs import read_imu_log
 from firmware_model.flights.reconstruct.rotation import tilt_deg
@@ -34,8 +34,8 @@ from firmware_model.flights.reconstruct.truth import gravity, truth_run
 from firmware_model.flights.reconstruct.flightset import case_named, flight_set
 from firmware_model.flights.reconstruct.ukf import FilterNoise, Measurements, align, run_ukf, unflat
 from firmware_model.flights.reconstruct.vertical import run_vertical
-from firmware_model.flights.reference import deployment_time, ground_pressure, liftoff_time, noise_scale
-from firmware_model import atmosphere as atm
+from firmware_model.flights.apogee_reference import deployment_time, ground_pressure, liftoff_time, noise_scale
+from firmware_model.spec import atmosphere as atm
 
 G = 9.80665
 #: Acceleration noise (m/s^2) added after the log's own recovery-charge event.

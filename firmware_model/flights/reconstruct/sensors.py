@@ -29,9 +29,9 @@ from typing import Any
 
 import numpy as np
 
-from firmware_model import atmosphere as atm
-from firmware_model.atmosphere import G0
-from firmware_model.errors import UserError
+from firmware_model.spec import atmosphere as atm
+from firmware_model.spec.atmosphere import G0
+from firmware_model.runtime.errors import UserError
 from firmware_model.flights.reconstruct.truth import EARTH_R, Truth6
 from firmware_model.flights.sensors import BaroSensor
 

@@ -19,8 +19,8 @@ from firmware_model.flights.reconstruct.simulated import (errors, inside_2sigma,
                                                           sensed_flight)
 from firmware_model.flights.reconstruct.truth import Truth6, TruthCase, truth_run
 from firmware_model.flights.reconstruct.ukf import unflat
-from firmware_model.flights.reference import reference_apogee
-from firmware_model import atmosphere as atm
+from firmware_model.flights.apogee_reference import reference_apogee
+from firmware_model.spec import atmosphere as atm
 
 
 def kalman_accel_cost(truth: Truth6, name: str, k: int = 7) -> dict[str, Any]:

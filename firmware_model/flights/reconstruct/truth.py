@@ -26,9 +26,9 @@ from typing import Any
 
 import numpy as np
 
-from firmware_model import diskcache
-from firmware_model.atmosphere import G0
-from firmware_model.errors import UserError
+from firmware_model.runtime import diskcache
+from firmware_model.spec.atmosphere import G0
+from firmware_model.runtime.errors import UserError
 from firmware_model.flights import rocketpy_sim
 from firmware_model.flights.scenarios import Scenario
 from firmware_model.flights.sim1dof import Launch, Rocket, simulate_1dof

@@ -35,14 +35,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from types import ModuleType
 from math import radians
 from typing import Any
 
 import numpy as np
 
-from firmware_model import atmosphere as atm
-from firmware_model.errors import UserError
-from firmware_model.flights.reconstruct import kernels as kern
+from firmware_model.spec import atmosphere as atm
+from firmware_model.runtime.errors import UserError
 from firmware_model.flights.reconstruct.rotation import exp_rv, qmul, rotate
 from firmware_model.flights.reconstruct.truth import gravity
 
@@ -86,15 +86,23 @@ def unflat(x: np.ndarray) -> dict[str, np.ndarray]:
             "sa": x[..., 16:19], "sg": x[..., 19:22]}
 
 
+def _kernels() -> ModuleType:
+    """:mod:`.kernels`, loaded on first use: a lazy load, because importing them imports numba (about 1.5 s), which
+    commands that never reconstruct (``fwemu --help``, ``design`` ...) must not pay."""
+    from firmware_model.flights.reconstruct import kernels  # lazy: numba (heavy, optional)
+
+    return kernels
+
+
 def boxplus(x: np.ndarray, dx: np.ndarray) -> np.ndarray:
     out = np.empty(N_STATE)
-    kern.boxplus(x, np.ascontiguousarray(dx, dtype=np.float64), out)
+    _kernels().boxplus(x, np.ascontiguousarray(dx, dtype=np.float64), out)
     return out
 
 
 def boxminus(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     out = np.empty(N_ERR)
-    kern.boxminus(a, b, out)
+    _kernels().boxminus(a, b, out)
     return out
 
 
@@ -204,6 +212,7 @@ def run_ukf(t: np.ndarray, accel: np.ndarray, gyro: np.ndarray, saturated: np.nd
     """Filter (and smooth) one flight; ``earth_rate``: the earth's rotation in the site frame (rad/s; None: 0);
     ``accel_sigma_extra``: per-step extra acceleration noise (m/s^2), e.g. after a recovery charge fired."""
     n = t.size
+    kern = _kernels()
     wE = np.zeros(3) if earth_rate is None else np.asarray(earth_rate, dtype=np.float64)
     accel = np.ascontiguousarray(accel, dtype=np.float64)
     gyro = np.ascontiguousarray(gyro, dtype=np.float64)
