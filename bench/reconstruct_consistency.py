@@ -7,7 +7,7 @@ Per flight: share of samples (ignition to the end) with truth inside +-2 sigma f
 (filter and smoother), mean NEES, the smoother's apogee time against truth (error, sigma, covered at 2 sigma), the
 barometric parabola's (error, its uncertainty, covered), kalman_accel's detection error fed the axial and the true
 vertical specific force, and CPU seconds. Then the NEES averaged over the flights against its 95 % chi-square band.
-Truth runs are cached (firmware_model.diskcache.cache_dir()/reconstruct-truth); the first run takes minutes.
+Truth runs are cached (firmware_model.runtime.diskcache.cache_dir()/reconstruct-truth); the first run takes minutes.
 """
 
 from __future__ import annotations

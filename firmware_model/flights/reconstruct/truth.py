@@ -12,7 +12,7 @@ frame) = ``R(q)^T (a - g + 2 W x v)``, ``a`` RocketPy's acceleration in its (rot
 the Coriolis term ``-2 W x v`` to ``a``; an accelerometer does not feel it).
 
 Runs take seconds, so :func:`truth_run` keeps them in the user's cache folder
-(:func:`firmware_model.diskcache.cache_dir`, sub-folder ``reconstruct-truth``), keyed by the case and the
+(:func:`firmware_model.runtime.diskcache.cache_dir`, sub-folder ``reconstruct-truth``), keyed by the case and the
 sources the run depends on (not by the estimator's code, so changing the filter keeps the cache).
 """
 
