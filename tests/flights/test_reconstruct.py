@@ -23,6 +23,7 @@ from firmware_model.flights.evaluate import reference_for
 from firmware_model.flights.readers import read_flight
 from firmware_model.flights.reconstruct import kernels
 from firmware_model.flights.reconstruct.apogee import velocity_zero_crossing
+from firmware_model.flights.reconstruct.logs import read_imu_log
 from firmware_model.flights.reconstruct.rotation import (attitude_error, exp_rv, log_q, qconj, qmul, rotate,
                                                          tilt_deg)
 from firmware_model.flights.reconstruct.sensors import (GpsModel, ImuModel, baro_altitude, baro_samples,
@@ -292,3 +293,31 @@ def test_rocketpy_flight_set_consistency(tmp_path) -> None:
             assert s[f"inside_{k}_{g}"]["mean"] >= 0.9
     assert s["smoother_apogee"]["median_abs_s"] <= 0.03 and s["smoother_apogee"]["worst_abs_s"] <= 0.1
     assert s["smoother_apogee"]["covered_2sigma"] >= 0.9
+
+
+PICCARD_TM = SHARED / "euroc21" / "piccard-telemega.csv"
+PROMETHEUS_TMEGA = SHARED / "altosui" / "prometheus-2022-06-24-telemega.csv"
+HEDY = SHARED / "cats" / "hedy-baro.csv"
+
+
+@pytest.mark.skipif(not (PICCARD_TM.exists() and PROMETHEUS_TMEGA.exists() and HEDY.exists()),
+                    reason="shared flights not present")
+def test_imu_logs_are_read_into_the_body_frame() -> None:
+    # Piccard's TeleMega: 75 header names, 82 fields a row; the IMU names are put back, the axis is body z
+    log = read_imu_log(PICCARD_TM)
+    assert any("names put back after accel_z" in n for n in log.notes)
+    n = log.record.n
+    assert log.accel.shape == (n, 3) and log.gyro.shape == (n, 3) and log.tilt_log.shape == (n,)
+    boost = (log.record.time_s > 0.2) & (log.record.time_s < 1.0)
+    assert np.median(log.accel[boost, 2]) > 80.0                      # thrust along body z (log accel_x)
+    assert np.nanmax(np.abs(log.gyro[:, 2])) > np.radians(300)          # the roll rate, in rad/s, about body z
+    assert 0.0 <= np.nanmin(log.tilt_log) and np.nanmax(log.tilt_log) <= 180.0
+    # Prometheus's TeleMega IMU block is not data: reported unusable, no 3-axis IMU
+    log = read_imu_log(PROMETHEUS_TMEGA)
+    assert log.accel is None and log.gyro is None and any("unusable" in n for n in log.notes)
+    # CATS: the axis reading about -1 g on the pad (-y) becomes +body z, reading +1 g; the other two stay small
+    log = read_imu_log(HEDY)
+    pad = log.record.time_s < -0.3
+    f = np.median(log.accel[pad], axis=0)
+    assert f[2] == pytest.approx(9.9, abs=0.2) and np.hypot(f[0], f[1]) < 1.5
+    assert any("rocket axis -Ay" in n for n in log.notes)
