@@ -43,7 +43,7 @@ import numpy as np
 
 from firmware_model.spec import atmosphere as atm
 from firmware_model.runtime.errors import UserError
-from firmware_model.flights.reconstruct.rotation import exp_rv, qmul, rotate
+from firmware_model.flights.reconstruct.rotation import exp_rv, log_q, qconj, qmul, rotate, tilt_deg
 from firmware_model.flights.reconstruct.truth import gravity
 
 N_ERR = 21
@@ -106,6 +106,20 @@ def boxminus(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return out
 
 
+def _pad_attitude(f: np.ndarray, heading_rad: float, heading_axis: str) -> np.ndarray:
+    """The attitude whose "up" in the body frame is ``f``'s direction (the shortest rotation taking it to the
+    site's vertical) turned about the vertical so that body ``heading_axis`` points at ``heading_rad``."""
+    u = f / np.linalg.norm(f)
+    ez = np.array([0.0, 0.0, 1.0])
+    axis = np.cross(u, ez)
+    s = float(np.linalg.norm(axis))
+    ang = float(np.arctan2(s, float(u @ ez)))
+    q_tilt = exp_rv(axis / s * ang) if s > 1e-12 else np.array([1.0, 0.0, 0.0, 0.0])
+    ref = rotate(q_tilt, np.array([0.0, 0.0, 1.0] if heading_axis == "z" else [1.0, 0.0, 0.0]))
+    az_now = float(np.arctan2(ref[0], ref[1]))           # azimuth from north (y) towards east (x)
+    return qmul(exp_rv(np.array([0.0, 0.0, az_now - heading_rad])), q_tilt)
+
+
 @dataclass
 class Alignment:
     """Pad alignment: the initial nominal and covariance, and what was used."""
@@ -124,8 +138,8 @@ def align(accel: np.ndarray, gyro: np.ndarray, n_pad: int, noise: FilterNoise, h
     Gyro bias = mean pad rate (earth rate, 7e-5 rad/s, ignored). Tilt from the mean specific force's direction
     (it points up, along -gravity); the heading about the vertical is ``heading_rad`` (the azimuth of the body z axis
     if the rail is inclined, else of body x), sigma ``noise.heading_sigma``. An accelerometer bias across gravity
-    cannot be told from tilt on the pad: the prior carries that correlation (tilt error = horizontal bias / g);
-    the bias along gravity is |f| - g. ``heading_axis``: the body axis whose azimuth ``heading_rad`` is: "z" (the
+    cannot be told from tilt on the pad: the prior carries the attitude error it makes through the alignment
+    (the tilt, and on an inclined rail the heading too); the bias along gravity is |f| - g. ``heading_axis``: the body axis whose azimuth ``heading_rad`` is: "z" (the
     rocket's axis: an inclined rail's azimuth) or "x" (the pad roll orientation; for a vertical rail, where the
     axis has no azimuth). The caller decides from what it knows of the rail, never from the measured tilt (an
     accelerometer bias fakes several degrees of it)."""
@@ -135,26 +149,24 @@ def align(accel: np.ndarray, gyro: np.ndarray, n_pad: int, noise: FilterNoise, h
     g = float(gravity(site_asl_m))
     fn = float(np.linalg.norm(f))
     u = f / fn                                           # body direction of "up"
-    # the rotation taking u to e_z (shortest), then the heading about e_z
-    ez = np.array([0.0, 0.0, 1.0])
-    axis = np.cross(u, ez)
-    s = float(np.linalg.norm(axis))
-    ang = float(np.arctan2(s, float(u @ ez)))
-    q_tilt = exp_rv(axis / s * ang) if s > 1e-12 else np.array([1.0, 0.0, 0.0, 0.0])
-    ref = rotate(q_tilt, np.array([0.0, 0.0, 1.0] if heading_axis == "z" else [1.0, 0.0, 0.0]))
-    az_now = float(np.arctan2(ref[0], ref[1]))           # azimuth from north (y) towards east (x)
-    q0 = qmul(exp_rv(np.array([0.0, 0.0, az_now - heading_rad])), q_tilt)
+    q0 = _pad_attitude(f, heading_rad, heading_axis)
     bg = gyro[:n_pad].mean(axis=0) if gyro is not None else np.zeros(3)
     sig_n = noise.accel_noise / np.sqrt(n_pad)
     # accelerometer bias prior in the body frame: across gravity sigma_b, along gravity the pad's own figure
     Sbb = noise.accel_bias_sigma ** 2 * (np.eye(3) - np.outer(u, u)) + (sig_n ** 2 + 1e-6) * np.outer(u, u)
     ba0 = (fn - g) * u
-    # tilt error (site frame) = J R b: dth_x = -(R b)_y / g, dth_y = (R b)_x / g
-    R = np.array([rotate(q0, e) for e in np.eye(3)]).T
-    J = np.zeros((3, 3))
-    J[0, 1] = -1.0 / g
-    J[1, 0] = 1.0 / g
-    A = J @ R
+    # the attitude error a bias error db makes through this very alignment (the truth is what the alignment gives
+    # with the unbiased force f - db, the same heading): numerically, M = d log(q(f - db) q(f)^*) / d db. Across
+    # gravity it is the tilt (db / g); on an inclined rail it also turns the heading, because fixing the azimuth
+    # of a wrongly tilted axis rotates the attitude about the vertical (by up to tilt / sin(rail's tilt)).
+    h = 1e-4
+    M = np.empty((3, 3))
+    for i in range(3):
+        db = np.zeros(3)
+        db[i] = h
+        M[:, i] = (log_q(qmul(_pad_attitude(f - db, heading_rad, heading_axis), qconj(q0)))
+                   - log_q(qmul(_pad_attitude(f + db, heading_rad, heading_axis), qconj(q0)))) / (2 * h)
+    A = M
     P0 = np.zeros((N_ERR, N_ERR))
     P0[SL_R, SL_R] = np.diag(np.square(r0_sigma))
     P0[SL_V, SL_V] = np.eye(3) * 1e-4
@@ -168,7 +180,7 @@ def align(accel: np.ndarray, gyro: np.ndarray, n_pad: int, noise: FilterNoise, h
     P0[SL_SG, SL_SG] = np.eye(3) * (noise.gyro_scale_sigma ** 2 + 1e-10)
     x0 = flat(np.zeros(3) if r0 is None else np.asarray(r0, float), np.zeros(3), q0, ba0, bg)
     return Alignment(x0=x0, P0=P0, pad_samples=n_pad,
-                     notes={"tilt_deg": float(np.degrees(ang)), "specific_force_mps2": fn, "g_mps2": g})
+                     notes={"tilt_deg": float(tilt_deg(q0)), "specific_force_mps2": fn, "g_mps2": g})
 
 
 @dataclass
