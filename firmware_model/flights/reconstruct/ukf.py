@@ -139,7 +139,8 @@ def align(accel: np.ndarray, gyro: np.ndarray, n_pad: int, noise: FilterNoise, h
     (it points up, along -gravity); the heading about the vertical is ``heading_rad`` (the azimuth of the body z axis
     if the rail is inclined, else of body x), sigma ``noise.heading_sigma``. An accelerometer bias across gravity
     cannot be told from tilt on the pad: the prior carries the attitude error it makes through the alignment
-    (the tilt, and on an inclined rail the heading too); the bias along gravity is |f| - g. ``heading_axis``: the body axis whose azimuth ``heading_rad`` is: "z" (the
+    (the tilt, and on an inclined rail the heading too); the bias along gravity is |f| - g, with the scale error's
+    share of it in the prior. ``heading_axis``: the body axis whose azimuth ``heading_rad`` is: "z" (the
     rocket's axis: an inclined rail's azimuth) or "x" (the pad roll orientation; for a vertical rail, where the
     axis has no azimuth). The caller decides from what it knows of the rail, never from the measured tilt (an
     accelerometer bias fakes several degrees of it)."""
@@ -152,11 +153,9 @@ def align(accel: np.ndarray, gyro: np.ndarray, n_pad: int, noise: FilterNoise, h
     q0 = _pad_attitude(f, heading_rad, heading_axis)
     bg = gyro[:n_pad].mean(axis=0) if gyro is not None else np.zeros(3)
     sig_n = noise.accel_noise / np.sqrt(n_pad)
-    # accelerometer bias prior in the body frame: across gravity sigma_b, along gravity the pad's own figure
-    Sbb = noise.accel_bias_sigma ** 2 * (np.eye(3) - np.outer(u, u)) + (sig_n ** 2 + 1e-6) * np.outer(u, u)
     ba0 = (fn - g) * u
-    # the attitude error a bias error db makes through this very alignment (the truth is what the alignment gives
-    # with the unbiased force f - db, the same heading): numerically, M = d log(q(f - db) q(f)^*) / d db. Across
+    # the attitude error a force error db makes through this very alignment (the truth is what the alignment gives
+    # with the true force f - db, the same heading): numerically, M = d log(q(f - db) q(f)^*) / d db. Across
     # gravity it is the tilt (db / g); on an inclined rail it also turns the heading, because fixing the azimuth
     # of a wrongly tilted axis rotates the attitude about the vertical (by up to tilt / sin(rail's tilt)).
     h = 1e-4
@@ -166,17 +165,26 @@ def align(accel: np.ndarray, gyro: np.ndarray, n_pad: int, noise: FilterNoise, h
         db[i] = h
         M[:, i] = (log_q(qmul(_pad_attitude(f - db, heading_rad, heading_axis), qconj(q0)))
                    - log_q(qmul(_pad_attitude(f + db, heading_rad, heading_axis), qconj(q0)))) / (2 * h)
-    A = M
+    # The pad's mean force is f = g u + b + g diag(u) s + n (bias b, scale errors s, the mean's noise n), all
+    # independent with the datasheet's sigmas; the alignment reads everything but g u as bias along u and as tilt
+    # across it. So, with e = b + g diag(u) s + n: attitude error M e, bias error b - u u^T e, scale error s.
+    Lmap = np.zeros((9, 9))                              # rows: dth, dba, dsa; columns: b, s, n
+    Dg = g * np.diag(u)
+    Lmap[0:3, 0:3], Lmap[0:3, 3:6], Lmap[0:3, 6:9] = M, M @ Dg, M
+    uu = np.outer(u, u)
+    Lmap[3:6, 0:3], Lmap[3:6, 3:6], Lmap[3:6, 6:9] = np.eye(3) - uu, -uu @ Dg, -uu
+    Lmap[6:9, 3:6] = np.eye(3)
+    Sz = np.diag(np.r_[np.full(3, noise.accel_bias_sigma ** 2), np.full(3, noise.accel_scale_sigma ** 2 + 1e-10),
+                       np.full(3, sig_n ** 2 + 1e-8)])
+    Pj = Lmap @ Sz @ Lmap.T
     P0 = np.zeros((N_ERR, N_ERR))
     P0[SL_R, SL_R] = np.diag(np.square(r0_sigma))
     P0[SL_V, SL_V] = np.eye(3) * 1e-4
-    P0[SL_TH, SL_TH] = A @ Sbb @ A.T + np.diag([(sig_n / g) ** 2, (sig_n / g) ** 2, noise.heading_sigma ** 2])
-    P0[SL_TH, SL_BA] = A @ Sbb
-    P0[SL_BA, SL_TH] = P0[SL_TH, SL_BA].T
-    P0[SL_BA, SL_BA] = Sbb
+    idx = np.r_[6:9, 9:12, 15:18]                        # dth, dba, dsa
+    P0[np.ix_(idx, idx)] = Pj
+    P0[8, 8] += noise.heading_sigma ** 2
     gb = noise.gyro_noise / np.sqrt(n_pad)
     P0[SL_BG, SL_BG] = np.eye(3) * (gb ** 2 + noise.gyro_bias_walk ** 2 * n_pad * 0.01 + 1e-10)
-    P0[SL_SA, SL_SA] = np.eye(3) * (noise.accel_scale_sigma ** 2 + 1e-10)
     P0[SL_SG, SL_SG] = np.eye(3) * (noise.gyro_scale_sigma ** 2 + 1e-10)
     x0 = flat(np.zeros(3) if r0 is None else np.asarray(r0, float), np.zeros(3), q0, ba0, bg)
     return Alignment(x0=x0, P0=P0, pad_samples=n_pad,
