@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import shlex
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 from firmware_model.cli.args import add_flight_arguments, specs_from_args
@@ -26,12 +27,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     p.add_argument("--tuning", choices=("default", "recommended"), default="default",
                    help="default: the BuildConfig defaults; recommended: firmware_model.spec.tuning.RECOMMENDED per "
                         "program and k (k without an entry keeps the defaults)")
+    p.add_argument("--reference", choices=("parabola", "smoother", "auto"), default="parabola",
+                   help="real logs' reference apogee: the barometric parabola (default), the UKF smoother's vertical "
+                        "velocity zero crossing (needs an accelerometer), or auto (smoother where possible); "
+                        "rows where the two disagree beyond their uncertainties are marked")
     p.add_argument("--out", type=Path, default=Path("out/evaluate"), help="output folder (default out/evaluate)")
     p.set_defaults(func=run_evaluate)
 
 
 def run_evaluate(args: argparse.Namespace) -> int:
-    specs = specs_from_args(args)
+    specs = [replace(s, reference=args.reference) for s in specs_from_args(args)]
     methods = methods_named(args.methods)
     overrides = {"rounding": args.rounding} if args.rounding else {}
     command = "fwemu " + " ".join(shlex.quote(a) for a in sys.argv[1:]) if sys.argv[1:2] == ["evaluate"] else None

@@ -38,6 +38,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "firmware_model.cli.evaluate",
     "firmware_model.cli.sweep",
     "firmware_model.cli.check_port",
+    "firmware_model.cli.reconstruct",
 )
 
 

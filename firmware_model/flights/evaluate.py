@@ -43,6 +43,8 @@ from firmware_model.flights.apogee_reference import reference_apogee
 from firmware_model.flights.firmware_inputs import firmware_inputs
 from firmware_model.flights.readers import read_flight
 from firmware_model.flights.record import FlightRecord
+from firmware_model.flights.reconstruct.reference import MODES as SMOOTHER_MODES
+from firmware_model.flights.reconstruct.reference import smoother_reference
 from firmware_model.flights.scenarios import scenario_mach, simulate_scenario
 from firmware_model.flights.sensors import AccelSensor, BaroSensor
 from firmware_model.flights.sim1dof import mach_of
@@ -177,14 +179,27 @@ class Reference:
     source: str                 # "truth" or the reference_apogee rule
     notes: str = ""             # the rule's warning and how the fit was made, readable
     usable: bool = True         # False when the reference carries a warning (not a free flight near its peak)
+    disagree: bool = False      # the smoother's and the parabola's apogees differ beyond their uncertainties
 
 
-def reference_for(record: FlightRecord) -> Reference:
-    """Truth for simulated flights, the robust parabola (:func:`flights.reference.reference_apogee`) otherwise."""
+def reference_for(record: FlightRecord, mode: str = "parabola") -> Reference:
+    """Truth for simulated flights; otherwise the robust parabola (:func:`flights.reference.reference_apogee`),
+    or with ``mode`` "smoother" the reconstruction's apogee (:mod:`flights.reconstruct.reference`), "auto": the
+    smoother where the log has an accelerometer and it reconstructs, else the parabola."""
     truth = record.truth
     if truth is not None and truth.apogee_time_s is not None:
         return Reference(float(truth.apogee_time_s), None if truth.apogee_altitude_m is None
                          else float(truth.apogee_altitude_m), 0.0, "truth")
+    if mode not in SMOOTHER_MODES:
+        raise UserError(f"--reference {mode!r}: known: {', '.join(SMOOTHER_MODES)}")
+    if mode == "smoother" or (mode == "auto" and record.has_accel):
+        try:
+            sm = smoother_reference(record)
+            return Reference(sm.time_s, sm.altitude_m, sm.uncertainty_s, f"smoother {sm.mode}", sm.note,
+                             True, sm.disagree)
+        except UserError:
+            if mode == "smoother":
+                raise
 
     ref = reference_apogee(record)
     parts = []
@@ -217,6 +232,7 @@ class FlightSpec:
     label: str | None = None
     format: str | None = None
     method: str = "linear"
+    reference: str = "parabola"             # real logs: "parabola", "smoother" or "auto" (reference_for)
     sensor: str | None = None               # reader options (flights.readers.read_flight): multi-sensor logs,
     columns: str | None = None              # a column map,
     site_altitude_m: float | None = None    # the site of an altitude-only log,
@@ -540,7 +556,8 @@ def evaluate_inputs(record: FlightRecord, inputs: Any, spec: FlightSpec, methods
     for name, t in [(m, d.time_s) for m, d in detections.items()] + [("altos", None if own is None else own[1])]:
         if t is not None and mach is not None:
             mach_at[name] = float(np.interp(t, rec_t, mach))
-    return FlightResult(spec.name, spec.source, spec.k, _sensor_text(inputs, spec, record), reference_for(record),
+    return FlightResult(spec.name, spec.source, spec.k, _sensor_text(inputs, spec, record),
+                        reference_for(record, spec.reference),
                         None if own is None else own[1], detections, int(adc.shape[0]),
                         _report_text(getattr(inputs, "report", None)), notes,
                         "AltOS" if own is None else own[0], burn, mach_at, mach_source)
@@ -680,7 +697,8 @@ def render_markdown(results: Sequence[FlightResult], command: str | None = None)
     for r in results:
         ref = r.reference
         cells = [r.name, str(r.k), r.sensor,
-                 f"{ref.time_s:.3f} ±{ref.uncertainty_s:.3f} ({ref.source}){'' if ref.usable else ' ⚠'}",
+                 f"{ref.time_s:.3f} ±{ref.uncertainty_s:.3f} ({ref.source}){'' if ref.usable else ' ⚠'}"
+                 f"{' ≠ parabola' if ref.disagree else ''}",
                  _fmt(ref.altitude_m, 0)]
         for m, _ in cols:
             if m == "altos":
@@ -704,7 +722,9 @@ def render_markdown(results: Sequence[FlightResult], command: str | None = None)
            f"{EARLY_S:g} s early; boost: at or before burnout; M: Mach at the detection when >= {FAST_MACH:g} "
            "(burnout and Mach: truth for simulated flights, estimated on logs). ⚠: the reference "
            "carries a warning (the fit is not a free flight near its peak, docs/flights.md); such rows are left out "
-           "of the summary's last column and of its first count.", ""] + lines
+           "of the summary's last column and of its first count." + (" ≠ parabola: the smoother's and the "
+           "parabola's apogees differ by more than their uncertainties (the reference's notes in apogee.json give "
+           "both)." if any(r.reference.disagree for r in results) else ""), ""] + lines
     out += [""] + md.header(["method", f"> {EARLY_S:g} s early (flight)", "before burnout",
                              f"above Mach {FAST_MACH:g}", "flights", "detected", "median abs error s",
                              "worst abs error s (flight)", "median error s", "early / late", "most early s (flight)",

@@ -24,6 +24,8 @@ LAYERS: dict[str, int] = {"runtime": 0, "spec": 1, "model": 2, "firmware": 3, "f
 #: (importing module, imported module) -> why.
 LAZY: dict[tuple[str, str], str] = {
     ("firmware_model.model.run", "firmware_model.model.kernels"): "the kernels import numba (about 1.5 s)",
+    ("firmware_model.flights.reconstruct.ukf", "firmware_model.flights.reconstruct.kernels"):
+        "the reconstruction's kernels import numba (about 1.5 s) for every command's parser otherwise",
 }
 
 

@@ -1,0 +1,256 @@
+"""One reconstruction, of a real log or a simulated flight: what ``fwemu reconstruct`` and ``fwemu evaluate
+--reference smoother`` call.
+
+Modes (``Reconstruction.mode``):
+
+* ``full``: IMU (3-axis accelerometer + gyroscope), GPS and barometer: position, velocity and attitude (simulated
+  flights with GPS);
+* ``vertical-imu``: 3-axis IMU and barometer, no GPS: the same filter (attitude from the gyroscope, specific force
+  rotated into the site frame), but only the vertical channel is observable and reported;
+* ``vertical-axial``: no gyroscope (or no usable 3-axis IMU): altitude and vertical velocity from the axial
+  accelerometer taken as vertical and the barometer (:mod:`.vertical`).
+
+The apogee (:mod:`.apogee`) comes from the smoother of the best mode available; a log gets both vertical modes when
+it has a gyroscope, so their difference (what the axial-as-vertical assumption does on that flight) is reported.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from math import radians
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from firmware_model.runtime.errors import UserError
+from firmware_model.flights.reconstruct.apogee import ApogeeEstimate, velocity_zero_crossing
+from firmware_model.flights.reconstruct.logs import read_imu_log
+from firmware_model.flights.reconstruct.rotation import tilt_deg
+from firmware_model.flights.reconstruct.sensors import baro_altitude, geopotential_to_geometric, gps_preset, imu_preset
+from firmware_model.flights.reconstruct.simulated import errors, reconstruct_sensed, sensed_flight
+from firmware_model.flights.reconstruct.truth import gravity, truth_run
+from firmware_model.flights.reconstruct.flightset import case_named, flight_set
+from firmware_model.flights.reconstruct.ukf import FilterNoise, Measurements, align, run_ukf, unflat
+from firmware_model.flights.reconstruct.vertical import run_vertical
+from firmware_model.flights.apogee_reference import deployment_time, ground_pressure, liftoff_time, noise_scale
+from firmware_model.spec import atmosphere as atm
+
+G = 9.80665
+#: Acceleration noise (m/s^2) added after the log's own recovery-charge event.
+AFTER_DEPLOY_SIGMA: float = 20.0
+
+
+@dataclass
+class Reconstruction:
+    name: str
+    mode: str
+    t: np.ndarray
+    columns: dict[str, np.ndarray]          # per-sample outputs (CSV columns)
+    apogee: ApogeeEstimate
+    apogee_axial: ApogeeEstimate | None = None
+    truth: dict[str, Any] | None = None     # simulated: truth arrays and the errors
+    notes: list[str] = field(default_factory=list)
+    cpu_s: float = 0.0
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+def _sd(P: np.ndarray) -> np.ndarray:
+    return np.sqrt(np.clip(np.einsum("nii->ni", P), 0.0, None))
+
+
+def _ukf_columns(run, which: str) -> dict[str, np.ndarray]:
+    X = unflat(run.xf if which == "f" else run.xs)
+    sd = _sd(run.Pf if which == "f" else run.Ps)
+    cols = {}
+    for i, a in enumerate("xyz"):
+        cols[f"{which}_{a}_m"] = X["r"][:, i]
+        cols[f"{which}_v{a}_mps"] = X["v"][:, i]
+        cols[f"{which}_sigma_{a}_m"] = sd[:, i]
+        cols[f"{which}_sigma_v{a}_mps"] = sd[:, 3 + i]
+    for i in range(4):
+        cols[f"{which}_q{i}"] = X["q"][:, i]
+    for i, a in enumerate("xyz"):
+        cols[f"{which}_sigma_att_{a}_deg"] = np.degrees(sd[:, 6 + i])
+    cols[f"{which}_tilt_deg"] = tilt_deg(X["q"])
+    return cols
+
+
+def reconstruct_sim(name: str, imu: str = "chari", gps: str | None = "chari", seed: int = 0) -> Reconstruction:
+    """A flight of the simulated set (:func:`~.flightset.flight_set`), sensed with the named presets."""
+    try:
+        case = case_named(name)
+    except KeyError:
+        raise UserError(f"sim:{name}: unknown simulated flight; known: "
+                        f"{', '.join(c.name for c in flight_set())}") from None
+    truth = truth_run(case)
+    s = sensed_flight(truth, imu_preset(imu, accel_range=32 * G), gps_preset(gps) if gps else None, seed=seed)
+    t0 = time.process_time()
+    run = reconstruct_sensed(s, truth.site_asl_m)
+    cpu = time.process_time() - t0
+    E = errors(run, s, truth)
+    cols = {**_ukf_columns(run, "f"), **_ukf_columns(run, "s")}
+    X = unflat(run.xs)
+    sd = _sd(run.Ps)
+    ap = velocity_zero_crossing(s.t, X["r"][:, 2], X["v"][:, 2], sd[:, 2], sd[:, 5], where=f"sim:{name}")
+    idx = s.truth_idx
+    tr = {"pos": truth.pos[idx] - truth.pos[0], "vel": truth.vel[idx], "tilt_deg": tilt_deg(truth.quat[idx]),
+          "apogee_time_s": truth.apogee_time_s, "errors": E}
+    for i, a in enumerate("xyz"):
+        cols[f"truth_{a}_m"] = tr["pos"][:, i]
+        cols[f"truth_v{a}_mps"] = tr["vel"][:, i]
+    cols["truth_tilt_deg"] = tr["tilt_deg"]
+    mode = "full" if gps else "vertical-imu"
+    if not gps:
+        cols = _vertical_only(cols)
+    return Reconstruction(name=name, mode=mode, t=s.t, columns=cols, apogee=ap, truth=tr, cpu_s=cpu,
+                          notes=[f"simulated: RocketPy 6-DOF, IMU preset {imu} (range 32 g), GPS "
+                                 f"{gps or 'none'}, seed {seed}"] + ([] if gps else ["no GPS: vertical channel only"]))
+
+
+def residual_scale(t: np.ndarray, baro: np.ndarray, z: np.ndarray, sz: np.ndarray, sig: np.ndarray,
+                   t_apo: float, half_s: float = 5.0) -> float:
+    """How much a real log's smoothed altitude disagrees with its barometer near apogee beyond what the model
+    expects: sqrt(mean NIS) of ``baro - z`` (variance ``sz^2 + sig^2``) within ``half_s`` of the apogee, at least 1.
+    The filter's sigmas assume white barometer noise and a well-modelled accelerometer; a real log's errors are
+    neither, and this factor widens the apogee's sigma by the misfit it leaves."""
+    m = np.isfinite(baro) & (np.abs(t - t_apo) <= half_s)
+    if m.sum() < 5:
+        return 1.0
+    nis = (baro[m] - z[m]) ** 2 / (sz[m] ** 2 + sig[m] ** 2)
+    return max(1.0, float(np.sqrt(np.mean(nis))))
+
+
+def _refit_sigma(t: np.ndarray, baro: np.ndarray, z: np.ndarray, vz: np.ndarray, sig: np.ndarray) -> np.ndarray:
+    """The barometer's sigma after liftoff for a second pass: the robust scale (1.4826 MAD) of the first pass's
+    residuals ``baro - z`` from the end of the fast flight (|vz| < 100 m/s) to the end of the log, at least the pad's
+    figure. A real barometer in flight is noisier than on the pad (airflow over the port, ejection)."""
+    moving = np.nonzero(np.abs(vz) > 5.0)[0]
+    if moving.size == 0:
+        return sig
+    start = int(moving[0])
+    m = np.isfinite(baro) & (np.arange(t.size) >= start) & (np.abs(vz) < 100.0)
+    if m.sum() < 20:
+        return sig
+    r = baro[m] - z[m]
+    mad = 1.4826 * float(np.median(np.abs(r - np.median(r))))
+    out = sig.copy()
+    out[start:] = np.maximum(sig[start:], mad)
+    return out
+
+
+def _scaled(ap: ApogeeEstimate, k: float) -> ApogeeEstimate:
+    return ApogeeEstimate(time_s=ap.time_s, sigma_s=ap.sigma_s * k, altitude_m=ap.altitude_m,
+                          sigma_altitude_m=ap.sigma_altitude_m * k, vz_slope_mps2=ap.vz_slope_mps2,
+                          source=ap.source + (f", sigma x{k:.1f} (barometer misfit)" if k > 1.05 else ""))
+
+
+def _vertical_only(cols: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The columns without the horizontal position and velocity (not observable without GPS)."""
+    horizontal = ("_x_m", "_y_m", "_vx_mps", "_vy_mps")
+    return {k: v for k, v in cols.items() if not (k.endswith(horizontal) and not k.startswith("truth_"))}
+
+
+def _fill(x: np.ndarray) -> np.ndarray:
+    x = np.array(x, dtype=np.float64)
+    for j in range(x.shape[1]):
+        ok = np.isfinite(x[:, j])
+        if not ok.any():
+            raise UserError("IMU column without a single number")
+        x[~ok, j] = np.interp(np.nonzero(~ok)[0], np.nonzero(ok)[0], x[ok, j])
+    return x
+
+
+def reconstruct_log(path: str | Path, format: str | None = None,  # noqa: A002
+                    deploy_s: float | None = None) -> Reconstruction:
+    """A real log (module docstring): vertical channel, from the 3-axis IMU where the log has a gyroscope.
+    ``deploy_s``: when a recovery charge fired (s on the log's axis), overriding the log's own events (e.g. the
+    other flight computer's charge, which this one felt but did not log)."""
+    log = read_imu_log(path, format)
+    rec = log.record
+    where = rec.provenance.get("source", str(path))
+    t = np.asarray(rec.time_s, dtype=np.float64)
+    p = np.asarray(rec.pressure_pa, dtype=np.float64)
+    p0 = ground_pressure(rec)
+    site = float(geopotential_to_geometric(float(atm.altitude_m(p0))))
+    hb = baro_altitude(np.where(p > 0, p, np.nan), p0)
+    lift = liftoff_time(rec)
+    pad = t < lift - 0.2
+    noise_m = max(noise_scale(np.where(np.isfinite(hb), hb, 0.0), pad), 0.3) if pad.sum() >= 10 else 1.0
+    sig = np.full(t.size, noise_m)
+    notes = list(log.notes) + [f"barometer sigma {noise_m:.2f} m (pad noise, at least 0.3 m); liftoff {lift:.2f} s"]
+    n_pad = int(pad.sum())
+    f_ax = rec.specific_force_mps2()
+    deploy = deploy_s if deploy_s is not None else deployment_time(rec)
+    extra = np.zeros(t.size)
+    if deploy is not None:
+        extra[t > deploy] = AFTER_DEPLOY_SIGMA
+        whence = "given" if deploy_s is not None else "the log's own event"
+        notes.append(f"recovery charge at {deploy:.2f} s ({whence}): accelerometer trusted to "
+                     f"+-{AFTER_DEPLOY_SIGMA:g} m/s^2 only after it (ejection, parachute, tumbling)")
+    t0 = time.process_time()
+    vert = None
+    if f_ax is not None:
+        vert = run_vertical(t, f_ax, hb, sig, site, n_pad, accel_sigma_extra=extra)
+        sig_v = _refit_sigma(t, hb, vert.xs[:, 0], vert.xs[:, 1], sig)
+        vert = run_vertical(t, f_ax, hb, sig_v, site, n_pad, accel_sigma_extra=extra)
+    cols: dict[str, np.ndarray] = {"baro_altitude_m": hb}
+    ap_axial = None
+    if vert is not None:
+        sdv = _sd(vert.Ps)
+        cols.update({"axial_z_m": vert.xs[:, 0], "axial_vz_mps": vert.xs[:, 1], "axial_sigma_z_m": sdv[:, 0],
+                     "axial_sigma_vz_mps": sdv[:, 1]})
+        ap_axial = velocity_zero_crossing(t, vert.xs[:, 0], vert.xs[:, 1], sdv[:, 0], sdv[:, 1],
+                                          source="smoother (axial as vertical)", where=where)
+        k_ax = residual_scale(t, hb, vert.xs[:, 0], sdv[:, 0], sig_v, ap_axial.time_s)
+        ap_axial = _scaled(ap_axial, k_ax)
+        notes.append(f"axial-as-vertical channel: barometer sigma in flight {sig_v[-1]:.2f} m (from the first pass's "
+                     f"residuals), misfit near apogee x{k_ax:.2f}; rejected {vert.rejected}")
+    if log.accel is not None and log.gyro is not None:
+        acc = _fill(log.accel)
+        gyr = _fill(log.gyro)
+        pad_acc = acc[pad]
+        fn = FilterNoise(accel_noise=max(float(np.median(np.std(pad_acc, axis=0))) if n_pad >= 10 else 0.3, 0.1),
+                         accel_bias_sigma=0.3, accel_scale_sigma=0.01, gyro_noise=radians(0.3),
+                         gyro_bias_sigma=radians(0.5), gyro_scale_sigma=0.01, heading_sigma=radians(60.0))
+        if n_pad >= 10:
+            al = align(acc, gyr, n_pad, fn, 0.0, site)
+        else:
+            fake = np.tile([0.0, 0.0, float(gravity(site))], (10, 1))
+            al = align(fake, np.zeros((10, 3)), 10, fn, 0.0, site)
+            al.P0[6:8, 6:8] += np.eye(2) * radians(5.0) ** 2
+            al.P0[12:15, 12:15] = np.eye(3) * fn.gyro_bias_sigma ** 2
+            al.P0[3:6, 3:6] = np.eye(3) * 2.0 ** 2
+            notes.append(f"only {n_pad} pad samples: no pad alignment; the rail taken as vertical +-5 deg, "
+                         "gyro bias unknown (+-0.5 deg/s)")
+        sat = np.any(np.abs(acc) >= np.nanmax(np.abs(acc)) * 0.999, axis=1) & (np.abs(acc).max(axis=1) > 8 * G)
+        run = run_ukf(t, acc, gyr, sat, Measurements(gps=None, baro=hb, baro_sigma=sig), al, fn, site,
+                      accel_sigma_extra=extra)
+        X1 = unflat(run.xs)
+        sig_u = _refit_sigma(t, hb, X1["r"][:, 2], X1["v"][:, 2], sig)
+        run = run_ukf(t, acc, gyr, sat, Measurements(gps=None, baro=hb, baro_sigma=sig_u), al, fn, site,
+                      accel_sigma_extra=extra)
+        cols.update(_vertical_only({**_ukf_columns(run, "f"), **_ukf_columns(run, "s")}))
+        X = unflat(run.xs)
+        sd = _sd(run.Ps)
+        ap = velocity_zero_crossing(t, X["r"][:, 2], X["v"][:, 2], sd[:, 2], sd[:, 5], where=where)
+        k_imu = residual_scale(t, hb, X["r"][:, 2], sd[:, 2], sig_u, ap.time_s)
+        ap = _scaled(ap, k_imu)
+        notes.append(f"3-axis IMU channel: barometer sigma in flight {sig_u[-1]:.2f} m (from the first pass's "
+                     f"residuals), misfit near apogee x{k_imu:.2f}")
+        mode = "vertical-imu"
+        notes.append("no GPS used: vertical channel only (horizontal position and heading are not observable)")
+        notes.append(f"measurements rejected: {run.rejected}")
+        if log.tilt_log is not None:
+            cols["log_tilt_deg"] = log.tilt_log
+    elif ap_axial is not None:
+        ap = ap_axial
+        mode = "vertical-axial"
+        notes.append("no gyroscope: vertical channel only, axial specific force taken as vertical")
+    else:
+        raise UserError(f"{where}: no accelerometer: nothing to reconstruct (the barometric parabola is the only "
+                        "reference for this log)")
+    cpu = time.process_time() - t0
+    return Reconstruction(name=rec.name, mode=mode, t=t, columns=cols, apogee=ap, apogee_axial=ap_axial,
+                          notes=notes, cpu_s=cpu, extra={"record": rec})

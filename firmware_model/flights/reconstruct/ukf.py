@@ -1,0 +1,367 @@
+"""The reconstruction filter: an unscented Kalman filter with the IMU as control input, GPS and barometer as
+measurements, a multiplicative attitude error, and a fixed-interval unscented RTS smoother (docs/reconstruction.md).
+
+State (nominal): site-frame position ``r``, velocity ``v``, attitude quaternion ``q`` (body -> site), accelerometer
+and gyroscope biases ``ba``, ``bg`` and scale errors ``sa``, ``sg`` (body frame, per axis: a sensor reads
+``(1 + s) x + b``). Error state (21): ``dr, dv, dth, dba, dbg, dsa, dsg`` with the attitude
+error a site-frame rotation vector, ``q_true = exp(dth) (x) q`` (Chari's Future Work: a minimal attitude error
+instead of adding to a quaternion and renormalising; the quaternion itself is never added to).
+
+* Predict (every IMU sample, interval dt): sigma points of the error state around the nominal (2n points
+  +-sqrt(n) columns of chol(P), equal weights 1/(2n): the unscented transform with kappa = 0, whose weights are all
+  positive so the predicted covariance stays positive definite), each mapped onto a full state and propagated:
+  ``w = (gyro - bg) / (1 + sg)``, ``f = (accel - ba) / (1 + sa)``, ``q' = q (x) exp(w dt)``,
+  ``a = R(q (x) exp(w dt / 2)) f + (0, 0, -g(z))``,
+  minus the Coriolis term ``2 W x v`` of the earth's rate W (RocketPy integrates in the rotating site frame),
+  ``v' = v + a dt``, ``r' = r + v dt + a dt^2 / 2``; the nominal is propagated alongside and the sigma points'
+  attitudes are read back as rotation vectors relative to it (``log(q_i (x) q_ref^*)``); mean and covariance of the
+  21 errors, plus the process noise of the IMU's white noise, quantisation and bias random walks; the predicted
+  mean is the propagated nominal moved by the mean error. A saturated accelerometer sample adds
+  ``saturated_sigma`` of acceleration noise for that step.
+* Update: GPS position and barometric altitude are linear in the error state, so the unscented transform of the
+  measurement is exact and equals the Kalman update (Joseph form); the error is folded into the nominal
+  (multiplicatively for the attitude) and reset to zero. Innovations beyond the gate (NIS above ``gate_nis``) are
+  rejected and counted; after ``reacquire`` barometer rejections in a row the estimate, not the barometer, is
+  taken to be wrong: its altitude and vertical-velocity variances are widened by the innovation and the sample is
+  used (counted as ``reacquired``). The barometer is not used while the estimated speed exceeds ``baro_max_mach`` of the
+  local speed of sound (real static ports read shock and stagnation pressure there; without GPS the vertical
+  speed, the horizontal velocity being unobservable).
+* Smoother (Sarkka's unscented RTS): with the stored cross-covariance ``D_k`` of the errors at k and the predicted
+  errors at k+1, ``G = D P_pred^-1``; the smoothed error at k is ``G (x_s(k+1) [-] x_pred(k+1))`` added to the
+  filtered nominal, ``P_s(k) = P(k) + G (P_s(k+1) - P_pred(k+1)) G^T``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from types import ModuleType
+from math import radians
+from typing import Any
+
+import numpy as np
+
+from firmware_model.spec import atmosphere as atm
+from firmware_model.runtime.errors import UserError
+from firmware_model.flights.reconstruct.rotation import exp_rv, log_q, qconj, qmul, rotate, tilt_deg
+from firmware_model.flights.reconstruct.truth import gravity
+
+N_ERR = 21
+N_STATE = 22
+SL_R, SL_V, SL_TH, SL_BA, SL_BG = slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12), slice(12, 15)
+SL_SA, SL_SG = slice(15, 18), slice(18, 21)
+
+
+@dataclass(frozen=True)
+class FilterNoise:
+    """What the filter assumes about its sensors (datasheet figures, not the truth's draws)."""
+
+    accel_noise: float = 0.1
+    accel_lsb: float = 0.0
+    accel_bias_sigma: float = 0.02
+    accel_bias_walk: float = 1e-3       # m/s^2/sqrt(s)
+    accel_scale_sigma: float = 0.0      # relative, 1 sigma: prior of the scale-factor states (constant per flight)
+    gyro_noise: float = radians(0.1)
+    gyro_lsb: float = 0.0
+    gyro_bias_sigma: float = radians(0.05)
+    gyro_bias_walk: float = radians(0.01)
+    gyro_scale_sigma: float = 0.0
+    accel_range: float = 16 * 9.80665
+    saturated_sigma: float = 30.0
+    heading_sigma: float = radians(5.0)
+    gps_sigma: tuple[float, float, float] = (4.0, 4.0, 4.0)
+    gate_nis: float = 30.0
+    baro_max_mach: float = 0.7
+    reacquire: int = 50
+
+
+def flat(r, v, q, ba, bg, sa=(0.0, 0.0, 0.0), sg=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """The flat 22-vector state ``r v q ba bg sa sg``."""
+    return np.concatenate([r, v, q, ba, bg, sa, sg]).astype(np.float64)
+
+
+def unflat(x: np.ndarray) -> dict[str, np.ndarray]:
+    """(..., 22) states -> dict of ``r, v, q, ba, bg, sa, sg`` arrays."""
+    return {"r": x[..., 0:3], "v": x[..., 3:6], "q": x[..., 6:10], "ba": x[..., 10:13], "bg": x[..., 13:16],
+            "sa": x[..., 16:19], "sg": x[..., 19:22]}
+
+
+def _kernels() -> ModuleType:
+    """:mod:`.kernels`, loaded on first use: a lazy load, because importing them imports numba (about 1.5 s), which
+    commands that never reconstruct (``fwemu --help``, ``design`` ...) must not pay."""
+    from firmware_model.flights.reconstruct import kernels  # lazy: numba (heavy, optional)
+
+    return kernels
+
+
+def boxplus(x: np.ndarray, dx: np.ndarray) -> np.ndarray:
+    out = np.empty(N_STATE)
+    _kernels().boxplus(x, np.ascontiguousarray(dx, dtype=np.float64), out)
+    return out
+
+
+def boxminus(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    out = np.empty(N_ERR)
+    _kernels().boxminus(a, b, out)
+    return out
+
+
+def _pad_attitude(f: np.ndarray, heading_rad: float, heading_axis: str) -> np.ndarray:
+    """The attitude whose "up" in the body frame is ``f``'s direction (the shortest rotation taking it to the
+    site's vertical) turned about the vertical so that body ``heading_axis`` points at ``heading_rad``."""
+    u = f / np.linalg.norm(f)
+    ez = np.array([0.0, 0.0, 1.0])
+    axis = np.cross(u, ez)
+    s = float(np.linalg.norm(axis))
+    ang = float(np.arctan2(s, float(u @ ez)))
+    q_tilt = exp_rv(axis / s * ang) if s > 1e-12 else np.array([1.0, 0.0, 0.0, 0.0])
+    ref = rotate(q_tilt, np.array([0.0, 0.0, 1.0] if heading_axis == "z" else [1.0, 0.0, 0.0]))
+    az_now = float(np.arctan2(ref[0], ref[1]))           # azimuth from north (y) towards east (x)
+    return qmul(exp_rv(np.array([0.0, 0.0, az_now - heading_rad])), q_tilt)
+
+
+@dataclass
+class Alignment:
+    """Pad alignment: the initial nominal and covariance, and what was used."""
+
+    x0: np.ndarray
+    P0: np.ndarray
+    pad_samples: int
+    notes: dict[str, Any] = field(default_factory=dict)
+
+
+def align(accel: np.ndarray, gyro: np.ndarray, n_pad: int, noise: FilterNoise, heading_rad: float,
+          site_asl_m: float, r0: np.ndarray | None = None, r0_sigma: tuple[float, float, float] = (0.5, 0.5, 0.5),
+          heading_axis: str = "x") -> Alignment:
+    """Initial attitude and biases from the first ``n_pad`` IMU samples (the rocket still on the pad).
+
+    Gyro bias = mean pad rate (earth rate, 7e-5 rad/s, ignored). Tilt from the mean specific force's direction
+    (it points up, along -gravity); the heading about the vertical is ``heading_rad`` (the azimuth of the body z axis
+    if the rail is inclined, else of body x), sigma ``noise.heading_sigma``. An accelerometer bias across gravity
+    cannot be told from tilt on the pad: the prior carries the attitude error it makes through the alignment
+    (the tilt, and on an inclined rail the heading too); the bias along gravity is |f| - g, with the scale error's
+    share of it in the prior. ``heading_axis``: the body axis whose azimuth ``heading_rad`` is: "z" (the
+    rocket's axis: an inclined rail's azimuth) or "x" (the pad roll orientation; for a vertical rail, where the
+    axis has no azimuth). The caller decides from what it knows of the rail, never from the measured tilt (an
+    accelerometer bias fakes several degrees of it)."""
+    if n_pad < 10:
+        raise UserError(f"pad alignment needs at least 10 IMU samples on the pad, got {n_pad}")
+    f = accel[:n_pad].mean(axis=0)
+    g = float(gravity(site_asl_m))
+    fn = float(np.linalg.norm(f))
+    u = f / fn                                           # body direction of "up"
+    q0 = _pad_attitude(f, heading_rad, heading_axis)
+    bg = gyro[:n_pad].mean(axis=0) if gyro is not None else np.zeros(3)
+    sig_n = noise.accel_noise / np.sqrt(n_pad)
+    ba0 = (fn - g) * u
+    # the attitude error a force error db makes through this very alignment (the truth is what the alignment gives
+    # with the true force f - db, the same heading): numerically, M = d log(q(f - db) q(f)^*) / d db. Across
+    # gravity it is the tilt (db / g); on an inclined rail it also turns the heading, because fixing the azimuth
+    # of a wrongly tilted axis rotates the attitude about the vertical (by up to tilt / sin(rail's tilt)).
+    h = 1e-4
+    M = np.empty((3, 3))
+    for i in range(3):
+        db = np.zeros(3)
+        db[i] = h
+        M[:, i] = (log_q(qmul(_pad_attitude(f - db, heading_rad, heading_axis), qconj(q0)))
+                   - log_q(qmul(_pad_attitude(f + db, heading_rad, heading_axis), qconj(q0)))) / (2 * h)
+    # The pad's mean force is f = g u + b + g diag(u) s + n (bias b, scale errors s, the mean's noise n), all
+    # independent with the datasheet's sigmas; the alignment reads everything but g u as bias along u and as tilt
+    # across it. So, with e = b + g diag(u) s + n: attitude error M e, bias error b - u u^T e, scale error s.
+    Lmap = np.zeros((9, 9))                              # rows: dth, dba, dsa; columns: b, s, n
+    Dg = g * np.diag(u)
+    Lmap[0:3, 0:3], Lmap[0:3, 3:6], Lmap[0:3, 6:9] = M, M @ Dg, M
+    uu = np.outer(u, u)
+    Lmap[3:6, 0:3], Lmap[3:6, 3:6], Lmap[3:6, 6:9] = np.eye(3) - uu, -uu @ Dg, -uu
+    Lmap[6:9, 3:6] = np.eye(3)
+    Sz = np.diag(np.r_[np.full(3, noise.accel_bias_sigma ** 2), np.full(3, noise.accel_scale_sigma ** 2 + 1e-10),
+                       np.full(3, sig_n ** 2 + 1e-8)])
+    Pj = Lmap @ Sz @ Lmap.T
+    P0 = np.zeros((N_ERR, N_ERR))
+    P0[SL_R, SL_R] = np.diag(np.square(r0_sigma))
+    P0[SL_V, SL_V] = np.eye(3) * 1e-4
+    idx = np.r_[6:9, 9:12, 15:18]                        # dth, dba, dsa
+    P0[np.ix_(idx, idx)] = Pj
+    P0[8, 8] += noise.heading_sigma ** 2
+    gb = noise.gyro_noise / np.sqrt(n_pad)
+    P0[SL_BG, SL_BG] = np.eye(3) * (gb ** 2 + noise.gyro_bias_walk ** 2 * n_pad * 0.01 + 1e-10)
+    P0[SL_SG, SL_SG] = np.eye(3) * (noise.gyro_scale_sigma ** 2 + 1e-10)
+    x0 = flat(np.zeros(3) if r0 is None else np.asarray(r0, float), np.zeros(3), q0, ba0, bg)
+    return Alignment(x0=x0, P0=P0, pad_samples=n_pad,
+                     notes={"tilt_deg": float(tilt_deg(q0)), "specific_force_mps2": fn, "g_mps2": g})
+
+
+@dataclass
+class Measurements:
+    """Measurements on the IMU's steps: ``gps`` (n, 3) site-frame positions relative to the pad (NaN: none this
+    step), ``baro`` (n,) geometric altitude above the pad (NaN: none), ``baro_sigma`` (n,) its sigma (m)."""
+
+    gps: np.ndarray | None
+    baro: np.ndarray | None
+    baro_sigma: np.ndarray | None
+
+
+@dataclass
+class Run:
+    """Filter and smoother output on the IMU time axis ``t`` (n,): flat states ``xf``/``xs`` (n, 22) and
+    covariances ``Pf``/``Ps`` (n, 21, 21) of the filter and the smoother (None without smoothing); ``rejected``
+    measurement counts; ``nis``: (step, kind, NIS, used) per measurement."""
+
+    t: np.ndarray
+    xf: np.ndarray
+    Pf: np.ndarray
+    xs: np.ndarray | None
+    Ps: np.ndarray | None
+    rejected: dict[str, int]
+    nis: list[tuple[int, str, float, bool]]
+
+
+def _sigma_offsets(P: np.ndarray) -> np.ndarray:
+    try:
+        L = np.linalg.cholesky(P)
+    except np.linalg.LinAlgError:
+        w, V = np.linalg.eigh(0.5 * (P + P.T))
+        L = V * np.sqrt(np.clip(w, 1e-18, None))
+    L = L * np.sqrt(N_ERR)
+    return np.ascontiguousarray(np.concatenate([L.T, -L.T], axis=0))          # (2n, 15)
+
+
+def run_ukf(t: np.ndarray, accel: np.ndarray, gyro: np.ndarray, saturated: np.ndarray, meas: Measurements,
+            al: Alignment, noise: FilterNoise, site_asl_m: float, smooth: bool = True,
+            earth_rate: np.ndarray | None = None, accel_sigma_extra: np.ndarray | None = None) -> Run:
+    """Filter (and smooth) one flight; ``earth_rate``: the earth's rotation in the site frame (rad/s; None: 0);
+    ``accel_sigma_extra``: per-step extra acceleration noise (m/s^2), e.g. after a recovery charge fired."""
+    n = t.size
+    kern = _kernels()
+    wE = np.zeros(3) if earth_rate is None else np.asarray(earth_rate, dtype=np.float64)
+    accel = np.ascontiguousarray(accel, dtype=np.float64)
+    gyro = np.ascontiguousarray(gyro, dtype=np.float64)
+    x = al.x0.copy()
+    P = al.P0.copy()
+    XF = np.empty((n, N_STATE))
+    XP = np.empty((n, N_STATE))
+    XF[0] = x
+    XP[0] = x
+    Pf = np.empty((n, N_ERR, N_ERR))
+    Pf[0] = P
+    Pp = np.empty((n, N_ERR, N_ERR))
+    Pp[0] = P
+    Dk = np.zeros((n, N_ERR, N_ERR))
+    w = 1.0 / (2 * N_ERR)
+    rejected = {"gps": 0, "baro": 0, "baro_mach": 0, "reacquired": 0}
+    streak = 0
+    nis_log: list[tuple[int, str, float, bool]] = []
+    va = noise.accel_noise ** 2 + noise.accel_lsb ** 2 / 12
+    vg = noise.gyro_noise ** 2 + noise.gyro_lsb ** 2 / 12
+    gps_R = np.diag(np.square(noise.gps_sigma))
+    eye = np.eye(N_ERR)
+    ref = np.empty(N_STATE)
+    dev = np.empty((2 * N_ERR, N_ERR))
+    gps = meas.gps
+    baro = meas.baro
+    diag = np.diag_indices(N_ERR)
+    for k in range(1, n):
+        dt = float(t[k] - t[k - 1])
+        chi = _sigma_offsets(P)
+        kern.predict_points(x, chi, accel[k], gyro[k], dt, site_asl_m, wE, ref, dev)
+        mean = dev.mean(axis=0)
+        dev -= mean
+        acc_var = va
+        if saturated[k]:
+            acc_var += noise.saturated_sigma ** 2
+        if accel_sigma_extra is not None:
+            acc_var += accel_sigma_extra[k] ** 2
+        q = np.empty(N_ERR)
+        q[0:3] = acc_var * dt ** 4 / 4
+        q[3:6] = acc_var * dt * dt
+        q[6:9] = vg * dt * dt
+        q[9:12] = noise.accel_bias_walk ** 2 * dt
+        q[12:15] = noise.gyro_bias_walk ** 2 * dt
+        q[15:21] = 1e-12 * dt
+        P = w * (dev.T @ dev)
+        P[diag] += q
+        c = acc_var * dt ** 3 / 2
+        for i in range(3):
+            P[i, 3 + i] += c
+            P[3 + i, i] += c
+        Dk[k] = w * (chi.T @ dev)
+        x = boxplus(ref, mean)
+        XP[k] = x
+        Pp[k] = P.copy()
+        # ---- measurements (linear in the error state)
+        if gps is not None and gps[k, 0] == gps[k, 0]:
+            y = gps[k] - x[0:3]
+            S = P[0:3, 0:3] + gps_R
+            nis = float(y @ np.linalg.solve(S, y))
+            ok = nis <= noise.gate_nis
+            nis_log.append((k, "gps", nis, ok))
+            if ok:
+                K = np.linalg.solve(S, P[0:3, :]).T             # (21, 3)
+                IKH = eye.copy()
+                IKH[:, 0:3] -= K
+                P = IKH @ P @ IKH.T + K @ gps_R @ K.T
+                x = boxplus(x, K @ y)
+            else:
+                rejected["gps"] += 1
+        if baro is not None and baro[k] == baro[k]:
+            # without GPS the horizontal velocity is not observable (its estimate may wander): gate on |vz|
+            speed = math.sqrt(x[3] * x[3] + x[4] * x[4] + x[5] * x[5]) if gps is not None else abs(x[5])
+            if speed > noise.baro_max_mach * _sound(x[2] + site_asl_m):
+                rejected["baro_mach"] += 1
+            else:
+                y = float(baro[k] - x[2])
+                r2 = float(meas.baro_sigma[k]) ** 2
+                S = P[2, 2] + r2
+                nis = y * y / S
+                if nis > noise.gate_nis and streak >= noise.reacquire:
+                    # the widening is process noise of this step: the stored prediction gets it too, so that
+                    # the smoother's gain does not carry the jump back through the flight
+                    P[2, 2] += y * y
+                    P[5, 5] += (y / 2.0) ** 2
+                    Pp[k][2, 2] += y * y
+                    Pp[k][5, 5] += (y / 2.0) ** 2
+                    S = P[2, 2] + r2
+                    rejected["reacquired"] += 1
+                    streak = 0
+                ok = y * y / S <= noise.gate_nis
+                streak = 0 if ok else streak + 1
+                nis_log.append((k, "baro", nis, ok))
+                if ok:
+                    K = P[:, 2] / S
+                    IKH = eye.copy()
+                    IKH[:, 2] -= K
+                    P = IKH @ P @ IKH.T + np.outer(K, K) * r2
+                    x = boxplus(x, K * y)
+                else:
+                    rejected["baro"] += 1
+        P = 0.5 * (P + P.T)
+        XF[k] = x
+        Pf[k] = P
+    run = Run(t=t, xf=XF, Pf=Pf, xs=None, Ps=None, rejected=rejected, nis=nis_log)
+    if smooth:
+        run.xs, run.Ps = smooth_urts(XF, Pf, XP, Pp, Dk)
+    return run
+
+
+def smooth_urts(XF: np.ndarray, Pf: np.ndarray, XP: np.ndarray, Pp: np.ndarray, Dk: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """The unscented RTS pass (module docstring) over the filter's stored states."""
+    n = XF.shape[0]
+    XS = np.empty_like(XF)
+    Ps = np.empty_like(Pf)
+    XS[-1] = XF[-1]
+    Ps[-1] = Pf[-1]
+    for k in range(n - 2, -1, -1):
+        G = np.linalg.solve(Pp[k + 1].T, Dk[k + 1].T).T
+        XS[k] = boxplus(XF[k], G @ boxminus(XS[k + 1], XP[k + 1]))
+        Pk = Pf[k] + G @ (Ps[k + 1] - Pp[k + 1]) @ G.T
+        Ps[k] = 0.5 * (Pk + Pk.T)
+    return XS, Ps
+
+
+_SOS_H = np.arange(-2000.0, 30001.0, 250.0)
+_SOS = np.asarray(atm.speed_of_sound_mps(_SOS_H), dtype=np.float64)
+
+
+def _sound(z: float) -> float:
+    return float(np.interp(z, _SOS_H, _SOS))
