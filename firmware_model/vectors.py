@@ -52,7 +52,8 @@ GAIN_NAMES: tuple[str, ...] = ("G11", "G21", "G31", "G12", "G22", "G32", "ACC_G"
 #: Scalar constants in fw_consts order.
 SCALAR_CONSTANTS: tuple[str, ...] = ("K", "ROUND", "BARO_SIGN", "S", "THR", "V_LIFT", "V_GATE", "MACH_VLO",
                                      "MACH_VHI", "MACH_E", "BARO_MIN", "BARO_MAX", "ALT_SHIFT", "ALT_N", "CAL_P",
-                                     "E_GATE", "GATE_N", "APO_N")
+                                     "E_GATE", "GATE_N", "APO_N", "MACH_N", "DLY_N", "DV", "A_COAST", "COAST_N",
+                                     "V_DESC", "DU")
 
 # ------------------------------------------------------------------------------------------- the case matrix
 #: k values (sample period 2^-k s) of the committed set.
@@ -77,19 +78,28 @@ Q_FORMATS: dict[str, dict[str, str]] = {
                   "EVENTS": "uint16 event bits", "ZL": "Q32.0 barometer units (last sample used)",
                   "SUMA": "Q32.0 accelerometer counts (sum of pad readings)", "CAL": "uint16 pad samples",
                   "REJ": "uint16 rejected barometer samples in a row",
-                  "NEG": "uint16 apogee evidence samples in a row"},
+                  "NEG": "uint16 apogee evidence samples in a row",
+                  "PHASE": "uint16 flight phase (0 pad, 1 boost, 2 coast, 3 apogee, 4 descent)",
+                  "CST": "uint16 coast samples in a row"},
     "recursive_seed_literal": {"EST": "Q24.8 barometer units (z = BARO_SIGN*adc)"},
     "kalman_baro": {"X1": "Q24.8 m (table altitude)", "X2": "Q24.8 m/s", "X3": "Q24.8 m/s^2",
                     "EVENTS": "uint16 event bits", "APFRAC": "UQ0.16 fraction of a sample period",
                     "GND": "Q24.8 m (pad average)", "SUMZ": "Q24.8 m (sum of pad altitudes)",
                     "CAL": "uint16 pad samples", "REJ": "uint16 gated samples in a row",
-                    "NEG": "uint16 samples with X2 < 0 in a row"},
+                    "NEG": "uint16 apogee evidence samples in a row",
+                    "PHASE": "uint16 flight phase (0 pad, 1 boost, 2 coast, 3 apogee, 4 descent)",
+                    "CST": "uint16 coast samples in a row", "DLY": "uint16 Mach-delay samples left",
+                    "VB": "Q24.8 m/s (plausibility bound)"},
     "kalman_accel": {"X1": "Q24.8 m (table altitude)", "X2": "Q24.8 m/s", "X3": "Q24.8 m/s^2",
                      "ACC0": "Q32.0 accelerometer counts (pad average)", "EVENTS": "uint16 event bits",
                      "APFRAC": "UQ0.16 fraction of a sample period", "GND": "Q24.8 m (pad average)",
                      "SUMZ": "Q24.8 m (sum of pad altitudes)", "SUMA": "Q32.0 sum of pad accelerometer counts",
                      "CAL": "uint16 pad samples", "REJ": "uint16 gated samples in a row",
-                     "NEG": "uint16 samples with X2 < 0 in a row"},
+                     "NEG": "uint16 apogee evidence samples in a row",
+                     "PHASE": "uint16 flight phase (0 pad, 1 boost, 2 coast, 3 apogee, 4 descent)",
+                     "CST": "uint16 coast samples in a row", "DLY": "uint16 Mach-delay samples left",
+                     "VB": "Q24.8 m/s (plausibility bound)",
+                     "LOCK": "uint16 Mach lockout samples left (0: barometer in use)"},
 }
 
 
@@ -665,7 +675,8 @@ def cases_table_header(results: Sequence[CaseResult], guard: str) -> str:
         consts = ("{" + ", ".join(scal[c] for c in ("K", "ROUND", "BARO_SIGN", "S", "THR", "V_LIFT", "V_GATE"))
                   + ", " + ", ".join(gains[g] for g in GAIN_NAMES) + ", "
                   + ", ".join(scal[c] for c in ("MACH_VLO", "MACH_VHI", "MACH_E", "BARO_MIN", "BARO_MAX",
-                                                "ALT_SHIFT", "ALT_N", "CAL_P", "E_GATE", "GATE_N", "APO_N"))
+                                                "ALT_SHIFT", "ALT_N", "CAL_P", "E_GATE", "GATE_N", "APO_N",
+                                                "MACH_N", "DLY_N", "DV", "A_COAST", "COAST_N", "V_DESC", "DU"))
                   + ", " + (f"fwv_{_alt_tag(res.consts)}" if res.consts.ALT_TABLE else "0") + "}")
         adc_ptr, pa_ptr = ("0", f"fwv_{name}_pa") if res.spec.cfg.pascal else (f"fwv_{name}_adc", "0")
         rows.append(f'    {{"{name}", {C_PROGRAM_ENUM[program]}, {consts},\n'
