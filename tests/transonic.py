@@ -47,10 +47,11 @@ class DipFlight:
     seed: int
 
 
-def dip_stream(f: DipFlight, params: FlightParams) -> dict:
+def dip_stream(f: DipFlight, params: FlightParams, pascal: bool = False) -> dict:
     """The (adc, acc) stream of ``f`` with ``params``' sensors (units_per_metre, baro_sign, pad_fraction, noise,
     accelerometer scale); also the truth: ``apogee_sample``, ``peak_mps``, the samples of the dips
-    (``dip_samples``) and the barometric error (m) per sample (``error_m``)."""
+    (``dip_samples``) and the barometric error (m) per sample (``error_m``). ``pascal``: the barometer word is the
+    pressure in integer pascals (a sea-level pad, 3 Pa rms noise, clipped to the MS5607's 1,000..120,000 Pa)."""
     p = FlightParams(boost_accel_g=f.boost_g, burn_s=f.burn_s, drag_per_m=f.drag_per_m, after_apogee_s=2.0,
                      units_per_metre=params.units_per_metre, baro_sign=params.baro_sign,
                      pad_fraction=params.pad_fraction, baro_sigma=params.baro_sigma,
@@ -85,6 +86,8 @@ def dip_stream(f: DipFlight, params: FlightParams) -> dict:
     drop = (p_pad - pressure_pa(h + err)) * counts_per_pa
     baro = p.pad_fraction * full + p.baro_sign * drop + rng.standard_normal(n) * p.baro_sigma
     adc = np.clip(np.rint(baro), 0, full).astype(np.int64)
+    if pascal:
+        adc = np.clip(np.rint(pressure_pa(h + err) + rng.standard_normal(n) * 3.0), 1000, 120000).astype(np.int64)
     acc_f = (a + 9.80665) * p.accel_counts_per_mps2 + rng.standard_normal(n) * p.accel_sigma
     acc = np.clip(np.rint(acc_f), ACC_MIN, ACC_MAX).astype(np.int64)
     return {"adc": adc, "acc": acc, "apogee_sample": int(math.floor(apogee_t / dt)), "peak_mps": float(v.max()),
