@@ -200,9 +200,10 @@ def build_constants(cfg: BuildConfig) -> FirmwareConstants:
     fg = float_gains(cfg)
     gains: dict[str, QGain] = {}
     for name, g in fg.items():
-        if name.endswith("T") and 0 < abs(g) < 2.0 ** (14 - MAX_SHIFT):
-            # a transonic barometer gain below 2^-33 (a near-noise-free accelerometer): its correction is below
-            # any representable one; it is 0 (the error, <= 2^-33 per unit, is in the model-vs-mirror bound)
+        if 0 < abs(g) < 2.0 ** (14 - MAX_SHIFT):
+            # a gain below 2^-33 (issue 20: e.g. G31 of kalman_accel with a noise-free accelerometer and an 8-bit
+            # barometer, ~1e-16): its correction is below any representable one; it is 0 (the error, <= 2^-33 per
+            # unit of innovation, is in the model-vs-mirror bound), so such a sensor gets gains, not an error
             gains[name] = QGain(0, 0, float(g))
             continue
         try:

@@ -494,6 +494,7 @@ def kalman_step(st, adc, acc, c, accel):  # type: ignore[no-untyped-def]
     x2 = _w32(x2)
     # 3. accelerometer innovation (kalman_accel)
     e2 = 0
+    a = 0
     if accel:
         a = rs((acc - st[ACC0]) * c[C_ACC_G_M], c[C_ACC_G_S], rnd)
         w = _note(w, a, W_ACC)
@@ -539,43 +540,47 @@ def kalman_step(st, adc, acc, c, accel):  # type: ignore[no-untyped-def]
                 ev |= BARO_REJECT
             else:
                 use = True
-    # 6. correct (every barometer gain product is checked for a wrap when the innovation exists)
-    c11 = rs(e1 * c[C_G11_M], c[C_G11_S], rnd)
-    w = _note(w, c11, W_E1G11)
-    c1 = _w32(c11)
-    if not use:
-        c1 = 0
-    if accel:
-        c12 = rs(e2 * c[C_G12_M], c[C_G12_S], rnd)
-        w = _note(w, c12, W_E2G12)
-        c1 += _w32(c12)
-    x1 = x1 + c1
-    w = _note(w, x1, W_X1)
-    x1 = _w32(x1)
-    c21 = rs(e1 * c[C_G21_M], c[C_G21_S], rnd)
-    w = _note(w, c21, W_E1G21)
-    c2 = _w32(c21)
-    if not use:
-        c2 = 0
-    if accel:
-        c22 = rs(e2 * c[C_G22_M], c[C_G22_S], rnd)
-        w = _note(w, c22, W_E2G22)
-        c2 += _w32(c22)
-    x2 = x2 + c2
-    w = _note(w, x2, W_X2)
-    x2 = _w32(x2)
-    c31 = rs(e1 * c[C_G31_M], c[C_G31_S], rnd)
-    w = _note(w, c31, W_E1G31)
-    c3 = _w32(c31)
-    if not use:
-        c3 = 0
-    if accel:
-        c32 = rs(e2 * c[C_G32_M], c[C_G32_S], rnd)
-        w = _note(w, c32, W_E2G32)
-        c3 += _w32(c32)
-    x3 = x3 + c3
-    w = _note(w, x3, W_X3)
-    x3 = _w32(x3)
+    # 6. correct (every barometer gain product is checked for a wrap when the innovation exists); locked out:
+    #    X1, X2 only predicted, X3 = a (the accelerometer alone)
+    if locked:
+        x3 = a
+    else:
+        c11 = rs(e1 * c[C_G11_M], c[C_G11_S], rnd)
+        w = _note(w, c11, W_E1G11)
+        c1 = _w32(c11)
+        if not use:
+            c1 = 0
+        if accel:
+            c12 = rs(e2 * c[C_G12_M], c[C_G12_S], rnd)
+            w = _note(w, c12, W_E2G12)
+            c1 += _w32(c12)
+        x1 = x1 + c1
+        w = _note(w, x1, W_X1)
+        x1 = _w32(x1)
+        c21 = rs(e1 * c[C_G21_M], c[C_G21_S], rnd)
+        w = _note(w, c21, W_E1G21)
+        c2 = _w32(c21)
+        if not use:
+            c2 = 0
+        if accel:
+            c22 = rs(e2 * c[C_G22_M], c[C_G22_S], rnd)
+            w = _note(w, c22, W_E2G22)
+            c2 += _w32(c22)
+        x2 = x2 + c2
+        w = _note(w, x2, W_X2)
+        x2 = _w32(x2)
+        c31 = rs(e1 * c[C_G31_M], c[C_G31_S], rnd)
+        w = _note(w, c31, W_E1G31)
+        c3 = _w32(c31)
+        if not use:
+            c3 = 0
+        if accel:
+            c32 = rs(e2 * c[C_G32_M], c[C_G32_S], rnd)
+            w = _note(w, c32, W_E2G32)
+            c3 += _w32(c32)
+        x3 = x3 + c3
+        w = _note(w, x3, W_X3)
+        x3 = _w32(x3)
     # 7. liftoff and Mach delay
     if (ev & LIFTOFF) != 0:
         if st[DLY] > 0:

@@ -294,15 +294,20 @@ def _run_kalman(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np
         use = live & ~reject
         rej = np.where(live & inside, 0, np.where(reject, rej + 1, rej))
         ev = np.where(reject, ev | _BARO_REJECT, ev)
-        # 6. correct
+        # 6. correct (locked out: X1, X2 only predicted, X3 = a, the accelerometer alone)
         xs = [x1, x2, x3]
+        corr = run & ~locked
+        if accel:
+            e2c = np.where(locked, 0, e2)
         for j in range(3):
             c1 = np.where(use, tr.mulg(e1, g1[j], mode, i, f"mulg(e1,G{j + 1}1)"), zero)
             c = xs[j] + c1
             if accel:
-                c = c + tr.mulg(e2, g2[j], mode, i, f"mulg(e2,G{j + 1}2)")
-            xs[j] = np.where(run, tr.w32(np.where(run, c, 0), i, f"X{j + 1}"), xs[j])
+                c = c + tr.mulg(e2c, g2[j], mode, i, f"mulg(e2,G{j + 1}2)")
+            xs[j] = np.where(corr, tr.w32(np.where(corr, c, 0), i, f"X{j + 1}"), xs[j])
         x1, x2, x3 = xs
+        if accel:
+            x3 = np.where(locked, a, x3)
         # 7. liftoff and Mach delay
         lift_before = (ev & _LIFTOFF) != 0
         dly = np.where(run & lift_before & (dly > 0), dly - 1, dly)

@@ -308,11 +308,14 @@ def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: 
                         ev = ev | _BARO_REJECT
                     else:
                         use = True
-            # 6. correct
+            # 6. correct (locked out: X1, X2 only predicted, X3 = the accelerometer)
             c1 = e1 if use else 0.0
-            x1 = x1 + g11 * c1 + g12 * e2
-            x2 = x2 + g21 * c1 + g22 * e2
-            x3 = x3 + g31 * c1 + g32 * e2
+            if locked:
+                x3 = x3 + e2
+            else:
+                x1 = x1 + g11 * c1 + g12 * e2
+                x2 = x2 + g21 * c1 + g22 * e2
+                x3 = x3 + g31 * c1 + g32 * e2
             # 7. liftoff and Mach delay
             if (ev & _LIFTOFF) != 0:
                 if dly > 0:
@@ -628,13 +631,18 @@ def kalman_switched_bound(consts: "FirmwareConstants", fm: FloatTrace, adc: np.n
     if accel:
         acc_g = fg["ACC_G"]
         acc_cal = abs(acc_g) * rho_cal
-    steps: dict[tuple[bool, bool], tuple] = {}
+    steps: dict[tuple, tuple] = {}
 
-    def step_consts(used: bool, rebase: bool) -> tuple:
+    def step_consts(used: bool, rebase: bool, locked: bool = False) -> tuple:
         """``(A, |IKH| @ u, barometer columns or None, accelerometer columns or None)`` of a (used, rebase)
         combination, built at its first sample (so a gain is read, or found missing, where it was before). A
         re-base sample (kalman_accel, §6 step 5) replaces X1 by the table value h: its X1 row of ``I - K H``
         loses the predicted X1 (the table's rounding enters w as rho_alt)."""
+        if locked:            # kalman_accel locked out: X1, X2 predicted, X3 = a (its error enters w)
+            if (used, rebase, locked) not in steps:
+                IKH = np.diag([1.0, 1.0, 0.0])
+                steps[used, rebase, locked] = (IKH @ F, np.abs(IKH) @ u, None, None)
+            return steps[used, rebase, locked]
         if (used, rebase) not in steps:
             bcols = acols = None
             if used:
@@ -695,7 +703,8 @@ def kalman_switched_bound(consts: "FirmwareConstants", fm: FloatTrace, adc: np.n
         margin[t] = pred_b[0] + rho_alt
         rebase = bool(accel and lock_prev[t] == 1 and lock_now[t] == 0 and not ev[t] & _MACH)
         used = bool(ok[t] and not (ev[t] & (_BARO_REJECT | _MACH)) and not rebase)
-        A, iku, bcols, acols = step_consts(used, rebase)
+        locked = bool(accel and ev[t] & _MACH)
+        A, iku, bcols, acols = step_consts(used, rebase, locked)
         r = np.zeros(3)
         if rebase:
             r[0] += rho_alt
@@ -704,7 +713,9 @@ def kalman_switched_bound(consts: "FirmwareConstants", fm: FloatTrace, adc: np.n
             e1_int = abs(e1) + margin[t]
             rc, dc, ac = bcols
             r += rc + dc * e1_int + ac * rho_alt
-        if accel:
+        if locked:
+            r[2] += a_err_base[t] + acc_cal
+        elif accel:
             e2_int = abs((acc[t] - acc0_f[t]) * acc_g - (prev[t, 2])) + pred_b[2] + a_err_base[t] + acc_cal
             a_err = a_err_base[t] + acc_cal
             rc, dc, ac = acols

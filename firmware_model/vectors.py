@@ -34,7 +34,7 @@ import numpy as np
 from firmware_model.config import PROGRAMS, ROUNDINGS, BuildConfig, load_config
 from firmware_model.errors import UserError
 from firmware_model.inputs import (ACC_PROGRAMS, EDGE_KINDS, Stream, edge_stream, flight_params_for, read_stream_csv,
-                                   synthetic_flight)
+                                   supersonic_params_for, synthetic_flight)
 from firmware_model.trace import EVENT_BITS, STATE_WORDS, word_names
 
 #: Version of the case JSON layout (bump on any incompatible change; schema.json says the same).
@@ -70,6 +70,9 @@ FLIGHT_PROGRAMS: tuple[str, ...] = ("recursive", "kalman_baro", "kalman_accel")
 FAST_FLIGHT_PROGRAMS: tuple[str, ...] = ("kalman_baro", "kalman_accel")
 FAST_FLIGHT_K: tuple[int, ...] = (4, 5)
 FAST_FLIGHT_BITS: int = 16
+#: The supersonic flight with a transonic dip (issue 20; :func:`firmware_model.inputs.supersonic_params_for`):
+#: every flight program, both roundings, at these k, 16-bit barometer.
+SUPERSONIC_K: tuple[int, ...] = (5,)
 FAST_FLIGHT_SEED: int = 20240602
 
 Q_FORMATS: dict[str, dict[str, str]] = {
@@ -226,6 +229,13 @@ def grid_case_specs() -> list[CaseSpec]:
                         if key not in flights:
                             flights[key] = synthetic_flight(k, bits, FAST_FLIGHT_SEED, flight_params_for(cfg, True),
                                                             name="flight_fast")
+                        stream = flights[key]
+                        specs.append(CaseSpec(case_name(program, rounding, k, bits, stream.name), cfg, stream))
+                    if program in FLIGHT_PROGRAMS and k in SUPERSONIC_K and bits == FAST_FLIGHT_BITS:
+                        key = (k, -1000 - bits)
+                        if key not in flights:
+                            flights[key] = synthetic_flight(k, bits, FAST_FLIGHT_SEED, supersonic_params_for(cfg),
+                                                            name="flight_supersonic")
                         stream = flights[key]
                         specs.append(CaseSpec(case_name(program, rounding, k, bits, stream.name), cfg, stream))
     return specs

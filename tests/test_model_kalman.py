@@ -454,7 +454,7 @@ def _dip_case(program: str, k: int, rounding: str):
 def test_kalman_bound_on_supersonic_dip_flights(program, k, rounding):
     """The switched bound (re-derived for issue 20: no barometer row while locked out, the re-base sample's X1
     from the table) holds on a supersonic flight with a 400 m transonic dip, a jump and a noise burst, through the
-    Mach lockout and the re-base (kalman_accel, half_up: both inside the compared samples)."""
+    Mach lockout and the re-base (kalman_accel, half_up, k = 5: both inside the compared samples)."""
     consts, adc, acc = _dip_case(program, k, rounding)
     fm = mirror(consts, adc, acc)
     ratio = _check_bound(consts, adc, acc, fm=fm)
@@ -465,10 +465,11 @@ def test_kalman_bound_on_supersonic_dip_flights(program, k, rounding):
         back = np.flatnonzero((lock[:-1] == 1) & (lock[1:] == 0)) + 1
         differ = np.flatnonzero(lock != fm.column("LOCK").astype(np.int64))
         assert back.size
-        if rounding == "half_up":
-            # floor's velocity bias (~1 m/s here, docs/numerics.md) moves the end of the lockout by a sample
-            # (allowed: within the bound of MACH_VLO), which ends the comparison before the re-base; with half_up
-            # the re-base is inside the compared samples (measured: no lockout difference at k = 5, 6, 7)
+        if rounding == "half_up" and k == 5:
+            # the end of the lockout (X2 back to MACH_VLO) may differ by a sample between the runs (allowed: within
+            # the bound; floor's velocity bias, ~1 m/s here, docs/numerics.md, makes it likely), which ends the
+            # comparison before the re-base; on this flight with half_up at k = 5 and 6 it does not (measured:
+            # first lockout difference at 1096 of 1159 at k = 7, at 245 of 260 with floor at k = 5)
             assert differ.size == 0 or differ[0] > back[0], (back, differ[:3])
 
 

@@ -25,10 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 from hypothesis import strategies as st
 
-from firmware_model.inputs import ACC_MAX, ACC_MIN, FlightParams, _trajectory, pressure_pa
-
-#: Speed of sound used to place the dips (m/s, 15 C).
-MACH1_MPS = 340.3
+from firmware_model.inputs import (ACC_MAX, ACC_MIN, MACH1_MPS, FlightParams, _trajectory, pressure_pa,
+                                   transonic_dip_error)
 
 
 @dataclass(frozen=True)
@@ -61,21 +59,10 @@ def dip_stream(f: DipFlight, params: FlightParams, pascal: bool = False) -> dict
     n = h.shape[0]
     t = np.arange(n) * dt
     v = np.gradient(h, dt)
-    err = np.zeros(n)
-    # every crossing of Mach 1 (up in the boost, down in the coast); a flight that peaks just below Mach 1 gets
-    # its dip at the peak speed
+    err = transonic_dip_error(t, v, f.dip_m, f.dip_s, f.jump_m)
     above = v > MACH1_MPS
-    cross = list(np.flatnonzero(above[1:] != above[:-1]) + 1)
-    if not cross:
-        cross = [int(np.argmax(v))]
-    dips = []
-    for c in cross:
-        tc = t[c]
-        inside = np.abs(t - tc) < f.dip_s / 2
-        err -= np.where(inside, f.dip_m * 0.5 * (1 + np.cos(2 * math.pi * (t - tc) / f.dip_s)), 0.0)
-        after = (t >= tc + f.dip_s / 2) & (t < tc + f.dip_s / 2 + 0.1)
-        err += np.where(after, f.jump_m, 0.0)
-        dips.append(np.flatnonzero(inside))
+    cross = list(np.flatnonzero(above[1:] != above[:-1]) + 1) or [int(np.argmax(v))]
+    dips = [np.flatnonzero(np.abs(t - t[c]) < f.dip_s / 2) for c in cross]
     rng = np.random.default_rng(f.seed)
     t0 = p.pad_s + f.burst_at * (apogee_t - p.pad_s)
     burst = (t >= t0) & (t < t0 + 0.3)

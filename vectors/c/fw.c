@@ -285,15 +285,19 @@ static void step_kalman(const fw_consts *c, fw_state *st, int32_t adc, int16_t a
             }
         }
     }
-    /* 6. correct */
-    if (use) {
-        c1_1 = fw_mulg(e1, c->G11, mode);
-        c1_2 = fw_mulg(e1, c->G21, mode);
-        c1_3 = fw_mulg(e1, c->G31, mode);
+    /* 6. correct (locked out: X1, X2 only predicted, X3 = a, the accelerometer alone) */
+    if (locked) {
+        st->X3 = fw_wrap32((int64_t)st->X3 + e2);
+    } else {
+        if (use) {
+            c1_1 = fw_mulg(e1, c->G11, mode);
+            c1_2 = fw_mulg(e1, c->G21, mode);
+            c1_3 = fw_mulg(e1, c->G31, mode);
+        }
+        st->X1 = fw_wrap32((int64_t)st->X1 + c1_1 + c2_1);
+        st->X2 = fw_wrap32((int64_t)st->X2 + c1_2 + c2_2);
+        st->X3 = fw_wrap32((int64_t)st->X3 + c1_3 + c2_3);
     }
-    st->X1 = fw_wrap32((int64_t)st->X1 + c1_1 + c2_1);
-    st->X2 = fw_wrap32((int64_t)st->X2 + c1_2 + c2_2);
-    st->X3 = fw_wrap32((int64_t)st->X3 + c1_3 + c2_3);
     /* 7. liftoff and Mach delay */
     if (st->EVENTS & FW_EV_LIFTOFF) {
         if (st->DLY > 0u) {
