@@ -310,7 +310,7 @@ def test_cpu_equals_model_supersonic_dip_flights_reach_every_new_branch(program:
         assert ((cst[:-1] > 0) & (cst[1:] == 0) & (phase[1:] == 1)).any()        # a coast count broken in boost
     if program == "recursive":
         return
-    x2, vb, dly = cpu.column("X2"), cpu.column("VB"), cpu.column("DLY")
+    vb, dly = cpu.column("VB"), cpu.column("DLY")
     assert dly.max() == build_constants(cfg).DLY_N > 0 and dly[-1] == 0
     dv, du = build_constants(cfg).DV, build_constants(cfg).DU
     assert (np.diff(vb) == -dv).any()                                            # VB fell at its limit
