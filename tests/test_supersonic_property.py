@@ -37,7 +37,7 @@ def _lead_s(program: str, rounding: str, f: DipFlight, consts=None) -> tuple[flo
     return (None if ap < 0 else (ap - s["apogee_sample"]) * 2.0 ** -f.k), tr, s
 
 
-@settings(max_examples=examples(12, ci=6), deadline=None)
+@settings(max_examples=examples(20, ci=10), deadline=None)
 @given(f=dip_flights())
 @pytest.mark.parametrize("rounding", ["floor", "half_up"])
 def test_no_detection_more_than_1s_early_on_supersonic_flights(rounding: str, f: DipFlight) -> None:
