@@ -483,3 +483,57 @@ def test_bound_has_teeth_a_wrong_settling_time_breaks_it():
         _check_pair(dataclasses.replace(consts, MACH_N=consts.MACH_N + 1), consts, adc, acc)
     with pytest.raises(AssertionError):      # and a Mach threshold 10 m/s off
         _check_pair(dataclasses.replace(consts, MACH_VLO=consts.MACH_VLO + 2560), consts, adc, acc)
+
+
+def _kernels_variant(old: str, new: str):
+    """A plain-Python copy of the integer model's kernels with one piece of source replaced (a porting bug)."""
+    import types
+    from pathlib import Path
+
+    import firmware_model.model_kernels as mk
+
+    src = Path(mk.__file__).read_text()
+    assert src.count(old) == 1, old
+    mod = types.ModuleType("kernels_variant")
+    mod.FORCE_PURE = True
+    exec(compile(src.replace(old, new), "kernels_variant", "exec"), mod.__dict__)
+    return mod
+
+
+class _VariantTrace:
+    """The words of a kernels variant in the shape _check_bound reads (a ModelTrace without the wrap report)."""
+
+    def __init__(self, kern, consts, adc, acc):
+        from firmware_model.model import _run_kernels
+        from firmware_model.trace import word_names
+
+        init, words, first, _ = _run_kernels(kern, consts, np.atleast_2d(adc), np.atleast_2d(acc))
+        self.names, self.words, self.init_words = word_names(consts.program), words[0], init[0]
+        self.first_wrap, self.wrap_word = int(first[0]), ""
+
+    def column(self, name):
+        return self.words[..., self.names.index(name)]
+
+
+@pytest.mark.parametrize("bug", ["filtered X3 while locked out", "no re-base"])
+def test_bound_has_teeth_a_wrong_lockout_or_rebase_breaks_it(bug, monkeypatch):
+    """The locked rows (X3 = a, X1/X2 predicted) and the re-base row of the switched bound have teeth: a model that
+    keeps correcting X3 with the filter gains while locked out, or that feeds the returning barometer through the
+    gate instead of re-basing X1, fails the check on a supersonic dip flight with a 3 % accelerometer scale error
+    (the stale offset a lockout accumulates); the correct kernels pass it."""
+    import test_model_kalman as me
+
+    consts, adc, acc = _dip_case("kalman_accel", 5, "half_up")
+    acc = acc.copy()
+    pad = 16
+    a0 = int(np.round(acc[:pad].mean()))
+    acc[pad:] = np.clip(np.rint(a0 + (acc[pad:] - a0) * 1.03), -32768, 32767).astype(np.int64)
+    _check_bound(consts, adc, acc)
+    if bug == "no re-base":
+        kern = _kernels_variant("                st[LOCK] = 0\n                rebase = True",
+                                "                st[LOCK] = 0")
+    else:
+        kern = _kernels_variant("    if locked:\n        x3 = a\n    else:", "    if False:\n        x3 = a\n    else:")
+    monkeypatch.setattr(me, "run_model", lambda c, a, b: _VariantTrace(kern, c, a, b))
+    with pytest.raises(AssertionError):
+        _check_bound(consts, adc, acc)
