@@ -144,6 +144,10 @@ def summary(table: Any, record: Any, inputs: Any, cfg: Any, engine: str, elapsed
         return "never" if t is None else f"{t:.6f} s"
 
     lines.append(f"liftoff: {at('LIFTOFF')}")
+    phases = table.phase_times()
+    if table.phase is not None:
+        lines.append("phases (PHASE word): " + (", ".join(f"{name.lower()} {t:.3f} s" for name, t in phases.items())
+                                               or "pad only"))
     burn = burnout_time(record, marks.get("LIFTOFF"))
     lines.append("burnout: " + ("— (no accelerometer, or no coast)" if burn is None else
                                 f"{burn:.3f} s (axial specific force below 0 after liftoff)"))

@@ -93,6 +93,12 @@ def plot_run(run: Any, *, zoom: bool = False, title: str = "", reference_s: floa
         if name in styles and when is not None and lo_t <= when <= hi_t:
             c, ls = styles[name]
             handles.append(ax.axvline(when, color=c, ls=ls, lw=1.2, label=f"{name.lower()} {when:.3f} s"))
+    phase_times = run.phase_times() if callable(getattr(run, "phase_times", None)) else {}
+    for name, when in phase_times.items():         # the firmware's PHASE word: a thin line where each phase begins
+        if lo_t <= when <= hi_t and name in ("BOOST", "COAST", "DESCENT"):
+            ax.axvline(when, color="0.35", ls=(0, (1, 3)), lw=0.9)
+            ax.annotate(name.lower(), (when, 1.0), xycoords=("data", "axes fraction"), rotation=90, va="top",
+                        ha="right", fontsize=7, color="0.35")
     for label, when, c in (("reference apogee", reference_s, "C2"), (f"{own_computer} apogee", altos_s, "C5")):
         if when is not None and lo_t <= when <= hi_t:
             handles.append(ax.axvline(when, color=c, ls="-.", lw=1.2, label=f"{label} {when:.3f} s"))

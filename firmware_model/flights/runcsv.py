@@ -3,7 +3,8 @@
 Columns (Schultz n.d.'s rdaskal3 order first, so its gnuplot recipes work: ``using 1:3`` filtered altitude, ``1:4``
 velocity, ``1:2`` raw altitude): ``time_s, raw_altitude_m, filtered_altitude_m, velocity_mps, accel_mps2``, then
 ``events`` (the EVENTS word), ``new_events`` (names of the bits that set at this sample, ``|``-separated),
-``cycles`` (68000 clocks of this ``step``; empty when the integer model ran).
+``cycles`` (68000 clocks of this ``step``; empty when the integer model ran), ``phase`` (the PHASE word by name:
+PAD, BOOST, COAST, APOGEE, DESCENT, docs/firmware-spec.md §4a; absent in CSVs written before issue 20).
 
 Conversion of the integer state to metres (docs/evaluation.md, "fwemu run"): the raw altitude is
 ``altitude_of_counts(adc)``, metres above the pad through the sensor model's inverse transfer function and the
@@ -23,11 +24,11 @@ from typing import Any, Callable
 
 import numpy as np
 
-from firmware_model.model.trace import EVENT_BITS, LATCHED_EVENTS
+from firmware_model.model.trace import EVENT_BITS, LATCHED_EVENTS, PHASES
 from firmware_model.runtime.errors import UserError
 
 COLUMNS: tuple[str, ...] = ("time_s", "raw_altitude_m", "filtered_altitude_m", "velocity_mps", "accel_mps2",
-                            "events", "new_events", "cycles")
+                            "events", "new_events", "cycles", "phase")
 
 
 @dataclass
@@ -42,6 +43,7 @@ class RunTable:
     events: np.ndarray
     cycles: np.ndarray | None = None
     program: str = ""
+    phase: np.ndarray | None = None
 
     # ------------------------------------------------------------------ events
     def event_times(self) -> dict[str, float | None]:
@@ -52,6 +54,18 @@ class RunTable:
                 continue
             hit = (self.events & bit) != 0
             out[name] = float(self.time_s[int(hit.argmax())]) if hit.any() else None
+        return out
+
+    def phase_times(self) -> dict[str, float]:
+        """Time of the first sample in each PHASE after PAD that the run entered (docs/firmware-spec.md §4a)."""
+        if self.phase is None:
+            return {}
+        out: dict[str, float] = {}
+        ph = np.asarray(self.phase, dtype=np.int64)
+        for j, name in enumerate(PHASES[1:], start=1):
+            hit = ph == j
+            if hit.any():
+                out[name] = float(self.time_s[int(hit.argmax())])
         return out
 
     def intervals(self, name: str) -> list[tuple[float, float]]:
@@ -69,13 +83,14 @@ class RunTable:
         prev = 0
         names = list(EVENT_BITS.items())
         cyc = self.cycles
+        ph = self.phase
         for i in range(self.time_s.shape[0]):
             e = int(self.events[i])
             new = "|".join(n for n, b in names if e & b and not prev & b)
             prev = e
             w.writerow([f"{self.time_s[i]:.6f}", f"{self.raw_altitude_m[i]:.3f}", f"{self.filtered_altitude_m[i]:.3f}",
                         f"{self.velocity_mps[i]:.3f}", f"{self.accel_mps2[i]:.3f}", e, new,
-                        "" if cyc is None else int(cyc[i])])
+                        "" if cyc is None else int(cyc[i]), "" if ph is None else PHASES[int(ph[i])]])
         return buf.getvalue()
 
     @classmethod
@@ -101,6 +116,11 @@ class RunTable:
                 if name == "new_events":
                     continue
                 cell = row[j] if j < len(row) else ""
+                if name == "phase":
+                    if cell not in PHASES and cell != "":
+                        raise UserError(f"{path}:{lineno}: column phase: {cell!r} is not one of {', '.join(PHASES)}")
+                    data[name].append(float(PHASES.index(cell)) if cell else float("nan"))
+                    continue
                 try:
                     data[name].append(float(cell) if cell != "" else float("nan"))
                 except ValueError:
@@ -111,9 +131,13 @@ class RunTable:
         cycles = arr.get("cycles")
         if cycles is not None and np.all(np.isnan(cycles)):
             cycles = None
+        phase = arr.get("phase")
+        if phase is not None and np.all(np.isnan(phase)):
+            phase = None
         return cls(arr["time_s"], arr["raw_altitude_m"], arr["filtered_altitude_m"], arr["velocity_mps"],
                    arr["accel_mps2"], np.nan_to_num(arr.get("events", np.zeros_like(arr["time_s"]))).astype(np.int64),
-                   None if cycles is None else np.nan_to_num(cycles).astype(np.int64))
+                   None if cycles is None else np.nan_to_num(cycles).astype(np.int64),
+                   phase=None if phase is None else np.nan_to_num(phase).astype(np.int64))
 
 
 def linear_altitude(cfg: Any, pad_counts: float) -> Callable[[np.ndarray], np.ndarray]:
@@ -154,8 +178,9 @@ def from_trace(trace: Any, cfg: Any, time_s: np.ndarray, adc: np.ndarray, acc: n
     else:
         raise UserError(f"run table: program {trace.program!r} has no apogee logic to report")
     cycles = None if trace.cycles is None else np.asarray(trace.cycles)
+    phase = np.asarray(trace.column("PHASE"), dtype=np.int64) if "PHASE" in trace.names else None
     return RunTable(np.asarray(time_s, dtype=np.float64), raw, filt, vel, accel,
-                    np.asarray(trace.column("EVENTS"), dtype=np.int64), cycles, trace.program)
+                    np.asarray(trace.column("EVENTS"), dtype=np.int64), cycles, trace.program, phase)
 
 
 __all__ = ["COLUMNS", "RunTable", "linear_altitude", "from_trace"]

@@ -143,14 +143,16 @@ def _mirror_recursive(consts: "FirmwareConstants", adc: np.ndarray, acc: np.ndar
     cal = np.zeros(n_streams, dtype=np.int64)
     rej = np.zeros(n_streams, dtype=np.int64)
     neg = np.zeros(n_streams, dtype=np.int64)
+    phase = np.zeros(n_streams, dtype=np.int64)
+    cst = np.zeros(n_streams, dtype=np.int64)
     ncal = 1 << int(consts.CAL_P)
 
     def row() -> np.ndarray:
         return np.stack([est, ext, vel, acc0, ev.astype(float), zl, suma, cal.astype(float), rej.astype(float),
-                         neg.astype(float)], axis=-1)
+                         neg.astype(float), phase.astype(float), cst.astype(float)], axis=-1)
 
     init = row()
-    out = np.empty((n_streams, n, 10))
+    out = np.empty((n_streams, n, 12))
     for i in range(n):
         a = acc[:, i]
         ev = ev & LATCHED_EVENTS
@@ -161,7 +163,14 @@ def _mirror_recursive(consts: "FirmwareConstants", adc: np.ndarray, acc: np.ndar
         cal = np.where(calib, cal + 1, cal)
         acc0 = np.where(calib & (cal == ncal), suma / ncal, acc0)
         vel = np.where(run, vel + (a - acc0), vel)
-        ev = np.where(run & ((ev & _LIFTOFF) == 0) & (vel > consts.V_LIFT), ev | _LIFTOFF, ev)
+        lifting = run & ((ev & _LIFTOFF) == 0) & (vel > consts.V_LIFT)
+        ev = np.where(lifting, ev | _LIFTOFF, ev)
+        phase = np.where(lifting, 1, phase)
+        boost = run & (phase == 1)
+        low = (a - acc0) < -consts.A_COAST
+        cst = np.where(boost, np.where(low, cst + 1, 0), cst)
+        phase = np.where(boost & low & (cst >= consts.COAST_N), 2, phase)
+        phase = np.where(run & ~boost & (phase == 3) & (vel < -consts.V_DESC), 4, phase)
         ev = np.where(run & ((ev & _LIFTOFF) != 0) & ((ev & _ARMED) == 0) & (a == 32767), ev | _ACC_CLIP, ev)
         ev = np.where(run & ((ev & _GATE_HIGH) != 0) & ((ev & _ARMED) == 0) & (vel < consts.V_GATE), ev | _ARMED,
                       ev)
@@ -184,7 +193,9 @@ def _mirror_recursive(consts: "FirmwareConstants", adc: np.ndarray, acc: np.ndar
         below = ext - est >= consts.THR
         neg = np.where(up, 0, np.where(live, np.where(below, neg + 1, 0), neg))
         need = np.where((ev & _ACC_CLIP) != 0, int(consts.APO_N), 1)
-        ev = np.where(live & below & (neg >= need), ev | _APOGEE, ev)
+        fire = live & below & (neg >= need)
+        ev = np.where(fire, ev | _APOGEE, ev)
+        phase = np.where(fire, 3, phase)
         out[:, i] = row()
     return init, out
 
@@ -210,7 +221,8 @@ def _mirror_kalman(consts: "FirmwareConstants", g: dict[str, float], adc: np.nda
     x1 = h_all[:, 0]
     # the state before the first sample: X1 = GND = the first sample's altitude, ACC0 = the first acc, the rest 0
     cols = [x1, zeros, zeros] + ([acc[:, 0]] if accel else []) + [zeros, zeros, x1, zeros]
-    init = np.stack(cols + ([zeros] if accel else []) + [zeros, zeros, zeros], axis=-1)
+    init = np.stack(cols + ([zeros] if accel else []) + [zeros, zeros, zeros] + [zeros] * (5 if accel else 4),
+                    axis=-1)
     out = np.empty((n_streams, n, init.shape[-1]))
     for s in range(n_streams):
         out[s] = _mirror_kalman_one(consts, g, accel, h_all[s], baro_ok_all[s], acc[s])
@@ -232,16 +244,16 @@ def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: 
     ncal = 1 << int(consts.CAL_P)
     e_gate, gate_n, apo_n = float(consts.E_GATE), int(consts.GATE_N), int(consts.APO_N)
     mach_vlo, v_lift = consts.MACH_VLO, consts.V_LIFT
+    mach_n, dly_n, dv, du = int(consts.MACH_N), int(consts.DLY_N), float(consts.DV), float(consts.DU)
+    a_coast, coast_n, v_desc = float(consts.A_COAST), int(consts.COAST_N), float(consts.V_DESC)
     acc_g = g["ACC_G"] if accel else 0.0
     g11, g21, g31 = (float(g[n]) for n in ("G11", "G21", "G31"))
-    # the transonic barometer gains and the accelerometer gains (kalman_accel; not read otherwise)
-    g11t, g21t, g31t = (float(g[n]) for n in ("G11T", "G21T", "G31T")) if accel else (g11, g21, g31)
     g12, g22, g32 = (float(g[n]) for n in ("G12", "G22", "G32")) if accel else (0.0, 0.0, 0.0)
     hs, oks, accs = h_all.tolist(), baro_ok_all.tolist(), acc.tolist()
     x1 = gnd = hs[0]
-    x2 = x3 = sumz = suma = apfrac = 0.0
+    x2 = x3 = sumz = suma = apfrac = vb = 0.0
     acc0 = accs[0]
-    cal = rej = neg = ev = 0
+    cal = rej = neg = ev = phase = cst = dly = lock = 0
     rows = []
     for h, baro_ok, a in zip(hs, oks, accs):
         ev = ev & LATCHED_EVENTS
@@ -258,54 +270,88 @@ def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: 
                 x1 = gnd
                 if accel:
                     acc0 = suma / ncal
-        run = not calib
-        # 2. predict
-        if run:
+        if not calib:
+            # 2. predict
             x1 = x1 + x2 * dt + x3 * half_dt2
             x2 = x2 + x3 * dt
-        # 3./4. innovation and gate
-        e1 = h - x1
-        inside = e1 >= -e_gate and e1 <= e_gate
-        reject = run and baro_ok and not inside and rej < gate_n
-        use = run and baro_ok and not reject
-        if run and baro_ok and inside:
-            rej = 0
-        elif reject:
-            rej = rej + 1
-            ev = ev | _BARO_REJECT
-        # 5. transonic weighting (kalman_accel)
-        trans = run and (ev & _LIFTOFF) != 0 and x2 > mach_vlo and accel
-        if trans:
-            ev = ev | _MACH
-        # 6./7. correct
-        e2 = (a - acc0) * acc_g - x3 if accel else 0.0
-        c1 = e1 if use else 0.0
-        if run:
-            if trans:
-                x1 = x1 + g11t * c1 + g12 * e2
-                x2 = x2 + g21t * c1 + g22 * e2
-                x3 = x3 + g31t * c1 + g32 * e2
+            # 3. accelerometer innovation
+            e2 = (a - acc0) * acc_g - x3 if accel else 0.0
+            # 4. Mach lockout (kalman_accel)
+            locked = rebase = False
+            if accel:
+                if (ev & _LIFTOFF) != 0 and x2 > mach_vlo:
+                    lock, locked = mach_n, True
+                elif lock > 1:
+                    lock, locked = lock - 1, True
+                elif lock == 1:
+                    if baro_ok:
+                        lock, rebase = 0, True
+                    else:
+                        locked = True
+                if locked:
+                    ev = ev | _MACH
+            # 5. innovation and gate
+            use = False
+            e1 = 0.0
+            if baro_ok and not locked:
+                if rebase:
+                    x1 = h
+                    rej = 0
+                else:
+                    e1 = h - x1
+                    if -e_gate <= e1 <= e_gate:
+                        rej = 0
+                        use = True
+                    elif rej < gate_n:
+                        rej = rej + 1
+                        ev = ev | _BARO_REJECT
+                    else:
+                        use = True
+            # 6. correct (locked out: X1, X2 only predicted, X3 = the accelerometer)
+            c1 = e1 if use else 0.0
+            if locked:
+                x3 = x3 + e2
             else:
                 x1 = x1 + g11 * c1 + g12 * e2
                 x2 = x2 + g21 * c1 + g22 * e2
                 x3 = x3 + g31 * c1 + g32 * e2
-            # 8. liftoff
-            if (ev & _LIFTOFF) == 0 and x2 > v_lift:
+            # 7. liftoff and Mach delay
+            if (ev & _LIFTOFF) != 0:
+                if dly > 0:
+                    dly = dly - 1
+            elif x2 > v_lift:
                 ev = ev | _LIFTOFF
-            # 9. apogee after APO_N consecutive negative velocities
-            if (ev & _LIFTOFF) != 0 and (ev & _APOGEE) == 0:
-                neg = neg + 1 if x2 < 0 else 0
-                if x2 < 0 and neg >= apo_n:
-                    ev = ev | _APOGEE
-                # 10. low-rate prediction
-                d = -x3 * dt
-                if (ev & (_APOGEE | _PREDICTED)) == 0 and x2 > 0 and x2 < d:
-                    apfrac = min(65536.0 * x2 / d, 65535.0)
-                    ev = ev | _PREDICTED
+                phase = 1
+                dly = dly_n
+            # 8. plausibility bound
+            vb = min(max(x2, vb - dv), vb + du)
+            # 9. phases and apogee
+            if phase == 1:
+                if x3 < -a_coast:
+                    cst = cst + 1
+                    if cst >= coast_n:
+                        phase = 2
+                else:
+                    cst = 0
+            if phase == 2:
+                if dly == 0 and vb < 0:
+                    neg = neg + 1
+                    if neg >= apo_n:
+                        ev = ev | _APOGEE
+                        phase = 3
+                else:
+                    neg = 0
+            elif phase == 3 and x2 < -v_desc:
+                phase = 4
+            # 10. low-rate prediction (in coast)
+            d = -x3 * dt
+            if phase == 2 and (ev & _PREDICTED) == 0 and x2 > 0 and x2 < d:
+                apfrac = min(65536.0 * x2 / d, 65535.0)
+                ev = ev | _PREDICTED
         if accel:
-            rows.append((x1, x2, x3, acc0, ev, apfrac, gnd, sumz, suma, cal, rej, neg))
+            rows.append((x1, x2, x3, acc0, ev, apfrac, gnd, sumz, suma, cal, rej, neg, phase, cst, dly, vb, lock))
         else:
-            rows.append((x1, x2, x3, ev, apfrac, gnd, sumz, cal, rej, neg))
+            rows.append((x1, x2, x3, ev, apfrac, gnd, sumz, cal, rej, neg, phase, cst, dly, vb))
     return rows
 
 
@@ -536,8 +582,8 @@ def kalman_switched_bound(consts: "FirmwareConstants", fm: FloatTrace, adc: np.n
         delta_{t+1} = A_t delta_t + w_t,   A_t = (I - K_t H_t) F,   |w_t| <= (I - K_t H_t)|u| + r_t
 
     where ``H_t``/``K_t`` are the measurement rows and design gains applied at sample t (both rows; the
-    accelerometer row only when the barometer was not used; the transonic barometer gains when the mirror used
-    them), ``u`` the predict rounding, ``r_t`` the rounding of each gain multiply, the gain quantization times the
+    accelerometer row only when the barometer was not used: gated, invalid, Mach lockout; on a re-base sample the
+    predicted X1 is dropped and X1 carries the table's rounding), ``u`` the predict rounding, ``r_t`` the rounding of each gain multiply, the gain quantization times the
     integer innovation (|e1_int| <= |e1_mirror| + margin), the table interpolation's rounding times the
     barometer gains, and the accelerometer scale's rounding and quantization. Pad calibration leaves ``delta_0 =
     (rho(CAL_P) + rho(ALT_SHIFT), 0, 0)`` (GND) and an ACC0 error of rho(CAL_P) counts. Then ``|delta_t| <=
@@ -557,7 +603,7 @@ def kalman_switched_bound(consts: "FirmwareConstants", fm: FloatTrace, adc: np.n
     col = lambda names: np.array([fg[n] for n in names])  # noqa: E731
     dcol = lambda names: np.array([abs(qg[n].value - fg[n]) for n in names])  # noqa: E731
     rcol = lambda names: np.array([rho(qg[n].s) for n in names])  # noqa: E731
-    b1, b1t, b2 = ("G11", "G21", "G31"), ("G11T", "G21T", "G31T"), ("G12", "G22", "G32")
+    b1, b2 = ("G11", "G21", "G31"), ("G12", "G22", "G32")
     H1 = np.array([[1.0, 0.0, 0.0]])
     H2 = np.array([[0.0, 0.0, 1.0]])
     u = np.array([rho(K) + rho(2 * K + 1), rho(K), 0.0])
@@ -568,6 +614,8 @@ def kalman_switched_bound(consts: "FirmwareConstants", fm: FloatTrace, adc: np.n
     prev = np.vstack([init[None, :], w[:-1]])
     ev = w[:, names.index("EVENTS")].astype(np.int64)
     cal_prev = prev[:, names.index("CAL")]
+    if accel:
+        lock_prev, lock_now = prev[:, names.index("LOCK")], w[:, names.index("LOCK")]
     ncal = 1 << int(consts.CAL_P)
     n = len(adc)
     bound = np.zeros((n, 3))
@@ -584,18 +632,24 @@ def kalman_switched_bound(consts: "FirmwareConstants", fm: FloatTrace, adc: np.n
     if accel:
         acc_g = fg["ACC_G"]
         acc_cal = abs(acc_g) * rho_cal
-    steps: dict[tuple[bool, bool], tuple] = {}
+    steps: dict[tuple, tuple] = {}
 
-    def step_consts(used: bool, trans: bool) -> tuple:
-        """``(A, |IKH| @ u, barometer columns or None, accelerometer columns or None)`` of a (used, trans)
-        combination, built at its first sample (so a gain is read, or found missing, where it was before)."""
-        if (used, trans) not in steps:
+    def step_consts(used: bool, rebase: bool, locked: bool = False) -> tuple:
+        """``(A, |IKH| @ u, barometer columns or None, accelerometer columns or None)`` of a (used, rebase)
+        combination, built at its first sample (so a gain is read, or found missing, where it was before). A
+        re-base sample (kalman_accel, §6 step 5) replaces X1 by the table value h: its X1 row of ``I - K H``
+        loses the predicted X1 (the table's rounding enters w as rho_alt)."""
+        if locked:            # kalman_accel locked out: X1, X2 predicted, X3 = a (its error enters w)
+            if (used, rebase, locked) not in steps:
+                IKH = np.diag([1.0, 1.0, 0.0])
+                steps[used, rebase, locked] = (IKH @ F, np.abs(IKH) @ u, None, None)
+            return steps[used, rebase, locked]
+        if (used, rebase) not in steps:
             bcols = acols = None
             if used:
-                names1 = b1t if trans else b1
                 Hs = [H1]
-                Ks = [col(names1)]
-                bcols = (rcol(names1), dcol(names1), np.abs(col(names1)))
+                Ks = [col(b1)]
+                bcols = (rcol(b1), dcol(b1), np.abs(col(b1)))
             else:
                 Hs, Ks = [], []
             if accel:
@@ -608,8 +662,11 @@ def kalman_switched_bound(consts: "FirmwareConstants", fm: FloatTrace, adc: np.n
                 IKH = np.eye(3) - Kt @ H
             else:
                 IKH = np.eye(3)
-            steps[used, trans] = (IKH @ F, np.abs(IKH) @ u, bcols, acols)
-        return steps[used, trans]
+            if rebase:
+                IKH = IKH.copy()
+                IKH[0, 0] = 0.0
+            steps[used, rebase] = (IKH @ F, np.abs(IKH) @ u, bcols, acols)
+        return steps[used, rebase]
 
     # The barometer's table value at every valid sample in one call (elementwise: the same floats as one call per
     # sample). A table that fails on some valid sample falls back to the per-sample call, which raises where it did.
@@ -645,16 +702,21 @@ def kalman_switched_bound(consts: "FirmwareConstants", fm: FloatTrace, adc: np.n
         x1p = prev[t, 0] + prev[t, 1] * dt + prev[t, 2] * dt * dt / 2
         pred_b = absF @ B + u
         margin[t] = pred_b[0] + rho_alt
-        used = bool(ok[t] and not (ev[t] & _BARO_REJECT))
-        trans = bool(ev[t] & _MACH)
-        A, iku, bcols, acols = step_consts(used, trans)
+        rebase = bool(accel and lock_prev[t] == 1 and lock_now[t] == 0 and not ev[t] & _MACH)
+        used = bool(ok[t] and not (ev[t] & (_BARO_REJECT | _MACH)) and not rebase)
+        locked = bool(accel and ev[t] & _MACH)
+        A, iku, bcols, acols = step_consts(used, rebase, locked)
         r = np.zeros(3)
+        if rebase:
+            r[0] += rho_alt
         if used:
             e1 = h_all[t] - x1p if h_all is not None else _alt_mirror_e1(consts, adc[t], x1p)
             e1_int = abs(e1) + margin[t]
             rc, dc, ac = bcols
             r += rc + dc * e1_int + ac * rho_alt
-        if accel:
+        if locked:
+            r[2] += a_err_base[t] + acc_cal
+        elif accel:
             e2_int = abs((acc[t] - acc0_f[t]) * acc_g - (prev[t, 2])) + pred_b[2] + a_err_base[t] + acc_cal
             a_err = a_err_base[t] + acc_cal
             rc, dc, ac = acols

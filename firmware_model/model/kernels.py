@@ -100,6 +100,8 @@ SUMA_R = 6
 CAL_R = 7
 REJ_R = 8
 NEG_R = 9
+PHASE_R = 10
+CST_R = 11
 #: Kalman (both programs; kalman_baro leaves ACC0 and SUMA at 0 and does not output them):
 X1 = 0
 X2 = 1
@@ -113,15 +115,27 @@ SUMA = 8
 CAL = 9
 REJ = 10
 NEG = 11
+PHASE = 12
+CST = 13
+DLY = 14
+VB = 15
+LOCK = 16
 #: Length of the per-stream state array (the largest program's).
-N_STATE = 12
+N_STATE = 17
+
+#: PHASE values (docs/firmware-spec.md §4a; equal to firmware_model.trace.PHASES' indices, checked by a test).
+PH_PAD = 0
+PH_BOOST = 1
+PH_COAST = 2
+PH_APOGEE = 3
+PH_DESCENT = 4
 
 #: State entries output per program, in firmware_model.model.trace.STATE_WORDS order.
 OUT_COLS: dict[str, tuple[int, ...]] = {
-    "recursive": (EST, EXT, VEL, ACC0_R, EVENTS_R, ZL_R, SUMA_R, CAL_R, REJ_R, NEG_R),
+    "recursive": (EST, EXT, VEL, ACC0_R, EVENTS_R, ZL_R, SUMA_R, CAL_R, REJ_R, NEG_R, PHASE_R, CST_R),
     "recursive_seed_literal": (EST,),
-    "kalman_baro": (X1, X2, X3, EVENTS, APFRAC, GND, SUMZ, CAL, REJ, NEG),
-    "kalman_accel": (X1, X2, X3, ACC0, EVENTS, APFRAC, GND, SUMZ, SUMA, CAL, REJ, NEG),
+    "kalman_baro": (X1, X2, X3, EVENTS, APFRAC, GND, SUMZ, CAL, REJ, NEG, PHASE, CST, DLY, VB),
+    "kalman_accel": (X1, X2, X3, ACC0, EVENTS, APFRAC, GND, SUMZ, SUMA, CAL, REJ, NEG, PHASE, CST, DLY, VB, LOCK),
 }
 
 #: Constant indices (docs/firmware-spec.md §3); gains as (mantissa, shift) pairs.
@@ -162,13 +176,21 @@ C_CAL_P = 33
 C_E_GATE = 34
 C_GATE_N = 35
 C_APO_N = 36
+C_MACH_N = 37
+C_DLY_N = 38
+C_DV = 39
+C_A_COAST = 40
+C_COAST_N = 41
+C_V_DESC = 42
+C_DU = 43
 #: The altitude table's nodes follow the scalars: c[C_ALT + j] is node j (docs/firmware-spec.md §2a).
-C_ALT = 37
-N_CONST = 37
+C_ALT = 44
+N_CONST = 44
 _SCALARS = ("K", "ROUND", "BARO_SIGN", "S", "THR", "V_LIFT", "V_GATE", "MACH_VLO", "MACH_VHI", "MACH_E",
             "BARO_MIN", "BARO_MAX")
 _GAINS = ("G11", "G21", "G31", "G12", "G22", "G32", "ACC_G", "G11T", "G21T", "G31T")
-_SCALARS2 = ("ALT_SHIFT", "CAL_P", "E_GATE", "GATE_N", "APO_N")
+_SCALARS2 = ("ALT_SHIFT", "CAL_P", "E_GATE", "GATE_N", "APO_N", "MACH_N", "DLY_N", "DV", "A_COAST", "COAST_N",
+             "V_DESC", "DU")
 
 #: Wrap ids returned by the steps: the name of the quantity (as firmware_model.model.run.ModelTrace.wrap_word).
 WRAP_NAMES: tuple[str, ...] = ("", "EST", "VEL", "X1", "X2", "X3", "e1", "e2", "mulg(acc,ACC_G)",
@@ -272,6 +294,8 @@ def recursive_init(st, adc, acc, c):  # type: ignore[no-untyped-def]
     st[CAL_R] = 0
     st[REJ_R] = 0
     st[NEG_R] = 0
+    st[PHASE_R] = PH_PAD
+    st[CST_R] = 0
 
 
 @njit(cache=True, inline="always")
@@ -298,6 +322,17 @@ def recursive_step(st, adc, acc, c):  # type: ignore[no-untyped-def]
         vel = _w32(vel)
         if (ev & LIFTOFF) == 0 and vel > c[C_V_LIFT]:
             ev |= LIFTOFF
+            st[PHASE_R] = PH_BOOST
+        # phases: coast after COAST_N samples below -A_COAST; descent after apogee
+        if st[PHASE_R] == PH_BOOST:
+            if acc - st[ACC0_R] < -c[C_A_COAST]:
+                st[CST_R] = st[CST_R] + 1
+                if st[CST_R] >= c[C_COAST_N]:
+                    st[PHASE_R] = PH_COAST
+            else:
+                st[CST_R] = 0
+        elif st[PHASE_R] == PH_APOGEE and vel < -c[C_V_DESC]:
+            st[PHASE_R] = PH_DESCENT
         # 3. accelerometer at its rail: VEL underestimates from now on
         if (ev & LIFTOFF) != 0 and (ev & ARMED) == 0 and acc == 32767:
             ev |= ACC_CLIP
@@ -342,6 +377,7 @@ def recursive_step(st, adc, acc, c):  # type: ignore[no-untyped-def]
             need = c[C_APO_N] if (ev & ACC_CLIP) != 0 else 1
             if st[NEG_R] >= need:
                 ev |= APOGEE
+                st[PHASE_R] = PH_APOGEE
         else:
             st[NEG_R] = 0
     st[EST] = est
@@ -399,16 +435,21 @@ def kalman_init(st, adc, acc, c):  # type: ignore[no-untyped-def]
     st[CAL] = 0
     st[REJ] = 0
     st[NEG] = 0
+    st[PHASE] = PH_PAD
+    st[CST] = 0
+    st[DLY] = 0
+    st[VB] = 0
+    st[LOCK] = 0
 
 
 @njit(cache=True, inline="always")
 def kalman_step(st, adc, acc, c, accel):  # type: ignore[no-untyped-def]
     """docs/firmware-spec.md §6 steps 0-10 (``accel``: kalman_accel, else kalman_baro); returns the first wrap id.
 
-    Wrap bookkeeping as the numpy model has it: SUMZ, SUMA (calibration); X1, X2 (predict), e1, mulg(acc), e2,
-    then per state i mulg(e1, Gi1), mulg(e1, Gi1T) (kalman_accel), mulg(e2, Gi2), Xi. Every barometer gain
-    product is checked when the innovation exists (barometer valid), also one whose correction is not applied
-    (gated, or the other gain set)."""
+    Wrap bookkeeping as the numpy model has it: SUMZ, SUMA (calibration); X1, X2 (predict), mulg(acc), e2, e1,
+    then per state i mulg(e1, Gi1), mulg(e2, Gi2), Xi. Every barometer gain product is checked when the innovation
+    exists (barometer valid, not locked out, not a re-base sample), also one whose correction is not applied
+    (gated). VB = max(X2, VB - DV) never leaves int32 (X2 is an int32)."""
     rnd = c[C_ROUND]
     K = c[C_K]
     w = W_NONE
@@ -451,30 +492,9 @@ def kalman_step(st, adc, acc, c, accel):  # type: ignore[no-untyped-def]
     x2 = x2 + t2
     w = _note(w, x2, W_X2)
     x2 = _w32(x2)
-    # 3./4. innovation and gate
-    e1 = 0
-    use = False
-    if baro_ok:
-        e1 = h - x1
-        w = _note(w, e1, W_E1)
-        e1 = _w32(e1)
-        eg = c[C_E_GATE]
-        if -eg <= e1 and e1 <= eg:
-            st[REJ] = 0
-            use = True
-        elif st[REJ] < c[C_GATE_N]:
-            st[REJ] = st[REJ] + 1
-            ev |= BARO_REJECT
-        else:
-            use = True
-    # 5. transonic weighting (kalman_accel only)
-    trans = False
-    if accel:
-        trans = (ev & LIFTOFF) != 0 and x2 > c[C_MACH_VLO]
-        if trans:
-            ev |= MACH_LOCKOUT
-    # 6. accelerometer innovation
+    # 3. accelerometer innovation (kalman_accel)
     e2 = 0
+    a = 0
     if accel:
         a = rs((acc - st[ACC0]) * c[C_ACC_G_M], c[C_ACC_G_S], rnd)
         w = _note(w, a, W_ACC)
@@ -482,71 +502,120 @@ def kalman_step(st, adc, acc, c, accel):  # type: ignore[no-untyped-def]
         e2 = a - x3
         w = _note(w, e2, W_E2)
         e2 = _w32(e2)
-    # 7. correct
-    c11 = rs(e1 * c[C_G11_M], c[C_G11_S], rnd)
-    w = _note(w, c11, W_E1G11)
-    c1 = _w32(c11)
+    # 4. Mach lockout (kalman_accel): no barometer above MACH_VLO and MACH_N samples after; then re-base
+    locked = False
+    rebase = False
     if accel:
-        c11t = rs(e1 * c[C_G11T_M], c[C_G11T_S], rnd)
-        w = _note(w, c11t, W_E1G11T)
-        if trans:
-            c1 = _w32(c11t)
-    if not use:
-        c1 = 0
-    if accel:
-        c12 = rs(e2 * c[C_G12_M], c[C_G12_S], rnd)
-        w = _note(w, c12, W_E2G12)
-        c1 += _w32(c12)
-    x1 = x1 + c1
-    w = _note(w, x1, W_X1)
-    x1 = _w32(x1)
-    c21 = rs(e1 * c[C_G21_M], c[C_G21_S], rnd)
-    w = _note(w, c21, W_E1G21)
-    c2 = _w32(c21)
-    if accel:
-        c21t = rs(e1 * c[C_G21T_M], c[C_G21T_S], rnd)
-        w = _note(w, c21t, W_E1G21T)
-        if trans:
-            c2 = _w32(c21t)
-    if not use:
-        c2 = 0
-    if accel:
-        c22 = rs(e2 * c[C_G22_M], c[C_G22_S], rnd)
-        w = _note(w, c22, W_E2G22)
-        c2 += _w32(c22)
-    x2 = x2 + c2
-    w = _note(w, x2, W_X2)
-    x2 = _w32(x2)
-    c31 = rs(e1 * c[C_G31_M], c[C_G31_S], rnd)
-    w = _note(w, c31, W_E1G31)
-    c3 = _w32(c31)
-    if accel:
-        c31t = rs(e1 * c[C_G31T_M], c[C_G31T_S], rnd)
-        w = _note(w, c31t, W_E1G31T)
-        if trans:
-            c3 = _w32(c31t)
-    if not use:
-        c3 = 0
-    if accel:
-        c32 = rs(e2 * c[C_G32_M], c[C_G32_S], rnd)
-        w = _note(w, c32, W_E2G32)
-        c3 += _w32(c32)
-    x3 = x3 + c3
-    w = _note(w, x3, W_X3)
-    x3 = _w32(x3)
-    # 8. liftoff
-    if (ev & LIFTOFF) == 0 and x2 > c[C_V_LIFT]:
+        if (ev & LIFTOFF) != 0 and x2 > c[C_MACH_VLO]:
+            st[LOCK] = c[C_MACH_N]
+            locked = True
+        elif st[LOCK] > 1:
+            st[LOCK] = st[LOCK] - 1
+            locked = True
+        elif st[LOCK] == 1:
+            if baro_ok:
+                st[LOCK] = 0
+                rebase = True
+            else:
+                locked = True
+        if locked:
+            ev |= MACH_LOCKOUT
+    # 5. innovation and gate (re-base: X1 = h, no barometer correction)
+    e1 = 0
+    use = False
+    if baro_ok and not locked:
+        if rebase:
+            x1 = h
+            st[REJ] = 0
+        else:
+            e1 = h - x1
+            w = _note(w, e1, W_E1)
+            e1 = _w32(e1)
+            eg = c[C_E_GATE]
+            if -eg <= e1 and e1 <= eg:
+                st[REJ] = 0
+                use = True
+            elif st[REJ] < c[C_GATE_N]:
+                st[REJ] = st[REJ] + 1
+                ev |= BARO_REJECT
+            else:
+                use = True
+    # 6. correct (every barometer gain product is checked for a wrap when the innovation exists); locked out:
+    #    X1, X2 only predicted, X3 = a (the accelerometer alone)
+    if locked:
+        x3 = a
+    else:
+        c11 = rs(e1 * c[C_G11_M], c[C_G11_S], rnd)
+        w = _note(w, c11, W_E1G11)
+        c1 = _w32(c11)
+        if not use:
+            c1 = 0
+        if accel:
+            c12 = rs(e2 * c[C_G12_M], c[C_G12_S], rnd)
+            w = _note(w, c12, W_E2G12)
+            c1 += _w32(c12)
+        x1 = x1 + c1
+        w = _note(w, x1, W_X1)
+        x1 = _w32(x1)
+        c21 = rs(e1 * c[C_G21_M], c[C_G21_S], rnd)
+        w = _note(w, c21, W_E1G21)
+        c2 = _w32(c21)
+        if not use:
+            c2 = 0
+        if accel:
+            c22 = rs(e2 * c[C_G22_M], c[C_G22_S], rnd)
+            w = _note(w, c22, W_E2G22)
+            c2 += _w32(c22)
+        x2 = x2 + c2
+        w = _note(w, x2, W_X2)
+        x2 = _w32(x2)
+        c31 = rs(e1 * c[C_G31_M], c[C_G31_S], rnd)
+        w = _note(w, c31, W_E1G31)
+        c3 = _w32(c31)
+        if not use:
+            c3 = 0
+        if accel:
+            c32 = rs(e2 * c[C_G32_M], c[C_G32_S], rnd)
+            w = _note(w, c32, W_E2G32)
+            c3 += _w32(c32)
+        x3 = x3 + c3
+        w = _note(w, x3, W_X3)
+        x3 = _w32(x3)
+    # 7. liftoff and Mach delay
+    if (ev & LIFTOFF) != 0:
+        if st[DLY] > 0:
+            st[DLY] = st[DLY] - 1
+    elif x2 > c[C_V_LIFT]:
         ev |= LIFTOFF
-    # 9. apogee after APO_N consecutive samples with X2 < 0
-    if (ev & LIFTOFF) != 0 and (ev & APOGEE) == 0:
-        if x2 < 0:
+        st[PHASE] = PH_BOOST
+        st[DLY] = c[C_DLY_N]
+    # 8. plausibility bound: VB follows X2, falling by at most DV and rising by at most DU per sample
+    vb = st[VB] - c[C_DV]
+    if vb < x2:
+        vb = x2
+    if vb > st[VB] + c[C_DU]:
+        vb = st[VB] + c[C_DU]
+    st[VB] = vb
+    # 9. phases and apogee
+    if st[PHASE] == PH_BOOST:
+        if x3 < -c[C_A_COAST]:
+            st[CST] = st[CST] + 1
+            if st[CST] >= c[C_COAST_N]:
+                st[PHASE] = PH_COAST
+        else:
+            st[CST] = 0
+    if st[PHASE] == PH_COAST:
+        if st[DLY] == 0 and vb < 0:
             st[NEG] = st[NEG] + 1
             if st[NEG] >= c[C_APO_N]:
                 ev |= APOGEE
+                st[PHASE] = PH_APOGEE
         else:
             st[NEG] = 0
-    # 10. low-rate apogee prediction
-    if (ev & LIFTOFF) != 0 and (ev & (APOGEE | APOGEE_PREDICTED)) == 0 and x2 > 0:
+    elif st[PHASE] == PH_APOGEE and x2 < -c[C_V_DESC]:
+        st[PHASE] = PH_DESCENT
+    # 10. low-rate apogee prediction (in coast)
+    if st[PHASE] == PH_COAST and (ev & APOGEE_PREDICTED) == 0 and x2 > 0:
         d = -rs(x3, K, rnd)
         if x2 < d:
             v = x2

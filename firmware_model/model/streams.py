@@ -17,6 +17,7 @@ descent); the full simulator with a thrust curve and Mach-dependent drag lives e
 from __future__ import annotations
 
 import csv
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -152,6 +153,9 @@ class FlightParams:
       ``after_apogee_s`` how long the stream continues after apogee, ``pad_altitude_m`` above sea level.
     * Transonic barometer error: while the speed is inside ``transonic_band_mps`` (lo, hi) the barometer reads
       ``transonic_error_m`` metres too high (the pressure dip ahead of the shock; 0 = none).
+    * Transonic dip (issue 20, real supersonic logs): around each time the true speed crosses Mach 1
+      (:data:`MACH1_MPS`) the barometer reads ``dip_m`` metres low (a raised cosine ``dip_s`` long), then
+      ``jump_m`` metres high for 0.1 s when the shock passes the port (:func:`transonic_dip_error`; 0 = none).
     * Barometer: ``units_per_metre`` counts per metre near the pad, ``baro_sign`` (-1: pressure ADC, counts fall as
       altitude grows), ``pad_fraction`` pad reading as a fraction of full scale, ``baro_sigma`` noise (counts rms).
     * Accelerometer: ``accel_counts_per_mps2``, ``accel_offset`` (counts at zero specific force), ``accel_sigma``
@@ -175,11 +179,36 @@ class FlightParams:
     accel_sigma: float = 20.0
     transonic_error_m: float = 0.0
     transonic_band_mps: tuple[float, float] = (290.0, 375.0)
+    dip_m: float = 0.0
+    dip_s: float = 1.5
+    jump_m: float = 0.0
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready parameters."""
         return {name: (list(v) if isinstance(v := getattr(self, name), tuple) else v)
                 for name in self.__dataclass_fields__}
+
+
+#: Speed of sound (m/s, 15 C) at which :func:`transonic_dip_error` places its dips.
+MACH1_MPS: float = 340.3
+
+
+def transonic_dip_error(t: np.ndarray, v: np.ndarray, dip_m: float, dip_s: float, jump_m: float) -> np.ndarray:
+    """The barometric altitude error (m) of a transonic passage as real supersonic logs show it: around every
+    sample where the velocity ``v`` crosses :data:`MACH1_MPS` (or, when it never does, at its peak) the reading is
+    low by a raised cosine of depth ``dip_m`` and length ``dip_s`` (the port sees the pressure behind a shock),
+    then high by ``jump_m`` for 0.1 s (the shock passing the port). ``t`` the sample times (s)."""
+    err = np.zeros_like(np.asarray(t, dtype=np.float64))
+    if dip_m == 0.0 and jump_m == 0.0:
+        return err
+    above = v > MACH1_MPS
+    cross = list(np.flatnonzero(above[1:] != above[:-1]) + 1) or [int(np.argmax(v))]
+    for c in cross:
+        tc = t[c]
+        inside = np.abs(t - tc) < dip_s / 2
+        err -= np.where(inside, dip_m * 0.5 * (1 + np.cos(2 * math.pi * (t - tc) / dip_s)), 0.0)
+        err += np.where((t >= tc + dip_s / 2) & (t < tc + dip_s / 2 + 0.1), jump_m, 0.0)
+    return err
 
 
 def pressure_pa(h_m: np.ndarray | float) -> np.ndarray | float:
@@ -271,6 +300,8 @@ def synthetic_flight(k: int, bits: int = 16, seed: int = 0, params: FlightParams
     acc_noise = rng.standard_normal(h.shape[0]) * p.accel_sigma
     lo, hi = p.transonic_band_mps
     h_baro = h + np.where((speed > lo) & (speed < hi), p.transonic_error_m, 0.0)
+    h_baro = h_baro + transonic_dip_error(np.arange(h.shape[0]) * dt, np.gradient(h, dt) if h.shape[0] > 1
+                                          else np.zeros_like(h), p.dip_m, p.dip_s, p.jump_m)
     drop = (p_pad - pressure_pa(p.pad_altitude_m + h_baro)) * counts_per_pa  # counts, grows with altitude
     baro = pad_counts + p.baro_sign * drop + baro_noise
     adc = np.clip(np.rint(baro), 0, full).astype(np.int64)
@@ -304,6 +335,8 @@ def synthetic_pascal_flight(k: int, seed: int = 0, params: FlightParams | None =
     acc_noise = rng.standard_normal(h.shape[0]) * p.accel_sigma
     lo, hi = p.transonic_band_mps
     h_baro = h + np.where((speed > lo) & (speed < hi), p.transonic_error_m, 0.0)
+    h_baro = h_baro + transonic_dip_error(np.arange(h.shape[0]) * dt, np.gradient(h, dt) if h.shape[0] > 1
+                                          else np.zeros_like(h), p.dip_m, p.dip_s, p.jump_m)
     pa = np.clip(np.rint(pressure_pa(p.pad_altitude_m + h_baro) + baro_noise), 1000, 120000).astype(np.int64)
     acc_f = p.accel_offset + (a + G0) * p.accel_counts_per_mps2 + acc_noise
     acc = np.clip(np.rint(acc_f), ACC_MIN, ACC_MAX).astype(np.int64)
@@ -400,6 +433,14 @@ def _as_streams(values: Any, name: str, lo: int, hi: int, what: str = "16-bit in
         where = f"sample {i}" if arr.ndim == 1 else f"stream {s} sample {i}"
         raise UserError(f"{name}: {where} = {int(out[s, i])} outside {lo}..{hi} ({what})")
     return out
+
+
+def supersonic_params_for(cfg: BuildConfig) -> FlightParams:
+    """A supersonic flight with the transonic signature of real logs (issue 20) for the golden vectors: 12 g for
+    3.5 s, peak ~375 m/s (Mach 1.1), a 500 m barometer dip of 1.5 s around each Mach 1 crossing and a 150 m jump
+    after it; the sensors of ``cfg``."""
+    return dataclasses.replace(flight_params_for(cfg), boost_accel_g=12.0, burn_s=3.5, drag_per_m=0.0002,
+                               dip_m=500.0, dip_s=1.5, jump_m=150.0, after_apogee_s=2.0)
 
 
 def flight_params_for(cfg: BuildConfig, fast: bool = False) -> FlightParams:

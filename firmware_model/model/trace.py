@@ -13,13 +13,17 @@ import numpy as np
 #: State words per program, in output order: (name, size in bytes).
 STATE_WORDS: dict[str, tuple[tuple[str, int], ...]] = {
     "recursive": (("EST", 4), ("EXT", 4), ("VEL", 4), ("ACC0", 4), ("EVENTS", 2), ("ZL", 4), ("SUMA", 4),
-                  ("CAL", 2), ("REJ", 2), ("NEG", 2)),
+                  ("CAL", 2), ("REJ", 2), ("NEG", 2), ("PHASE", 2), ("CST", 2)),
     "recursive_seed_literal": (("EST", 4),),
     "kalman_baro": (("X1", 4), ("X2", 4), ("X3", 4), ("EVENTS", 2), ("APFRAC", 2), ("GND", 4), ("SUMZ", 4),
-                    ("CAL", 2), ("REJ", 2), ("NEG", 2)),
+                    ("CAL", 2), ("REJ", 2), ("NEG", 2), ("PHASE", 2), ("CST", 2), ("DLY", 2), ("VB", 4)),
     "kalman_accel": (("X1", 4), ("X2", 4), ("X3", 4), ("ACC0", 4), ("EVENTS", 2), ("APFRAC", 2), ("GND", 4),
-                     ("SUMZ", 4), ("SUMA", 4), ("CAL", 2), ("REJ", 2), ("NEG", 2)),
+                     ("SUMZ", 4), ("SUMA", 4), ("CAL", 2), ("REJ", 2), ("NEG", 2), ("PHASE", 2), ("CST", 2),
+                     ("DLY", 2), ("VB", 4), ("LOCK", 2)),
 }
+
+#: Values of the ``PHASE`` word (docs/firmware-spec.md §4a), by name.
+PHASES: tuple[str, ...] = ("PAD", "BOOST", "COAST", "APOGEE", "DESCENT")
 
 #: Event bits of the ``EVENTS`` word (docs/firmware-spec.md §4).
 EVENT_BITS: dict[str, int] = {

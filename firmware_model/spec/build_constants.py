@@ -26,6 +26,7 @@ from fractions import Fraction
 
 from firmware_model.runtime.errors import UserError
 from firmware_model.spec.alt_table import table_of_config
+from firmware_model.spec.atmosphere import G0
 from firmware_model.spec.config import BuildConfig
 from firmware_model.spec.fixed import INT32_MAX, INT32_MIN, MAX_SHIFT, QGain, _round_half_away, quantize_gain
 from firmware_model.spec.gain_design import describe, float_gains, innovation_sigma_m
@@ -69,6 +70,13 @@ class FirmwareConstants:
     GATE_N: int = 1
     APO_N: int = 1
     PASCAL: int = 0
+    MACH_N: int = 1
+    DLY_N: int = 0
+    DV: int = 1
+    A_COAST: int = 0
+    COAST_N: int = 1
+    V_DESC: int = 0
+    DU: int = 1
 
     @property
     def ALT_N(self) -> int:
@@ -96,11 +104,13 @@ class FirmwareConstants:
     def equates(self) -> dict[str, int]:
         """Assembler symbols (all int32): K ROUND BARO_SIGN S THR V_LIFT V_GATE MACH_VLO MACH_VHI MACH_E BARO_MIN
         BARO_MAX ALT_SHIFT ALT_N CAL_P E_GATE GATE_N APO_N PASCAL (1: the barometer is the 32-bit pascal word
-        ``BARO_PA``) and, per gain, ``<NAME>_M`` and ``<NAME>_S``. (The
+        ``BARO_PA``) MACH_N DLY_N DV A_COAST COAST_N V_DESC DU (issue 20's flight logic) and, per gain,
+        ``<NAME>_M`` and ``<NAME>_S``. (The
         table nodes themselves are ROM data: :meth:`data_source`.)"""
         eq = {name: int(getattr(self, name)) for name in
               ("K", "ROUND", "BARO_SIGN", "S", "THR", "V_LIFT", "V_GATE", "MACH_VLO", "MACH_VHI", "MACH_E",
-               "BARO_MIN", "BARO_MAX", "ALT_SHIFT", "ALT_N", "CAL_P", "E_GATE", "GATE_N", "APO_N", "PASCAL")}
+               "BARO_MIN", "BARO_MAX", "ALT_SHIFT", "ALT_N", "CAL_P", "E_GATE", "GATE_N", "APO_N", "PASCAL",
+               "MACH_N", "DLY_N", "DV", "A_COAST", "COAST_N", "V_DESC", "DU")}
         for name, g in self.gains.items():
             eq[f"{name}_M"] = int(g.m)
             eq[f"{name}_S"] = int(g.s)
@@ -121,9 +131,10 @@ def build_constants(cfg: BuildConfig) -> FirmwareConstants:
     fg = float_gains(cfg)
     gains: dict[str, QGain] = {}
     for name, g in fg.items():
-        if name.endswith("T") and 0 < abs(g) < 2.0 ** (14 - MAX_SHIFT):
-            # a transonic barometer gain below 2^-33 (a near-noise-free accelerometer): its correction is below
-            # any representable one; it is 0 (the error, <= 2^-33 per unit, is in the model-vs-mirror bound)
+        if 0 < abs(g) < 2.0 ** (14 - MAX_SHIFT):
+            # a gain below 2^-33 (issue 20: e.g. G31 of kalman_accel with a noise-free accelerometer and an 8-bit
+            # barometer, ~1e-16): its correction is below any representable one; it is 0 (the error, <= 2^-33 per
+            # unit of innovation, is in the model-vs-mirror bound), so such a sensor gets gains, not an error
             gains[name] = QGain(0, 0, float(g))
             continue
         try:
@@ -135,6 +146,19 @@ def build_constants(cfg: BuildConfig) -> FirmwareConstants:
     recursive = cfg.program in ("recursive", "recursive_seed_literal")
     lo, hi = cfg.baro_range
     kalman = {}
+
+    def samples(name: str, seconds: float, low: int) -> int:
+        return min(32767, max(low, _round_int(name, seconds * 2.0**cfg.k, where)))
+
+    # issue 20: phases (coast, descent) in every program but the Schultz 2002 listing, in the program's units
+    phases = {} if cfg.program == "recursive_seed_literal" else dict(
+        A_COAST=_round_int("A_COAST", cfg.coast_mps2 * (cfg.accel_counts_per_mps2 if recursive else kalman_v), where),
+        COAST_N=samples("COAST_N", cfg.coast_s, 1),
+        V_DESC=_round_int("V_DESC", cfg.descent_mps * (rec_v if recursive else kalman_v), where))
+    if not recursive:
+        phases.update(DLY_N=samples("DLY_N", cfg.mach_delay_s, 0), MACH_N=samples("MACH_N", cfg.mach_settle_s, 1),
+                      DV=max(1, _round_int("DV", (G0 + cfg.drag_mps2) * kalman_v * cfg.dt, where)),
+                      DU=max(1, _round_int("DU", cfg.thrust_mps2 * kalman_v * cfg.dt, where)))
     if cfg.program == "recursive":
         # §5 steps 1, 5, 6: pad calibration of ACC0, the barometer rate gate (raw counts per sample), the apogee
         # evidence after an accelerometer clip
@@ -170,4 +194,5 @@ def build_constants(cfg: BuildConfig) -> FirmwareConstants:
         float_gains=fg,
         PASCAL=1 if cfg.pascal else 0,
         **kalman,
+        **phases,
     )

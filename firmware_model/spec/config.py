@@ -78,6 +78,19 @@ class BuildConfig:
     ``baro_rate_mps * units_per_metre * dt + gate_sigmas * sqrt(2) * baro_sigma`` counts from the last used one is
     not used, for up to GATE_N samples), ``apogee_hold_s`` (after an accelerometer clip, apogee needs this long of
     evidence).
+    Flight logic of issue 20 (docs/firmware-spec.md §4a, §6 steps 4, 7-9):
+      * ``mach_lo_mps``: kalman_accel's Mach threshold (default 244 m/s, Mach 0.72 at 15 C): above it (accelerometer-
+        driven velocity) the barometer is not used; ``mach_settle_s``: it stays unused this long after the speed
+        falls back below (MACH_N = max(1, round(mach_settle_s * 2^k))), then X1 is re-based on the barometer.
+      * ``mach_delay_s``: Kalman programs declare no apogee until this long after liftoff (the "Mach delay" of
+        barometric altimeters; DLY_N = round(mach_delay_s * 2^k)).
+      * ``drag_mps2``: the drag deceleration bound; the velocity bound VB falls by at most (g + drag_mps2) * dt per
+        sample (DV), and apogee needs VB < 0 (a reversal faster than that is a sensor error); ``thrust_mps2``: VB
+        rises by at most thrust_mps2 * dt per sample (DU), so a velocity spike of the estimate cannot hold apogee off.
+      * ``coast_mps2``/``coast_s``: PHASE = COAST after the acceleration stayed below -coast_mps2 for coast_s
+        (COAST_N samples); apogee only from COAST (Kalman). ``descent_mps``: DESCENT after apogee below -descent_mps.
+      * ``quant_alt_m``: the Kalman design's barometer sigma is at least the barometer's quantization step /
+        sqrt(12) in metres at this height above the pad (docs/gain-design.md "Quantization floor").
     """
 
     program: str = "kalman_baro"
@@ -110,6 +123,14 @@ class BuildConfig:
     transonic_r_factor: float = 100.0
     baro_kind: str = "adc"
     baro_rate_mps: float = 400.0
+    mach_settle_s: float = 0.5
+    mach_delay_s: float = 0.0
+    coast_mps2: float = 9.80665 / 2.0
+    coast_s: float = 1.0
+    drag_mps2: float = 5.0 * 9.80665
+    thrust_mps2: float = 30.0 * 9.80665
+    descent_mps: float = 5.0
+    quant_alt_m: float = 3000.0
     extra: dict[str, Any] = field(default_factory=dict, compare=False, hash=False)
 
     def __post_init__(self) -> None:
@@ -186,7 +207,8 @@ class BuildConfig:
         if self.cal_p is not None and (isinstance(self.cal_p, bool) or not isinstance(self.cal_p, int)
                                        or not 0 <= self.cal_p <= 8):
             raise bad("cal_p", "pad calibration over 2^cal_p samples needs cal_p in 0..8 (or null)")
-        for name in ("gate_sigmas", "gate_hold_s", "apogee_hold_s", "baro_rate_mps"):
+        for name in ("gate_sigmas", "gate_hold_s", "apogee_hold_s", "baro_rate_mps", "mach_settle_s", "mach_delay_s",
+                     "coast_mps2", "coast_s", "drag_mps2", "thrust_mps2", "descent_mps", "quant_alt_m"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
                 raise bad(name, "must be a finite number >= 0")

@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from firmware_model.runtime.errors import UserError
+from firmware_model.spec.atmosphere import G0, density_kg_m3
 from firmware_model.spec.config import NOISE_MODELS, BuildConfig
 
 #: Gain names by (measurement, state): Gi1 for the barometer innovation, Gi2 for the accelerometer's.
@@ -188,10 +189,40 @@ def steady_state(F: np.ndarray, H: np.ndarray, Q: np.ndarray, R: np.ndarray, whe
 
 
 # ---------------------------------------------------------------------------------------------------- from a config
+#: The rms of a uniform rounding error of one step: 1/sqrt(12) of the step.
+QUANT_RMS: float = 1.0 / math.sqrt(12.0)
+
+
+def quantization_sigma_counts(cfg: BuildConfig) -> float:
+    """The barometer's quantization noise, 1/sqrt(12) of one count (or pascal), in metres at ``quant_alt_m`` above
+    the pad, expressed in the design's barometer units (pad counts: x ``units_per_metre``). A count is
+    ``pa_per_count / (rho(h) g)`` metres at altitude h and ``units_per_metre`` counts are a metre at the pad, so
+    this is ``rho_pad / rho(pad + quant_alt_m) / sqrt(12)``; the pad's density is ``units_per_metre *
+    pa_per_count / g`` and its altitude the standard atmosphere's altitude of that density (sea level when the
+    density is higher)."""
+    rho_pad = cfg.units_per_metre * cfg.baro_transfer[0] / G0
+    lo, hi = 0.0, 11000.0
+    if float(density_kg_m3(lo)) <= rho_pad:
+        z_pad = 0.0
+        rho_pad = float(density_kg_m3(0.0))
+    else:
+        for _ in range(60):                         # bisection: density falls with altitude
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if float(density_kg_m3(mid)) > rho_pad else (lo, mid)
+        z_pad = 0.5 * (lo + hi)
+    return QUANT_RMS * rho_pad / float(density_kg_m3(z_pad + cfg.quant_alt_m))
+
+
+def design_baro_sigma(cfg: BuildConfig) -> float:
+    """The barometer sigma (counts) the design uses: ``baro_sigma``, at least the quantization floor of
+    :func:`quantization_sigma_counts` (issue 20: a noise-free ADC is not a noise-free altimeter)."""
+    return max(float(cfg.baro_sigma), quantization_sigma_counts(cfg))
+
+
 def accel_sigma_units(cfg: BuildConfig) -> float:
-    """Accelerometer noise in state units: accel_sigma (counts) * units_per_metre / accel_counts_per_mps2
-    (units/s^2)."""
-    return cfg.accel_sigma * cfg.units_per_metre / cfg.accel_counts_per_mps2
+    """Accelerometer noise in state units: accel_sigma (counts, at least the 1/sqrt(12) count of its own
+    quantization) * units_per_metre / accel_counts_per_mps2 (units/s^2)."""
+    return max(cfg.accel_sigma, QUANT_RMS) * cfg.units_per_metre / cfg.accel_counts_per_mps2
 
 
 def describe(cfg: BuildConfig) -> str:
@@ -253,7 +284,8 @@ def design_config(cfg: BuildConfig) -> SteadyState:
     if cfg.program not in ("kalman_baro", "kalman_accel"):
         raise UserError(f"build config: program={cfg.program!r} has no Kalman gains to design")
     return design_kalman(cfg.k, cfg.noise_model, cfg.ratio, with_accel=cfg.program == "kalman_accel",
-                         baro_sigma=cfg.baro_sigma, accel_sigma_units=accel_sigma_units(cfg), where=describe(cfg))
+                         baro_sigma=design_baro_sigma(cfg), accel_sigma_units=accel_sigma_units(cfg),
+                         where=describe(cfg))
 
 
 def transonic_design(cfg: BuildConfig) -> SteadyState:
@@ -261,8 +293,9 @@ def transonic_design(cfg: BuildConfig) -> SteadyState:
     multiplied by ``transonic_r_factor`` (its weight falls, never to zero: a floor, not a lockout)."""
     if cfg.program != "kalman_accel":
         raise UserError(f"build config: program={cfg.program!r} has no transonic gains")
-    return design_kalman(cfg.k, cfg.noise_model, None, q=cfg.baro_sigma**2 / cfg.ratio, with_accel=True,
-                         baro_sigma=cfg.baro_sigma * math.sqrt(cfg.transonic_r_factor),
+    sigma = design_baro_sigma(cfg)
+    return design_kalman(cfg.k, cfg.noise_model, None, q=sigma**2 / cfg.ratio, with_accel=True,
+                         baro_sigma=sigma * math.sqrt(cfg.transonic_r_factor),
                          accel_sigma_units=accel_sigma_units(cfg), where=describe(cfg) + " (transonic)")
 
 

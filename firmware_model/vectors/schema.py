@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 from typing import Any
 
+from firmware_model.model.trace import STATE_WORDS
 from firmware_model.spec.config import PROGRAMS, ROUNDINGS
 from firmware_model.vectors.cases import SCALAR_CONSTANTS, SCHEMA_VERSION
 from firmware_model.vectors.compute import GENERATOR_EMULATION, GENERATOR_MODEL
@@ -54,7 +55,8 @@ def case_schema() -> dict[str, Any]:
                           "properties": {"file": {"type": "string"}, "n_nodes": {"type": "integer", "minimum": 2},
                                          "shift": {"type": "integer", "minimum": 1, "maximum": 15}}},
             "q_formats": {"type": "object", "additionalProperties": {"type": "string"}},
-            "words": {"type": "array", "items": {"type": "string"}, "minItems": 1, "maxItems": 12},
+            "words": {"type": "array", "items": {"type": "string"}, "minItems": 1,
+                      "maxItems": max(len(w) for w in STATE_WORDS.values())},
             "word_bytes": {"type": "object", "additionalProperties": {"enum": [2, 4]}},
             "event_bits": {"type": "object", "additionalProperties": {"type": "integer"}},
             "events_first_sample": {"type": "object", "additionalProperties": {"type": "integer", "minimum": -1}},

@@ -232,7 +232,7 @@ def spec_alt(c: object, adc: int) -> int:
 
 
 def spec_kalman_step(c: object, st: dict[str, int], adc: int, acc: int) -> dict[str, int]:
-    """docs/firmware-spec.md §6 step 0-10, one sample, exact integers (transonic gains: kalman_accel only)."""
+    """docs/firmware-spec.md §6 step 0-10, one sample, exact integers (Mach lockout: kalman_accel only)."""
     h = bool(c.ROUND)
     K = c.K
     g = {name: (q.m, q.s) for name, q in c.gains.items()}
@@ -261,39 +261,70 @@ def spec_kalman_step(c: object, st: dict[str, int], adc: int, acc: int) -> dict[
     t1 = rs_exact(x2, K, h) + rs_exact(x3, 2 * K + 1, h)             # 2. predict
     t2 = rs_exact(x3, K, h)
     x1, x2 = wrap32(x1 + t1), wrap32(x2 + t2)
+    e2 = wrap32(_mulg_exact(acc - st["ACC0"], *g["ACC_G"], h) - x3) if accel else 0   # 3. accel innovation
+    locked = rebase = False
+    if accel:                                                         # 4. Mach lockout
+        if ev & LIFTOFF and x2 > c.MACH_VLO:
+            st["LOCK"], locked = c.MACH_N, True
+        elif st["LOCK"] > 1:
+            st["LOCK"], locked = st["LOCK"] - 1, True
+        elif st["LOCK"] == 1:
+            if ok:
+                st["LOCK"], rebase = 0, True
+            else:
+                locked = True
+        if locked:
+            ev |= MACH
     use = False
     e1 = 0
-    if ok:                                                            # 3./4. innovation, gate
-        e1 = wrap32(hh - x1)
-        if -c.E_GATE <= e1 <= c.E_GATE:
+    if ok and not locked:                                             # 5. innovation, gate (or re-base)
+        if rebase:
+            x1 = hh
             st["REJ"] = 0
-            use = True
-        elif st["REJ"] < c.GATE_N:
-            st["REJ"] += 1
-            ev |= REJECT
         else:
-            use = True
-    trans = accel and bool(ev & LIFTOFF) and x2 > c.MACH_VLO          # 5. transonic gains
-    if trans:
-        ev |= MACH
-    e2 = wrap32(_mulg_exact(acc - st["ACC0"], *g["ACC_G"], h) - x3) if accel else 0
-    xs = [x1, x2, x3]
-    for i in range(3):                                                # 7. correct
-        gb = g[f"G{i + 1}1T"] if trans else g[f"G{i + 1}1"]
-        c1 = _mulg_exact(e1, *gb, h) if use else 0
-        c2 = _mulg_exact(e2, *g[f"G{i + 1}2"], h) if accel else 0
-        xs[i] = wrap32(xs[i] + c1 + c2)
-    x1, x2, x3 = xs
-    if not ev & LIFTOFF and x2 > c.V_LIFT:                            # 8. liftoff
+            e1 = wrap32(hh - x1)
+            if -c.E_GATE <= e1 <= c.E_GATE:
+                st["REJ"] = 0
+                use = True
+            elif st["REJ"] < c.GATE_N:
+                st["REJ"] += 1
+                ev |= REJECT
+            else:
+                use = True
+    if locked:                                                        # 6. correct
+        x3 = wrap32(x3 + e2)
+    else:
+        xs = [x1, x2, x3]
+        for i in range(3):
+            c1 = _mulg_exact(e1, *g[f"G{i + 1}1"], h) if use else 0
+            c2 = _mulg_exact(e2, *g[f"G{i + 1}2"], h) if accel else 0
+            xs[i] = wrap32(xs[i] + c1 + c2)
+        x1, x2, x3 = xs
+    if ev & LIFTOFF:                                                  # 7. liftoff, Mach delay
+        if st["DLY"] > 0:
+            st["DLY"] -= 1
+    elif x2 > c.V_LIFT:
         ev |= LIFTOFF
-    if ev & LIFTOFF and not ev & APOGEE:                              # 9. apogee evidence
-        if x2 < 0:
+        st["PHASE"], st["DLY"] = 1, c.DLY_N
+    st["VB"] = min(max(x2, st["VB"] - c.DV), st["VB"] + c.DU)         # 8. plausibility bound
+    if st["PHASE"] == 1:                                              # 9. phases and apogee
+        if x3 < -c.A_COAST:
+            st["CST"] += 1
+            if st["CST"] >= c.COAST_N:
+                st["PHASE"] = 2
+        else:
+            st["CST"] = 0
+    if st["PHASE"] == 2:
+        if st["DLY"] == 0 and st["VB"] < 0:
             st["NEG"] += 1
             if st["NEG"] >= c.APO_N:
                 ev |= APOGEE
+                st["PHASE"] = 3
         else:
             st["NEG"] = 0
-    if ev & LIFTOFF and not ev & APOGEE and not ev & PRED and x2 > 0:  # 10. prediction
+    elif st["PHASE"] == 3 and x2 < -c.V_DESC:
+        st["PHASE"] = 4
+    if st["PHASE"] == 2 and not ev & PRED and x2 > 0:                 # 10. prediction
         d = -rs_exact(x3, K, h)
         if x2 < d:
             ev |= PRED
@@ -311,6 +342,7 @@ def spec_recursive_step(c: object, st: dict[str, int], adc: int, acc: int) -> di
     h = bool(c.ROUND)
     ev = st["EVENTS"] & (LATCHED | CLIP)                            # 0. per-sample bits
     vel, acc0, suma, cal = st["VEL"], st["ACC0"], st["SUMA"], st["CAL"]
+    phase, cst = st["PHASE"], st["CST"]
     if cal < (1 << c.CAL_P):                                         # 1. pad calibration
         suma, cal = suma + acc, cal + 1
         if cal == 1 << c.CAL_P:
@@ -319,6 +351,16 @@ def spec_recursive_step(c: object, st: dict[str, int], adc: int, acc: int) -> di
         vel = wrap32(vel + (acc - acc0))                             # 2.
         if not ev & LIFTOFF and vel > c.V_LIFT:
             ev |= LIFTOFF
+            phase = 1
+        if phase == 1:                                               # phases
+            if acc - acc0 < -c.A_COAST:
+                cst += 1
+                if cst >= c.COAST_N:
+                    phase = 2
+            else:
+                cst = 0
+        elif phase == 3 and vel < -c.V_DESC:
+            phase = 4
         if ev & LIFTOFF and not ev & ARMED and acc == 32767:         # 3. the accelerometer at its rail
             ev |= CLIP
         if ev & GATE_HIGH and not ev & ARMED and vel < c.V_GATE:     # 4a (GATE_HIGH from an earlier sample)
@@ -347,9 +389,11 @@ def spec_recursive_step(c: object, st: dict[str, int], adc: int, acc: int) -> di
             neg += 1
             if neg >= (c.APO_N if ev & CLIP else 1):
                 ev |= APOGEE
+                phase = 3
         else:
             neg = 0
-    return dict(st, EST=est, EXT=ext, VEL=vel, ACC0=acc0, EVENTS=ev, ZL=zl, SUMA=suma, CAL=cal, REJ=rej, NEG=neg)
+    return dict(st, EST=est, EXT=ext, VEL=vel, ACC0=acc0, EVENTS=ev, ZL=zl, SUMA=suma, CAL=cal, REJ=rej, NEG=neg,
+                PHASE=phase, CST=cst)
 
 
 class _Board:
@@ -396,7 +440,7 @@ def _kalman_state(board: _Board, **words: int) -> dict[str, int]:
     """A full Kalman state (calibrated unless CAL is given) restricted to the build's variables."""
     c = board.build.consts
     base = {"X1": 0, "X2": 0, "X3": 0, "ACC0": 0, "EVENTS": 0, "APFRAC": 0, "GND": 0, "SUMZ": 0, "SUMA": 0,
-            "CAL": 1 << c.CAL_P, "REJ": 0, "NEG": 0}
+            "CAL": 1 << c.CAL_P, "REJ": 0, "NEG": 0, "PHASE": 0, "CST": 0, "DLY": 0, "VB": 0, "LOCK": 0}
     base.update(words)
     return {name: base[name] for name in board.build.variables}
 
@@ -439,8 +483,19 @@ def test_kalman_one_step_boundaries(program: str, k: int, rounding: str, data: s
     neg = data.draw(st.sampled_from((0, max(0, c.APO_N - 1), c.APO_N - 2 if c.APO_N >= 2 else 0)), label="NEG")
     sumz = data.draw(st.integers(-(1 << 30), 1 << 30), label="SUMZ")
     suma = data.draw(st.integers(-(1 << 23), 1 << 23), label="SUMA")
+    # issue 20: the phase, its coast counter at/next to COAST_N, X3 at/next to -A_COAST (in "free" mode), the Mach
+    # delay at 0/1/2, VB at/next to X2 -+ DV / DU and to the int32 ends, the lockout counter at 0/1/2/MACH_N
+    phase = data.draw(st.sampled_from((0, 1, 1, 2, 2, 3, 4)), label="PHASE")
+    cstv = data.draw(st.sampled_from((0, max(0, c.COAST_N - 1), c.COAST_N - 2 if c.COAST_N >= 2 else 0)), label="CST")
+    dly = data.draw(st.sampled_from((0, 0, 1, 2)), label="DLY")
+    x2_new = x2_target
+    vb = data.draw(st.one_of(_near(x2_new + c.DV, x2_new - c.DU, 0, INT32_MIN, INT32_MAX),
+                             st.integers(INT32_MIN, INT32_MAX)), label="VB")
+    lock = data.draw(st.sampled_from((0, 0, 1, 2, c.MACH_N)), label="LOCK")
+    if mode == "free":
+        x3 = data.draw(st.one_of(st.just(x3), _near(-c.A_COAST)), label="X3_coast")
     state = _kalman_state(board, X1=x1, X2=x2, X3=x3, ACC0=acc0, EVENTS=events, CAL=cal, REJ=rej, NEG=neg,
-                          SUMZ=sumz, SUMA=suma, GND=12345)
+                          SUMZ=sumz, SUMA=suma, GND=12345, PHASE=phase, CST=cstv, DLY=dly, VB=vb, LOCK=lock)
     got = board.step(dict(state), adc, acc)
     want = spec_kalman_step(c, dict(state), adc, acc)
     want = {name: want[name] for name in board.build.variables}
@@ -481,8 +536,15 @@ def test_recursive_one_step_boundaries(k: int, rounding: str, data: st.DataObjec
     suma = data.draw(st.integers(-(1 << 23), 1 << 23), label="SUMA")
     rej = data.draw(st.sampled_from((0, c.GATE_N - 1, c.GATE_N)), label="REJ")
     neg = data.draw(st.sampled_from((0, max(0, c.APO_N - 2), c.APO_N - 1)), label="NEG")
+    # issue 20: the phase word and its coast counter at/next to COAST_N; acc - ACC0 at/next to -A_COAST and VEL
+    # at/next to -V_DESC come from the draws above often enough through the "free" values
+    phase = data.draw(st.sampled_from((0, 1, 1, 2, 3, 3, 4)), label="PHASE")
+    cstv = data.draw(st.sampled_from((0, max(0, c.COAST_N - 1), c.COAST_N - 2 if c.COAST_N >= 2 else 0)), label="CST")
+    if data.draw(st.booleans(), label="coast_edge"):
+        acc = max(-32768, min(32767, acc0 - c.A_COAST + data.draw(st.integers(-1, 1), label="da")))
+        vel = wrap32(-c.V_DESC + data.draw(st.integers(-1, 1), label="dv") - (acc - acc0))
     state = {"EST": est, "EXT": ext, "VEL": vel, "ACC0": acc0, "EVENTS": events, "ZL": zl, "SUMA": suma,
-             "CAL": cal, "REJ": rej, "NEG": neg}
+             "CAL": cal, "REJ": rej, "NEG": neg, "PHASE": phase, "CST": cstv}
     got = board.step(dict(state), adc, acc)
     assert got == spec_recursive_step(c, dict(state), adc, acc), f"k={k} {rounding} state={state} adc={adc}"
 
@@ -534,8 +596,11 @@ def test_kalman_apogee_prediction_exact_boundaries(k: int, rounding: str) -> Non
         dd = -rs_exact(x3, k, h)
         for v in sorted({-1, 0, 1, 2, dd - 1, dd, dd + 1, dd // 2, (1 << 20) if dd == (1 << 20) + 1 else 1}):
             x2 = wrap32(v - rs_exact(x3, k, h))
-            for events in (LIFTOFF, LIFTOFF | PRED, LIFTOFF | APOGEE, 0):
-                state = _kalman_state(board, X2=x2, X3=x3, EVENTS=events, APFRAC=7, NEG=max(0, c.APO_N - 1))
+            for events, phase in ((LIFTOFF, 2), (LIFTOFF | PRED, 2), (LIFTOFF | APOGEE, 3), (0, 0), (LIFTOFF, 1)):
+                # (issue 20: the prediction runs in PHASE COAST only; VB = X2 + 1 keeps the evidence off the
+                # counter when X2 >= 0 and lets it count when X2 < -1)
+                state = _kalman_state(board, X2=x2, X3=x3, EVENTS=events, APFRAC=7, NEG=max(0, c.APO_N - 1),
+                                      PHASE=phase, VB=wrap32(v + 1))
                 want = spec_kalman_step(c, dict(state), 0, 0)      # adc 0 < BARO_MIN: BARO_INVALID
                 got = board.step(dict(state), 0, 0)
                 assert got == want, f"k={k} {rounding} d={dd} v={v} state={state}"

@@ -30,6 +30,7 @@ from firmware_model.spec.config import PROGRAMS, BuildConfig  # noqa: E402
 from firmware_model.firmware.harness import FirmwareTrace, run_firmware  # noqa: E402
 from firmware_model.model.streams import FlightParams, synthetic_flight  # noqa: E402
 from firmware_model.model.run import run_model  # noqa: E402
+from firmware_model.spec.build_constants import build_constants  # noqa: E402
 from firmware_model.model.trace import EVENT_BITS  # noqa: E402
 
 KS = (4, 5, 6, 7, 8)
@@ -200,7 +201,7 @@ def test_harness_many_streams_and_counters() -> None:
     adc = rng.integers(20000, 20100, (3, 50))
     acc = rng.integers(-500, 3000, (3, 50))
     many = assert_same(build, adc, acc)
-    assert many.words.shape == (3, 50, 12) and many.cycles.shape == (3, 50)
+    assert many.words.shape == (3, 50, len(many.names)) and many.cycles.shape == (3, 50)
     for j in range(3):
         one = run_firmware(build, adc[j], acc[j])
         assert np.array_equal(one.words, many.words[j]) and np.array_equal(one.cycles, many.cycles[j])
@@ -224,7 +225,7 @@ def test_harness_sequencing_init_sees_sample_zero() -> None:
     alt = t[i] + (t[i + 1] - t[i]) * f // (1 << s)            # floor rounding, Python's exact floor division
     assert tr.init_words[tr.names.index("X1")] == alt == tr.init_words[tr.names.index("GND")]
     assert tr.words[0, tr.names.index("SUMZ")] == alt and tr.words[0, tr.names.index("CAL")] == 1
-    assert tr.words.shape == (2, 10)
+    assert tr.words.shape == (2, len(tr.names))
 
 
 def test_harness_fault_names_sample() -> None:
@@ -255,3 +256,72 @@ def test_harness_rejects_bad_input(adc: np.ndarray, acc: np.ndarray | None, matc
     build = build_firmware(_cfg("recursive", 5, "floor"))
     with pytest.raises(UserError, match=match):
         run_firmware(build, adc, acc)
+
+
+# ---------------------------------------------------------------------------------------------------- issue 20
+def _dip_flight_stream(program: str, k: int, rounding: str, pascal: bool):
+    """A supersonic flight with a 500 m transonic dip, a jump and a noise burst (tests/support/transonic.py), for the ADC
+    kind (the vectors' case sensor) or the pascal kind; Kalman builds with R/q 1,000 (the recommended tuning) and a
+    12 s Mach delay (so DLY still counts when COAST begins). The accelerometer also reads a 0.5 s glitch of -8 g
+    1.5 s into the boost, which starts and then breaks a coast count and makes kalman_accel's velocity fall faster
+    than the plausibility bound DV allows."""
+    from firmware_model.vectors.cases import case_config
+    from tests.support.transonic import DipFlight, dip_stream
+
+    f = DipFlight(k=k, boost_g=12.0, burn_s=3.5, drag_per_m=0.0002, dip_m=500.0, dip_s=1.5, jump_m=150.0,
+                  burst_m=80.0, burst_at=0.1, seed=11)
+    extra = {} if program in ("recursive", "recursive_seed_literal") else {"mach_delay_s": 12.0, "ratio": 1000.0}
+    if pascal:
+        cfg = BuildConfig(program=program, k=k, rounding=rounding, baro_kind="pascal", units_per_metre=12.01, **extra)
+    else:
+        cfg = case_config(program, rounding, k, 16).replace(**extra)
+    from firmware_model.model.streams import flight_params_for
+
+    s = dip_stream(f, flight_params_for(cfg), pascal=pascal)
+    gap = slice(int((s["pad_s"] + 1.5) * 2**k), int((s["pad_s"] + 2.0) * 2**k))
+    s["acc"][gap] = int(round(-8.0 * 9.80665 * cfg.accel_counts_per_mps2))
+    return cfg, s
+
+
+@pytest.mark.parametrize("program", PROGRAMS)
+@pytest.mark.parametrize("rounding", ROUNDINGS)
+@pytest.mark.parametrize("kind", ["adc", "pascal"])
+def test_cpu_equals_model_supersonic_dip_flights_reach_every_new_branch(program: str, rounding: str,
+                                                                       kind: str) -> None:
+    """CPU == model on every word of a supersonic flight with a transonic dip (both barometer kinds), and the
+    flight reaches every branch of issue 20's logic (spec §4a, §6 steps 4, 7-10): every PHASE value, a coast
+    counter reset, the Mach delay counting down; kalman_accel's lockout, its settling, the re-base and (with the
+    re-base sample made invalid) the wait for a valid sample; VB both falling at DV and rising at DU, and holding
+    apogee off while X2 < 0 in COAST."""
+    k = 5
+    cfg, s = _dip_flight_stream(program, k, rounding, kind == "pascal")
+    adc, acc = s["adc"].copy(), s["acc"]
+    model = run_model(build_constants(cfg), adc, acc)
+    if program == "kalman_accel":
+        lock = model.column("LOCK")
+        back = np.flatnonzero((lock[:-1] == 1) & (lock[1:] == 0)) + 1
+        adc[back[0]] = 65535 if kind == "adc" else -5        # invalid on the re-base sample: LOCK waits at 1
+    cpu = assert_same(cfg, adc, acc)
+    if program == "recursive_seed_literal":
+        return
+    phase, cst = cpu.column("PHASE"), cpu.column("CST")
+    assert set(np.unique(phase)) == {0, 1, 2, 3, 4}, np.unique(phase)
+    if kind == "adc":   # (the pascal build's barometer, 12 Pa/m at 2 Pa sigma, outweighs the staging gap in X3)
+        assert ((cst[:-1] > 0) & (cst[1:] == 0) & (phase[1:] == 1)).any()        # a coast count broken in boost
+    if program == "recursive":
+        return
+    vb, dly = cpu.column("VB"), cpu.column("DLY")
+    assert dly.max() == build_constants(cfg).DLY_N > 0 and dly[-1] == 0
+    dv, du = build_constants(cfg).DV, build_constants(cfg).DU
+    assert (np.diff(vb) == -dv).any()                                            # VB fell at its limit
+    # VB rose at its limit (kalman_accel's X2 cannot: its +-16 g accelerometer stays below the 30 g bound; the
+    # code is the one kalman_baro runs, kalman.inc)
+    assert (np.diff(vb) == du).any() or program == "kalman_accel"
+    coast = phase == 2
+    assert (coast & (dly > 0)).any() and (coast & (dly == 0) & (vb >= 0)).any()  # both ways apogee is held off
+    assert (coast & (dly == 0) & (vb < 0)).any()                                 # and the evidence
+    if program == "kalman_accel":
+        ev, lock = cpu.column("EVENTS"), cpu.column("LOCK")
+        assert (ev & EVENT_BITS["MACH_LOCKOUT"]).any()
+        assert ((lock[:-1] == 1) & (lock[1:] == 1) & ((ev[1:] & EVENT_BITS["BARO_INVALID"]) != 0)).any()
+        assert ((lock[:-1] == 1) & (lock[1:] == 0)).any()

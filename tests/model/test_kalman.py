@@ -42,13 +42,16 @@ def _check_bound(consts, adc, acc, int_consts=None, fm=None) -> np.ndarray:
     di = tr.column("EVENTS") & DECISION_BITS
     df = fm.column("EVENTS").astype(np.int64) & DECISION_BITS
     rej_i, rej_f = tr.column("REJ"), fm.column("REJ").astype(np.int64)
-    diff = np.flatnonzero((di != df) | (tr.column("CAL") != fm.column("CAL")) | (rej_i != rej_f))
+    lock_i = tr.column("LOCK") if "LOCK" in tr.names else np.zeros_like(rej_i)
+    lock_f = fm.column("LOCK").astype(np.int64) if "LOCK" in fm.names else np.zeros_like(rej_i)
+    diff = np.flatnonzero((di != df) | (tr.column("CAL") != fm.column("CAL")) | (rej_i != rej_f) | (lock_i != lock_f))
     n = int(diff[0]) if diff.size else len(adc)
     if diff.size:
         i = n
         gate = bool((di[i] ^ df[i]) & EVENT_BITS["BARO_REJECT"]) or rej_i[i] != rej_f[i]
-        if (di[i] ^ df[i]) & EVENT_BITS["MACH_LOCKOUT"]:
+        if (di[i] ^ df[i]) & EVENT_BITS["MACH_LOCKOUT"] or lock_i[i] != lock_f[i]:
             assert _transonic_ambiguous(consts, tr, fm, sb, i), i
+            assert "LOCK" not in tr.names or _lock_consistent(consts, tr, adc, i), i
         if gate:   # one run inside the gate, the other outside: only where the mirror's e1 is within the margin
             e1 = _mirror_e1(consts, fm, adc, i)
             assert abs(abs(e1) - consts.E_GATE) <= sb.e1_margin[i] + 1e-6, (i, e1, consts.E_GATE, sb.e1_margin[i])
@@ -67,10 +70,37 @@ def _mirror_e1(consts, fm, adc, i) -> float:
 
 
 def _transonic_ambiguous(consts, tr, fm, sb, i) -> bool:
-    """The transonic decision X2 > MACH_VLO may differ when the mirror's predicted X2 is within the bound."""
+    """The Mach lockout decision X2 > MACH_VLO may differ when the mirror's predicted X2 is within the bound."""
     prev = fm.words[i - 1]
     x2p = prev[1] + prev[2] * 2.0 ** -consts.K
     return abs(x2p - consts.MACH_VLO) <= sb.bound[i - 1][1] + sb.bound[i - 1][2] + 2
+
+
+def _lock_consistent(consts, tr, adc, i) -> bool:
+    """The integer run's Mach lockout at sample i is what spec §6 step 4 gives from its own previous words (exact
+    ints, the correct constants): so where the two runs' lockouts differ, the integer one still followed the spec."""
+    from firmware_model.spec.fixed import rs
+
+    prev = tr.words[i - 1] if i else tr.init_words
+    names = tr.names
+    x2p = int(prev[names.index("X2")]) + int(rs(int(prev[names.index("X3")]), consts.K, tr_mode(consts)))
+    lifted = bool(int(prev[names.index("EVENTS")]) & EVENT_BITS["LIFTOFF"])
+    lock = int(prev[names.index("LOCK")])
+    ok = consts.BARO_MIN <= int(adc[i]) <= consts.BARO_MAX
+    if lifted and x2p > consts.MACH_VLO:
+        want, locked = consts.MACH_N, True
+    elif lock > 1:
+        want, locked = lock - 1, True
+    elif lock == 1:
+        want, locked = (0, False) if ok else (1, True)
+    else:
+        want, locked = 0, False
+    ev = int(tr.words[i][names.index("EVENTS")])
+    return int(tr.words[i][names.index("LOCK")]) == want and bool(ev & EVENT_BITS["MACH_LOCKOUT"]) == locked
+
+
+def tr_mode(consts) -> str:
+    return "half_up" if consts.ROUND else "floor"
 
 
 @st.composite
@@ -312,7 +342,10 @@ def test_wrap_detected_outside_the_design_range():
 
 # ---------------------------------------------------------------------------------------------------- transonic flight
 # Spec §6 (history: kalman_baro used to lock out too, and kalman_accel's lockout (Schultz n.d.) set X1 to the measurement;
-# the field-ready change replaced the lockout by transonic barometer gains in kalman_accel and an innovation gate). The transonic flight of the committed vectors: 14 g for 2.5 s, peak ~307 m/s,
+# the field-ready change replaced the lockout by transonic barometer gains in kalman_accel and an innovation gate;
+# issue 20 brought back a lockout in kalman_accel, keyed on the accelerometer's velocity, with a settling time and
+# a re-base of X1 when the barometer returns).
+# The transonic flight of the committed vectors: 14 g for 2.5 s, peak ~307 m/s,
 # the barometer reads 60 m high while the true speed is in 290..375 m/s (a step up entering, down leaving).
 def _fast_flight(program: str, k: int, rounding: str, error_m: float = 60.0):
     from firmware_model.model.streams import flight_params_for, synthetic_flight, true_trajectory
@@ -350,28 +383,36 @@ def test_kalman_baro_transonic_flight_declares_apogee_without_lockout(k, roundin
 
 @pytest.mark.parametrize("rounding", ["floor", "half_up"])
 @pytest.mark.parametrize("k", [5, 6, 7, 8])
-def test_kalman_accel_transonic_flight_reduces_baro_weight_and_declares_apogee(k, rounding):
-    """kalman_accel uses its transonic barometer gains (MACH_LOCKOUT bit) exactly on the samples after liftoff
-    whose predicted X2 exceeds MACH_VLO, a contiguous run that covers the transonic band; the barometer keeps
-    correcting meanwhile (no state is pinned: X1 follows the barometer, X2 keeps changing). Apogee comes after
-    the run, within 0.25 s of the true apogee (measured -0.09 .. -0.06 s at k = 5..8; before the field-ready
-    change the lead was 28..273 samples, ~1 s at k >= 7) and within 0.05 s of the same flight without the
-    transonic error."""
+def test_kalman_accel_transonic_flight_locks_out_the_barometer_and_rebases(k, rounding):
+    """Spec §6 step 4 (issue 20): kalman_accel does not use the barometer (MACH_LOCKOUT) on exactly the samples
+    after liftoff whose predicted X2 exceeds MACH_VLO and the MACH_N settling samples after the last of them (one
+    contiguous run covering the transonic band); meanwhile the filter integrates the accelerometer (X2 keeps
+    changing); on the next sample X1 is re-based on the barometer's altitude (X1 = alt(adc) + the accelerometer
+    correction) with no velocity step; apogee comes after, within 0.25 s of the true apogee and within 0.05 s of
+    the same flight without the transonic error."""
     tr, s, band = _fast_flight("kalman_accel", k, rounding)
     ev = tr.column("EVENTS")
     locked = np.flatnonzero(ev & EVENT_BITS["MACH_LOCKOUT"])
     assert locked.size >= 2 and np.all(np.diff(locked) == 1), locked
     assert locked.min() <= band.min() and locked.max() >= band.max(), (locked, band.min(), band.max())
-    x2, x3 = tr.column("X2"), tr.column("X3")
+    x1, x2, x3 = tr.column("X1"), tr.column("X2"), tr.column("X3")
     consts = build_constants(tr_cfg := _fast_cfg("kalman_accel", k, rounding))
-    mode = rounding
     from firmware_model.spec.fixed import rs
 
-    pred = x2[:-1] + rs(x3[:-1], consts.K, mode)
+    pred = x2[:-1] + rs(x3[:-1], consts.K, rounding)
     lift = np.flatnonzero(ev & EVENT_BITS["LIFTOFF"]).min()
-    want = np.flatnonzero((pred > consts.MACH_VLO) & (np.arange(1, len(x2)) > lift)) + 1
-    assert np.array_equal(locked, want[want < len(x2)]), (locked[:5], want[:5])
+    fast = np.flatnonzero((pred > consts.MACH_VLO) & (np.arange(1, len(x2)) > lift)) + 1
+    want = np.arange(fast.min(), fast.max() + consts.MACH_N)      # the fast samples, then MACH_N - 1 settling
+    assert np.array_equal(locked, want), (locked[[0, -1]], want[[0, -1]])
     assert len(np.unique(x2[locked])) > locked.size // 2      # velocity is not frozen
+    r = locked.max() + 1                                      # the barometer is back: the re-base sample
+    h = _alt_int(consts, int(s.adc[r]), rounding)
+    acc0 = int(tr.column("ACC0")[r])
+    e2 = mulg(int(s.acc[r]) - acc0, consts.gains["ACC_G"], rounding) - int(x3[r - 1])
+    assert int(x1[r]) == h + mulg(e2, consts.gains["G12"], rounding), (x1[r], h)   # X1 = h + the accel correction
+    assert not ev[r] & EVENT_BITS["BARO_REJECT"] and tr.column("LOCK")[r] == 0
+    step = np.abs(np.diff(x2[r - 8:r + 2**k].astype(np.int64))).max()
+    assert step <= 3 * 256, step          # no velocity step at the return (the accelerometer's <= 3 m/s per sample)
     apogee = tr.first_event("APOGEE")
     assert apogee > locked.max()
     assert abs(apogee - s.truth["apogee_sample"]) * 2.0 ** -k <= 0.25, (apogee, s.truth)
@@ -380,7 +421,120 @@ def test_kalman_accel_transonic_flight_reduces_baro_weight_and_declares_apogee(k
     assert tr_cfg.program == "kalman_accel"
 
 
+def _alt_int(consts, adc: int, rounding: str) -> int:
+    """alt(adc) of spec §2a, written out here with exact Python ints."""
+    from firmware_model.spec.fixed import rs
+
+    t, sh = consts.ALT_TABLE, consts.ALT_SHIFT
+    i, f = adc >> sh, adc & ((1 << sh) - 1)
+    return t[i] + int(rs((t[i + 1] - t[i]) * f, sh, rounding))
+
+
 def _fast_cfg(program, k, rounding):
     from firmware_model.vectors.cases import case_config
 
     return case_config(program, rounding, k, 16)
+
+
+# ---------------------------------------------------------------------------------------------------- issue 20
+def _dip_case(program: str, k: int, rounding: str):
+    """A supersonic flight with a 400 m transonic dip (tests/support/transonic.py) under the vectors' case sensor."""
+    from firmware_model.model.streams import flight_params_for
+    from firmware_model.vectors.cases import case_config
+    from tests.support.transonic import DipFlight, dip_stream
+
+    cfg = case_config(program, rounding, k, 16)
+    f = DipFlight(k=k, boost_g=12.0, burn_s=3.5, drag_per_m=0.0002, dip_m=400.0, dip_s=1.5, jump_m=150.0,
+                  burst_m=50.0, burst_at=0.1, seed=k)
+    s = dip_stream(f, flight_params_for(cfg))
+    return build_constants(cfg), s["adc"], s["acc"]
+
+
+@pytest.mark.parametrize("program", ["kalman_baro", "kalman_accel"])
+@pytest.mark.parametrize("k", [5, 7])
+@pytest.mark.parametrize("rounding", ["floor", "half_up"])
+def test_kalman_bound_on_supersonic_dip_flights(program, k, rounding):
+    """The switched bound (re-derived for issue 20: no barometer row while locked out, the re-base sample's X1
+    from the table) holds on a supersonic flight with a 400 m transonic dip, a jump and a noise burst, through the
+    Mach lockout and the re-base (kalman_accel, half_up, k = 5: both inside the compared samples)."""
+    consts, adc, acc = _dip_case(program, k, rounding)
+    fm = mirror(consts, adc, acc)
+    ratio = _check_bound(consts, adc, acc, fm=fm)
+    assert ratio.max() > 0.005
+    if program == "kalman_accel":
+        tr = run_model(consts, adc, acc)
+        lock = tr.column("LOCK")
+        back = np.flatnonzero((lock[:-1] == 1) & (lock[1:] == 0)) + 1
+        differ = np.flatnonzero(lock != fm.column("LOCK").astype(np.int64))
+        assert back.size
+        if rounding == "half_up" and k == 5:
+            # the end of the lockout (X2 back to MACH_VLO) may differ by a sample between the runs (allowed: within
+            # the bound; floor's velocity bias, ~1 m/s here, docs/numerics.md, makes it likely), which ends the
+            # comparison before the re-base; on this flight with half_up at k = 5 and 6 it does not (measured:
+            # first lockout difference at 1096 of 1159 at k = 7, at 245 of 260 with floor at k = 5)
+            assert differ.size == 0 or differ[0] > back[0], (back, differ[:3])
+
+
+def test_bound_has_teeth_a_wrong_settling_time_breaks_it():
+    """An integer model whose Mach lockout settles one sample longer (MACH_N + 1, an off-by-one in a port) fails
+    the check: the lockout decisions differ where the velocity is far from MACH_VLO."""
+    consts, adc, acc = _dip_case("kalman_accel", 6, "half_up")
+    _check_pair(consts, consts, adc, acc)
+    with pytest.raises(AssertionError):
+        _check_pair(dataclasses.replace(consts, MACH_N=consts.MACH_N + 1), consts, adc, acc)
+    with pytest.raises(AssertionError):      # and a Mach threshold 10 m/s off
+        _check_pair(dataclasses.replace(consts, MACH_VLO=consts.MACH_VLO + 2560), consts, adc, acc)
+
+
+def _kernels_variant(old: str, new: str):
+    """A plain-Python copy of the integer model's kernels with one piece of source replaced (a porting bug)."""
+    import types
+    from pathlib import Path
+
+    import firmware_model.model.kernels as mk
+
+    src = Path(mk.__file__).read_text()
+    assert src.count(old) == 1, old
+    mod = types.ModuleType("kernels_variant")
+    mod.FORCE_PURE = True
+    exec(compile(src.replace(old, new), "kernels_variant", "exec"), mod.__dict__)
+    return mod
+
+
+class _VariantTrace:
+    """The words of a kernels variant in the shape _check_bound reads (a ModelTrace without the wrap report)."""
+
+    def __init__(self, kern, consts, adc, acc):
+        from firmware_model.model.run import _run_kernels
+        from firmware_model.model.trace import word_names
+
+        init, words, first, _ = _run_kernels(kern, consts, np.atleast_2d(adc), np.atleast_2d(acc))
+        self.names, self.words, self.init_words = word_names(consts.program), words[0], init[0]
+        self.first_wrap, self.wrap_word = int(first[0]), ""
+
+    def column(self, name):
+        return self.words[..., self.names.index(name)]
+
+
+@pytest.mark.parametrize("bug", ["filtered X3 while locked out", "no re-base"])
+def test_bound_has_teeth_a_wrong_lockout_or_rebase_breaks_it(bug, monkeypatch):
+    """The locked rows (X3 = a, X1/X2 predicted) and the re-base row of the switched bound have teeth: a model that
+    keeps correcting X3 with the filter gains while locked out, or that feeds the returning barometer through the
+    gate instead of re-basing X1, fails the check on a supersonic dip flight with a 3 % accelerometer scale error
+    (the stale offset a lockout accumulates); the correct kernels pass it."""
+    import tests.model.test_kalman as me
+
+    consts, adc, acc = _dip_case("kalman_accel", 5, "half_up")
+    acc = acc.copy()
+    pad = 16
+    a0 = int(np.round(acc[:pad].mean()))
+    acc[pad:] = np.clip(np.rint(a0 + (acc[pad:] - a0) * 1.03), -32768, 32767).astype(np.int64)
+    _check_bound(consts, adc, acc)
+    if bug == "no re-base":
+        kern = _kernels_variant("                st[LOCK] = 0\n                rebase = True",
+                                "                st[LOCK] = 0")
+    else:
+        kern = _kernels_variant("    if locked:\n        x3 = a\n    else:", "    if False:\n        x3 = a\n    else:")
+    monkeypatch.setattr(me, "run_model", lambda c, a, b: _VariantTrace(kern, c, a, b))
+    with pytest.raises(AssertionError):
+        _check_bound(consts, adc, acc)

@@ -423,8 +423,9 @@ def test_out_buffer_is_checked_with_one_line_errors():
     shared = np.zeros((2, 30, n_words), dtype=np.int64)
     cases = [([[0]], "must be a numpy array, not list"),
              (np.zeros((2, 30, n_words), dtype=np.int32), "dtype int32; the words need int64"),
-             (np.zeros((2, 31, n_words), dtype=np.int64), r"shape \(2, 31, 12\); these inputs give .* \(2, 30, 12\)"),
-             (np.zeros((30, n_words), dtype=np.int64), r"shape \(30, 12\)"),
+             (np.zeros((2, 31, n_words), dtype=np.int64),
+              rf"shape \(2, 31, {n_words}\); these inputs give .* \(2, 30, {n_words}\)"),
+             (np.zeros((30, n_words), dtype=np.int64), rf"shape \(30, {n_words}\)"),
              (np.zeros((2, 30, n_words), dtype=np.int64, order="F"), "C-contiguous"),
              (ro, "read-only")]
     for bad, msg in cases:
@@ -434,5 +435,6 @@ def test_out_buffer_is_checked_with_one_line_errors():
         assert np.array_equal(np.asarray(bad), before)
     with pytest.raises(UserError, match="overlaps an input"):
         run_model(consts, shared[:, :, 0].copy(), shared[:, :, 1], out=shared)
-    with pytest.raises(UserError, match=r"shape \(2, 30, 12\); these inputs give words of shape \(30, 12\)"):
+    with pytest.raises(UserError,
+                       match=rf"shape \(2, 30, {n_words}\); these inputs give words of shape \(30, {n_words}\)"):
         run_model(consts, adc[0], acc[0], out=np.zeros((2, 30, n_words), dtype=np.int64))

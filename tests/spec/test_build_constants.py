@@ -134,7 +134,8 @@ def test_equates_are_int32_and_complete(program: str, k: int, rounding: str) -> 
     c = build_constants(cfg)
     eq = c.equates()
     base = {"K", "ROUND", "BARO_SIGN", "S", "THR", "V_LIFT", "V_GATE", "MACH_VLO", "MACH_VHI", "MACH_E",
-            "BARO_MIN", "BARO_MAX", "ALT_SHIFT", "ALT_N", "CAL_P", "E_GATE", "GATE_N", "APO_N", "PASCAL"}
+            "BARO_MIN", "BARO_MAX", "ALT_SHIFT", "ALT_N", "CAL_P", "E_GATE", "GATE_N", "APO_N", "PASCAL",
+            "MACH_N", "DLY_N", "DV", "A_COAST", "COAST_N", "V_DESC", "DU"}
     gain_keys = {f"{n}_{p}" for n in c.gains for p in ("M", "S")}
     assert set(eq) == base | gain_keys
     for name, value in eq.items():
@@ -152,11 +153,20 @@ def test_threshold_that_overflows_int32_is_a_user_error() -> None:
         build_constants(cfg)
 
 
-def test_unrepresentable_design_gain_names_config_and_gain() -> None:
-    # 10 kHz-ish sampling with an accelerometer trusted 10x more than the model: G31 ~ 3.8e-11 < 2^-33
-    cfg = BuildConfig(program="kalman_accel", k=10, ratio=0.1)
-    with pytest.raises(UserError, match="k=10.*gain G31=.*too small"):
-        build_constants(cfg)
+def test_design_gain_below_2_pow_minus_33_is_built_as_zero() -> None:
+    """Issue 20: a gain below 2^-33 (no 15-significant-bit mantissa with shift <= 47) is built as (0, 0), its
+    design value kept as the target (the model-vs-mirror bound carries its <= 2^-33 error), instead of refusing
+    the build: here k = 10 with an accelerometer trusted 10x more than the model (G31 ~ 3.8e-11), and a noise-free
+    8-bit barometer with a 1-count accelerometer (G31 ~ 1e-16). quantize_gain itself still refuses it."""
+    for cfg in (BuildConfig(program="kalman_accel", k=10, ratio=0.1),
+                BuildConfig(program="kalman_accel", k=5, baro_bits=8, units_per_metre=3.5 / 256, baro_sigma=0.5,
+                            accel_sigma=1.0, ratio=1000.0)):
+        c = build_constants(cfg)
+        g = c.gains["G31"]
+        assert (g.m, g.s) == (0, 0) and 0 < abs(g.target) < 2.0**-33
+        assert all(q.m != 0 for name, q in c.gains.items() if abs(q.target) >= 2.0**-33)
+    with pytest.raises(UserError, match="gain G31=.*too small"):
+        quantize_gain("G31", 3.8e-11)
 
 
 def test_acc_g_too_large_is_a_user_error() -> None:

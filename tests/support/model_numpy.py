@@ -34,6 +34,7 @@ _PREDICTED = EVENT_BITS["APOGEE_PREDICTED"]
 _GATE_HIGH = EVENT_BITS["GATE_HIGH"]
 _BARO_REJECT = EVENT_BITS["BARO_REJECT"]
 _ACC_CLIP = EVENT_BITS["ACC_CLIP"]
+_PH_PAD, _PH_BOOST, _PH_COAST, _PH_APOGEE, _PH_DESCENT = (np.int64(v) for v in range(5))
 
 
 class _WrapTracker:
@@ -96,7 +97,7 @@ def run_model_numpy(consts: "FirmwareConstants", adc: np.ndarray, acc: np.ndarra
 # ---------------------------------------------------------------------------------------------------- recursive
 def _run_recursive(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np.ndarray,
                    tr: _WrapTracker) -> tuple[np.ndarray, np.ndarray]:
-    """docs/firmware-spec.md §5 (EST, EXT, VEL, ACC0, EVENTS, ZL, SUMA, CAL, REJ, NEG)."""
+    """docs/firmware-spec.md §5 (EST, EXT, VEL, ACC0, EVENTS, ZL, SUMA, CAL, REJ, NEG, PHASE, CST)."""
     n_streams, n = adc.shape
     S = int(consts.S)
     z_all = adc * np.int64(consts.BARO_SIGN)
@@ -111,8 +112,11 @@ def _run_recursive(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc:
     cal = np.zeros(n_streams, dtype=np.int64)
     rej = np.zeros(n_streams, dtype=np.int64)
     neg = np.zeros(n_streams, dtype=np.int64)
-    init = np.stack([est, ext, vel, acc0, ev, zl, suma, cal, rej, neg], axis=-1)
-    out = np.empty((n_streams, n, 10), dtype=np.int64)
+    phase = np.zeros(n_streams, dtype=np.int64)
+    cst = np.zeros(n_streams, dtype=np.int64)
+    init = np.stack([est, ext, vel, acc0, ev, zl, suma, cal, rej, neg, phase, cst], axis=-1)
+    out = np.empty((n_streams, n, 12), dtype=np.int64)
+    a_coast, coast_n, v_desc = np.int64(consts.A_COAST), np.int64(consts.COAST_N), np.int64(consts.V_DESC)
     v_lift, v_gate, thr = np.int64(consts.V_LIFT), np.int64(consts.V_GATE), np.int64(consts.THR)
     cal_p = int(consts.CAL_P)
     ncal = np.int64(1 << cal_p)
@@ -132,7 +136,15 @@ def _run_recursive(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc:
         if run.any():
             vel = np.where(run, vel + (a - acc0), vel)
             vel = tr.w32(vel, i, "VEL")
-        ev = np.where(run & ((ev & _LIFTOFF) == 0) & (vel > v_lift), ev | _LIFTOFF, ev)
+        lifting = run & ((ev & _LIFTOFF) == 0) & (vel > v_lift)
+        ev = np.where(lifting, ev | _LIFTOFF, ev)
+        phase = np.where(lifting, _PH_BOOST, phase)
+        # phases: coast after COAST_N samples below -A_COAST (boost), descent after apogee
+        boost = run & (phase == _PH_BOOST)
+        low = (a - acc0) < -a_coast
+        cst = np.where(boost, np.where(low, cst + 1, 0), cst)
+        phase = np.where(boost & low & (cst >= coast_n), _PH_COAST, phase)
+        phase = np.where(run & ~boost & (phase == _PH_APOGEE) & (vel < -v_desc), _PH_DESCENT, phase)
         # 3. accelerometer at its rail before arming
         ev = np.where(run & ((ev & _LIFTOFF) != 0) & ((ev & _ARMED) == 0) & (a == 32767), ev | _ACC_CLIP, ev)
         # 4a. armed once VEL is back below the gate, on a sample after the one that set GATE_HIGH (4b runs after)
@@ -160,8 +172,10 @@ def _run_recursive(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc:
         below = ext - est >= thr
         neg = np.where(up, 0, np.where(live, np.where(below, neg + 1, 0), neg))
         need = np.where((ev & _ACC_CLIP) != 0, apo_n, np.int64(1))
-        ev = np.where(live & below & (neg >= need), ev | _APOGEE, ev)
-        for j, col in enumerate((est, ext, vel, acc0, ev, zl, suma, cal, rej, neg)):
+        fire = live & below & (neg >= need)
+        ev = np.where(fire, ev | _APOGEE, ev)
+        phase = np.where(fire, _PH_APOGEE, phase)
+        for j, col in enumerate((est, ext, vel, acc0, ev, zl, suma, cal, rej, neg, phase, cst)):
             out[:, i, j] = col
     return init, out
 
@@ -185,14 +199,13 @@ def _run_seed_literal(consts: "FirmwareConstants", mode: str, adc: np.ndarray, a
 # ---------------------------------------------------------------------------------------------------- Kalman
 def _run_kalman(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np.ndarray,
                 tr: _WrapTracker) -> tuple[np.ndarray, np.ndarray]:
-    """docs/firmware-spec.md §6 (kalman_baro: X1 X2 X3 EVENTS APFRAC GND SUMZ CAL REJ NEG; kalman_accel: X1 X2 X3
-    ACC0 EVENTS APFRAC GND SUMZ SUMA CAL REJ NEG)."""
+    """docs/firmware-spec.md §6 (kalman_baro: X1 X2 X3 EVENTS APFRAC GND SUMZ CAL REJ NEG PHASE CST DLY VB;
+    kalman_accel: X1 X2 X3 ACC0 EVENTS APFRAC GND SUMZ SUMA CAL REJ NEG PHASE CST DLY VB LOCK)."""
     accel = consts.program == "kalman_accel"
     n_streams, n = adc.shape
     K = int(consts.K)
     g = consts.gains
     g1 = [g["G11"], g["G21"], g["G31"]]
-    g1t = [g["G11T"], g["G21T"], g["G31T"]] if accel else g1
     g2 = [g["G12"], g["G22"], g["G32"]] if accel else None
     acc_g = g["ACC_G"] if accel else None
     table = np.asarray(consts.ALT_TABLE, dtype=np.int64)
@@ -217,15 +230,22 @@ def _run_kalman(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np
     ev = np.zeros(n_streams, dtype=np.int64)
     apfrac = np.zeros(n_streams, dtype=np.int64)
     zero = np.zeros(n_streams, dtype=np.int64)
+    phase = np.zeros(n_streams, dtype=np.int64)
+    cst = np.zeros(n_streams, dtype=np.int64)
+    dly = np.zeros(n_streams, dtype=np.int64)
+    vb = np.zeros(n_streams, dtype=np.int64)
+    lock = np.zeros(n_streams, dtype=np.int64)
 
     def row():
         cols = [x1, x2, x3] + ([acc0] if accel else []) + [ev, apfrac, gnd, sumz] + ([suma] if accel else [])
-        return cols + [cal, rej, neg]
+        return cols + [cal, rej, neg, phase, cst, dly, vb] + ([lock] if accel else [])
 
     init = np.stack(row(), axis=-1)
     out = np.empty((n_streams, n, init.shape[-1]), dtype=np.int64)
     v_lift, vlo = np.int64(consts.V_LIFT), np.int64(consts.MACH_VLO)
     e_gate, gate_n, apo_n = np.int64(consts.E_GATE), np.int64(consts.GATE_N), np.int64(consts.APO_N)
+    mach_n, dly_n, dv, du = (np.int64(v) for v in (consts.MACH_N, consts.DLY_N, consts.DV, consts.DU))
+    a_coast, coast_n, v_desc = np.int64(consts.A_COAST), np.int64(consts.COAST_N), np.int64(consts.V_DESC)
     for i in range(n):
         ev = ev & LATCHED_EVENTS
         baro_ok = baro_ok_all[:, i]
@@ -249,40 +269,69 @@ def _run_kalman(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np
         t2 = rs(x3, K, mode)
         x1 = np.where(run, tr.w32(np.where(run, x1 + t1, 0), i, "X1"), x1)
         x2 = np.where(run, tr.w32(np.where(run, x2 + t2, 0), i, "X2"), x2)
-        # 3./4. innovation and gate
-        e1 = tr.w32(np.where(run & baro_ok, h - x1, 0), i, "e1")
-        inside = (e1 >= -e_gate) & (e1 <= e_gate)
-        reject = run & baro_ok & ~inside & (rej < gate_n)
-        use = run & baro_ok & ~reject
-        rej = np.where(run & baro_ok & inside, 0, np.where(reject, rej + 1, rej))
-        ev = np.where(reject, ev | _BARO_REJECT, ev)
-        # 5. transonic weighting (kalman_accel)
+        # 3. accelerometer innovation (kalman_accel)
         if accel:
-            trans = run & ((ev & _LIFTOFF) != 0) & (x2 > vlo)
-            ev = np.where(trans, ev | _MACH, ev)
             a = tr.mulg(np.where(run, acc[:, i] - acc0, 0), acc_g, mode, i, "mulg(acc,ACC_G)")
             e2 = tr.w32(np.where(run, a - x3, 0), i, "e2")
-        # 7. correct
+        # 4. Mach lockout (kalman_accel): X2 above MACH_VLO, then MACH_N samples of settling, then a re-base
+        locked = np.zeros(n_streams, dtype=bool)
+        rebase = np.zeros(n_streams, dtype=bool)
+        if accel:
+            fast = run & ((ev & _LIFTOFF) != 0) & (x2 > vlo)
+            settle = run & ~fast & (lock > 1)
+            last = run & ~fast & (lock == 1)
+            locked = fast | settle | (last & ~baro_ok)
+            rebase = last & baro_ok
+            lock = np.where(fast, mach_n, np.where(settle, lock - 1, np.where(rebase, 0, lock)))
+            ev = np.where(locked, ev | _MACH, ev)
+        # 5. innovation and gate (a re-base sets X1 = h and uses no barometer correction)
+        x1 = np.where(rebase, h, x1)
+        rej = np.where(rebase, 0, rej)
+        live = run & baro_ok & ~locked & ~rebase
+        e1 = tr.w32(np.where(live, h - x1, 0), i, "e1")
+        inside = (e1 >= -e_gate) & (e1 <= e_gate)
+        reject = live & ~inside & (rej < gate_n)
+        use = live & ~reject
+        rej = np.where(live & inside, 0, np.where(reject, rej + 1, rej))
+        ev = np.where(reject, ev | _BARO_REJECT, ev)
+        # 6. correct (locked out: X1, X2 only predicted, X3 = a, the accelerometer alone)
         xs = [x1, x2, x3]
+        corr = run & ~locked
+        if accel:
+            e2c = np.where(locked, 0, e2)
         for j in range(3):
             c1 = np.where(use, tr.mulg(e1, g1[j], mode, i, f"mulg(e1,G{j + 1}1)"), zero)
-            if accel:
-                c1t = np.where(use, tr.mulg(e1, g1t[j], mode, i, f"mulg(e1,G{j + 1}1T)"), zero)
-                c1 = np.where(trans, c1t, c1)
             c = xs[j] + c1
             if accel:
-                c = c + tr.mulg(e2, g2[j], mode, i, f"mulg(e2,G{j + 1}2)")
-            xs[j] = np.where(run, tr.w32(np.where(run, c, 0), i, f"X{j + 1}"), xs[j])
+                c = c + tr.mulg(e2c, g2[j], mode, i, f"mulg(e2,G{j + 1}2)")
+            xs[j] = np.where(corr, tr.w32(np.where(corr, c, 0), i, f"X{j + 1}"), xs[j])
         x1, x2, x3 = xs
-        # 8. liftoff
-        ev = np.where(run & ((ev & _LIFTOFF) == 0) & (x2 > v_lift), ev | _LIFTOFF, ev)
-        lift = (ev & _LIFTOFF) != 0
-        # 9. apogee after APO_N consecutive negative velocities
-        fl = run & lift & ((ev & _APOGEE) == 0)
-        neg = np.where(fl, np.where(x2 < 0, neg + 1, 0), neg)
-        ev = np.where(fl & (x2 < 0) & (neg >= apo_n), ev | _APOGEE, ev)
+        if accel:
+            x3 = np.where(locked, a, x3)
+        # 7. liftoff and Mach delay
+        lift_before = (ev & _LIFTOFF) != 0
+        dly = np.where(run & lift_before & (dly > 0), dly - 1, dly)
+        lifting = run & ~lift_before & (x2 > v_lift)
+        ev = np.where(lifting, ev | _LIFTOFF, ev)
+        phase = np.where(lifting, _PH_BOOST, phase)
+        dly = np.where(lifting, dly_n, dly)
+        # 8. plausibility bound
+        vb = np.where(run, np.minimum(np.maximum(x2, vb - dv), vb + du), vb)
+        # 9. phases and apogee
+        boost = run & (phase == _PH_BOOST)
+        low = x3 < -a_coast
+        cst = np.where(boost, np.where(low, cst + 1, 0), cst)
+        phase = np.where(boost & low & (cst >= coast_n), _PH_COAST, phase)
+        coast = run & (phase == _PH_COAST)
+        evid = coast & (dly == 0) & (vb < 0)
+        neg = np.where(coast, np.where(evid, neg + 1, 0), neg)
+        fire = evid & (neg >= apo_n)
+        ev = np.where(fire, ev | _APOGEE, ev)
+        phase = np.where(fire, _PH_APOGEE, phase)
+        phase = np.where(run & ~coast & (phase == _PH_APOGEE) & (x2 < -v_desc), _PH_DESCENT, phase)
+        fl = run & (phase == _PH_COAST)
         # 10. low-rate apogee prediction
-        cand = fl & ((ev & (_APOGEE | _PREDICTED)) == 0) & (x2 > 0)
+        cand = fl & ((ev & _PREDICTED) == 0) & (x2 > 0)
         if cand.any():
             d = -rs(x3, K, mode)
             hit = cand & (x2 < d)

@@ -128,7 +128,8 @@ def test_case_matrix_size_and_coverage(docs: dict[str, dict]) -> None:
     names = {spec.name for spec in vec_cases.case_matrix()}
     assert names == set(docs)
     total = sum(p.stat().st_size for p in VECTORS.rglob("*") if p.is_file() and "build" not in p.parts)
-    assert total < 22e6      # 21.1 MB since the recursive program's field-ready words (docs/vectors.md)
+    assert total < 27e6      # 26.0 MB since issue 20 (21.1 MB before: PHASE, CST, DLY, VB, LOCK words and the
+    #                          supersonic cases, docs/vectors.md)
     programs = {d["firmware"]["program"] for d in docs.values()}
     assert programs == {"recursive", "kalman_baro", "kalman_accel", "recursive_seed_literal"}
     assert {d["rounding"] for d in docs.values()} == {"floor", "half_up"}

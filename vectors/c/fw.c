@@ -84,6 +84,9 @@ void fw_init(fw_program prog, const fw_consts *c, fw_state *st, int32_t adc, int
     st->APFRAC = 0;
     st->GND = st->SUMZ = st->SUMA = 0;
     st->CAL = st->REJ = st->NEG = 0;
+    st->PHASE = FW_PH_PAD;
+    st->CST = st->DLY = st->LOCK = 0;
+    st->VB = 0;
     switch (prog) {
     case FW_RECURSIVE:
         st->EST = z8;
@@ -124,6 +127,20 @@ static void step_recursive(const fw_consts *c, fw_state *st, int32_t adc, int16_
         st->VEL = fw_wrap32((int64_t)st->VEL + ((int64_t)acc - (int64_t)st->ACC0));
         if (!(st->EVENTS & FW_EV_LIFTOFF) && st->VEL > c->V_LIFT) {
             st->EVENTS |= FW_EV_LIFTOFF;
+            st->PHASE = FW_PH_BOOST;
+        }
+        /* phases: coast after COAST_N samples with acc - ACC0 < -A_COAST; descent after apogee */
+        if (st->PHASE == FW_PH_BOOST) {
+            if ((int64_t)acc - (int64_t)st->ACC0 < -(int64_t)c->A_COAST) {
+                st->CST = (uint16_t)(st->CST + 1u);
+                if ((int32_t)st->CST >= c->COAST_N) {
+                    st->PHASE = FW_PH_COAST;
+                }
+            } else {
+                st->CST = 0;
+            }
+        } else if (st->PHASE == FW_PH_APOGEE && (int64_t)st->VEL < -(int64_t)c->V_DESC) {
+            st->PHASE = FW_PH_DESCENT;
         }
         /* 3. the accelerometer at its rail before arming: VEL underestimates from now on */
         if ((st->EVENTS & FW_EV_LIFTOFF) && !(st->EVENTS & FW_EV_ARMED) && acc == 32767) {
@@ -165,6 +182,7 @@ static void step_recursive(const fw_consts *c, fw_state *st, int32_t adc, int16_
             st->NEG = (uint16_t)(st->NEG + 1u);
             if ((int32_t)st->NEG >= need) {
                 st->EVENTS |= FW_EV_APOGEE;
+                st->PHASE = FW_PH_APOGEE;
             }
         } else {
             st->NEG = 0;
@@ -186,9 +204,8 @@ static void step_kalman(const fw_consts *c, fw_state *st, int32_t adc, int16_t a
     const int32_t ncal = (int32_t)1 << c->CAL_P;
     int64_t t1, t2;
     int32_t h = 0, e1 = 0, e2 = 0;
-    int baro_ok, use, trans = 0;
+    int baro_ok, use, locked = 0, rebase = 0;
     int64_t c1_1 = 0, c1_2 = 0, c1_3 = 0, c2_1 = 0, c2_2 = 0, c2_3 = 0;
-    fw_gain g1, g2, g3;
 
     /* 0. per-sample bits, barometer range, h = alt(adc) for a valid sample */
     st->EVENTS &= (uint16_t)~FW_EV_PER_SAMPLE;
@@ -221,26 +238,7 @@ static void step_kalman(const fw_consts *c, fw_state *st, int32_t adc, int16_t a
     t2 = fw_rs(st->X3, K, mode);
     st->X1 = fw_wrap32((int64_t)st->X1 + t1);
     st->X2 = fw_wrap32((int64_t)st->X2 + t2);
-    /* 3./4. innovation and gate */
-    use = 0;
-    if (baro_ok) {
-        e1 = fw_wrap32((int64_t)h - (int64_t)st->X1);
-        if ((int64_t)e1 >= -(int64_t)c->E_GATE && (int64_t)e1 <= (int64_t)c->E_GATE) {
-            st->REJ = 0;
-            use = 1;
-        } else if ((int32_t)st->REJ < c->GATE_N) {
-            st->REJ = (uint16_t)(st->REJ + 1u);
-            st->EVENTS |= FW_EV_BARO_REJECT;
-        } else {
-            use = 1;
-        }
-    }
-    /* 5. transonic weighting (kalman_accel) */
-    if (with_accel && (st->EVENTS & FW_EV_LIFTOFF) && st->X2 > c->MACH_VLO) {
-        trans = 1;
-        st->EVENTS |= FW_EV_MACH_LOCKOUT;
-    }
-    /* 6. accelerometer innovation */
+    /* 3. accelerometer innovation (kalman_accel) */
     if (with_accel) {
         int32_t a = fw_mulg((int64_t)acc - (int64_t)st->ACC0, c->ACC_G, mode);
         e2 = fw_wrap32((int64_t)a - (int64_t)st->X3);
@@ -248,36 +246,106 @@ static void step_kalman(const fw_consts *c, fw_state *st, int32_t adc, int16_t a
         c2_2 = fw_mulg(e2, c->G22, mode);
         c2_3 = fw_mulg(e2, c->G32, mode);
     }
-    /* 7. correct */
-    if (use) {
-        g1 = trans ? c->G11T : c->G11;
-        g2 = trans ? c->G21T : c->G21;
-        g3 = trans ? c->G31T : c->G31;
-        c1_1 = fw_mulg(e1, g1, mode);
-        c1_2 = fw_mulg(e1, g2, mode);
-        c1_3 = fw_mulg(e1, g3, mode);
+    /* 4. Mach lockout (kalman_accel): no barometer while X2 > MACH_VLO and MACH_N samples after; then re-base */
+    if (with_accel) {
+        if ((st->EVENTS & FW_EV_LIFTOFF) && st->X2 > c->MACH_VLO) {
+            st->LOCK = (uint16_t)c->MACH_N;
+            locked = 1;
+        } else if (st->LOCK > 1u) {
+            st->LOCK = (uint16_t)(st->LOCK - 1u);
+            locked = 1;
+        } else if (st->LOCK == 1u) {
+            if (baro_ok) {
+                st->LOCK = 0;
+                rebase = 1;
+            } else {
+                locked = 1;
+            }
+        }
+        if (locked) {
+            st->EVENTS |= FW_EV_MACH_LOCKOUT;
+        }
     }
-    st->X1 = fw_wrap32((int64_t)st->X1 + c1_1 + c2_1);
-    st->X2 = fw_wrap32((int64_t)st->X2 + c1_2 + c2_2);
-    st->X3 = fw_wrap32((int64_t)st->X3 + c1_3 + c2_3);
-    /* 8. liftoff */
-    if (!(st->EVENTS & FW_EV_LIFTOFF) && st->X2 > c->V_LIFT) {
+    /* 5. innovation and gate (a re-base takes X1 = h and no barometer correction) */
+    use = 0;
+    if (baro_ok && !locked) {
+        if (rebase) {
+            st->X1 = h;
+            st->REJ = 0;
+        } else {
+            e1 = fw_wrap32((int64_t)h - (int64_t)st->X1);
+            if ((int64_t)e1 >= -(int64_t)c->E_GATE && (int64_t)e1 <= (int64_t)c->E_GATE) {
+                st->REJ = 0;
+                use = 1;
+            } else if ((int32_t)st->REJ < c->GATE_N) {
+                st->REJ = (uint16_t)(st->REJ + 1u);
+                st->EVENTS |= FW_EV_BARO_REJECT;
+            } else {
+                use = 1;
+            }
+        }
+    }
+    /* 6. correct (locked out: X1, X2 only predicted, X3 = a, the accelerometer alone) */
+    if (locked) {
+        st->X3 = fw_wrap32((int64_t)st->X3 + e2);
+    } else {
+        if (use) {
+            c1_1 = fw_mulg(e1, c->G11, mode);
+            c1_2 = fw_mulg(e1, c->G21, mode);
+            c1_3 = fw_mulg(e1, c->G31, mode);
+        }
+        st->X1 = fw_wrap32((int64_t)st->X1 + c1_1 + c2_1);
+        st->X2 = fw_wrap32((int64_t)st->X2 + c1_2 + c2_2);
+        st->X3 = fw_wrap32((int64_t)st->X3 + c1_3 + c2_3);
+    }
+    /* 7. liftoff and Mach delay */
+    if (st->EVENTS & FW_EV_LIFTOFF) {
+        if (st->DLY > 0u) {
+            st->DLY = (uint16_t)(st->DLY - 1u);
+        }
+    } else if (st->X2 > c->V_LIFT) {
         st->EVENTS |= FW_EV_LIFTOFF;
+        st->PHASE = FW_PH_BOOST;
+        st->DLY = (uint16_t)c->DLY_N;
     }
-    /* 9. apogee after APO_N consecutive samples with X2 < 0 */
-    if ((st->EVENTS & FW_EV_LIFTOFF) && !(st->EVENTS & FW_EV_APOGEE)) {
-        if (st->X2 < 0) {
+    /* 8. plausibility bound VB = min(max(X2, VB - DV), VB + DU), exact in int64 (the result is an int32) */
+    {
+        int64_t vb = (int64_t)st->VB - (int64_t)c->DV;
+        int64_t up = (int64_t)st->VB + (int64_t)c->DU;
+        if (vb < (int64_t)st->X2) {
+            vb = st->X2;
+        }
+        if (vb > up) {
+            vb = up;
+        }
+        st->VB = (int32_t)vb;
+    }
+    /* 9. phases and apogee */
+    if (st->PHASE == FW_PH_BOOST) {
+        if ((int64_t)st->X3 < -(int64_t)c->A_COAST) {
+            st->CST = (uint16_t)(st->CST + 1u);
+            if ((int32_t)st->CST >= c->COAST_N) {
+                st->PHASE = FW_PH_COAST;
+            }
+        } else {
+            st->CST = 0;
+        }
+    }
+    if (st->PHASE == FW_PH_COAST) {
+        if (st->DLY == 0u && st->VB < 0) {
             st->NEG = (uint16_t)(st->NEG + 1u);
             if ((int32_t)st->NEG >= c->APO_N) {
                 st->EVENTS |= FW_EV_APOGEE;
+                st->PHASE = FW_PH_APOGEE;
             }
         } else {
             st->NEG = 0;
         }
+    } else if (st->PHASE == FW_PH_APOGEE && (int64_t)st->X2 < -(int64_t)c->V_DESC) {
+        st->PHASE = FW_PH_DESCENT;
     }
-    /* 10. low-rate apogee prediction */
-    if ((st->EVENTS & FW_EV_LIFTOFF) && !(st->EVENTS & FW_EV_APOGEE) && !(st->EVENTS & FW_EV_APOGEE_PREDICTED)
-        && st->X2 > 0) {
+    /* 10. low-rate apogee prediction (in coast) */
+    if (st->PHASE == FW_PH_COAST && !(st->EVENTS & FW_EV_APOGEE_PREDICTED) && st->X2 > 0) {
         int64_t d = -fw_rs(st->X3, K, mode);
         if ((int64_t)st->X2 < d) {
             int64_t v = st->X2; /* 0 < v < d */
@@ -317,39 +385,44 @@ int fw_words(fw_program prog, const fw_state *st, int32_t out[FW_MAX_WORDS])
     case FW_RECURSIVE:
         out[0] = st->EST; out[1] = st->EXT; out[2] = st->VEL; out[3] = st->ACC0; out[4] = st->EVENTS;
         out[5] = st->ZL; out[6] = st->SUMA; out[7] = st->CAL; out[8] = st->REJ; out[9] = st->NEG;
-        return 10;
+        out[10] = st->PHASE; out[11] = st->CST;
+        return 12;
     case FW_RECURSIVE_SEED_LITERAL:
         out[0] = st->EST;
         return 1;
     case FW_KALMAN_BARO:
         out[0] = st->X1; out[1] = st->X2; out[2] = st->X3; out[3] = st->EVENTS; out[4] = st->APFRAC;
         out[5] = st->GND; out[6] = st->SUMZ; out[7] = st->CAL; out[8] = st->REJ; out[9] = st->NEG;
-        return 10;
+        out[10] = st->PHASE; out[11] = st->CST; out[12] = st->DLY; out[13] = st->VB;
+        return 14;
     case FW_KALMAN_ACCEL:
         out[0] = st->X1; out[1] = st->X2; out[2] = st->X3; out[3] = st->ACC0; out[4] = st->EVENTS;
         out[5] = st->APFRAC; out[6] = st->GND; out[7] = st->SUMZ; out[8] = st->SUMA; out[9] = st->CAL;
-        out[10] = st->REJ; out[11] = st->NEG;
-        return 12;
+        out[10] = st->REJ; out[11] = st->NEG; out[12] = st->PHASE; out[13] = st->CST; out[14] = st->DLY;
+        out[15] = st->VB; out[16] = st->LOCK;
+        return 17;
     }
     return 0;
 }
 
 const char *fw_word_name(fw_program prog, int i)
 {
-    static const char *const rec[] = {"EST", "EXT", "VEL", "ACC0", "EVENTS", "ZL", "SUMA", "CAL", "REJ", "NEG"};
+    static const char *const rec[] = {"EST", "EXT", "VEL", "ACC0", "EVENTS", "ZL", "SUMA", "CAL", "REJ", "NEG",
+                                      "PHASE", "CST"};
     static const char *const lit[] = {"EST"};
-    static const char *const kb[] = {"X1", "X2", "X3", "EVENTS", "APFRAC", "GND", "SUMZ", "CAL", "REJ", "NEG"};
+    static const char *const kb[] = {"X1", "X2", "X3", "EVENTS", "APFRAC", "GND", "SUMZ", "CAL", "REJ", "NEG",
+                                     "PHASE", "CST", "DLY", "VB"};
     static const char *const ka[] = {"X1", "X2", "X3", "ACC0", "EVENTS", "APFRAC", "GND", "SUMZ", "SUMA", "CAL",
-                                     "REJ", "NEG"};
+                                     "REJ", "NEG", "PHASE", "CST", "DLY", "VB", "LOCK"};
     switch (prog) {
     case FW_RECURSIVE:
-        return (i >= 0 && i < 10) ? rec[i] : "?";
+        return (i >= 0 && i < 12) ? rec[i] : "?";
     case FW_RECURSIVE_SEED_LITERAL:
         return (i == 0) ? lit[0] : "?";
     case FW_KALMAN_BARO:
-        return (i >= 0 && i < 10) ? kb[i] : "?";
+        return (i >= 0 && i < 14) ? kb[i] : "?";
     case FW_KALMAN_ACCEL:
-        return (i >= 0 && i < 12) ? ka[i] : "?";
+        return (i >= 0 && i < 17) ? ka[i] : "?";
     }
     return "?";
 }

@@ -71,7 +71,15 @@ typedef struct {
     int32_t CAL_P;      /* pad calibration over 2^CAL_P valid samples (0..8) */
     int32_t E_GATE;     /* Kalman: innovation gate, Q24.8 m; recursive: barometer rate gate, counts */
     int32_t GATE_N;     /* gated samples in a row after which the gate opens */
-    int32_t APO_N;      /* consecutive samples of apogee evidence (Kalman: X2 < 0; recursive: after ACC_CLIP) */
+    int32_t APO_N;      /* consecutive samples of apogee evidence (Kalman: coast, DLY = 0, VB < 0; recursive: after
+                           ACC_CLIP) */
+    int32_t MACH_N;     /* kalman_accel: barometer unused MACH_N samples after X2 falls back to MACH_VLO (settling) */
+    int32_t DLY_N;      /* Kalman: Mach delay, samples after liftoff without apogee */
+    int32_t DV;         /* Kalman: plausibility bound VB falls by at most DV per sample, Q24.8 m/s */
+    int32_t A_COAST;    /* coast: acceleration below -A_COAST (Kalman X3, Q24.8 m/s^2; recursive acc - ACC0, counts) */
+    int32_t COAST_N;    /* coast: consecutive samples below -A_COAST */
+    int32_t V_DESC;     /* descent: after apogee, velocity below -V_DESC (Kalman X2; recursive VEL) */
+    int32_t DU;         /* Kalman: the plausibility bound VB rises by at most DU per sample, Q24.8 m/s */
     const int32_t *ALT; /* [ALT_N] table nodes, Q24.8 m (FW_ALT_READ) */
 } fw_consts;
 
@@ -85,10 +93,20 @@ typedef struct {
     int32_t GND, SUMZ, SUMA; /* Kalman pad calibration: ground (Q24.8 m), sums of altitudes and accel counts */
     uint16_t CAL, REJ, NEG;  /* counters: pad samples, gated samples in a row, apogee evidence samples in a row */
     int32_t ZL;              /* recursive: the last barometer sample z used (rate gate) */
+    uint16_t PHASE, CST;     /* flight phase (FW_PH_*) and consecutive coast samples */
+    uint16_t DLY, LOCK;      /* Kalman: Mach delay countdown; kalman_accel: Mach lockout / settling countdown */
+    int32_t VB;              /* Kalman: plausibility bound max(X2, VB - DV), Q24.8 m/s */
 } fw_state;
 
+/* Flight phases of the PHASE word (docs/firmware-spec.md section 4a). */
+#define FW_PH_PAD     0u
+#define FW_PH_BOOST   1u
+#define FW_PH_COAST   2u
+#define FW_PH_APOGEE  3u
+#define FW_PH_DESCENT 4u
+
 /* Maximum number of output words of any program. */
-#define FW_MAX_WORDS 12
+#define FW_MAX_WORDS 17
 
 /* Exact helpers (exposed for unit tests). */
 int32_t fw_wrap32(int64_t x);                      /* x reduced to int32 two's complement */

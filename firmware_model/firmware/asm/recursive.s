@@ -47,6 +47,8 @@ init    READZS  d0,0                    ; z
         clr.w   (CAL).w
         clr.w   (REJ).w
         clr.w   (NEG).w
+        clr.w   (PHASE).w               ; PH_PAD
+        clr.w   (CST).w
         rts
 
 *****************************************************************************************************************
@@ -81,10 +83,33 @@ step    move.w  (EVENTS).w,d7
         move.l  d1,(VEL).w
         moveq   #EV_LIFTOFF,d0
         and.w   d7,d0
-        bne.s   .clip
+        bne.s   .phase
         cmpi.l  #V_LIFT,d1
-        ble.s   .clip
+        ble.s   .phase
         ori.w   #EV_LIFTOFF,d7
+        move.w  #PH_BOOST,(PHASE).w
+*---- phases: BOOST: CST counts acc - ACC0 < -A_COAST, COAST_N -> COAST; APOGEE and VEL < -V_DESC: DESCENT ---------
+.phase  move.w  (PHASE).w,d0
+        cmpi.w  #PH_BOOST,d0
+        bne.s   .desc
+        move.l  d6,d3
+        sub.l   (ACC0).w,d3             ; acc - ACC0 (exact)
+        cmpi.l  #-A_COAST,d3
+        bge.s   .cst0
+        move.w  (CST).w,d3
+        addq.w  #1,d3
+        move.w  d3,(CST).w
+        cmpi.w  #COAST_N,d3
+        bcs.s   .clip
+        move.w  #PH_COAST,(PHASE).w
+        bra.s   .clip
+.cst0   clr.w   (CST).w
+        bra.s   .clip
+.desc   cmpi.w  #PH_APOGEE,d0
+        bne.s   .clip
+        cmpi.l  #-V_DESC,d1
+        bge.s   .clip
+        move.w  #PH_DESCENT,(PHASE).w
 *---- 3. LIFTOFF and not ARMED and acc == 32767 (the rail): set ACC_CLIP --------------------------------------------
 .clip   moveq   #EV_LIFTOFF|EV_ARMED,d0
         and.w   d7,d0
@@ -171,6 +196,7 @@ step    move.w  (EVENTS).w,d7
 .cmpn   cmp.w   d0,d1
         bcs.s   .done                   ; NEG < N
         ori.w   #EV_APOGEE,d7
+        move.w  #PH_APOGEE,(PHASE).w
         bra.s   .done
 .reset  clr.w   (NEG).w
 .done   move.w  d7,(EVENTS).w
@@ -191,3 +217,5 @@ SUMA:   ds.l    1                       ; sum of pad accelerometer readings
 CAL:    ds.w    1                       ; pad samples summed so far
 REJ:    ds.w    1                       ; consecutive rejected barometer samples
 NEG:    ds.w    1                       ; consecutive armed samples with EXT - EST >= THR
+PHASE:  ds.w    1                       ; flight phase PH_* (fwemu.inc; reported, not used by the apogee logic)
+CST:    ds.w    1                       ; consecutive BOOST samples with acc - ACC0 < -A_COAST
