@@ -52,10 +52,11 @@ def test_compare_flags_override_the_config_file(tmp_path: Path) -> None:
     cfg = write(tmp_path / "c.json", json.dumps({"k": 5, "rounding": "half_up"}))
     r = fwemu("compare", "--config", str(cfg), "--k", "6", "--synthetic", "1")
     assert r.returncode == 0, r.stderr
-    assert r.stdout.splitlines()[0].startswith("program=kalman_baro k=6 rounding=half_up "), r.stdout
+    assert r.stdout.splitlines()[0].startswith("tuning: default"), r.stdout   # compare names its tuning first
+    assert r.stdout.splitlines()[1].startswith("program=kalman_baro k=6 rounding=half_up "), r.stdout
     r = fwemu("compare", "--config", str(cfg), "--program", "recursive", "--synthetic", "1")
     assert r.returncode == 0, r.stderr     # the file names no program: the flag picks it
-    assert r.stdout.splitlines()[0].startswith("program=recursive k=5 rounding=half_up "), r.stdout
+    assert r.stdout.splitlines()[1].startswith("program=recursive k=5 rounding=half_up "), r.stdout
 
 
 @pytest.mark.parametrize("argv", [

@@ -51,8 +51,8 @@ MUTANTS: list[tuple[str, str, str, str, str, str]] = [
      "    return fw_wrap32(fw_rs((int64_t)(int16_t)e * g.m, g.s, mode));"),
     ("rej_unsaturated", "a missing saturation: the gated-sample counter REJ not held at GATE_N once the gate opens",
      "kalman_baro", "floor",
-     "        } else {\n            use = 1;\n        }",
-     "        } else {\n            use = 1; st->REJ = (uint16_t)(st->REJ + 1u);\n        }"),
+     "            } else {\n                use = 1;\n            }",
+     "            } else {\n                use = 1; st->REJ = (uint16_t)(st->REJ + 1u);\n            }"),
     ("cal_off_by_one", "an off-by-one in the pad calibration count (CAL <= 2^CAL_P)", "kalman_accel", "floor",
      "    if ((int32_t)st->CAL < ncal) {", "    if ((int32_t)st->CAL <= ncal) {"),
     ("logical_shr", ">> on a negative number done as a logical shift (of the 32-bit word)", "recursive", "floor",
@@ -64,10 +64,10 @@ MUTANTS: list[tuple[str, str, str, str, str, str]] = [
      "        if ((int64_t)e1 >= -(int64_t)c->E_GATE && (int64_t)e1 <= (int64_t)c->E_GATE) {",
      "        if ((int64_t)e1 >= -(int64_t)c->E_GATE && (int64_t)e1 < (int64_t)c->E_GATE) {"),
     ("gate_n_le", "the gate re-opens one sample late (REJ <= GATE_N instead of <)", "kalman_accel", "half_up",
-     "        } else if ((int32_t)st->REJ < c->GATE_N) {\n            st->REJ = (uint16_t)(st->REJ + 1u);\n"
-     "            st->EVENTS |= FW_EV_BARO_REJECT;\n        } else {",
-     "        } else if ((int32_t)st->REJ <= c->GATE_N) {\n            st->REJ = (uint16_t)(st->REJ + 1u);\n"
-     "            st->EVENTS |= FW_EV_BARO_REJECT;\n        } else {"),
+     "            } else if ((int32_t)st->REJ < c->GATE_N) {\n                st->REJ = (uint16_t)(st->REJ + 1u);\n"
+     "                st->EVENTS |= FW_EV_BARO_REJECT;\n            } else {",
+     "            } else if ((int32_t)st->REJ <= c->GATE_N) {\n                st->REJ = (uint16_t)(st->REJ + 1u);\n"
+     "                st->EVENTS |= FW_EV_BARO_REJECT;\n            } else {"),
 ]
 SHRUNK_MAX = 300
 BUDGET_S = 60.0

@@ -1,6 +1,6 @@
 *****************************************************************************************************************
 * recursive.s -- D. Schultz's shift-and-add recursive altitude filter with barometric apogee detection behind an
-* accelerometer velocity gate (seed 000, "Filtering the Data" and "Algorithm Testing").
+* accelerometer velocity gate (Schultz 2002, "Filtering the Data" and "Algorithm Testing").
 *
 *   EST += (z << (8-S)) - rs(EST, S)          EST is Q24.8; weight 2^-S
 *   VEL += acc - ACC0                          velocity in accel counts x samples (ACC0 = pad reading = 1 g)
@@ -166,7 +166,7 @@ step    move.w  (EVENTS).w,d7
         move.l  d2,d3
         RSHIFT  d3,S,d1,d4              ; rs(EST, S)   (S <= 8: never uses the count register d1)
         sub.l   d3,d2                   ; EST - EST/2^S
-        add.l   d0,d2                   ;   + ADC/2^S   (the seed's listing has this subtraction backwards)
+        add.l   d0,d2                   ;   + ADC/2^S   (the Schultz 2002 listing has it backwards)
         move.l  d2,(EST).w
 
 *---- 6. extreme and apogee (N = APO_N after ACC_CLIP, else 1) -----------------------------------------------------

@@ -1,12 +1,12 @@
 *****************************************************************************************************************
-* recursive_seed_literal.s -- seed 000's pseudo-listing of the recursive filter, transcribed as written:
+* recursive_seed_literal.s -- the pseudo-listing of Schultz 2002's recursive filter, transcribed as written:
 *
 *       move.l ESTALT,D0 ; shr.l #5,D0 ; move.l ADCCNT,D1 ; shl.l #3,D1 ; sub.l D1,D0 ; add.l D0,ESTALT
 *
 * i.e. EST += rs(EST, S) - (z << (8-S)), with the subtraction backwards (the correct filter subtracts EST/2^S and
-* adds the sample).  Kept to show that it diverges (docs/firmware-spec.md section 5).  Differences from the seed
+* adds the sample).  Kept to show that it diverges (docs/firmware-spec.md section 5).  Differences from the paper
 * that the spec requires: the shift of EST is the spec's rounding shift rs (ASR, plus ADDX for half_up) rather than
-* the seed's logical SHR, and the sample is z = BARO_SIGN * adc.  No flight logic.
+* Schultz's logical SHR, and the sample is z = BARO_SIGN * adc.  No flight logic.
 *****************************************************************************************************************
         include "fwemu.inc"
 
