@@ -34,6 +34,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "firmware_model.cli_plot",
     "firmware_model.cli_evaluate",
     "firmware_model.cli_sweep",
+    "firmware_model.cli_montecarlo",
 )
 
 
