@@ -218,7 +218,7 @@ def _sim_params(plan: Plan, prm: dict[str, Any]) -> list[float]:
 def sense_chunk(spec: dict[str, Any], seed: int, flight_ids: list[int] | tuple[int, ...],
                 timing: dict[str, float] | None = None) -> Sensed:
     """Steps 1-3 of the module docstring for ``flight_ids`` (``timing``: seconds of "sim" and "sensing" added)."""
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     plan = plan_for(spec)
     ids = np.asarray(flight_ids, dtype=np.int64)
     nf = ids.size
@@ -229,7 +229,7 @@ def sense_chunk(spec: dict[str, Any], seed: int, flight_ids: list[int] | tuple[i
     sim = simulate_batch(P, plan.rocket.motor.time_s, plan.rocket.motor.thrust_n, plan.cd_tab, rec_hz,
                          spec["internal_hz"], plan.max_time_s)
     ev = sim["events"]
-    t1 = time.perf_counter()
+    t1, c1 = time.perf_counter(), time.process_time()
     n_rec = np.abs(ev[:, 0]).astype(np.int64)
     finished = ev[:, 0] > 0
     n = plan.n_pad + n_rec
@@ -287,9 +287,8 @@ def sense_chunk(spec: dict[str, Any], seed: int, flight_ids: list[int] | tuple[i
             acc[i] = np.clip(np.rint(xa[r]), lo, hi).astype(np.int64)
     burn = P[:, P_COLS.index("time_scale")] * plan.rocket.motor.burn_time_s
     if timing is not None:
-        t2 = time.perf_counter()
-        timing["sim"] = timing.get("sim", 0.0) + (t1 - t0)
-        timing["sensing"] = timing.get("sensing", 0.0) + (t2 - t1)
+        _add(timing, "sim", t0, c0, t1, c1)
+        _add(timing, "sensing", t1, c1, time.perf_counter(), time.process_time())
     return Sensed(ids, params, n, finished, adc, acc, pressure, ev, burn, z, vz, az, fax, ground)
 
 
@@ -306,9 +305,15 @@ ROW_COLUMNS: tuple[str, ...] = ("flight", "method", "tuning", "status", "fired",
                                 "missed", "before_burnout")
 
 
+def _add(timing: dict[str, float], phase: str, t0: float, c0: float, t1: float, c1: float) -> None:
+    """Wall seconds under ``phase``, the process's CPU seconds under ``phase_cpu``."""
+    timing[phase] = timing.get(phase, 0.0) + (t1 - t0)
+    timing[f"{phase}_cpu"] = timing.get(f"{phase}_cpu", 0.0) + (c1 - c0)
+
+
 def run_task(task: dict[str, Any]) -> dict[str, Any]:
     """The engine's task function: ``{"spec", "seed", "flights", "threads"}`` -> ``{"rows": run_chunk's columns,
-    "seconds": {"sim", "sensing", "model", "rows"}}``. ``threads`` (optional): numba threads in this worker (1
+    "seconds": {"sim", "sensing", "model", "rows"} (wall) and "cpu" (the process's CPU seconds)}``. ``threads`` (optional): numba threads in this worker (1
     when several workers share the machine); the rows do not depend on it."""
     threads = task.get("threads")
     if threads:
@@ -319,7 +324,9 @@ def run_task(task: dict[str, Any]) -> dict[str, Any]:
         except ImportError:  # pragma: no cover
             pass
     timing: dict[str, float] = {}
+    cpu = time.process_time()
     rows = run_chunk(task, timing)
+    timing["cpu"] = time.process_time() - cpu
     return {"rows": rows, "seconds": timing}
 
 
@@ -330,7 +337,7 @@ def run_chunk(task: dict[str, Any], timing: dict[str, float] | None = None) -> d
     plan = plan_for(spec)
     timing = {} if timing is None else timing
     s = sense_chunk(spec, seed, flights, timing)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     nf = s.ids.size
     apo_bit = EVENT_BITS["APOGEE"]
     j = np.arange(s.adc.shape[1])[None, :]
@@ -351,8 +358,8 @@ def run_chunk(task: dict[str, Any], timing: dict[str, float] | None = None) -> d
             hit = ((tr.column("EVENTS") & apo_bit) != 0) & inside[idx]
             first[c][idx] = np.where(hit.any(axis=1), hit.argmax(axis=1), -1)
             del tr
-    t1 = time.perf_counter()
-    timing["model"] = timing.get("model", 0.0) + (t1 - t0)
+    t1, c1 = time.perf_counter(), time.process_time()
+    _add(timing, "model", t0, c0, t1, c1)
     t_apo, z_apo, t_lift, max_mach = s.events[:, 1], s.events[:, 2], s.events[:, 3], s.events[:, 4]
     nc = len(combos)
     rep = lambda a: np.repeat(np.asarray(a), nc)   # noqa: E731  (per flight -> per row)
@@ -377,7 +384,7 @@ def run_chunk(task: dict[str, Any], timing: dict[str, float] | None = None) -> d
             cols[f"p_{p}"] = rep(np.array([str(v) for v in vals], dtype=object))
         else:
             cols[f"p_{p}"] = rep(np.array([math.nan if v is None else float(v) for v in vals]))
-    timing["rows"] = timing.get("rows", 0.0) + (time.perf_counter() - t1)
+    _add(timing, "rows", t1, c1, time.perf_counter(), time.process_time())
     return cols
 
 

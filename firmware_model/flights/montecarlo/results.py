@@ -143,7 +143,8 @@ def wilson(x: int, n: int, z: float = Z95) -> tuple[float, float]:
     den = 1.0 + z * z / n
     centre = (p + z * z / (2 * n)) / den
     half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / den
-    return max(0.0, centre - half), min(1.0, centre + half)
+    # at x = 0 and x = n the bound is exactly 0 or 1 (the float sum can miss it by an ulp)
+    return (0.0 if x == 0 else max(0.0, centre - half)), (1.0 if x == n else min(1.0, centre + half))
 
 
 def flights_for(p: float, events: int = 1, confidence: float = 0.95) -> int:
