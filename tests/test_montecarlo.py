@@ -300,3 +300,17 @@ def test_sigkill_mid_run_leaves_only_whole_chunks_and_resume_completes(tmp_path)
     assert r.returncode == 0, r.stderr
     assert (out / "rows.csv").read_bytes() == (tmp_path / "full" / "rows.csv").read_bytes()
     assert not [p for p in out.rglob(".fwemu-*")]
+
+
+def test_transonic_dip_model_reads_low_inside_the_mach_band():
+    kw = {"scenario": "sup-m1670-m145", "k": 5, "methods": ["kalman_baro"], "tunings": ["default"]}
+    a = pipeline.sense_chunk(load_spec({**kw, "pressure_error": {"model": "transonic_dip", "dip_m": 300.0}}), 1, [0])
+    b = pipeline.sense_chunk(load_spec({**kw, "pressure_error": {"model": "none"}}), 1, [0])
+    from firmware_model import atmosphere as atm
+    d = atm.altitude_m(a.pressure[0]) - atm.altitude_m(b.pressure[0])
+    hit = np.nonzero(np.abs(d) > 1e-6)[0]
+    np.testing.assert_allclose(d[hit], -300.0, atol=1e-6)
+    runs = np.split(hit, np.nonzero(np.diff(hit) > 1)[0] + 1)
+    assert len(runs) == 2                          # through the band accelerating, and again slowing down
+    t_apo_sample = int(round(a.events[0, 1] * 32)) + 64
+    assert runs[1][-1] < t_apo_sample              # both during the climb

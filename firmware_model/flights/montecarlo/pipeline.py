@@ -79,11 +79,25 @@ def _step_model(p: np.ndarray, mach: np.ndarray, prm: dict[str, np.ndarray]) -> 
     return out
 
 
+def _dip_model(p: np.ndarray, mach: np.ndarray, prm: dict[str, np.ndarray]) -> np.ndarray:
+    """The transonic dip (:data:`firmware_model.flights.montecarlo.spec.PRESSURE_ERROR_PARAMS`): inside the Mach
+    band the barometer reads the standard pressure of ``dip_m`` lower (pressure high), on every passage through
+    the band (accelerating and slowing); outside it the true pressure (the jump back at the band's edge)."""
+    band = (mach >= prm["mach_lo"][:, None]) & (mach <= prm["mach_hi"][:, None])
+    if not band.any():
+        return p
+    out = p.copy()
+    dip = np.broadcast_to(prm["dip_m"][:, None], p.shape)
+    out[band] = atm.pressure_pa(atm.altitude_m(p[band]) - dip[band])
+    return out
+
+
 #: name -> f(pressure (nf, n), airspeed Mach (nf, n), {param: (nf,) values}) -> pressure. The parameters are
 #: declared in :data:`firmware_model.flights.montecarlo.spec.PRESSURE_ERROR_PARAMS` under the same name.
 PRESSURE_ERROR_MODELS: dict[str, Callable[[np.ndarray, np.ndarray, dict[str, np.ndarray]], np.ndarray]] = {
     "none": lambda p, mach, prm: p,
     "step": _step_model,
+    "transonic_dip": _dip_model,
 }
 
 

@@ -70,11 +70,15 @@ PRESET_PARAMS: dict[str, dict[str, Any]] = {"baro": BARO_PRESETS, "accel": ACCEL
 #: (pressure, Mach, per-flight parameters) registered in :mod:`.pipeline` under the same name; its parameters are
 #: dispersed like the others (slots after :data:`PARAMETERS`, in this declared order). "step" is seed 002's step
 #: in pressure altitude above Mach 1 (:func:`firmware_model.flights.pressure_errors.transonic_pressure_error`);
-#: "none" is no error. Another model (e.g. a measured transonic signature) is added by declaring its parameters
+#: "transonic_dip" is a stand-in for the signatures of real supersonic logs (the barometric altitude falls by
+#: 100-800 m during the transonic passage, pressure reading high, and jumps back when the shock passes the port:
+#: ../shared/flights/README.md): while the airspeed Mach is inside [mach_lo, mach_hi] the barometer reads the
+#: standard pressure of ``dip_m`` lower; "none" is no error. Another model (e.g. a measured transonic signature) is added by declaring its parameters
 #: here and its function in :data:`firmware_model.flights.montecarlo.pipeline.PRESSURE_ERROR_MODELS`.
 PRESSURE_ERROR_PARAMS: dict[str, dict[str, float]] = {
     "none": {},
     "step": {"altitude_step_m": DEFAULT_TRANSONIC_STEP_M, "mach_on": 1.0, "mach_off": 1.0, "width_mach": 0.0},
+    "transonic_dip": {"dip_m": 400.0, "mach_lo": 0.9, "mach_hi": 1.1},
 }
 
 #: Integer-model methods (evaluate's METHODS without the float ideal Kalman filter).
