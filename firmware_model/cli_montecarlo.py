@@ -24,7 +24,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
         description="Simulate N flights of a scenario (or rocket + motor) with the dispersions of SPEC, sense them, "
                     "run every method and tuning on the integer model, and write one row per (flight, method, "
                     "tuning) plus a summary: the error distribution and P(> 0.5 s early), P(> 1 s early), "
-                    "P(missed), P(fired before burnout) with 95 %% Wilson intervals. Flight i is reproducible "
+                    "P(missed), P(fired before burnout) with 95 % Wilson intervals. Flight i is reproducible "
                     "alone from (--seed, i).")
     p.add_argument("spec", type=Path, metavar="SPEC", help="the spec file (.toml or .json; docs/montecarlo.md)")
     p.add_argument("-n", "--flights", type=positive_int, default=1000, help="number of flights (default 1000)")
