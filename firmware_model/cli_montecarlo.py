@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 from pathlib import Path
@@ -10,7 +11,7 @@ from pathlib import Path
 from firmware_model.cli_args import nonnegative_int, positive_int
 from firmware_model.errors import UserError
 from firmware_model.flights.export import generic_csv
-from firmware_model.flights.montecarlo.pipeline import replay_record
+from firmware_model.flights.montecarlo.pipeline import replay_configs, replay_record
 from firmware_model.flights.montecarlo.run import run_montecarlo
 from firmware_model.flights.montecarlo.spec import load_spec, read_spec_file
 from firmware_model.output import declare_output, write_file
@@ -63,13 +64,19 @@ def run_cli(args: argparse.Namespace) -> int:
     if args.replay is not None:
         rec, prm = replay_record(spec, args.seed, args.replay)
         dest = args.out / f"flight-{args.replay}.csv"
+        configs = replay_configs(spec, prm)
         declare_output(dest)
         write_file(dest, generic_csv(rec))
+        for name, cfg in configs.items():
+            write_file(args.out / f"flight-{args.replay}.{name}.json", json.dumps(cfg, indent=1, sort_keys=True) + "\n")
         baro, accel = rec.provenance["baro_preset"], rec.provenance["accel_preset"]
-        print(f"wrote {dest}: flight {args.replay} of seed {args.seed}, true apogee {rec.truth.apogee_time_s:.3f} s, "
+        print(f"wrote {dest} and its {len(configs)} build configs (flight-{args.replay}.<method>-<tuning>.json): "
+              f"flight {args.replay} of seed {args.seed}, true apogee {rec.truth.apogee_time_s:.3f} s, "
               f"{rec.truth.apogee_altitude_m:.0f} m")
-        print(f"replay: fwemu run --firmware kalman_baro --model --input {dest} --k {spec['k']} --baro {baro} "
-              f"--accel {accel} --no-noise")
+        m, t = spec["methods"][0], spec["tunings"][0]
+        print(f"replay: fwemu run --firmware {m} --model --input {dest} --config "
+              f"{args.out / f'flight-{args.replay}.{m}-{t}.json'} --k {spec['k']} --baro {baro} --accel {accel} "
+              "--no-noise")
         return 0
     backend = parse_scheduler(args.scheduler, args.jobs)
     if args.scheduler is not None and args.jobs != 1:

@@ -167,11 +167,33 @@ def test_replay_csv_reproduces_the_input_words(tmp_path):
     n = int(s.n[0])
     assert back.n == n
     assert abs(back.truth.apogee_time_s - s.events[0, 1]) < 1e-12
+    # the stream starts pad_s before liftoff, as firmware_inputs' default: the same samples, not just the words
     inp = firmware_inputs(back, spec["k"], baro=BaroSensor.preset(str(prm["baro"])),
-                          accel=AccelSensor.preset(str(prm["accel"]), range_g=1000.0), t_start=float(back.time_s[0]),
-                          t_end=float(back.time_s[-1]))
+                          accel=AccelSensor.preset(str(prm["accel"]), range_g=1000.0))
     np.testing.assert_array_equal(inp.adc, s.adc[0, :n])
     np.testing.assert_array_equal(inp.acc, s.acc[0, :n])
+
+
+def test_replayed_flight_through_fwemu_run_gives_the_rows_detection(tmp_path):
+    spec_path = tmp_path / "s.json"
+    spec_path.write_text(json.dumps(SMALL))
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    fw = [sys.executable, "-c", "from firmware_model.cli import entry; entry()"]
+    r = subprocess.run(fw + ["montecarlo", str(spec_path), "--seed", "4", "--replay", "3", "--out", str(tmp_path)],
+                       cwd=ROOT, env=env, capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    rows = pipeline.run_chunk({"spec": load_spec(SMALL), "seed": 4, "flights": [3]})
+    for i, (m, t) in enumerate(zip(rows["method"], rows["tuning"])):
+        r = subprocess.run(fw + ["run", "--firmware", m, "--model", "--input", str(tmp_path / "flight-3.csv"),
+                                 "--config", str(tmp_path / f"flight-3.{m}-{t}.json"), "--k", str(SMALL["k"]),
+                                 "--baro", "mpx4115_12bit", "--accel", "default", "--no-noise"],
+                           cwd=ROOT, env=env, capture_output=True, text=True)
+        assert r.returncode == 0, r.stderr
+        line = next(x for x in r.stdout.splitlines() if x.startswith("apogee:"))
+        if rows["fired"][i]:
+            assert float(line.split()[1]) == rows["detect_s"][i], (m, t, line)
+        else:
+            assert "none" in line or "never" in line, line
 
 
 def test_spikes_and_transonic_step_reach_the_pressure():

@@ -130,6 +130,7 @@ class Plan:
     max_time_s: float
     nominal_apogee_s: float
     builds: dict[tuple[str, str, str, str], Any]     # (method, tuning, baro, accel) -> constants or error text
+    configs: dict[tuple[str, str, str, str], Any]    # the BuildConfig of each build that was made
 
 
 def _rocket(spec: dict[str, Any]) -> Rocket:
@@ -171,6 +172,7 @@ def plan_for(spec: dict[str, Any]) -> Plan:
     t_apo = float(nominal.truth.apogee_time_s)
     max_time = spec["max_time_s"] or (1.6 * t_apo + spec["descent_s"] + 10.0)
     builds: dict[tuple[str, str, str, str], Any] = {}
+    configs: dict[tuple[str, str, str, str], Any] = {}
     for baro_name in _choices(d["baro"]):
         for accel_name in _choices(d["accel"]):
             baro, accel = _nominal_sensors(spec, baro_name, accel_name)
@@ -182,9 +184,10 @@ def plan_for(spec: dict[str, Any]) -> Plan:
                     try:
                         cfg = method.config(k, sensor, **tuning_overrides(method, k, tuning))
                         builds[(mname, tuning, baro_name, accel_name)] = build_constants(cfg)
+                        configs[(mname, tuning, baro_name, accel_name)] = cfg
                     except UserError as exc:
                         builds[(mname, tuning, baro_name, accel_name)] = f"build refused: {exc}"
-    plan = Plan(spec, rocket, drag_table(mach, cd), dt, n_pad, float(max_time), t_apo, builds)
+    plan = Plan(spec, rocket, drag_table(mach, cd), dt, n_pad, float(max_time), t_apo, builds, configs)
     _PLANS[key] = plan
     return plan
 
@@ -196,7 +199,8 @@ class Sensed:
 
     ids: np.ndarray
     params: list[dict[str, Any]]
-    n: np.ndarray               # stream length per flight (pad + record)
+    n: np.ndarray               # stream length per flight (pad + record from liftoff)
+    offset: np.ndarray          # record index (t = index x dt since ignition) of stream sample 0
     finished: np.ndarray        # bool
     adc: np.ndarray             # (nf, n_max) int64
     acc: np.ndarray
@@ -246,16 +250,20 @@ def sense_chunk(spec: dict[str, Any], seed: int, flight_ids: list[int] | tuple[i
     t1, c1 = time.perf_counter(), time.process_time()
     n_rec = np.abs(ev[:, 0]).astype(np.int64)
     finished = ev[:, 0] > 0
-    n = plan.n_pad + n_rec
+    # the stream starts pad_s before liftoff, as flights.inputs.firmware_inputs does (liftoff: the record sample
+    # before the vertical velocity first exceeds 0.01 m/s, flights.reference.liftoff_time's rule), so a replayed
+    # flight gives `fwemu run` the very same samples
+    up = sim["vz"] > 0.01
+    lift = np.where(up.any(axis=1), np.maximum(up.argmax(axis=1) - 1, 0), 0)
+    offset = lift - plan.n_pad                     # record index of stream sample 0 (< 0: before ignition)
+    n = n_rec - offset
     n_max = int(n.max())
-    # stream sample j <- record sample clip(j - n_pad, 0, n_rec - 1): the pad repeats the held state at ignition,
-    # samples after a flight's end repeat its last one (never read)
+    # stream sample j <- record sample clip(j + offset, 0, n_rec - 1): before ignition the held state at ignition,
+    # after a flight's end its last sample (never read)
     j = np.arange(n_max)[None, :]
-    src = np.clip(j - plan.n_pad, 0, np.maximum(n_rec - 1, 0)[:, None])
+    src = np.clip(j + offset[:, None], 0, np.maximum(n_rec - 1, 0)[:, None])
     rows = np.arange(nf)[:, None]
     z, vz, az, fax, mach = (sim[c][rows, src] for c in ("z", "vz", "az", "fax", "mach"))
-    vz = np.where(j < plan.n_pad, 0.0, vz)
-    az = np.where(j < plan.n_pad, 0.0, az)
     site = P[:, P_COLS.index("site_m")][:, None]
     tsc = P[:, P_COLS.index("tscale")][:, None]
     pressure = atm.pressure_pa(tsc * (site + z))
@@ -267,7 +275,7 @@ def sense_chunk(spec: dict[str, Any], seed: int, flight_ids: list[int] | tuple[i
     nb1 = np.zeros((nf, n_max))
     nb2 = np.zeros((nf, n_max))
     na = np.zeros((nf, n_max))
-    lift_idx = plan.n_pad
+    lift_idx = plan.n_pad                          # spikes only after liftoff
     for i, g in enumerate(rngs):
         ni = int(n[i])
         count = int(g.poisson(max(float(params[i]["spike_rate"]), 0.0)))
@@ -303,7 +311,7 @@ def sense_chunk(spec: dict[str, Any], seed: int, flight_ids: list[int] | tuple[i
     if timing is not None:
         _add(timing, "sim", t0, c0, t1, c1)
         _add(timing, "sensing", t1, c1, time.perf_counter(), time.process_time())
-    return Sensed(ids, params, n, finished, adc, acc, pressure, ev, burn, z, vz, az, fax, ground)
+    return Sensed(ids, params, n, offset, finished, adc, acc, pressure, ev, burn, z, vz, az, fax, ground)
 
 
 def _groups(params: list[dict[str, Any]]) -> dict[tuple[str, str], np.ndarray]:
@@ -379,7 +387,7 @@ def run_chunk(task: dict[str, Any], timing: dict[str, float] | None = None) -> d
     rep = lambda a: np.repeat(np.asarray(a), nc)   # noqa: E731  (per flight -> per row)
     f = np.stack([first[c] for c in combos], axis=1).reshape(-1)      # rows: flight-major, then combo
     fired = f >= 0
-    t = np.where(fired, (f - plan.n_pad) * plan.dt, np.nan)
+    t = np.where(fired, (f + rep(s.offset)) * plan.dt, np.nan)
     err = t - rep(t_apo)
     with np.errstate(invalid="ignore"):
         cols: dict[str, Any] = {
@@ -413,7 +421,7 @@ def replay_record(spec: dict[str, Any], seed: int, flight: int) -> tuple[FlightR
     ni = int(s.n[0])
     prm = s.params[0]
     baro, accel = BaroSensor.preset(str(prm["baro"])), AccelSensor.preset(str(prm["accel"]))
-    t = (np.arange(ni) - plan.n_pad) * plan.dt
+    t = (np.arange(ni) + int(s.offset[0])) * plan.dt
     rec = FlightRecord(
         name=f"{spec['name']}-mc{seed}-{flight}", time_s=t, pressure_pa=baro.pressure_of_counts(s.adc[0, :ni]),
         accel_mps2=accel.specific_force_of_counts(s.acc[0, :ni]), ground_pressure_pa=float(s.ground_pa[0]),
@@ -425,5 +433,16 @@ def replay_record(spec: dict[str, Any], seed: int, flight: int) -> tuple[FlightR
     return rec, prm
 
 
-__all__ = ["PRESSURE_ERROR_MODELS", "Plan", "ROW_COLUMNS", "Sensed", "plan_for", "replay_record",
+def replay_configs(spec: dict[str, Any], prm: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    """``"<method>-<tuning>"`` -> the build config (``BuildConfig.to_dict()``) the Monte Carlo ran that method
+    with on a flight drawn with ``prm``'s sensor presets: ``fwemu run --config`` with it runs the same build."""
+    plan = plan_for(spec)
+    out = {}
+    for (m, t, b, a), cfg in plan.configs.items():
+        if b == str(prm["baro"]) and a == str(prm["accel"]):
+            out[f"{m}-{t}"] = cfg.to_dict()
+    return out
+
+
+__all__ = ["PRESSURE_ERROR_MODELS", "Plan", "ROW_COLUMNS", "Sensed", "plan_for", "replay_configs", "replay_record",
            "run_chunk", "run_task", "sense_chunk"]
