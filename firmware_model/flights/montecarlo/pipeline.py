@@ -225,7 +225,10 @@ def _sim_params(plan: Plan, prm: dict[str, Any]) -> list[float]:
                         "the rail must be > 0 (clip the normal with min = ...)")
     values = {"dry_kg": r.dry_mass_kg * prm["dry_mass_scale"], "prop_kg": r.motor.propellant_mass_kg * imp,
               "time_scale": ts, "thrust_scale": imp / ts, "cd_scale": prm["cd_scale"], "area_m2": r.area_m2,
-              "drogue_cda_m2": r.drogue_cd_area_m2, "site_m": prm["site_altitude_m"],
+              # no drogue unless asked: the record is what the flight computer under test sees until it fires
+              # its own charge (a drogue opened at the true apogee would jolt its accelerometer before it fired)
+              "drogue_cda_m2": r.drogue_cd_area_m2 if plan.spec["drogue_at_apogee"] else 0.0,
+              "site_m": prm["site_altitude_m"],
               "tscale": T0_K / (T0_K + prm["temperature_offset_k"]), "wind_mps": prm["wind_speed_mps"],
               "wind_dir_rad": math.radians(prm["wind_direction_deg"]), "wind_exp": prm["wind_shear_exponent"],
               "incl_rad": math.radians(prm["rail_inclination_deg"]), "rail_m": rail,

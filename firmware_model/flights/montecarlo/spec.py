@@ -59,7 +59,8 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "spike_magnitude_pa": (1500.0, "spike size, Pa (sign random per spike)"),
     "baro": (None, "barometer preset (the build is made for it; a choice disperses the sensor part)"),
     "accel": (None, "accelerometer preset (as baro)"),
-    "drogue_delay_s": (None, "drogue opening after the true apogee (default: the scenario's)"),
+    "drogue_delay_s": (None, "drogue opening after the true apogee, with drogue_at_apogee = true (default: the "
+                             "scenario's)"),
 }
 PARAM_NAMES: tuple[str, ...] = tuple(PARAMETERS)
 #: Parameters whose values are preset names, not numbers.
@@ -86,7 +87,7 @@ MODEL_METHODS: tuple[str, ...] = tuple(name for name, m in METHODS.items() if m.
 TUNINGS: tuple[str, ...] = ("default", "recommended")
 
 _TOP_KEYS = {"scenario", "rocket", "launch", "k", "methods", "tunings", "pad_s", "descent_s", "internal_hz",
-             "dispersions", "pressure_error", "chunk_flights", "max_time_s"}
+             "dispersions", "pressure_error", "chunk_flights", "max_time_s", "drogue_at_apogee"}
 
 
 def _where(where: str, key: str) -> str:
@@ -252,7 +253,10 @@ def load_spec(raw: dict[str, Any], where: str = "spec") -> dict[str, Any]:
     chunk = raw.get("chunk_flights", 250)
     if not isinstance(chunk, int) or isinstance(chunk, bool) or not 1 <= chunk <= 100_000:
         raise UserError(f"{where}: chunk_flights = {chunk!r}: an integer 1..100000")
-    return {"name": name, "rocket": rocket, "k": k, "methods": methods, "tunings": tunings,
+    drogue = raw.get("drogue_at_apogee", False)
+    if not isinstance(drogue, bool):
+        raise UserError(f"{where}: drogue_at_apogee = {drogue!r}: true or false")
+    return {"name": name, "rocket": rocket, "k": k, "drogue_at_apogee": drogue, "methods": methods, "tunings": tunings,
             "pad_s": num("pad_s", 2.0, 0.5, 60.0), "descent_s": num("descent_s", 5.0, 0.5, 120.0),
             "internal_hz": num("internal_hz", 256.0, 64.0, 20_000.0),
             "max_time_s": num("max_time_s", 0.0, 0.0, 3600.0),
