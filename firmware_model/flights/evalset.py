@@ -20,8 +20,10 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Iterable, Sequence
 
-from firmware_model.errors import UserError
 from firmware_model.flights.evaluate import FlightSpec
+from firmware_model.flights.scenarios import get_scenario, scenario_names
+from firmware_model.runtime.errors import UserError
+from firmware_model.spec.config import BuildConfig
 
 #: The shared real logs (relative to the shared flights folder), in table order.
 SHARED_LOGS: tuple[str, ...] = (
@@ -70,14 +72,10 @@ def pascal_supported() -> bool:
     ``baro_kind`` field (what :meth:`FirmwareInputs.config_overrides` passes for a pascal sensor)."""
     import dataclasses
 
-    from firmware_model.config import BuildConfig
-
     return "baro_kind" in {f.name for f in dataclasses.fields(BuildConfig)}
 
 
 def _scenario_names() -> list[str]:
-    from firmware_model.flights.scenarios import scenario_names
-
     return list(scenario_names())
 
 
@@ -85,7 +83,6 @@ def scenario_variants(name: str) -> list[tuple[str, str, bool, int]]:
     """The sensings of scenario ``name`` from its catalogue tags (``baro``, ``noise``, ``k`` lists), zipped with
     cycling (row i takes the i-th entry of each list, modulo its length) so every listed value appears once:
     ``max(len)`` rows, not the product."""
-    from firmware_model.flights.scenarios import get_scenario
 
     tags = get_scenario(name).tags or {}
     baros = [BARO_TAGS.get(b, b) for b in tags.get("baro", ["analog-16"])] or ["mpx4115_16bit"]

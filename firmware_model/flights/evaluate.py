@@ -1,14 +1,14 @@
-"""Apogee evaluation: run every firmware method over flights and build the apogee table (DESIGN.md §7; seed 000
+"""Apogee evaluation: run every firmware method over flights and build the apogee table (docs/evaluation.md; Schultz 2002
 Tables 1-2). docs/evaluation.md has the decisions and the findings.
 
 A **method** is a firmware program with its tuning (:data:`METHODS`): the recursive filter at 1/2, 1/4 and 1/8 LSB
 (``threshold_q8`` 128 / 64 / 32), ``kalman_baro``, ``kalman_accel``, and the float ideal Kalman filter
-(:func:`firmware_model.reference.ideal_kalman`, barometer only, time-varying gains from the pad covariance, the same
+(:func:`firmware_model.model.float_reference.ideal_kalman`, barometer only, time-varying gains from the pad covariance, the same
 apogee rule as the firmware: velocity below zero after liftoff). Each method's :class:`BuildConfig` is the flight's
 sensor description (``FirmwareInputs.config_overrides()``: ADC width, counts per metre, noise, accelerometer
 scale) plus the method's tuning plus any user overrides.
 
-Firmware methods run on the bit-exact integer model (:func:`firmware_model.model.run_model`; it equals the
+Firmware methods run on the bit-exact integer model (:func:`firmware_model.model.run.run_model`; it equals the
 emulated 68000 word for word, which the tests and ``fwemu run`` check). **Detection time** = the time (on the
 flight's own axis) of the first sample whose ``EVENTS`` word has ``APOGEE`` set: the sample at which a real board
 would fire the charge. The low-rate prediction (``APOGEE_PREDICTED`` + ``APFRAC``) is reported separately as
@@ -16,7 +16,7 @@ would fire the charge. The low-rate prediction (``APOGEE_PREDICTED`` + ``APFRAC`
 **Error** = detection time - reference time (positive = late).
 
 **Reference**: for simulated flights the true apogee (``Truth.apogee_time_s``, uncertainty 0); for real logs the
-robust parabola of :func:`firmware_model.flights.reference.reference_apogee` with its uncertainty. AltOS's own
+robust parabola of :func:`firmware_model.flights.apogee_reference.reference_apogee` with its uncertainty. AltOS's own
 detection (AltosUI logs: ``record.events["altos_apogee"]``, the first ``drogue`` row) is reported beside, with its
 error against the same reference.
 """
@@ -32,9 +32,22 @@ from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
 
-from firmware_model.config import BuildConfig
-from firmware_model.errors import UserError
+from firmware_model.flights.apogee_reference import reference_apogee
+from firmware_model.flights.firmware_inputs import firmware_inputs
+from firmware_model.flights.readers import read_flight
 from firmware_model.flights.record import FlightRecord
+from firmware_model.flights.scenarios import simulate_scenario
+from firmware_model.flights.sensors import AccelSensor, BaroSensor
+from firmware_model.model.float_reference import ideal_kalman
+from firmware_model.model.run import run_model
+from firmware_model.model.trace import EVENT_BITS
+from firmware_model.runtime import markdown as md
+from firmware_model.runtime.errors import UserError
+from firmware_model.runtime.pool import ordered_map
+from firmware_model.spec.atmosphere import altitude_m
+from firmware_model.spec.build_constants import build_constants
+from firmware_model.spec.config import BuildConfig
+from firmware_model.spec.tuning import RECOMMENDED
 
 
 # ---------------------------------------------------------------------------------------------------- methods
@@ -114,7 +127,6 @@ def _first(events: np.ndarray, bit: int) -> int:
 def detect_from_events(method: str, events: np.ndarray, time_s: np.ndarray, dt: float,
                        apfrac: np.ndarray | None = None, wrap: str = "") -> Detection:
     """A :class:`Detection` from a per-sample ``EVENTS`` column (and ``APFRAC``) on the time axis ``time_s``."""
-    from firmware_model.trace import EVENT_BITS
 
     i = _first(events, EVENT_BITS["APOGEE"])
     lift = _first(events, EVENT_BITS["LIFTOFF"])
@@ -132,12 +144,9 @@ def run_method(method: Method, cfg: BuildConfig, adc: np.ndarray, acc: np.ndarra
     """Run ``method`` built as ``cfg`` over one stream (``adc``/``acc`` counts at dt = 2^-k, sample i at
     ``time_s[i]``) and read its apogee. Firmware methods run the bit-exact integer model."""
     if method.engine == "ideal":
-        from firmware_model.reference import ideal_kalman
 
         trace = ideal_kalman(cfg, adc, acc)
         return detect_from_events(method.name, trace.column("EVENTS"), time_s, cfg.dt)
-    from firmware_model.constants import build_constants
-    from firmware_model.model import run_model
 
     trace = run_model(build_constants(cfg), adc, acc)
     apfrac = trace.column("APFRAC") if "APFRAC" in trace.names else None
@@ -164,7 +173,6 @@ def reference_for(record: FlightRecord) -> Reference:
     if truth is not None and truth.apogee_time_s is not None:
         return Reference(float(truth.apogee_time_s), None if truth.apogee_altitude_m is None
                          else float(truth.apogee_altitude_m), 0.0, "truth")
-    from firmware_model.flights.reference import reference_apogee
 
     ref = reference_apogee(record)
     parts = []
@@ -211,10 +219,8 @@ class FlightSpec:
 def load_record(source: str, format: str | None = None) -> FlightRecord:
     """A :class:`FlightRecord` from ``sim:NAME`` (simulated scenario) or a file path."""
     if source.startswith("sim:"):
-        from firmware_model.flights.scenarios import simulate_scenario
 
         return simulate_scenario(source[4:])
-    from firmware_model.flights.readers import read_flight
 
     return read_flight(source, format=format)
 
@@ -228,7 +234,6 @@ NOISE_ACCEL_COUNTS: float = 20.0
 
 def sensors_for(spec: FlightSpec) -> tuple[Any, Any]:
     """The (BaroSensor, AccelSensor) of ``spec`` (None = the default of :func:`flights.inputs.firmware_inputs`)."""
-    from firmware_model.flights.sensors import AccelSensor, BaroSensor
 
     baro = accel = None
     if spec.baro is not None:
@@ -267,7 +272,6 @@ def altitude_of_counts(inputs: Any) -> Any:
     ground = getattr(inputs, "ground_pressure_pa", None)
     if baro is None or ground is None or not hasattr(baro, "pressure_of_counts"):
         return None
-    from firmware_model.atmosphere import altitude_m
 
     h0 = float(altitude_m(ground))
     lo, hi = float(baro.p_min_pa), float(baro.p_max_pa)
@@ -281,7 +285,6 @@ def altitude_of_counts(inputs: Any) -> Any:
 
 def flight_inputs(record: FlightRecord, spec: FlightSpec) -> Any:
     """The firmware inputs of ``record`` under ``spec`` (:func:`flights.inputs.firmware_inputs`)."""
-    from firmware_model.flights.inputs import firmware_inputs
 
     baro, accel = sensors_for(spec)
     return firmware_inputs(record, spec.k, baro=baro, accel=accel, method=spec.method, seed=spec.seed)
@@ -352,7 +355,7 @@ def evaluate_flight(spec: FlightSpec, methods: Sequence[Method] | None = None,
     return evaluate_inputs(record, inputs, spec, methods, overrides, tuning)
 
 
-#: Tunings ``fwemu evaluate --tuning`` knows: the BuildConfig defaults, or ``firmware_model.tuning.RECOMMENDED``
+#: Tunings ``fwemu evaluate --tuning`` knows: the BuildConfig defaults, or ``firmware_model.spec.tuning.RECOMMENDED``
 #: (per program and k; a k it has no entry for keeps the defaults; ideal_kalman takes kalman_baro's).
 TUNINGS: tuple[str, ...] = ("default", "recommended")
 
@@ -363,7 +366,6 @@ def tuning_overrides(method: Method, k: int, tuning: str = "default") -> dict[st
         return {}
     if tuning != "recommended":
         raise UserError(f"--tuning {tuning!r}: known: {', '.join(TUNINGS)}")
-    from firmware_model.tuning import RECOMMENDED
 
     return dict(RECOMMENDED.get(method.program, {}).get(k, {}))
 
@@ -397,43 +399,6 @@ def evaluate_inputs(record: FlightRecord, inputs: Any, spec: FlightSpec, methods
 def _evaluate_job(job: tuple[FlightSpec, tuple[str, ...], tuple[tuple[str, Any], ...], str]) -> FlightResult:
     spec, names, overrides, tuning = job
     return evaluate_flight(spec, methods_named(names), dict(overrides), tuning=tuning)
-
-
-def ordered_map(fn: Callable[[Any], Any], items: Sequence[Any], jobs: int = 1,
-                on_result: Callable[[int, Any], None] | None = None) -> list[Any]:
-    """``[fn(x) for x in items]``, in ``jobs`` worker processes when ``jobs`` > 1 (``fn`` and the items must pickle).
-    Results come back in the order of ``items`` whatever the workers' timing; an error or an interrupt terminates
-    the workers at once (as ``fwemu vectors --jobs``). Workers ignore SIGINT (:func:`output.worker_init`) and are
-    spawned, not forked (fork after numba's thread pool ran deadlocks)."""
-    if not isinstance(jobs, int) or isinstance(jobs, bool) or jobs < 1:
-        raise UserError(f"--jobs {jobs!r}: must be a positive integer")
-    out: list[Any] = []
-    if jobs == 1 or len(items) <= 1:
-        for i, item in enumerate(items):
-            out.append(fn(item))
-            if on_result:
-                on_result(i, out[-1])
-        return out
-    import multiprocessing
-
-    from firmware_model.output import worker_init
-
-    # "spawn", not "fork": the numba model runs its kernels on a thread pool (prange), and a child forked from a
-    # parent whose thread pool has run deadlocks in its first parallel kernel (seen: workers asleep on a futex).
-    pool = multiprocessing.get_context("spawn").Pool(min(jobs, len(items)), initializer=worker_init)
-    try:
-        for i, res in enumerate(pool.imap(fn, items)):
-            out.append(res)
-            if on_result:
-                on_result(i, res)
-        pool.close()
-        pool.join()  # every result is in: the workers leave on their own (terminate() after close() once hung)
-        pool = None
-    finally:
-        if pool is not None:  # an error or an interrupt: end the workers at once
-            pool.terminate()
-            pool.join()
-    return out
 
 
 def evaluate_many(specs: Sequence[FlightSpec], methods: Sequence[Method] | None = None,
@@ -525,10 +490,10 @@ def _fmt_err(x: float | None) -> str:
 
 
 def render_markdown(results: Sequence[FlightResult], command: str | None = None) -> str:
-    """The apogee table (seed 000 Tables 1-2 style) and the per-method summary, as Markdown."""
+    """The apogee table (Schultz 2002 Tables 1-2 style) and the per-method summary, as Markdown."""
     cols = table_methods(results)
     head = ["flight", "k", "sensor", "reference apogee s (±unc, source)", "alt m"] + [label for _, label in cols]
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    lines = md.header(head)
     for r in results:
         ref = r.reference
         cells = [r.name, str(r.k), r.sensor,
@@ -545,13 +510,13 @@ def render_markdown(results: Sequence[FlightResult], command: str | None = None)
                     cells.append("n/a")
                 else:
                     cells.append("miss" if d.time_s is None else f"{d.time_s:.3f} ({_fmt_err(r.error(m))})")
-        lines.append("| " + " | ".join(cells) + " |")
+        lines.append(md.row(cells))
     out = ["Detection time s (error s = detection - reference; + late, miss = never fired). ⚠: the reference "
            "carries a warning (the fit is not a free flight near its peak, docs/flights.md); such rows are left out "
            "of the summary's last column only.", ""] + lines
-    out += ["", "| method | flights | detected | median abs error s | worst abs error s (flight) | median error s "
-            "| early / late | most early s (flight) | worst abs error s, usable references |",
-            "|---|---|---|---|---|---|---|---|---|"]
+    out += [""] + md.header(["method", "flights", "detected", "median abs error s", "worst abs error s (flight)",
+                             "median error s", "early / late", "most early s (flight)",
+                             "worst abs error s, usable references"])
     for m, label in cols:
         s = summarize(results, m, label)
         worst = "—" if s.worst_abs_s is None else f"{s.worst_abs_s:.3f} ({s.worst_flight})"
@@ -562,8 +527,8 @@ def render_markdown(results: Sequence[FlightResult], command: str | None = None)
         most_early = "—" if s.most_early_s is None else f"{s.most_early_s:+.3f} ({s.most_early_flight})"
         usable = "—" if s.worst_usable_abs_s is None else f"{s.worst_usable_abs_s:.3f} ({s.worst_usable_flight})"
         usable += f"; {s.unusable} on flagged references left out" if s.unusable else ""
-        out.append(f"| {label} | {s.n} | {s.detected} | {_fmt(s.median_abs_s)} | {worst} | "
-                   f"{_fmt(s.median_s)} | {s.early} / {s.late} | {most_early} | {usable} |")
+        out.append(md.row([label, s.n, s.detected, _fmt(s.median_abs_s), worst, _fmt(s.median_s),
+                           f"{s.early} / {s.late}", most_early, usable]))
     if command:
         out += ["", f"Regenerate: `{command}`"]
     return "\n".join(out) + "\n"
@@ -629,3 +594,13 @@ __all__ = ["Method", "METHODS", "DEFAULT_METHODS", "methods_named", "Detection",
            "Reference", "reference_for", "FlightSpec", "load_record", "flight_inputs", "FlightResult",
            "evaluate_flight", "evaluate_inputs", "evaluate_many", "MethodSummary", "summarize", "render_markdown",
            "render_csv", "render_json", "table_files"]
+
+
+def method_for_firmware(name: str) -> "Method":
+    """The evaluation :class:`Method` for a program or method name (``recursive`` = ``rec_quarter``)."""
+    if name == "recursive":
+        name = "rec_quarter"
+    if name not in METHODS or METHODS[name].engine != "model":
+        known = ["recursive"] + [m for m, v in METHODS.items() if v.engine == "model"]
+        raise UserError(f"--firmware {name!r}: unknown; known: {', '.join(known)}")
+    return METHODS[name]

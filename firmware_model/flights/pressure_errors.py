@@ -1,6 +1,6 @@
 """Static-pressure errors applied to a flight record (sensor-side effects, before any ADC model).
 
-* :func:`transonic_pressure_error`: the Mach-transition error of seed 002 ("a step increase in pressure altitude
+* :func:`transonic_pressure_error`: the Mach-transition error of Schultz n.d. ("a step increase in pressure altitude
   when going above Mach 1 and a step decrease when dropping below"): while the rocket flies above the switching
   Mach number the barometer reads the standard pressure of an altitude ``altitude_step_m`` higher than the true
   one. Positive ``altitude_step_m`` (the default, +60 m) is the seed's sign: the pressure reads *low* above Mach 1
@@ -23,11 +23,12 @@ from dataclasses import replace
 
 import numpy as np
 
-from firmware_model import atmosphere as atm
-from firmware_model.errors import UserError
 from firmware_model.flights.record import FlightRecord
+from firmware_model.flights.sim1dof import mach_of
+from firmware_model.runtime.errors import UserError
+from firmware_model.spec import atmosphere as atm
 
-#: Default transonic step in pressure altitude (m, positive = reads higher above Mach 1; seed 002's sign).
+#: Default transonic step in pressure altitude (m, positive = reads higher above Mach 1; Schultz n.d.'s sign).
 DEFAULT_TRANSONIC_STEP_M: float = 60.0
 
 
@@ -70,7 +71,6 @@ def transonic_pressure_error(record: FlightRecord, mach: np.ndarray | None = Non
     per sample; default from the record's truth (|vertical velocity| / standard speed of sound at the site
     altitude + AGL: exact for vertical still-air flights; RocketPy records pass their own airspeed Mach)."""
     if mach is None:
-        from firmware_model.flights.sim1dof import mach_of
         mach = mach_of(record)
     mach = np.asarray(mach, dtype=np.float64)
     if mach.shape != (record.n,):

@@ -1,4 +1,4 @@
-"""The flight record: one flight in SI units, whatever it came from (DESIGN.md §7).
+"""The flight record: one flight in SI units, whatever it came from (docs/flights.md).
 
 Every reader and simulator returns a :class:`FlightRecord`; sensor models, resampling, the reference apogee and the
 evaluation take one. Arrays are float64, one value per log row, on the record's own (possibly irregular) time axis;
@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from firmware_model.errors import UserError
+from firmware_model.runtime.errors import UserError
 
 
 @dataclass(frozen=True)

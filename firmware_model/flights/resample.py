@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from firmware_model.errors import UserError
+from firmware_model.runtime.errors import UserError
 
 METHODS: tuple[str, ...] = ("hold", "linear")
 

@@ -22,11 +22,12 @@ from typing import Any
 
 import numpy as np
 
-from firmware_model.errors import UserError
 from firmware_model.flights.motors import DATA_DIR, load_motor
 from firmware_model.flights.pressure_errors import pressure_spikes, transonic_pressure_error
 from firmware_model.flights.record import FlightRecord, Truth
+from firmware_model.flights.rocketpy_sim import simulate_rocketpy_with_mach
 from firmware_model.flights.sim1dof import Launch, Rocket, mach_of, simulate_1dof
+from firmware_model.runtime.errors import UserError
 
 #: Mach-class bounds (peak Mach) asserted by the tests.
 MACH_CLASSES: dict[str, tuple[float, float]] = {"subsonic": (0.0, 0.9), "transonic": (0.9, 1.2),
@@ -278,7 +279,6 @@ def _simulate_physics(s: Scenario) -> tuple[FlightRecord, np.ndarray]:
         rec = simulate_1dof(s.build_rocket(), s.build_launch(), names=[s.name])[0]
         return rec, mach_of(rec)
     if s.simulator == "rocketpy":
-        from firmware_model.flights.rocketpy_sim import simulate_rocketpy_with_mach
         path = cache_dir() / f"{s.name}-{cache_key(s)}.npz"
         if path.exists():
             try:

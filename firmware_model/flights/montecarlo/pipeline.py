@@ -29,19 +29,19 @@ from typing import Any, Callable
 
 import numpy as np
 
-from firmware_model import atmosphere as atm
-from firmware_model.constants import build_constants
-from firmware_model.errors import UserError
+from firmware_model.spec import atmosphere as atm
+from firmware_model.spec.build_constants import build_constants
+from firmware_model.runtime.errors import UserError
 from firmware_model.flights.evaluate import METHODS, sensor_config, tuning_overrides
-from firmware_model.flights.inputs import firmware_inputs
+from firmware_model.flights.firmware_inputs import firmware_inputs
 from firmware_model.flights.montecarlo.sim import P_COLS, T0_K, drag_table, simulate_batch
 from firmware_model.flights.montecarlo.spec import draw, fingerprint, flight_rng, slot_names
 from firmware_model.flights.motors import load_motor
 from firmware_model.flights.record import FlightRecord, Truth
 from firmware_model.flights.sensors import AccelSensor, BaroSensor
 from firmware_model.flights.sim1dof import Launch, Rocket, simulate_1dof
-from firmware_model.model import run_model
-from firmware_model.trace import EVENT_BITS
+from firmware_model.model.run import run_model
+from firmware_model.model.trace import EVENT_BITS
 
 G0 = atm.G0
 
@@ -253,7 +253,7 @@ def sense_chunk(spec: dict[str, Any], seed: int, flight_ids: list[int] | tuple[i
     t1, c1 = time.perf_counter(), time.process_time()
     n_rec = np.abs(ev[:, 0]).astype(np.int64)
     finished = ev[:, 0] > 0
-    # the stream starts pad_s before liftoff, as flights.inputs.firmware_inputs does (liftoff: the record sample
+    # the stream starts pad_s before liftoff, as flights.firmware_inputs.firmware_inputs does (liftoff: the record sample
     # before the vertical velocity first exceeds 0.01 m/s, flights.reference.liftoff_time's rule), so a replayed
     # flight gives `fwemu run` the very same samples
     up = sim["vz"] > 0.01

@@ -19,8 +19,8 @@ from typing import Any, Iterable, Sequence
 
 import numpy as np
 
-from firmware_model.errors import UserError
-from firmware_model.output import open_atomic, write_file
+from firmware_model.runtime.errors import UserError
+from firmware_model.runtime.output import open_atomic, write_file
 
 Z95 = 1.959963984540054
 #: Events whose probability the summary reports: row column -> label.

@@ -35,7 +35,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from firmware_model import atmosphere as atm
+from firmware_model.spec import atmosphere as atm
 
 G0 = atm.G0
 T0_K = 288.15

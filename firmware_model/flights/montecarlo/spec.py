@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from firmware_model.errors import UserError
+from firmware_model.runtime.errors import UserError
 from firmware_model.flights.evaluate import METHODS
 from firmware_model.flights.pressure_errors import DEFAULT_TRANSONIC_STEP_M
 from firmware_model.flights.scenarios import get_scenario

@@ -7,18 +7,18 @@
 * ``rdas``: RDAS text export of the seeds (whitespace-separated ``time accel pressure [digital]``) — :mod:`.rdas`;
 * ``generic``: CSV with unit-named columns (``time_s``, ``pressure_pa`` ...) — :mod:`.generic`.
 
-Bad files raise one :class:`~firmware_model.errors.UserError` naming the file and line (docs/flights.md).
+Bad files raise one :class:`~firmware_model.runtime.errors.UserError` naming the file and line (docs/flights.md).
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from firmware_model.errors import UserError
 from firmware_model.flights.readers import altosui, cats, generic, rdas
 from firmware_model.flights.readers._common import read_text
 from firmware_model.flights.readers.generic import write_generic
 from firmware_model.flights.record import FlightRecord
+from firmware_model.runtime.errors import UserError
 
 #: Known formats, in detection order.
 FORMATS: tuple[str, ...] = ("altosui", "cats", "rdas", "generic")

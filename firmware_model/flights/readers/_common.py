@@ -1,7 +1,7 @@
 """Shared parts of the flight-log readers: reading text, one-line errors naming file and line, number parsing,
 the licence table of known logs, repeated-timestamp handling.
 
-Every reader reports a bad file as one :class:`~firmware_model.errors.UserError` ``"<file>:<line>: <what>"`` (line
+Every reader reports a bad file as one :class:`~firmware_model.runtime.errors.UserError` ``"<file>:<line>: <what>"`` (line
 numbers are 1-based physical lines of the file) and never returns half a record.
 """
 
@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from firmware_model.errors import UserError
+from firmware_model.runtime.errors import UserError
 
 #: Licence of the logs the project knows by name (../shared/flights/README.md says which is which). A file not
 #: listed here gets ``"unknown"`` unless it states its own (generic CSV: a ``# licence: ...`` comment line).

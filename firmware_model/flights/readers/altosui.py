@@ -26,9 +26,9 @@ from pathlib import Path
 
 import numpy as np
 
-from firmware_model.atmosphere import G0
 from firmware_model.flights.readers._common import check_time, fail, licence_of, parse_float, read_text
 from firmware_model.flights.record import FlightRecord
+from firmware_model.spec.atmosphere import G0
 
 REQUIRED: tuple[str, ...] = ("time", "state_name", "pressure", "acceleration")
 #: The v5 header quirk and its repair.

@@ -22,9 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
-from firmware_model.atmosphere import G0
 from firmware_model.flights.readers._common import check_time, fail, licence_of, parse_float, read_text
 from firmware_model.flights.record import FlightRecord
+from firmware_model.spec.atmosphere import G0
 
 BARO_HEADER: tuple[str, ...] = ("ts", "id", "T", "P")
 IMU_HEADER: tuple[str, ...] = ("ts", "id", "Ax", "Ay", "Az", "Gx", "Gy", "Gz")
