@@ -38,7 +38,7 @@ from pathlib import Path
 from typing import Any, Callable, Iterator, Sequence
 
 from firmware_model.runtime.errors import UserError
-from firmware_model.runtime.output import TEMP_PREFIX, raise_if_interrupted, worker_init, write_file
+from firmware_model.runtime.output import TEMP_PREFIX, leftovers, raise_if_interrupted, worker_init, write_file
 
 #: How often one chunk may be lost with its local worker before the run gives up (a chunk that kills every
 #: process it runs in is a bug to report, not something to retry for ever).
@@ -236,6 +236,9 @@ class ChunkStore:
             if not run.exists() or run.read_text() != want:
                 raise UserError(f"{self.folder}: --resume: the chunks on disk are from a different run (spec, "
                                 "seed, flights, chunk size or program version differ); use another --out")
+            for p in leftovers(self.folder):   # a temporary name a SIGKILL left mid-write: never a chunk
+                with contextlib.suppress(OSError):
+                    p.unlink()
         write_file(run, want)
 
     def path(self, i: int) -> Path:

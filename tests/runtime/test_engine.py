@@ -58,7 +58,11 @@ def test_chunk_store_refuses_a_different_run(tmp_path):
         ChunkStore(tmp_path / "c", {"a": 1}, "csv")
     with pytest.raises(UserError, match="different run"):
         ChunkStore(tmp_path / "c", {"a": 2}, "csv", resume=True)
+    leftover = tmp_path / "c" / ".fwemu-tmp-chunk-000001.csv-x1y2"      # what a SIGKILL mid-write leaves
+    leftover.write_bytes(b"half a chu")
+    assert s.done() == {0}
     assert ChunkStore(tmp_path / "c", {"a": 1}, "csv", resume=True).done() == {0}
+    assert not leftover.exists()
 
 
 needs_dask = pytest.mark.skipif(not dask_available(), reason="dask.distributed not installed (the 'montecarlo' extra)")

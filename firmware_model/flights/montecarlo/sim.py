@@ -22,7 +22,7 @@ Recorded per flight on the firmware's grid (every ``m_per`` steps, ``h = 2^-k / 
 vertical velocity and acceleration (truth), the **axial specific force** (what an accelerometer on the rocket's
 axis reads: along the rail on it, along the air-relative velocity off it, the magnitude of the specific force
 once the drogue pulls) and the airspeed Mach number (for the transonic pressure error). With no wind and a
-vertical rail this is sim1dof's flight (cross-checked in tests/test_montecarlo.py).
+vertical rail this is sim1dof's flight (cross-checked in tests/flights/test_montecarlo.py).
 
 The kernel is compiled with numba (``prange`` over flights) on first use when numba is importable; every flight is integrated
 alone with the same arithmetic, so a flight's bytes do not depend on its batch.
