@@ -330,3 +330,27 @@ def test_transonic_dip_model_reads_low_inside_the_mach_band():
     assert len(runs) == 2                          # through the band accelerating, and again slowing down
     t_apo_sample = int(round(a.events[0, 1] * 32)) + 64
     assert runs[1][-1] < t_apo_sample              # both during the climb
+
+
+def test_rocket_table_preset_choice_and_accel_range():
+    """A [rocket] spec, the barometer drawn among an ADC part and a pascal part (one build each), and a clipping
+    range below the boost acceleration."""
+    spec = load_spec({"rocket": {"motor": "K400C", "dry_mass_kg": 6.0, "diameter_m": 0.1, "name": "mine"},
+                      "k": 5, "methods": ["kalman_baro"], "tunings": ["default"],
+                      "dispersions": {"baro": {"choice": ["mpx4115_10bit", "ms5607"]}, "accel_range_g": 2.0}})
+    s = pipeline.sense_chunk(spec, 3, list(range(12)))
+    names = [p["baro"] for p in s.params]
+    assert set(names) == {"mpx4115_10bit", "ms5607"}
+    for i, name in enumerate(names):
+        words = s.adc[i, :s.n[i]]
+        if name == "ms5607":
+            assert words.min() > 80_000                     # pascals near the ground
+        else:
+            assert words.max() <= 1023
+    lo, hi = AccelSensor.preset("default", range_g=2.0).count_limits
+    assert s.acc.max() == hi                               # the boost clips at 2 g
+    rows = pipeline.run_chunk({"spec": spec, "seed": 3, "flights": list(range(12))})
+    assert list(rows["p_baro"]) == names and rows["fired"].all()
+    plan = pipeline.plan_for(spec)
+    assert {k[2] for k in plan.builds} == {"mpx4115_10bit", "ms5607"}
+    assert plan.configs[("kalman_baro", "default", "ms5607", "default")].baro_kind == "pascal"
