@@ -98,11 +98,18 @@ def read_rows(path: Path, columns: Iterable[str] | None = None) -> dict[str, np.
     if path.suffix == ".parquet":
         import pyarrow.parquet as pq
 
+        import pyarrow as pa
+
         t = pq.read_table(path, columns=cols)
         out = {}
         for name in t.column_names:
-            arr = t.column(name).to_numpy(zero_copy_only=False)
-            out[name] = arr
+            col = t.column(name)
+            if pa.types.is_string(col.type) or pa.types.is_large_string(col.type):
+                # a few distinct strings (method, tuning, status, preset): one Python object each, not one per row
+                d = col.combine_chunks().dictionary_encode()
+                out[name] = np.array(d.dictionary.to_pylist(), dtype=object)[d.indices.to_numpy()]
+            else:
+                out[name] = col.to_numpy()
         return out
     with open(path, newline="") as f:
         rd = csv.reader(f)
