@@ -1,4 +1,4 @@
-"""Budget reports for a firmware build (the design brief §9): ROM, RAM, cycles per ``step``, CPU load, numeric headroom.
+"""Budget reports for a firmware build (docs/firmware-asm.md, docs/mcu.md): ROM, RAM, cycles per ``step``, CPU load, numeric headroom.
 
 Measured figures come from running the build on the emulated 68000 (:mod:`firmware_model.firmware.harness`) over a set of
 input streams; the static worst-case bound comes from the code itself (:func:`static_step_bound`) and every

@@ -14,7 +14,7 @@ from firmware_model.runtime import output
 from firmware_model.runtime.errors import UserError
 from firmware_model.spec.config import load_config
 
-#: Programs budgeted by default (the seed's literal listing is a counter-example, not firmware anyone ships).
+#: Programs budgeted by default (the literal Schultz 2002 listing is a counter-example, not firmware anyone ships).
 DEFAULT_PROGRAMS: tuple[str, ...] = ("recursive", "kalman_baro", "kalman_accel")
 
 

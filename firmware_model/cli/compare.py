@@ -23,7 +23,8 @@ from firmware_model.model.streams import ACC_PROGRAMS, G0, flight_params_for, re
 from firmware_model.runtime.errors import UserError
 from firmware_model.spec.atmosphere import pressure_pa
 from firmware_model.spec.build_constants import build_constants
-from firmware_model.spec.config import PROGRAMS, ROUNDINGS, BuildConfig, load_config
+from firmware_model.spec.config import PROGRAMS, ROUNDINGS, BuildConfig
+from firmware_model.spec.tuning import TUNINGS, describe_tuning, load_tuned_config
 
 
 def register(subparsers: Any) -> None:
@@ -35,6 +36,10 @@ def register(subparsers: Any) -> None:
     p.add_argument("--program", choices=PROGRAMS, help="program (default: the config's, else kalman_baro)")
     p.add_argument("--k", type=int, help="sample period 2^-k s (0..10; default: the config's, else 7)")
     p.add_argument("--rounding", choices=ROUNDINGS, help="rounding (default: the config's, else floor)")
+    p.add_argument("--tuning", choices=TUNINGS, default="default",
+                   help="as fwemu evaluate: default = the BuildConfig defaults; recommended = "
+                        "firmware_model.spec.tuning.RECOMMENDED for the program at k (a k without an entry keeps the "
+                        "defaults); the config file and the flags override it")
     src = p.add_mutually_exclusive_group()
     src.add_argument("--input", type=Path, help="CSV with an 'adc' column and optionally an 'acc' column")
     src.add_argument("--synthetic", type=nonnegative_int, metavar="SEED", help="a synthetic flight from this seed (default 0)")
@@ -112,8 +117,8 @@ def bias_table(program: str = "kalman_baro", ks: tuple[int, ...] = (5, 6, 7, 8),
     units_per_metre`` m/s^2, the default sensor's counts per metre at the pad) read through the build's sensor
     transfer function (the one its altitude table inverts; default pressure ADC) plus Gaussian noise of 2 counts
     (8 streams, seed 0), for floor and half_up, next to the linear steady-state prediction ``(I - (I-KH)F)^-1
-    ((I-KH) u + r)`` with uniform rounding errors (floor: mean -1/2 LSB per shift; half_up: 0) and the design
-    brief's prediction for the velocity, ``1/2 * 2^k / 256`` units/s = ``2^(k-1)`` LSB.
+    ((I-KH) u + r)`` with uniform rounding errors (floor: mean -1/2 LSB per shift; half_up: 0) and the prediction
+    we started from for the velocity, ``1/2 * 2^k / 256`` units/s = ``2^(k-1)`` LSB.
 
     (Until this was written the input was ``z = a t^2 / 2 + 1000`` counts into a ``baro_sign = +1`` build, whose
     table maps every count to a pressure below zero, i.e. to one clamped altitude: kalman_baro then tracked a
@@ -135,7 +140,7 @@ def bias_table(program: str = "kalman_baro", ks: tuple[int, ...] = (5, 6, 7, 8),
             + f", {seconds:g} s x 8 streams; bias = mean(integer - float mirror) over the second half",
             "",
             "| k | rounding | X1 bias (LSB) | X2 bias (LSB) | X2 bias (m/s) | X3 bias (LSB) "
-            "| linear prediction X1, X2, X3 (LSB) | design brief X2 (LSB) |", "|---|---|---|---|---|---|---|---|"]
+            "| linear prediction X1, X2, X3 (LSB) | predicted X2, ½·2^k/256 units/s (LSB) |", "|---|---|---|---|---|---|---|---|"]
     for k in ks:
         n = int(seconds * 2 ** k)
         t = np.arange(n) / 2 ** k
@@ -180,12 +185,13 @@ def bias_table(program: str = "kalman_baro", ks: tuple[int, ...] = (5, 6, 7, 8),
 def run(args: argparse.Namespace) -> int:
     """Entry point of ``fwemu compare``; prints the report to stdout and returns 0."""
     if args.bias_table:
-        if args.input is not None or args.config is not None:
+        if args.input is not None or args.config is not None or args.tuning != "default":
             raise UserError("compare: --bias-table uses its own constant-acceleration input and default builds; "
-                            "drop --input/--config")
+                            "drop --input/--config/--tuning")
         print(bias_table(args.program or "kalman_baro"))
         return 0
-    cfg = load_config(args.config, {"program": args.program, "k": args.k, "rounding": args.rounding})
+    cfg = load_tuned_config(args.config, {"program": args.program, "k": args.k, "rounding": args.rounding},
+                            args.tuning)
     if args.input is not None:
         stream = read_stream_csv(args.input, cfg.baro_word_bits, cfg.k, require_acc=cfg.program in ACC_PROGRAMS)
         true_ap = None
@@ -194,6 +200,7 @@ def run(args: argparse.Namespace) -> int:
                                   flight_params_for(cfg))
         true_ap = stream.truth["apogee_sample"]
     result = compare(cfg, stream.adc, stream.acc)
+    print(describe_tuning(cfg.program, cfg.k, args.tuning))
     print(format_report(cfg, result))
     if true_ap is not None:
         print(f"true apogee sample (synthetic): {true_ap}")

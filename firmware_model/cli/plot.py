@@ -54,6 +54,7 @@ def run_plot(args: argparse.Namespace) -> int:
         raise UserError(f"-o {args.out}: the output must be a .png file")
     ref = args.reference
     altos = None
+    own_computer = "AltOS"
     path = Path(args.run)
     if not args.run.startswith("sim:") and not path.exists():
         raise UserError(f"{args.run}: no such file")
@@ -72,9 +73,10 @@ def run_plot(args: argparse.Namespace) -> int:
         table = from_trace(trace, cfg, inputs.time_s, inputs.adc, acc, altitude_of_counts(inputs))
         if ref is None:
             ref = reference_for(record).time_s
-        altos = record.events.get("altos_apogee") if record.events else None
+        own = record.own_apogee()                 # the log's own computer (AltOS, RRC3, CATS, ...)
+        altos, own_computer = (None, "AltOS") if own is None else (own[1], own[0])
         title = args.title or f"{record.name}: {method.name}, k={args.k}"
-    png = plot_run(table, zoom=args.zoom, title=title, reference_s=ref, altos_s=altos,
+    png = plot_run(table, zoom=args.zoom, title=title, reference_s=ref, altos_s=altos, own_computer=own_computer,
                    zoom_halfwidth_s=args.halfwidth)
     write_file(args.out, png)
     print(f"wrote {args.out}")

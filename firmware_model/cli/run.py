@@ -15,12 +15,14 @@ from typing import Any
 
 import numpy as np
 
-from firmware_model.cli.args import nonnegative_int
+from firmware_model.cli.args import add_reader_arguments, nonnegative_int
 from firmware_model.firmware.assemble import build_firmware
 from firmware_model.firmware.harness import run_firmware
 from firmware_model.flights.evaluate import (
+    ACCEL_PROGRAMS,
     FlightSpec,
     altitude_of_counts,
+    burnout_time,
     flight_inputs,
     load_record,
     method_for_firmware,
@@ -29,10 +31,12 @@ from firmware_model.flights.evaluate import (
 )
 from firmware_model.flights.runcsv import from_trace
 from firmware_model.model.run import run_model
+from firmware_model.runtime.errors import UserError
 from firmware_model.runtime.output import write_file
 from firmware_model.runtime.progress import Progress
 from firmware_model.spec.build_constants import build_constants
 from firmware_model.spec.config import BuildConfig
+from firmware_model.spec.tuning import TUNINGS, describe_tuning, tuning_fields
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -47,8 +51,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
                         "rec_quarter, rec_eighth, kalman_baro, kalman_accel)")
     p.add_argument("--input", required=True, metavar="FILE", help="flight file, or sim:NAME for a simulated scenario")
     p.add_argument("--format", help="reader override (default: detected)")
+    add_reader_arguments(p)
     p.add_argument("--config", type=Path, metavar="C",
                    help="build config JSON: its fields override the sensor description and the method's tuning")
+    p.add_argument("--tuning", choices=TUNINGS, default="default",
+                   help="as fwemu evaluate: default = the BuildConfig defaults; recommended = "
+                        "firmware_model.spec.tuning.RECOMMENDED for the program at k (a k without an entry keeps the "
+                        "defaults); --config fields override it")
     p.add_argument("--k", type=int, help="sample period 2^-k s (default: the config's, else 7)")
     p.add_argument("--baro", metavar="PRESET", help="barometer sensor preset (default: the record's own sensor)")
     p.add_argument("--accel", metavar="PRESET", help="accelerometer preset (default: the record's own sensor)")
@@ -70,22 +79,6 @@ def _config_fields(path: Path | None) -> dict[str, Any]:
     return dict(json.loads(path.read_text()))
 
 
-def burnout_time(record: Any, liftoff_s: float | None) -> float | None:
-    """First time at or after liftoff at which the axial specific force, averaged over 5 log rows, falls below
-    0 m/s^2 (thrust gone, drag decelerating the coasting rocket), or None without an accelerometer. (Not "after the
-    peak": on real logs the largest reading can be the ejection charge's shock at apogee.)"""
-    f = record.specific_force_mps2()
-    if f is None or liftoff_s is None:
-        return None
-    t = np.asarray(record.time_s)
-    f = np.where(np.isfinite(f), f, np.nan)
-    if f.size < 5:
-        return None
-    mean5 = np.convolve(np.nan_to_num(f, nan=1.0), np.ones(5) / 5.0, mode="valid")   # row i..i+4
-    hit = np.nonzero((t[: mean5.size] >= liftoff_s) & (mean5 < 0.0))[0]
-    return float(t[hit[0]]) if hit.size else None
-
-
 def run_run(args: argparse.Namespace) -> int:
     """Run one flight through one build; write the CSV and print the summary."""
 
@@ -93,12 +86,16 @@ def run_run(args: argparse.Namespace) -> int:
     fields = _config_fields(args.config)
     k = args.k if args.k is not None else int(fields.get("k", 7))
     spec = FlightSpec(args.input, k=k, baro=args.baro, accel=args.accel, noise=not args.no_noise, seed=args.seed,
-                      format=args.format, method=args.resample)
-    record = load_record(args.input, args.format)
+                      format=args.format, method=args.resample, sensor=args.sensor, columns=args.columns,
+                      site_altitude_m=args.site_altitude_m, flight=args.flight, late=args.late)
+    record = load_record(args.input, args.format, **spec.reader_options())
     inputs = flight_inputs(record, spec)
+    if method.program in ACCEL_PROGRAMS and not inputs.has_accel:
+        raise UserError(f"{args.input}: --firmware {args.firmware} reads the accelerometer and this stream has none "
+                        "(the log has none, or --late-start refuse): use kalman_baro")
     fields.pop("k", None)
     fields.pop("program", None)
-    cfg = method.config(k, sensor_config(inputs), **fields)
+    cfg = method.config(k, sensor_config(inputs), **{**tuning_fields(method.program, k, args.tuning), **fields})
     adc = np.asarray(inputs.adc)
     acc = None if inputs.acc is None else np.asarray(inputs.acc)
     time_s = np.asarray(inputs.time_s, dtype=np.float64)
@@ -117,18 +114,26 @@ def run_run(args: argparse.Namespace) -> int:
     if args.out is not None:
 
         write_file(args.out, table.to_csv())
-    print(summary(table, record, inputs, cfg, engine, elapsed, reference_for(record), args.out))
+    print(summary(table, record, inputs, cfg, engine, elapsed, reference_for(record), args.out,
+                  describe_tuning(method.program, k, args.tuning)))
     return 0
 
 
 def summary(table: Any, record: Any, inputs: Any, cfg: Any, engine: str, elapsed: float, ref: Any,
-            out: Path | None) -> str:
-    """The text summary of a run."""
+            out: Path | None, tuning: str | None = None) -> str:
+    """The text summary of a run (``tuning``: the line :func:`spec.tuning.describe_tuning` wrote)."""
     marks = table.event_times()
     baro = (f"baro 32-bit pascal word, {cfg.units_per_metre:.4g} Pa/m" if getattr(cfg, "pascal", False)
             else f"baro {cfg.baro_bits}-bit, {cfg.units_per_metre:.4g} counts/m")
     lines = [f"{record.name}: {cfg.program} (k={cfg.k}, dt={cfg.dt:g} s, {cfg.rounding}, {baro}) on the {engine}: "
              f"{table.time_s.size} samples in {elapsed:.2f} s"]
+    prov = getattr(record, "provenance", {}) or {}
+    if prov.get("format"):
+        lines.append(f"log: {prov['format']} format" + ("; SYNTHETIC BAROMETER (pressure made from the log's "
+                                                         "altitude)" if prov.get("synthetic_baro") else ""))
+    lines += [f"  {n}" for n in prov.get("notes", [])]
+    if tuning:
+        lines.append(tuning)
     report = getattr(inputs, "report", None)
     if report is not None:
         text = report.summary() if callable(getattr(report, "summary", None)) else str(report)
@@ -156,9 +161,9 @@ def summary(table: Any, record: Any, inputs: Any, cfg: Any, engine: str, elapsed
     lines.append(f"{kind}: {ref.time_s:.3f} s{alt}")
     if apo is not None:
         lines.append(f"error: {apo - ref.time_s:+.3f} s (detection - {kind.split(' ')[0]}; + late)")
-    altos = record.events.get("altos_apogee") if record.events else None
-    if altos is not None:
-        lines.append(f"AltOS apogee: {altos:.3f} s (error {altos - ref.time_s:+.3f} s)")
+    own = record.own_apogee() if hasattr(record, "own_apogee") else None
+    if own is not None:
+        lines.append(f"{own[0]} apogee (the log's own computer): {own[1]:.3f} s (error {own[1] - ref.time_s:+.3f} s)")
     for name in ("MACH_LOCKOUT", "BARO_INVALID"):
         spans = table.intervals(name)
         if spans:

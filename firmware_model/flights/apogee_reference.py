@@ -91,6 +91,8 @@ def liftoff_time(record: FlightRecord) -> float:
     if f is not None and np.sum(np.isfinite(f)) > 10:
         first = np.isfinite(f) & (t <= t[0] + 0.25)
         pad = float(np.median(f[first])) if first.any() else G0
+        if pad > 1.5 * G0:      # the log starts accelerating (after liftoff / during ignition): the nominal 1 g
+            pad = G0
         hi = np.nan_to_num(f, nan=-np.inf) > pad + 2.0 * G0
         for i in np.nonzero(hi)[0]:
             j = np.searchsorted(t, t[i] + 0.05)
@@ -324,20 +326,21 @@ def reference_apogee(record: FlightRecord) -> ReferenceApogee:
 # ------------------------------------------------------------------------------------------------ a table
 def reference_table(paths: list[str], format: str | None = None) -> str:  # noqa: A002
     """The Markdown table of docs/flights.md for flight logs ``paths``: reference apogee, its uncertainty,
-    altitude, fitted curvature, spikes rejected, and AltOS's own apogee against it where the log has one.
+    altitude, fitted curvature, spikes rejected, and the log's own computer's apogee against it where the log has
+    one (AltOS's first drogue state, an RRC3's Drogue event, CATS's EV_APOGEE, ...: ``FlightRecord.own_apogee``).
     ``python -m firmware_model.flights.apogee_reference LOG...`` prints it."""
 
     out = ["| log | reference apogee (s) | ± (s) | altitude AGL (m) | curvature (m/s²) | spikes rejected "
-           "| AltOS apogee (s) | AltOS − reference (s) |", "|---|---|---|---|---|---|---|---|"]
+           "| own computer's apogee (s) | own − reference (s) |", "|---|---|---|---|---|---|---|---|"]
     for path in paths:
         rec = read_flight(path, format=format)
         ref = reference_apogee(rec)
-        altos = rec.events.get("altos_apogee")
+        own = rec.own_apogee()
         warn = " ⚠" if "warning" in ref.notes else ""
         curv = ref.notes.get("curvature_mps2")
         out.append(f"| {rec.name} | {ref.time_s:.3f}{warn} | {ref.uncertainty_s:.3f} | {ref.altitude_m:.1f} | "
                    + ("—" if curv is None else f"{curv:.1f}") + f" | {ref.notes.get('spikes_rejected', 0)} | "
-                   + ("— | — |" if altos is None else f"{altos:.2f} | {altos - ref.time_s:+.2f} |"))
+                   + ("— | — |" if own is None else f"{own[0]} {own[1]:.2f} | {own[1] - ref.time_s:+.2f} |"))
     return "\n".join(out)
 
 

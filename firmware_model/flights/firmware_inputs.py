@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from firmware_model.flights.apogee_reference import ground_pressure, liftoff_time
+from firmware_model.flights.readers._common import show
 from firmware_model.flights.record import FlightRecord
 from firmware_model.flights.resample import ResampleReport, resample
 from firmware_model.flights.sensors import AccelSensor, BaroSensor
@@ -30,6 +31,14 @@ from firmware_model.spec.config import BuildConfig
 
 #: Seconds of pad before liftoff in the default stream.
 DEFAULT_PAD_S: float = 2.0
+#: Longest interval between two log rows the resampler bridges (interpolates / holds across) inside the stream's
+#: span; a longer one (a clock jump, a logger pause) is refused naming its line. docs/flights.md, "Gaps".
+MAX_GAP_S: float = 2.0
+#: Most grid samples one stream may hold (2^24: 128 MiB per float64 column), whatever the log's time span.
+MAX_SAMPLES: int = 1 << 24
+#: What to do with the accelerometer of a log that starts after liftoff: "nominal" = its pad value is the
+#: sensor's nominal 1 g; "refuse" = the stream has no accelerometer.
+LATE_START: tuple[str, ...] = ("nominal", "refuse")
 
 
 @dataclass
@@ -105,23 +114,106 @@ def _pad_value(t: np.ndarray, y: np.ndarray, liftoff: float) -> float:
     return float(y[ok][0])
 
 
+def _where(record: FlightRecord, i: int) -> str:
+    """``file:line`` of row ``i`` when the record knows its lines, else ``name: row i``."""
+    src = record.provenance.get("source", record.name)
+    lines = record.row_lines
+    if lines is not None and 0 <= i < len(lines):
+        return f"{src}:{int(lines[i])}"
+    return f"{src}: row {i}"
+
+
+def check_span(record: FlightRecord, a: float, b: float, k: int, max_gap_s: float = MAX_GAP_S) -> None:
+    """Refuse, before anything is allocated, a stream whose span holds a gap longer than ``max_gap_s`` between two
+    rows (``file:line`` of the row after it) or more than :data:`MAX_SAMPLES` grid samples."""
+    t = np.asarray(record.time_s, dtype=np.float64)
+    d = np.diff(t)
+    inside = (t[1:] > a) & (t[:-1] < b)
+    big = np.nonzero((d > max_gap_s) & inside)[0]
+    if big.size:
+        i = int(big[0]) + 1
+        raise UserError(f"{_where(record, i)}: time jumps by {show(round(float(d[i - 1]), 6))} s "
+                        f"({show(float(t[i - 1]))} -> {show(float(t[i]))} s): more than the {show(max_gap_s)} s the "
+                        f"resampler bridges" + (f" ({big.size} such gaps)" if big.size > 1 else "")
+                        + "; cut the log before it or fix the clock")
+    n = (b - a) * float(1 << int(k)) if 0 <= int(k) <= 16 else 0.0
+    if n > MAX_SAMPLES:
+        raise UserError(f"{record.provenance.get('source', record.name)}: {show(round(b - a, 3))} s at 2^-{k} s is "
+                        f"{n:.3g} samples, more than {MAX_SAMPLES}: shorten the span (t_end)")
+
+
+def _end_before_gap(record: FlightRecord, a: float, b: float, max_gap_s: float) -> tuple[float, str]:
+    """The default end of the stream: the log's last row, or the row before the first gap longer than
+    ``max_gap_s`` when that gap comes 3 s or more after the lowest pressure (the apogee) of the rows before it: a
+    logger that slows down or pauses after the flight (an AltOS nose cone still logging 37 minutes later) ends the stream there,
+    said in the report. A gap before the apogee is left to :func:`check_span` (refused)."""
+    t = np.asarray(record.time_s, dtype=np.float64)
+    p = np.asarray(record.pressure_pa, dtype=np.float64)
+    d = np.diff(t)
+    big = np.nonzero((d > max_gap_s) & (t[1:] > a))[0]
+    if not big.size:
+        return b, ""
+    i = int(big[0])
+    ok = np.isfinite(p[: i + 1])
+    if not ok.any() or t[i] <= a:
+        return b, ""
+    top = int(np.argmin(np.where(ok, p[: i + 1], np.inf)))
+    if t[top] + 3.0 > t[i]:     # the reference fits up to 2.5 s either side of the peak
+        return b, ""
+    return float(t[i]), (f"the stream ends at {show(float(t[i]))} s ({_where(record, i)}): the next row comes "
+                         f"{show(round(float(d[i]), 6))} s later (more than the {show(max_gap_s)} s bridged), after "
+                         f"the flight's highest point ({t[top]:.2f} s)")
+
+
+def late_start(record: FlightRecord, lift: float) -> str | None:
+    """Why the log is judged to start after liftoff (no pad to calibrate on), or None when it has a pad: fewer
+    than 10 rows before liftoff, or a median specific force over them more than 0.15 g from 1 g."""
+    t = np.asarray(record.time_s, dtype=np.float64)
+    before = t < lift
+    if int(before.sum()) < 10:
+        return f"{int(before.sum())} rows before liftoff ({lift:g} s)"
+    f = record.specific_force_mps2()
+    if f is not None:
+        ok = before & np.isfinite(f)
+        if ok.any():
+            g = float(np.median(f[ok])) / G0
+            if abs(g - 1.0) > 0.15:
+                return (f"the accelerometer reads {g:.2f} g before liftoff, not 1 g: already accelerating, "
+                        "or not the rocket's axis")
+    return None
+
+
 def firmware_inputs(record: FlightRecord, k: int, baro: BaroSensor | None = None, accel: AccelSensor | None = None,
                     method: str = "linear", seed: int = 0, t_start: float | None = None,
-                    t_end: float | None = None, pad_s: float = DEFAULT_PAD_S) -> FirmwareInputs:
+                    t_end: float | None = None, pad_s: float = DEFAULT_PAD_S, max_gap_s: float = MAX_GAP_S,
+                    late: str = "nominal") -> FirmwareInputs:
     """Build the firmware's input streams for ``record`` at dt = 2^-k.
 
-    ``baro``: default TeleMetrum v1 (16-bit word, the exact README formula); ``accel``: default the firmware's
-    default build (2048 counts/g, +-16 g). ``t_start`` default ``liftoff - pad_s``; ``t_end`` default the log's last
-    row. ``seed``: noise generator seed (used only if a sensor has noise)."""
-    baro = baro or BaroSensor.preset("telemetrum_v1")
+    ``baro``: default the record's own sensor where the reader names a preset (``provenance["baro_preset"]``:
+    AltOS .eeprom -> ``ms5607``, the device's integer pascals), else TeleMetrum v1 (16-bit word, the exact README
+    formula); ``accel``: default the firmware's default build (2048 counts/g, +-16 g). ``t_start`` default
+    ``liftoff - pad_s``; ``t_end`` default the log's last row. ``seed``: noise generator seed (used only if a
+    sensor has noise). ``max_gap_s``: see :func:`check_span`. ``late``: a log that starts after liftoff
+    (:func:`late_start`) gets its accelerometer's pad value from the sensor's nominal 1 g (``"nominal"``) or no
+    accelerometer (``"refuse"``); the report says which."""
+    if late not in LATE_START:
+        raise UserError(f"late start {late!r}: known: {', '.join(LATE_START)}")
+    baro = baro or BaroSensor.preset(record.provenance.get("baro_preset") or "telemetrum_v1")
     accel = accel or AccelSensor.preset("default")
     t = np.asarray(record.time_s, dtype=np.float64)
     lift = liftoff_time(record)
     a = lift - pad_s if t_start is None else float(t_start)
     b = float(t[-1]) if t_end is None else float(t_end)
+    cut_note = ""
+    if t_end is None:
+        b, cut_note = _end_before_gap(record, a, b, max_gap_s)
     if b <= a:
-        raise UserError(f"{record.name}: empty time span {a} .. {b} s")
+        raise UserError(f"{record.name}: empty time span {show(a)} .. {show(b)} s")
+    check_span(record, a, b, k, max_gap_s)
     f = record.specific_force_mps2()
+    late_why = late_start(record, lift)
+    if late_why and f is not None and late == "refuse":
+        f = None
     cols: dict[str, np.ndarray | None] = {"pressure_pa": np.asarray(record.pressure_pa, dtype=np.float64),
                                           "accel_mps2": f}
     tr = record.truth
@@ -131,7 +223,14 @@ def firmware_inputs(record: FlightRecord, k: int, baro: BaroSensor | None = None
     before = g < t[0]
     pads = {"pressure_pa": _pad_value(t, cols["pressure_pa"], lift)}
     if f is not None:
-        pads["accel_mps2"] = _pad_value(t, f, lift)
+        pads["accel_mps2"] = G0 if late_why else _pad_value(t, f, lift)
+    if late_why:
+        report.notes.append(f"the log starts after liftoff ({late_why}): "
+                            + ("accelerometer REFUSED (no accelerometer in the stream)" if late == "refuse" and
+                               record.specific_force_mps2() is not None else
+                               "accelerometer pad value = the sensor's nominal 1 g" if f is not None else
+                               "no accelerometer")
+                            + "; ground pressure from the first rows (the rocket may already be above the pad)")
     if before.any():
         for name, value in pads.items():
             out[name][before] = value
@@ -142,6 +241,8 @@ def firmware_inputs(record: FlightRecord, k: int, baro: BaroSensor | None = None
         report.notes.append(f"{int(before.sum())} samples before the log's first row (t < {t[0]:g} s) filled with "
                             f"the pad values (pressure {pads['pressure_pa']:.1f} Pa"
                             + (f", specific force {pads['accel_mps2']:.3f} m/s^2)" if f is not None else ")"))
+    if cut_note:
+        report.notes.append(cut_note)
     rng = np.random.default_rng(seed)
     adc = baro.counts(out["pressure_pa"], rng)
     clipped = {"baro": int(np.sum((adc <= (0 if baro.kind == "adc" else np.ceil(baro.p_min_pa)))
@@ -163,4 +264,5 @@ def firmware_inputs(record: FlightRecord, k: int, baro: BaroSensor | None = None
                           clipped=clipped)
 
 
-__all__ = ["DEFAULT_PAD_S", "FirmwareInputs", "firmware_inputs", "G0"]
+__all__ = ["DEFAULT_PAD_S", "FirmwareInputs", "LATE_START", "MAX_GAP_S", "MAX_SAMPLES", "check_span",
+           "firmware_inputs", "late_start", "G0"]

@@ -54,7 +54,8 @@ def _spans(t: np.ndarray, mask: np.ndarray) -> list[tuple[float, float]]:
 
 
 def plot_run(run: Any, *, zoom: bool = False, title: str = "", reference_s: float | None = None,
-             altos_s: float | None = None, zoom_halfwidth_s: float | None = None) -> bytes:
+             altos_s: float | None = None, zoom_halfwidth_s: float | None = None,
+             own_computer: str = "AltOS") -> bytes:
     """PNG of a run (:class:`firmware_model.flights.runcsv.RunTable`: ``time_s``, ``raw_altitude_m``,
     ``filtered_altitude_m``, ``velocity_mps``, ``events``, ``event_times()``)."""
 
@@ -92,7 +93,7 @@ def plot_run(run: Any, *, zoom: bool = False, title: str = "", reference_s: floa
         if name in styles and when is not None and lo_t <= when <= hi_t:
             c, ls = styles[name]
             handles.append(ax.axvline(when, color=c, ls=ls, lw=1.2, label=f"{name.lower()} {when:.3f} s"))
-    for label, when, c in (("reference apogee", reference_s, "C2"), ("AltOS apogee", altos_s, "C5")):
+    for label, when, c in (("reference apogee", reference_s, "C2"), (f"{own_computer} apogee", altos_s, "C5")):
         if when is not None and lo_t <= when <= hi_t:
             handles.append(ax.axvline(when, color=c, ls="-.", lw=1.2, label=f"{label} {when:.3f} s"))
     ax.set_xlabel("time (s, the log's own origin)")

@@ -20,14 +20,16 @@ from __future__ import annotations
 from collections.abc import Iterable, Sequence
 
 import numpy as np
+from hypothesis import assume
 from hypothesis import strategies as st
 
-from firmware_model.flights.sim1dof import Box, Launch, rocket_from_unit, simulate_1dof
+from firmware_model.flights.pressure_errors import BARO_ERROR_RANGES, draw_error_model, real_flight_errors
+from firmware_model.flights.sim1dof import Box, Launch, mach_of, rocket_from_unit, simulate_1dof
 from firmware_model.spec.atmosphere import pressure_pa
 from firmware_model.spec.config import PROGRAMS, ROUNDINGS, BuildConfig
 
 __all__ = ["build_configs", "adc_streams", "accel_streams", "edge_streams", "flight_like_streams", "flights",
-           "pascal_streams", "pascal_flight_streams"]
+           "supersonic_flights", "pascal_streams", "pascal_flight_streams"]
 
 
 def build_configs(programs: Sequence[str] = PROGRAMS, k: Iterable[int] = range(4, 9),
@@ -207,6 +209,40 @@ def flights(mach: tuple[float, float] = (0.15, 0.8), motors: Sequence[str] = ("K
                                            record_hz=record_hz, internal_hz=internal_hz))[0]
         assume(mach[0] <= rec.provenance["summary"]["max_mach"] <= mach[1])
         return rec
+
+    return _flight()
+
+
+def supersonic_flights(mach: tuple[float, float] = (0.95, 2.0),
+                       motors: Sequence[str] = ("L1350", "M1670", "M6400", "M2245"),
+                       site_altitude_m: tuple[float, float] = (0.0, 1500.0), pad_s: tuple[float, float] = (0.5, 2.0),
+                       descent_s: float = 3.0, record_hz: float = 100.0, internal_hz: float = 1000.0,
+                       drogue_delay_s: tuple[float, float] = (0.0, 1.0)):
+    """Fast 1-DOF flights (peak Mach in ``mach``, default 0.95..2: transonic and supersonic) **with the barometer
+    errors of real flight** (:func:`firmware_model.flights.pressure_errors.real_flight_errors`): every parameter
+    of the error model drawn uniformly from :data:`~firmware_model.flights.pressure_errors.BARO_ERROR_RANGES`
+    (transonic dip, shock jump of either sign, noise bursts at burnout and deployment, ejection spike), the noise
+    seeded by the draw, a drogue delay in ``drogue_delay_s``. Rockets as :func:`flights` over ``motors`` (scaled
+    in thrust and time). Each example is a :class:`FlightRecord` whose ``truth`` is the error-free flight and
+    whose ``provenance["effects"][-1]`` lists the error model and its largest dip; the Mach series is
+    ``sim1dof.mach_of(record)``. About 0.1 s per flight with numba."""
+    box = Box(motors=tuple(motors), mach=tuple(mach), site_altitude_m=tuple(site_altitude_m))
+    unit = st.floats(0.0, 1.0, exclude_max=True, allow_nan=False)
+
+    @st.composite
+    def _flight(draw: st.DrawFn):
+        u = [draw(unit) for _ in range(8)]
+        rocket = rocket_from_unit(u, box, name="hypothesis-supersonic")
+        assume(rocket is not None)
+        site = box.site_altitude_m[0] + (box.site_altitude_m[1] - box.site_altitude_m[0]) * u[7]
+        pad = draw(st.floats(pad_s[0], pad_s[1], allow_nan=False))
+        delay = draw(st.floats(drogue_delay_s[0], drogue_delay_s[1], allow_nan=False))
+        rec = simulate_1dof(rocket, Launch(site_altitude_m=site, pad_s=pad, descent_s=descent_s,
+                                           drogue_delay_s=delay, record_hz=record_hz, internal_hz=internal_hz))[0]
+        assume(mach[0] <= rec.provenance["summary"]["max_mach"] <= mach[1])
+        model = draw_error_model(u=[draw(unit) for _ in BARO_ERROR_RANGES])
+        seed = draw(st.integers(0, 2**32 - 1))
+        return real_flight_errors(rec, mach_of(rec), model=model, seed=seed)
 
     return _flight()
 

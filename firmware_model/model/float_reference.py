@@ -414,7 +414,7 @@ def ideal_kalman(cfg: "BuildConfig", adc: np.ndarray, acc: np.ndarray | None = N
 
 
 def ideal_recursive(consts: "FirmwareConstants", adc: np.ndarray) -> np.ndarray:
-    """Seed 000's intended recursive filter ``P[n+1] = x * ADC + (1 - x) * P[n]`` (x = 2^-S) on ``z =
+    """The intended recursive filter of Schultz 2002 ``P[n+1] = x * ADC + (1 - x) * P[n]`` (x = 2^-S) on ``z =
     BARO_SIGN * adc``, in word scale (x 256), starting from ``P = z0 * 256`` and seeing sample 0 again in the
     first step like the firmware. Returns float64 of the input's shape."""
     a, _, one = _inputs(adc, None)

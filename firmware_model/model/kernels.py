@@ -89,7 +89,7 @@ P_KALMAN_BARO = 2
 P_KALMAN_ACCEL = 3
 PROGRAMS: tuple[str, ...] = ("recursive", "recursive_seed_literal", "kalman_baro", "kalman_accel")
 
-#: State indices. Recursive (and the seed listing, which uses EST only):
+#: State indices. Recursive (and the Schultz 2002 listing, which uses EST only):
 EST = 0
 EXT = 1
 VEL = 2
@@ -359,7 +359,7 @@ def seed_literal_init(st, adc, acc, c):  # type: ignore[no-untyped-def]
 
 @njit(cache=True, inline="always")
 def seed_literal_step(st, adc, acc, c):  # type: ignore[no-untyped-def]
-    """Seed 000's listing as written: EST += rs(EST, S) - (z << (8 - S)); no flight logic."""
+    """The Schultz 2002 listing as written: EST += rs(EST, S) - (z << (8 - S)); no flight logic."""
     S = c[C_S]
     est = st[EST]
     est = est + rs(est, S, c[C_ROUND]) - ((adc * c[C_BARO_SIGN]) << (8 - S))

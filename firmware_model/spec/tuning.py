@@ -8,10 +8,14 @@ what the evaluation recommends. ``recommended_config("kalman_accel", 6)`` gives 
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 from firmware_model.runtime.errors import UserError
-from firmware_model.spec.config import BuildConfig
+from firmware_model.spec.config import BuildConfig, check_documented_range, load_config, read_config_file
+
+#: The tunings the commands take (``--tuning``): the BuildConfig defaults, or :data:`RECOMMENDED`.
+TUNINGS: tuple[str, ...] = ("default", "recommended")
 
 #: Overrides of the BuildConfig defaults per program, for k = 5..7 (the evaluated range).
 RECOMMENDED: dict[str, dict[int, dict[str, Any]]] = {
@@ -38,4 +42,41 @@ def recommended_config(program: str, k: int, **overrides: Any) -> BuildConfig:
     return BuildConfig(program=program, k=k, **fields)
 
 
-__all__ = ["RECOMMENDED", "recommended_config"]
+def tuning_fields(program: str, k: int, tuning: str = "default") -> dict[str, Any]:
+    """The BuildConfig fields ``tuning`` sets for ``program`` at ``k``: none for ``default``; for ``recommended``
+    :data:`RECOMMENDED`'s entry (empty for a program or k without one: the defaults are kept)."""
+    if tuning not in TUNINGS:
+        raise UserError(f"--tuning {tuning!r}: known: {', '.join(TUNINGS)}")
+    if tuning == "default":
+        return {}
+    return dict(RECOMMENDED.get(program, {}).get(k, {}))
+
+
+def describe_tuning(program: str, k: int, tuning: str) -> str:
+    """One line for a command's output: which tuning, and what it set."""
+    if tuning == "default":
+        return "tuning: default (the BuildConfig defaults)"
+    fields = tuning_fields(program, k, tuning)
+    if not fields:
+        return f"tuning: recommended has no entry for {program} at k={k}: the defaults are kept"
+    return "tuning: recommended (" + ", ".join(f"{name}={value}" for name, value in fields.items()) + ")"
+
+
+def load_tuned_config(path: str | Path | None, overrides: dict[str, Any] | None, tuning: str = "default",
+                      flag_names: dict[str, str] | None = None) -> BuildConfig:
+    """:func:`config.load_config` with a tuning under it: the BuildConfig defaults, then the tuning's fields for
+    the program and k that the file and flags choose, then the file, then the flags (so anything written in
+    the file or given as a flag wins over the tuning)."""
+    cfg = load_config(path, overrides, flag_names)
+    tuned = tuning_fields(cfg.program, cfg.k, tuning)
+    if not tuned:
+        return cfg
+    data = read_config_file(path) if path is not None else {}
+    given = {key: value for key, value in (overrides or {}).items() if value is not None}
+    where = str(path) if path is not None else "build config"
+    out = BuildConfig.from_dict(tuned | data | given, where=where)
+    check_documented_range(out, where)
+    return out
+
+
+__all__ = ["RECOMMENDED", "TUNINGS", "recommended_config", "tuning_fields", "describe_tuning", "load_tuned_config"]

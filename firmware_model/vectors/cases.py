@@ -42,7 +42,7 @@ MATRIX_BITS: tuple[int, ...] = (12, 16)
 EDGE_SAMPLES: int = 32
 #: Seed of the synthetic flight of the committed set (one flight profile, sampled at every k).
 FLIGHT_SEED: int = 20240601
-#: Programs that get the synthetic flight (the seed-literal filter diverges; it gets the edge streams only).
+#: Programs that get the synthetic flight (the literal Schultz 2002 listing diverges; it gets the edge streams only).
 FLIGHT_PROGRAMS: tuple[str, ...] = ("recursive", "kalman_baro", "kalman_accel")
 #: The fast (transonic) flight: Kalman programs only, 16-bit barometer, these k (it is long: ~20 s).
 FAST_FLIGHT_PROGRAMS: tuple[str, ...] = ("kalman_baro", "kalman_accel")

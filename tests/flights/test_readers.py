@@ -212,7 +212,8 @@ def test_empty_and_unknown(tmp_path: Path) -> None:
     (tmp_path / "o.csv").write_text("time_s,pressure_pa\n")
     with pytest.raises(UserError, match=r"o\.csv:1: no data rows"):
         read_flight(tmp_path / "o.csv")
-    assert FORMATS == ("altosui", "cats", "rdas", "generic")
+    assert set(FORMATS) >= {"altosui", "cats", "rdas", "generic", "eeprom", "cats_raw", "rrc3", "eggtimer", "raven",
+                            "board", "columns"}
 
 
 ALTOS_V6_HEAD = ("#version,serial,flight,call,time,state,state_name,acceleration,pressure,altitude,height,speed,"

@@ -267,6 +267,7 @@ def test_scenario_is_in_its_class_and_deterministic(name):
     kinds = [e["effect"] for e in rec.provenance.get("effects", [])]
     assert ("transonic_pressure_error" in kinds) == (s.transonic is not None)
     assert ("pressure_spikes" in kinds) == (s.spikes is not None)
+    assert ("real_flight_errors" in kinds) == (s.baro_errors is not None)
     again, mach = sc._simulate_physics(s)
     assert _digest(sc._apply_effects(s, again, mach)) == _digest(rec)
 
@@ -365,6 +366,7 @@ def test_rocketpy_scenario_is_in_its_class(name):
     assert 250.0 <= rec.truth.apogee_altitude_m <= 10_500.0
     kinds = [e["effect"] for e in rec.provenance.get("effects", [])]
     assert ("transonic_pressure_error" in kinds) == (s.transonic is not None)
+    assert ("real_flight_errors" in kinds) == (s.baro_errors is not None)
 
 
 def test_same_bytes_in_a_fresh_process():

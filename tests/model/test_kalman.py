@@ -311,7 +311,7 @@ def test_wrap_detected_outside_the_design_range():
 
 
 # ---------------------------------------------------------------------------------------------------- transonic flight
-# Spec §6 (history: kalman_baro used to lock out too, and kalman_accel's seed-002 lockout set X1 to the measurement;
+# Spec §6 (history: kalman_baro used to lock out too, and kalman_accel's lockout (Schultz n.d.) set X1 to the measurement;
 # the field-ready change replaced the lockout by transonic barometer gains in kalman_accel and an innovation gate). The transonic flight of the committed vectors: 14 g for 2.5 s, peak ~307 m/s,
 # the barometer reads 60 m high while the true speed is in 290..375 m/s (a step up entering, down leaving).
 def _fast_flight(program: str, k: int, rounding: str, error_m: float = 60.0):

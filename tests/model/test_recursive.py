@@ -98,7 +98,7 @@ def test_recursive_shift_invariant_exactly(cfg, data):
 
 
 def test_seed_literal_listing_diverges_while_recursive_tracks_float_reference():
-    """Seed 000's listing (EST += EST/32 - 8 ADC) leaves the intended filter P += x(ADC - P) within a few hundred
+    """The Schultz 2002 listing (EST += EST/32 - 8 ADC) leaves the intended filter P += x(ADC - P) within a few hundred
     samples and wraps; ours stays within the derived bound of it on the same input."""
     rng = np.random.default_rng(0)
     adc = np.clip(np.round(40000 + rng.normal(0, 3, 2000)), 0, 65535).astype(np.int64)
@@ -161,7 +161,7 @@ def test_bad_input_is_a_user_error(adc, acc, msg):
 
 # ---------------------------------------------------------------------------------------------------- flight logic
 # Spec §5 step 3 (history: before the fix ARMED latched on the LIFTOFF sample because V_LIFT < V_GATE, so the gate
-# did nothing). Seed 000 "Algorithm Testing": apogee detection is enabled ("Velocity Gate Off") once the
+# did nothing). Schultz 2002, "Algorithm Testing": apogee detection is enabled ("Velocity Gate Off") once the
 # accelerometer velocity has come back DOWN below ~200 ft/s after burnout.
 FLIGHT_SEEDS = (20240601, 1, 2, 3)     # the committed vector flight's seed and three more
 

@@ -168,7 +168,7 @@ def _run_recursive(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc:
 
 def _run_seed_literal(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np.ndarray,
                       tr: _WrapTracker) -> tuple[np.ndarray, np.ndarray]:
-    """Seed 000's pseudo-listing as written (step 4 with the subtraction backwards, no flight logic)."""
+    """The pseudo-listing of Schultz 2002 as written (step 4 with the subtraction backwards, no flight logic)."""
     n_streams, n = adc.shape
     S = int(consts.S)
     z = adc * np.int64(consts.BARO_SIGN)

@@ -126,7 +126,7 @@ def read(path: Path) -> FlightRecord:
         p = np.asarray(pressure_pa(raw), dtype=np.float64)
     bad = np.nonzero(~(p > 0) & np.isfinite(p))[0]
     if bad.size:
-        raise fail(path, line_of[int(bad[0])], f"{baro[0]}: {raw[bad[0]]!r} gives a pressure <= 0 Pa")
+        raise fail(path, line_of[int(bad[0])], f"{baro[0]}: {rows[int(bad[0])][1][idx[baro[0]]].strip()} gives a pressure <= 0 Pa")
     acc = None
     if accel:
         acc = values[accel[0]] * (G0 if accel[0] == "accel_g" else 1.0)
@@ -169,7 +169,7 @@ def read(path: Path) -> FlightRecord:
     }
     return FlightRecord(name=meta.get("name", path.stem), time_s=t, pressure_pa=p, accel_mps2=acc,
                         temperature_c=values.get("temperature_c"), ground_pressure_pa=ground, truth=truth,
-                        provenance=provenance)
+                        provenance=provenance, row_lines=np.asarray(line_of))
 
 
 def _fmt(x: float) -> str:

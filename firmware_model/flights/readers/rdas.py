@@ -1,6 +1,6 @@
 """RDAS text exports (AED Electronics RDAS; the data files of Schultz 2002 and Schultz n.d.).
 
-No RDAS file is in ../shared/flights, so this reader follows what the seeds' programs read (Schultz 2002 Appendix A
+No RDAS file is in ../shared/flights, so this reader follows what Schultz's programs read (Schultz 2002 Appendix A
 ``RDASfilter.c`` and Appendix B ``kapogee.c``: ``sscanf(buf, "%s %lf %lf %d")``) and documents every assumption
 (docs/flights.md, "RDAS"):
 
