@@ -93,7 +93,7 @@ def test_dask_worker_killed_mid_run_gives_the_rows_of_an_unkilled_run(tmp_path):
         res = run_montecarlo(spec, 9, n, tmp_path / "dask", Backend("dask", 2, cluster.scheduler_address),
                              fmt="csv", progress=kill_one, figures=False)
         assert killed
-        client.wait_for_workers(2, timeout=60)
+        client.wait_for_workers(2, timeout=180)
         after = client.run(os.getpid)
         assert killed[0] not in after.values()       # that worker process is gone (the nanny started another)
     assert res.flights == n
