@@ -187,21 +187,23 @@ def _run_dask(fn: Callable[[Any], Any], chunks: Sequence[Any], todo: list[int], 
         if backend.address is None:
             cluster = distributed.LocalCluster(n_workers=backend.workers, threads_per_worker=1, processes=True,
                                                dashboard_address=None, silence_logs=40)
-            client = distributed.Client(cluster)
+            client = distributed.Client(cluster, set_as_default=False)
         else:
             try:
-                client = distributed.Client(backend.address, timeout="20s")
+                client = distributed.Client(backend.address, timeout="20s", set_as_default=False)
             except (OSError, TimeoutError) as exc:
                 raise UserError(f"--scheduler {backend.address}: cannot connect: {exc}") from None
         if on_start:
             on_start(backend.describe())
         token = hashlib.sha256(os.urandom(16)).hexdigest()[:12]
         futs = {client.submit(fn, chunks[i], key=f"fwemu-chunk-{i}-{token}", pure=False): i for i in todo}
-        for fut in distributed.as_completed(list(futs)):
+        # everything through this run's own client and its event loop: the process may hold other clients (a
+        # caller's, the default one), and a future awaited on another client's loop fails
+        for fut in distributed.as_completed(list(futs), loop=client.loop):
             raise_if_interrupted()
             i = futs[fut]
             try:
-                res = fut.result()
+                res = client.gather(fut)
             except distributed.KilledWorker as exc:
                 raise UserError(f"engine: chunk {i} took down its Dask worker too often ({exc})") from None
             fut.release()
