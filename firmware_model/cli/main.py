@@ -39,6 +39,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "firmware_model.cli.sweep",
     "firmware_model.cli.check_port",
     "firmware_model.cli.reconstruct",
+    "firmware_model.cli.montecarlo",
 )
 
 

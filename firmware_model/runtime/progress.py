@@ -25,15 +25,16 @@ class Progress:
     ``label [####....] done/total unit rate/s what``, redrawn at most every ``interval`` seconds.
 
     ``step(what, amount)`` counts work done; ``update(done, total)`` sets it (the harness's callback);
-    ``close()`` ends the line."""
+    ``close()`` ends the line. ``eta``: also show the time left at the mean rate so far."""
 
     def __init__(self, total: int, label: str, enabled: bool | None = None, unit: str = "samples",
-                 interval: float = 0.1) -> None:
+                 interval: float = 0.1, eta: bool = False) -> None:
         self.total = max(total, 1)
         self.label = label
         self.unit = unit
         self.enabled = sys.stderr.isatty() if enabled is None else enabled
         self.interval = interval
+        self.eta = eta
         self.done = 0
         self.t0 = time.monotonic()
         self._last = -1.0
@@ -62,6 +63,9 @@ class Progress:
         width = 30
         fill = int(width * min(self.done, self.total) / self.total)
         rate = self.done / max(now - self.t0, 1e-9)
+        if self.eta:
+            left = (self.total - self.done) / rate if rate > 0 else float("nan")
+            what = (f"ETA {left:,.0f} s" if left == left else "ETA -") + (f"  {what}" if what else "")
         sys.stderr.write(f"\r{self.label} [{'#' * fill}{'.' * (width - fill)}] {self.done:,}/{self.total:,} "
                          f"{self.unit} {rate:,.0f}/s {what[:40]:<40}")
         sys.stderr.flush()

@@ -1,0 +1,110 @@
+"""Run a Monte Carlo: cut the flights into chunks, hand them to the engine, commit each chunk's rows as it comes,
+merge, summarise (docs/montecarlo.md).
+
+Output folder ``OUT``:
+
+* ``chunks/``: ``run.json`` (the run's fingerprint) and ``chunk-NNNNNN.parquet|csv``, one per chunk of
+  ``chunk_flights`` flights, each committed atomically the moment its worker returns it (``--resume`` skips them);
+* ``rows.parquet`` (or ``rows.csv``): every chunk in index order, one row per (flight, method, tuning);
+* ``summary.md`` / ``summary.json``: per method and tuning the error distribution and the event probabilities
+  with Wilson intervals; ``error_cdf.png``, ``error_vs_dispersion.png``.
+
+Chunks are cut by flight id (chunk i = flights i*c .. i*c+c-1), independent of the backend and the number of
+workers, so the merged rows are byte-identical for any of them.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+from firmware_model.runtime.errors import UserError
+from firmware_model.flights.montecarlo import pipeline
+from firmware_model.flights.montecarlo.results import (encode, have_pyarrow, merge, read_rows, summarize,
+                                                       write_figures, write_summary)
+from firmware_model.flights.montecarlo.spec import distributions, fingerprint, is_dispersed, slot_names
+from firmware_model.runtime.engine import Backend, ChunkStore, run_chunks
+
+_SOURCES = ("pipeline.py", "sim.py", "spec.py", "results.py")
+
+
+def code_version() -> str:
+    """Hash of the Monte Carlo sources (a resume across a code change is refused)."""
+    h = hashlib.sha256()
+    here = Path(__file__).resolve().parent
+    for name in _SOURCES:
+        h.update((here / name).read_bytes())
+    return h.hexdigest()[:16]
+
+
+@dataclass
+class RunResult:
+    folder: Path
+    rows_path: Path
+    summary: list[dict[str, Any]]
+    flights: int
+    chunks: int
+    resumed_chunks: int
+    wall_s: float
+    seconds: dict[str, float] = field(default_factory=dict)   # summed over chunks computed in this run
+    backend: str = ""
+
+
+def make_tasks(spec: dict[str, Any], seed: int, n: int, threads: int | None = None) -> list[dict[str, Any]]:
+    c = spec["chunk_flights"]
+    return [{"spec": spec, "seed": seed, "flights": list(range(a, min(a + c, n))), "threads": threads}
+            for a in range(0, n, c)]
+
+
+def run_montecarlo(spec: dict[str, Any], seed: int, n: int, out: Path, backend: Backend = Backend(),
+                   fmt: str | None = None, resume: bool = False,
+                   progress: Callable[[int, int, float], None] | None = None,
+                   figures: bool = True) -> RunResult:
+    """Run ``n`` flights of ``spec`` with master seed ``seed`` into ``out``. ``progress(flights_done, n,
+    seconds)`` after every chunk (resumed chunks count as done at the start)."""
+    if not isinstance(n, int) or n < 1:
+        raise UserError(f"-n {n!r}: a positive number of flights")
+    fmt = fmt or ("parquet" if have_pyarrow() else "csv")
+    if fmt == "parquet" and not have_pyarrow():
+        raise UserError("--format parquet needs pyarrow: pip install 'fwemu[montecarlo]' (or --format csv)")
+    out = Path(out)
+    multi = backend.kind == "dask" or backend.workers > 1
+    tasks = make_tasks(spec, seed, n, threads=1 if multi else None)
+    fp = {"spec": fingerprint(spec), "seed": seed, "flights": n, "chunk_flights": spec["chunk_flights"],
+          "format": fmt, "code": code_version()}
+    store = ChunkStore(out / "chunks", fp, fmt, resume=resume)
+    done = store.done()
+    start = time.perf_counter()
+    n_done = sum(len(tasks[i]["flights"]) for i in done if i < len(tasks))
+    if progress:
+        progress(n_done, n, 0.0)
+    seconds: dict[str, float] = {}
+    pipeline.plan_for(spec)          # refuse a bad spec here, before any worker starts
+    for i, res in run_chunks(pipeline.run_task, tasks, backend, skip=done):
+        store.commit(i, encode(res["rows"], fmt))
+        for k, v in res["seconds"].items():
+            seconds[k] = seconds.get(k, 0.0) + v
+        n_done += len(tasks[i]["flights"])
+        if progress:
+            progress(n_done, n, time.perf_counter() - start)
+    wall = time.perf_counter() - start
+    rows_path = out / f"rows.{fmt}"
+    merge([store.path(i) for i in range(len(tasks))], rows_path, fmt)
+    dists = distributions(spec)
+    dispersed = [p for p in slot_names(spec) if is_dispersed(dists[p])]
+    cols = read_rows(rows_path, ["method", "tuning", "status", "fired", "error_s", *pipeline.ROW_COLUMNS[12:]]
+                     + [f"p_{p}" for p in dispersed])
+    summary = summarize(cols, dispersed)
+    title = f"{spec['name']}, {n} flights, seed {seed}"
+    meta = {"spec": spec, "seed": seed, "flights": n, "backend": backend.describe(), "format": fmt,
+            "code": code_version()}
+    write_summary(out, summary, meta, title)
+    if figures:
+        write_figures(out, cols, summary, title)
+    return RunResult(out, rows_path, summary, n, len(tasks), len(done), wall, seconds, backend.describe())
+
+
+__all__ = ["RunResult", "code_version", "make_tasks", "run_montecarlo"]
