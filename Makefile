@@ -20,7 +20,7 @@ all: main
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q -e '.[test,plot,flights,fast]'
+	$(PY) -m pip install -q -e '.[test,plot,flights,fast,montecarlo]'
 	touch $(STAMP)
 
 venv: $(STAMP)

@@ -60,7 +60,7 @@ def _hysteresis(mach: np.ndarray, on: np.ndarray, off: np.ndarray) -> np.ndarray
 
 
 def _step_model(p: np.ndarray, mach: np.ndarray, prm: dict[str, np.ndarray]) -> np.ndarray:
-    """Seed 002's transonic step: while supersonic the barometer reads the standard pressure of an altitude
+    """Schultz n.d.'s transonic step: while supersonic the barometer reads the standard pressure of an altitude
     ``altitude_step_m`` higher (``width_mach`` > 0: blended over that Mach width around the switch, as the "ramp"
     shape of :mod:`firmware_model.flights.pressure_errors`)."""
     on, off, width = prm["mach_on"][:, None], prm["mach_off"][:, None], prm["width_mach"][:, None]

@@ -69,7 +69,7 @@ PRESET_PARAMS: dict[str, dict[str, Any]] = {"baro": BARO_PRESETS, "accel": ACCEL
 # --------------------------------------------------------------------------------------------- pressure errors
 #: Pluggable static-pressure error models: name -> {parameter: default}. A model is a function of
 #: (pressure, Mach, per-flight parameters) registered in :mod:`.pipeline` under the same name; its parameters are
-#: dispersed like the others (slots after :data:`PARAMETERS`, in this declared order). "step" is seed 002's step
+#: dispersed like the others (slots after :data:`PARAMETERS`, in this declared order). "step" is Schultz n.d.'s step
 #: in pressure altitude above Mach 1 (:func:`firmware_model.flights.pressure_errors.transonic_pressure_error`);
 #: "transonic_dip" is a stand-in for the signatures of real supersonic logs (the barometric altitude falls by
 #: 100-800 m during the transonic passage, pressure reading high, and jumps back when the shock passes the port:
