@@ -2,9 +2,10 @@
 
 Runs pytest in this process (default: ``tests/test_isa_vs_m68000py.py tests/test_isa_vs_musashi.py -n 0`` under
 the profile ``HYPOTHESIS_PROFILE`` names, ``ci`` by default) with :data:`oracles.DRAWN` set, so every case
-:func:`oracles.cases` builds is recorded, and prints per file: cases built, distinct CCR values, distinct
-D0-D7 patterns (all eight registers as one tuple), cases whose D0-D7 are all zero, distinct A0-A7 patterns and
-distinct placed addresses (memory operands, jump and return targets); ``--per-test`` also per test function.
+:func:`oracles.cases` builds is recorded, and prints per file: cases built, distinct CCR values, cases whose CCR
+is 0 / has Z set, distinct D0-D7 patterns (all eight registers as one tuple), cases whose D0-D7 are all zero,
+distinct A0-A7 patterns and distinct placed addresses (memory operands, jump and return targets); ``--per-test``
+also per test function.
 docs/testing.md, "Oracle tests: what the default profile draws", quotes its output."""
 
 from __future__ import annotations
@@ -47,7 +48,9 @@ def summary(name: str, drawn: list[tuple]) -> str:
     addresses = {t for c in drawn for t in c[4]}
     dzero = sum(1 for c in drawn if not any(c[1]))
     ccr0 = sum(1 for c in drawn if c[3] == 0)
-    return (f"{name}: {len(drawn)} cases; {len(ccrs)} distinct CCR values (CCR 0 in {ccr0}); {len(dpat)} distinct "
+    zset = sum(1 for c in drawn if c[3] & 0x04)
+    return (f"{name}: {len(drawn)} cases; {len(ccrs)} distinct CCR values (CCR 0 in {ccr0}, Z set in {zset}); "
+            f"{len(dpat)} distinct "
             f"D0-D7 patterns (all zero in {dzero}); {len(apat)} distinct A0-A7 patterns; {len(addresses)} distinct "
             f"placed addresses")
 

@@ -533,6 +533,18 @@ def value_of(nbytes: int) -> st.SearchStrategy[int]:
     return st.one_of(st.sampled_from(edges), st.integers(0, (1 << (8 * nbytes)) - 1))
 
 
+#: CCR values (X N Z V C) :func:`ccr_value` is biased towards: every one has Z set. A rule that keeps a flag is
+#: only tested when the flag is set going in (ADDX, SUBX and NEGX keep Z on a zero result; most instructions keep
+#: X): with these, Z is set in 3 of 4 drawn states instead of 1 of 2.
+EDGE_CCR = (0x1F, 0x04, 0x14, 0x0F, 0x15)
+
+
+@functools.lru_cache(maxsize=None)
+def ccr_value() -> st.SearchStrategy[int]:
+    """A CCR value (5 bits), about half the time one of :data:`EDGE_CCR`."""
+    return st.one_of(st.sampled_from(EDGE_CCR), st.integers(0, 0x1F))
+
+
 SHIFTS = ("asl", "asr", "lsl", "lsr", "rol", "ror", "roxl", "roxr")
 MEMORY_MODES = (Mode.AIND, Mode.APOSTINC, Mode.APREDEC, Mode.ADISP, Mode.AINDEX)
 ABSOLUTE_MODES = (Mode.ABSW, Mode.ABSL, Mode.PCDISP, Mode.PCINDEX)
@@ -623,7 +635,7 @@ def cases(draw, row, size: Size | None, first_mode: Mode | None, odd: bool = Fal
     d = [draw(u32()) for _ in range(8)]
     a = [draw(_a_value()) for _ in range(7)]
     a.append(draw(st.integers((DATA_LO + 0x400) // 2, (DATA_HI - 0x400) // 2)) * 2)
-    ccr = draw(st.integers(0, 0x1F))
+    ccr = draw(ccr_value())
     seed = draw(st.integers(0, 2**32 - 1))
     blocks: list[tuple[int, bytes]] = []
     nbytes = size_bytes(row, size)

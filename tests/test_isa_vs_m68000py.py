@@ -200,7 +200,7 @@ def test_single_example_cases_draw_random_states() -> None:
         oracles.DRAWN = before
     assert len(drawn) == 40
     assert not [c[0] for c in drawn if not any(c[1])], "cases drawn with D0-D7 all zero"
-    assert len({c[3] for c in drawn}) >= 10 and len({c[1] for c in drawn}) == 40
+    assert len({c[3] for c in drawn}) >= 8 and len({c[1] for c in drawn}) == 40
 
 
 def test_harness_detects_a_difference() -> None:
