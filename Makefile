@@ -45,7 +45,7 @@ tools:
 	fi
 
 # The golden vectors on Cortex-M0/M3/M4 (qemu-system-arm) at -Os and -O2: one closing line per core and level.
-# The same runs are tests in tests/test_c_port_mcu.py, so `make test` does not run them twice: pytest prints the
+# The same runs are tests in tests/vectors/test_c_port_mcu.py, so `make test` does not run them twice: pytest prints the
 # six closing lines in its "closing lines" section (tests/conftest.py). This target runs them alone.
 test-mcu: tools
 	@if command -v arm-none-eabi-gcc >/dev/null 2>&1 && command -v qemu-system-arm >/dev/null 2>&1; then \
@@ -71,9 +71,9 @@ evaluate: $(STAMP)
 main: vectors budget evaluate
 
 bench: $(STAMP)
-	$(PY) bench/bench_cpu.py
-	$(PY) bench/bench_model.py
-	$(PY) bench/bench_sim1dof.py
+	$(PY) -m bench.bench_cpu
+	$(PY) -m bench.bench_model
+	$(PY) -m bench.bench_sim1dof
 
 clean:
 	rm -rf $(VENV) build *.egg-info out

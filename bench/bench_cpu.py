@@ -5,7 +5,7 @@
    ``muldiv`` (MULS/MULU/DIVS/DIVU, DBRA). Ours is measured cold (a fresh process-wide code cache: decode and
    block compilation included) and warm (a new CPU on the same code: the steady state), best of ``--reps``.
 2. **Firmware**: ``kalman_accel`` (k=7) over ``synthetic_flight(7)``: samples/s of ours through
-   :func:`firmware_model.harness.run_firmware` (cold: first run in this process, no block code from the disk
+   :func:`firmware_model.firmware.harness.run_firmware` (cold: first run in this process, no block code from the disk
    cache; warm: best of ``--reps``)
    against Musashi running the same ROM image with a minimal harness (write the two input words, push a return
    address that holds a RESET, set PC to ``step``, execute, read the state words). The state words must be
@@ -36,14 +36,12 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tests"))
-sys.path.insert(0, str(ROOT))
 
-from firmware_model.blas_threads import single_threaded_blas  # noqa: E402
+from firmware_model.runtime.blas_threads import single_threaded_blas  # noqa: E402
 
 single_threaded_blas()  # before numpy loads: no OpenBLAS pool busy-waiting beside the timed runs
 
-import oracles  # noqa: E402  (the shared RAM layout and the m68000-python adapter)
+from tests.support import oracles  # noqa: E402  (the shared RAM layout and the m68000-python adapter)
 
 import isa  # noqa: E402
 from isa import codecache  # noqa: E402
@@ -224,7 +222,7 @@ def loops(iterations: int, reps: int, musashi: Musashi | None) -> bool:
 def musashi_firmware(musashi: Musashi, build: object, adc: list[int], acc: list[int]) -> tuple[float, list]:
     """The minimal Musashi harness: the ROM image and zeroed RAM; init once, then per sample write the inputs,
     JSR-equivalent (push a return address holding the stop opcode, PC = step), execute, read the state words."""
-    from firmware_model.build import ACCEL_ADC, BARO_ADC, RAM_SIZE, RAM_START, STACK_TOP
+    from firmware_model.firmware.assemble import ACCEL_ADC, BARO_ADC, RAM_SIZE, RAM_START, STACK_TOP
 
     cpu, mem, R = musashi.cpu, musashi.mem, musashi.R
     mem.clear_block(0, RAM_START + RAM_SIZE, 0)
@@ -259,10 +257,10 @@ def firmware(reps: int, musashi: Musashi | None) -> bool:
     """Print harness samples/s of ours (cold and warm) and of Musashi; True if the state words agree."""
     import numpy as np
 
-    from firmware_model import harness
-    from firmware_model.build import build_firmware
-    from firmware_model.config import BuildConfig
-    from firmware_model.inputs import synthetic_flight
+    from firmware_model.firmware import harness
+    from firmware_model.firmware.assemble import build_firmware
+    from firmware_model.model.streams import synthetic_flight
+    from firmware_model.spec.config import BuildConfig
 
     flight = synthetic_flight(7)
     adc, acc = np.asarray(flight.adc), np.asarray(flight.acc)
@@ -318,7 +316,7 @@ def vectors(jobs: tuple[int, ...] = (1, 2)) -> bool:
                 out = Path(tmp) / f"{run}{n}"
                 r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
                 t = time.perf_counter()
-                proc = subprocess.run([sys.executable, "-m", "firmware_model.cli", "vectors", "--all", "--jobs",
+                proc = subprocess.run([sys.executable, "-m", "firmware_model.cli.main", "vectors", "--all", "--jobs",
                                        str(n), "--out", str(out)],
                                       env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
                 wall = time.perf_counter() - t

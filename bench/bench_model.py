@@ -1,4 +1,4 @@
-"""Speed of the integer model: the numba kernels (firmware_model.model_kernels through ``run_model``) against the
+"""Speed of the integer model: the numba kernels (firmware_model.model.kernels through ``run_model``) against the
 previous numpy implementation (firmware_model.model_numpy) and the kernels' source run as plain Python, in one run.
 
 ``make bench`` runs this file. For each program (default: all four, kalman_accel first) it measures, through the
@@ -39,19 +39,18 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
 
-from firmware_model.blas_threads import single_threaded_blas  # noqa: E402
+from firmware_model.runtime.blas_threads import single_threaded_blas  # noqa: E402
 
 single_threaded_blas()  # before numpy loads: no OpenBLAS pool busy-waiting on the cores being measured
 
 import numpy as np  # noqa: E402
+from tests.support.model_numpy import run_model_numpy  # noqa: E402
 
-from firmware_model.config import BuildConfig  # noqa: E402
-from firmware_model.constants import build_constants  # noqa: E402
-from firmware_model.inputs import synthetic_flight  # noqa: E402
-from firmware_model.model import ModelTrace, compiled_kernels, release_buffers, run_model  # noqa: E402
-from firmware_model.model_numpy import run_model_numpy  # noqa: E402
+from firmware_model.model.run import ModelTrace, compiled_kernels, release_buffers, run_model  # noqa: E402
+from firmware_model.model.streams import synthetic_flight  # noqa: E402
+from firmware_model.spec.build_constants import build_constants  # noqa: E402
+from firmware_model.spec.config import BuildConfig  # noqa: E402
 
 PROGRAMS = ("kalman_accel", "kalman_baro", "recursive", "recursive_seed_literal")
 TARGET_SINGLE = 20e6
@@ -61,9 +60,9 @@ _STARTUP = """
 import time, json, sys
 t0 = time.perf_counter()
 import numpy as np
-from firmware_model.config import BuildConfig
-from firmware_model.constants import build_constants
-from firmware_model.model import compiled_kernels, run_model
+from firmware_model.spec.config import BuildConfig
+from firmware_model.spec.build_constants import build_constants
+from firmware_model.model.run import compiled_kernels, run_model
 consts = {p: build_constants(BuildConfig(program=p, k=7)) for p in sys.argv[1:]}
 t1 = time.perf_counter()
 k = compiled_kernels()

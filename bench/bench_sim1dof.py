@@ -26,9 +26,8 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
 
-from firmware_model.blas_threads import single_threaded_blas  # noqa: E402
+from firmware_model.runtime.blas_threads import single_threaded_blas  # noqa: E402
 
 single_threaded_blas()  # before numpy loads: no OpenBLAS pool busy-waiting on the cores being measured
 
@@ -74,7 +73,7 @@ def main() -> int:
     ap.add_argument("--seed", type=int, default=1)
     a = ap.parse_args()
     print(f"load average before: {os.getloadavg()}")
-    if s1._kernel is None:
+    if not s1.HAVE_NUMBA:
         print("numba is not installed: the kernel engine is unavailable (install the 'fast' extra)")
     launch = s1.Launch(record_hz=a.record_hz)
     # the rockets random_flights(batch, seed) draws (the same unit draws and box)
@@ -87,12 +86,12 @@ def main() -> int:
             continue
         rk.append(r)
         lc.append(s1.Launch(record_hz=a.record_hz, site_altitude_m=float(1500.0 * u[7])))
-    secs = sum(r.truth.apogee_time_s + 5.0 for r in s1.simulate_1dof(rk, lc, engine="numpy" if s1._kernel is None
+    secs = sum(r.truth.apogee_time_s + 5.0 for r in s1.simulate_1dof(rk, lc, engine="numpy" if not s1.HAVE_NUMBA
                                                                      else "kernel"))
     print(f"{a.batch} flights, {secs:.0f} s of flight in all (mean {secs / a.batch:.1f} s), record {a.record_hz:g} Hz,"
           f" internal step {s1._step_count(launch)[1] * 1e3:g} ms")
 
-    engines = ["python", "numpy"] + (["kernel"] if s1._kernel is not None else [])
+    engines = ["python", "numpy"] + (["kernel"] if s1.HAVE_NUMBA else [])
     single: dict[str, float] = {}
     digests = {}
     for e in engines:
@@ -122,7 +121,7 @@ def main() -> int:
     if res.returncode == 0:
         imp, first = res.stdout.split()
         print(f"start-up in a fresh process: import {imp} s, first simulate_1dof call {first} s "
-              f"(numba cache {'warm' if s1._kernel is not None else 'n/a'})")
+              f"(numba cache {'warm' if s1.HAVE_NUMBA else 'n/a'})")
     print(f"load average after: {os.getloadavg()}")
     return 0 if same else 1
 

@@ -891,7 +891,7 @@ class _Assembler(_Directives, _OperandSyntax):
         instr = Instruction(mn, size, tuple(operands))
         addr = self._here()
         try:
-            if self.final:  # len(encode(i)) == length(i): tests/test_isa_codec.py checks it for every form
+            if self.final:  # len(encode(i)) == length(i): tests/isa/test_codec.py checks it for every form
                 data = _SHARED_CODE.get((instr, addr))  # type: ignore[assignment]
                 if data is None:
                     data = _shared(_SHARED_CODE)[(instr, addr)] = encode(instr, addr)

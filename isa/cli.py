@@ -135,7 +135,7 @@ def _assemble(args: argparse.Namespace) -> Program:
 def _write(path: str, data: bytes | str) -> None:
     """Write ``data`` to ``path`` atomically: a temporary file beside it, then ``os.replace``, so that a full disk
     or an interrupt leaves the previous file intact and no temporary file (``isa`` does not import
-    ``firmware_model.output``, which does the same for the firmware CLI)."""
+    ``firmware_model.runtime.output``, which does the same for the firmware CLI)."""
     import os
     import tempfile
 

@@ -37,7 +37,7 @@ Model
   per-instruction path. A fault inside a block is unwound from the traceback: the block's register locals are
   written back and the faulting instruction's PC, the instructions and clocks before it (path constants + ``ni``
   / ``c``) are recovered, so registers, memory, counters and the fault are exactly those of the per-instruction
-  path (tests/test_isa_blocks.py checks both paths against each other and against m68000-python). Writes to
+  path (tests/isa/test_blocks.py checks both paths against each other and against m68000-python). Writes to
   bytes that hold decoded code invalidate the affected closures and blocks, and a running block that wrote to
   code leaves right after that instruction (self-modifying code works, also inside a loop).
 

@@ -54,23 +54,23 @@ if os.environ.get("PYTEST_XDIST_WORKER"):
     atexit.register(_end_worker_now)
 
 
-from profiles import PROFILE  # noqa: E402
+from tests.support.profiles import PROFILE  # noqa: E402
 
-from firmware_model.blas_threads import single_threaded_blas  # noqa: E402
+from firmware_model.runtime.blas_threads import single_threaded_blas  # noqa: E402
 
 # One BLAS thread in this process, the xdist workers and the CLI subprocesses the tests start (they inherit it):
 # an idle OpenBLAS thread busy-waits after each threaded call and takes the other worker's core
-# (firmware_model/blas_threads.py). Here, before numpy's first import (the next import of firmware_model).
+# (firmware_model/runtime/blas_threads.py). Here, before numpy's first import (the next import of firmware_model).
 single_threaded_blas()
 
 settings.load_profile(PROFILE)
 
 # Load the model's compiled kernels in every test process, whatever files are selected: run_model's "auto" engine
-# runs a process's first 20,000 samples in plain Python while they are not loaded (firmware_model/model.py
+# runs a process's first 20,000 samples in plain Python while they are not loaded (firmware_model/model/run.py
 # AUTO_PURE_MAX_SAMPLES), and the in-process model tests are meant to exercise what a long run uses. (The two
-# engines are compared in tests/test_model_kernels.py; tests/test_model_engine_auto.py checks the rule itself in
+# engines are compared in tests/model/test_kernels.py; tests/model/test_engine_auto.py checks the rule itself in
 # fresh interpreters.)
-from firmware_model import model_kernels as _model_kernels  # noqa: E402,F401
+from firmware_model.model import kernels as _model_kernels  # noqa: E402,F401
 
 
 def _memo_inspect() -> types.ModuleType:
@@ -111,16 +111,16 @@ except ImportError:  # pragma: no cover - another hypothesis layout: nothing to 
     pass
 
 
-#: The model's two numba drivers (firmware_model/model.py ``_run_kernels``: ``run_streams_serial`` below
+#: The model's two numba drivers (firmware_model/model/run.py ``_run_kernels``: ``run_streams_serial`` below
 #: PARALLEL_MIN_SAMPLES samples, ``run_streams`` above). With a cold numba cache (a fresh clone, as on CI) every
 #: process compiles them at its first call (~15 CPU-s for the pair, most of it their common stream kernel):
 #: each xdist worker, and CLI subprocesses that start before a worker has written the cache.
 _DRIVERS = ("run_streams_serial", "run_streams")
 _WARM_SCRIPT = """
 import numpy as np
-from firmware_model.config import BuildConfig
-from firmware_model.constants import build_constants
-from firmware_model.model import PARALLEL_MIN_SAMPLES, run_model
+from firmware_model.spec.config import BuildConfig
+from firmware_model.spec.build_constants import build_constants
+from firmware_model.model.run import PARALLEL_MIN_SAMPLES, run_model
 consts = build_constants(BuildConfig(program="kalman_baro"))
 for n in (1, PARALLEL_MIN_SAMPLES):  # run_streams_serial, then run_streams
     run_model(consts, np.full(n, 30000, dtype=np.int64), engine="numba")

@@ -1,4 +1,4 @@
-"""Flights: what the firmware is judged by (docs/flights.md; DESIGN.md §7).
+"""Flights: what the firmware is judged by (docs/flights.md).
 
 * :mod:`.record`: :class:`FlightRecord`, the one in-memory form of a flight (real log or simulation), in SI units.
 * readers (real logs and a generic CSV), sensor models and resampling turn a record into firmware inputs;

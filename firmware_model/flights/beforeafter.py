@@ -20,7 +20,9 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
-from firmware_model.errors import UserError
+from firmware_model.flights.evaluate import reference_for
+from firmware_model.flights.readers import read_flight
+from firmware_model.runtime.errors import UserError
 
 #: Rows of the table: (method key in the JSON, label).
 ROWS: tuple[tuple[str, str], ...] = (("rec_quarter", "recursive 1/4 LSB"), ("kalman_baro", "kalman_baro"),
@@ -38,8 +40,6 @@ def load(path: str) -> list[dict[str, Any]]:
 
 def rescore(flights: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """``flights`` with every real log's reference recomputed by this tree (see the module docstring)."""
-    from firmware_model.flights.evaluate import reference_for
-    from firmware_model.flights.readers import read_flight
 
     cache: dict[str, Any] = {}
     out = []

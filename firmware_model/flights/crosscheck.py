@@ -16,6 +16,7 @@ import numpy as np
 
 from firmware_model.flights.motors import load_motor
 from firmware_model.flights.record import FlightRecord
+from firmware_model.flights.rocketpy_sim import simulate_rocketpy
 from firmware_model.flights.sim1dof import Launch, Rocket, simulate_1dof
 
 #: The rockets cross-checked (vertical, no wind, same mass, diameter, drag curve and motor in both simulators).
@@ -60,7 +61,6 @@ class Comparison:
 
 def compare(name: str, rocket: Rocket, launch: Launch = CROSS_CHECK_LAUNCH) -> Comparison:
     """Simulate ``rocket`` vertically without wind with both simulators."""
-    from firmware_model.flights.rocketpy_sim import simulate_rocketpy
 
     one = simulate_1dof(rocket, launch)[0]
     rpy = simulate_rocketpy(rocket, launch, inclination_deg=90.0)

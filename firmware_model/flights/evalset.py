@@ -6,6 +6,9 @@
   the MS5607-like pascal sensor, noise-free and noisy, k = 4..8), then every shared real log at k = 7 (the
   TeleMetrum v1 transfer function, no added noise: the logs carry real noise).
 * ``set:sim`` the simulated part, ``set:logs`` the logs, ``set:quick`` a few short flights (tests, smoke runs).
+* ``set:full`` (:func:`k_set`): every scenario x each distinct tagged sensing x k = 5, 6, 7, and every shared log
+  x k = 5, 6, 7 (issue 20's before/after set); ``set:realbaro`` the same for the scenarios with the barometer
+  errors of real flight only.
 
 **Pascal sensor**: the MS5607-like digital barometer reports pascals in a 32-bit word, which the firmware reads
 since issue 9 item 1 (``BuildConfig.baro_kind`` pascal, docs/firmware-spec.md §2). :func:`pascal_supported` (true
@@ -18,10 +21,12 @@ from __future__ import annotations
 import os
 from dataclasses import replace
 from pathlib import Path
-from typing import Iterable, Sequence
+from typing import Any, Iterable, Sequence
 
-from firmware_model.errors import UserError
 from firmware_model.flights.evaluate import FlightSpec
+from firmware_model.flights.scenarios import get_scenario, scenario_names
+from firmware_model.runtime.errors import UserError
+from firmware_model.spec.config import BuildConfig
 
 #: The shared real logs (relative to the shared flights folder), in table order.
 SHARED_LOGS: tuple[str, ...] = (
@@ -31,6 +36,21 @@ SHARED_LOGS: tuple[str, ...] = (
     "altosui/2012-05-28-serial-319-flight-005.csv",
     "altosui/2012-10-20-serial-068-flight-004.csv",
     "cats/hedy-baro.csv",
+    # issue 21: the other formats. One row per file that holds a flight's barometer; a file read through its
+    # partner (hedy-imu, piccard-cats-imu_raw) is covered by that row; companions (events, states) are not logs.
+    "euroc21/piccard-telemega.csv",
+    "euroc21/piccard-telemega-serial-6733-flight-0004.eeprom",
+    "euroc21/piccard-telemetrum-nosecone-serial-5877-flight-0002.eeprom",
+    "euroc21/piccard-cats-baro_raw.csv",
+    "euroc21/sta-carl2-rrc3.csv",
+    "euroc21/sta-carl2-eggtimer.csv",
+    "euroc21/lynx-pressure_ms5803.csv",
+    "euroc21/lynx-pressure_static_port.csv",
+    "euroc21/lynx-eggtimer.csv",
+    "euroc21/euler-eggtimer.csv",
+    "rocketpy/juno3-rrc3.csv",
+    "rocketpy/ndrt-2020-raven.csv",
+    "ncsu/jackpot-launch-3-firm.csv",
 )
 
 #: Default sensing of a ``sim:NAME`` argument: (barometer preset, accelerometer preset, noisy, k).
@@ -62,7 +82,11 @@ def shared_logs() -> list[Path]:
 
 def log_label(path: Path) -> str:
     name = path.stem
-    return "hedy (CATS)" if name == "hedy-baro" else name
+    if name == "hedy-baro":
+        return "hedy (CATS)"
+    if name == "piccard-cats-baro_raw":
+        return "piccard (CATS raw)"
+    return name
 
 
 def pascal_supported() -> bool:
@@ -70,14 +94,10 @@ def pascal_supported() -> bool:
     ``baro_kind`` field (what :meth:`FirmwareInputs.config_overrides` passes for a pascal sensor)."""
     import dataclasses
 
-    from firmware_model.config import BuildConfig
-
     return "baro_kind" in {f.name for f in dataclasses.fields(BuildConfig)}
 
 
 def _scenario_names() -> list[str]:
-    from firmware_model.flights.scenarios import scenario_names
-
     return list(scenario_names())
 
 
@@ -85,7 +105,6 @@ def scenario_variants(name: str) -> list[tuple[str, str, bool, int]]:
     """The sensings of scenario ``name`` from its catalogue tags (``baro``, ``noise``, ``k`` lists), zipped with
     cycling (row i takes the i-th entry of each list, modulo its length) so every listed value appears once:
     ``max(len)`` rows, not the product."""
-    from firmware_model.flights.scenarios import get_scenario
 
     tags = get_scenario(name).tags or {}
     baros = [BARO_TAGS.get(b, b) for b in tags.get("baro", ["analog-16"])] or ["mpx4115_16bit"]
@@ -129,6 +148,34 @@ def logs_set(k: int = 7) -> list[FlightSpec]:
     return [FlightSpec(str(p), k=k, noise=False, label=log_label(p)) for p in shared_logs()]
 
 
+def k_set(ks: Sequence[int] = (5, 6, 7), only_real_baro: bool = False) -> tuple[list[FlightSpec], list[str]]:
+    """Every scenario (``only_real_baro``: only those with the barometer errors of real flight,
+    ``Scenario.baro_errors``) with each distinct sensing its tags suggest (barometer, accelerometer, noise; the
+    tagged k is replaced) at every k of ``ks``, then every shared log at each k. ``set:full`` and
+    ``set:realbaro``: the sets the issue-20 before/after tables are made on. Returns (rows, skipped rows)."""
+    specs: list[FlightSpec] = []
+    skipped: list[str] = []
+    pascal_ok = pascal_supported()
+    for i, n in enumerate(_scenario_names()):
+        if only_real_baro and get_scenario(n).baro_errors is None:
+            continue
+        sensings: list[tuple[str, str, bool]] = []
+        for v in scenario_variants(n):
+            if v[:3] not in sensings:
+                sensings.append(v[:3])
+        for j, sensing in enumerate(sensings):
+            for k in ks:
+                vk = (*sensing, k)
+                if sensing[0] == "ms5607" and not pascal_ok:
+                    skipped.append(f"{_row_label(n, vk)}: the pascal sensor needs the field-ready firmware")
+                    continue
+                specs.append(FlightSpec(f"sim:{n}", k=k, baro=sensing[0], accel=sensing[1], noise=sensing[2],
+                                        seed=100 * i + j, label=_row_label(n, vk)))
+    for k in ks:
+        specs += [replace(s, label=f"{s.label} k{k}") for s in logs_set(k)]
+    return specs, skipped
+
+
 def evaluation_set() -> tuple[list[FlightSpec], list[str]]:
     """The README table's rows and the rows skipped (with reasons)."""
     sim, skipped = simulated_set()
@@ -146,7 +193,7 @@ def quick_set() -> list[FlightSpec]:
 
 
 def named_set(name: str) -> list[FlightSpec]:
-    """``eval``, ``sim``, ``logs``, ``quick``."""
+    """``eval``, ``sim``, ``logs``, ``quick``, ``full``, ``realbaro`` (:func:`k_set`)."""
     if name == "eval":
         return evaluation_set()[0]
     if name == "sim":
@@ -155,15 +202,21 @@ def named_set(name: str) -> list[FlightSpec]:
         return logs_set()
     if name == "quick":
         return quick_set()
-    raise UserError(f"set:{name}: unknown evaluation set; known: eval, sim, logs, quick")
+    if name == "full":
+        return k_set()[0]
+    if name == "realbaro":
+        return k_set(only_real_baro=True)[0]
+    raise UserError(f"set:{name}: unknown evaluation set; known: eval, sim, logs, quick, full, realbaro")
 
 
 def resolve_flights(items: Iterable[str], simulated: bool = False, logs: bool = False, ks: Sequence[int] = (7,),
                     baro: str | None = None, accel: str | None = None, noise: bool = True,
-                    format: str | None = None) -> list[FlightSpec]:
+                    format: str | None = None, **reader: Any) -> list[FlightSpec]:
     """FLIGHT arguments -> rows: files and ``sim:NAME`` (``sim:all``: every scenario) at each k in ``ks`` with the given sensing (files keep
     their own sensor and get no added noise unless a preset is named), ``set:NAME`` as defined, then every
-    scenario (``simulated``) and every shared log (``logs``)."""
+    scenario (``simulated``) and every shared log (``logs``). ``reader``: reader options for the FLIGHT files
+    (``sensor``, ``columns``, ``site_altitude_m``, ``flight``) and ``late`` (a late start's accelerometer, also
+    for ``logs``)."""
     specs: list[FlightSpec] = []
     for k in ks:
         if not isinstance(k, int) or not 0 <= k <= 10:
@@ -188,14 +241,16 @@ def resolve_flights(items: Iterable[str], simulated: bool = False, logs: bool = 
         for k in ks:
             own = baro is None and accel is None
             specs.append(FlightSpec(item, k=k, baro=baro, accel=accel, noise=noise and not own, format=format,
-                                    label=_label(log_label(path), k, ks)))
+                                    label=_label(log_label(path), k, ks),
+                                    **{key: v for key, v in reader.items() if v is not None}))
+    late = reader.get("late") or "nominal"
     if simulated:
         for k in ks:
             specs += [replace(s, k=k, label=_label(s.label or s.name, k, ks))
                       for s in simulated_set(with_variants=False)[0]]
     if logs:
         for k in ks:
-            specs += [replace(s, label=_label(s.label or s.name, k, ks)) for s in logs_set(k)]
+            specs += [replace(s, label=_label(s.label or s.name, k, ks), late=late) for s in logs_set(k)]
     return specs
 
 
@@ -204,5 +259,6 @@ def _label(name: str, k: int, ks: Sequence[int]) -> str:
 
 
 __all__ = ["SHARED_LOGS", "DEFAULT_SIM", "BARO_TAGS", "NOISE_TAGS", "shared_dir", "shared_logs",
-           "pascal_supported", "scenario_variants", "simulated_set", "logs_set", "evaluation_set", "quick_set", "named_set",
+           "pascal_supported", "scenario_variants", "simulated_set", "logs_set", "k_set", "evaluation_set",
+           "quick_set", "named_set",
            "resolve_flights"]

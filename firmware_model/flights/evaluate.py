@@ -1,14 +1,14 @@
-"""Apogee evaluation: run every firmware method over flights and build the apogee table (DESIGN.md §7; seed 000
+"""Apogee evaluation: run every firmware method over flights and build the apogee table (docs/evaluation.md; Schultz 2002
 Tables 1-2). docs/evaluation.md has the decisions and the findings.
 
 A **method** is a firmware program with its tuning (:data:`METHODS`): the recursive filter at 1/2, 1/4 and 1/8 LSB
 (``threshold_q8`` 128 / 64 / 32), ``kalman_baro``, ``kalman_accel``, and the float ideal Kalman filter
-(:func:`firmware_model.reference.ideal_kalman`, barometer only, time-varying gains from the pad covariance, the same
+(:func:`firmware_model.model.float_reference.ideal_kalman`, barometer only, time-varying gains from the pad covariance, the same
 apogee rule as the firmware: velocity below zero after liftoff). Each method's :class:`BuildConfig` is the flight's
 sensor description (``FirmwareInputs.config_overrides()``: ADC width, counts per metre, noise, accelerometer
 scale) plus the method's tuning plus any user overrides.
 
-Firmware methods run on the bit-exact integer model (:func:`firmware_model.model.run_model`; it equals the
+Firmware methods run on the bit-exact integer model (:func:`firmware_model.model.run.run_model`; it equals the
 emulated 68000 word for word, which the tests and ``fwemu run`` check). **Detection time** = the time (on the
 flight's own axis) of the first sample whose ``EVENTS`` word has ``APOGEE`` set: the sample at which a real board
 would fire the charge. The low-rate prediction (``APOGEE_PREDICTED`` + ``APFRAC``) is reported separately as
@@ -16,9 +16,16 @@ would fire the charge. The low-rate prediction (``APOGEE_PREDICTED`` + ``APFRAC`
 **Error** = detection time - reference time (positive = late).
 
 **Reference**: for simulated flights the true apogee (``Truth.apogee_time_s``, uncertainty 0); for real logs the
-robust parabola of :func:`firmware_model.flights.reference.reference_apogee` with its uncertainty. AltOS's own
+robust parabola of :func:`firmware_model.flights.apogee_reference.reference_apogee` with its uncertainty. AltOS's own
 detection (AltosUI logs: ``record.events["altos_apogee"]``, the first ``drogue`` row) is reported beside, with its
 error against the same reference.
+
+**Dangerous detections** (issue 20): a detection more than :data:`EARLY_S` (1 s) before the reference is marked
+``‼`` in its cell; per method the summary counts them first, then the detections made before burnout and those
+made while the rocket flew faster than :data:`FAST_MACH` (Mach 0.8, where the transonic barometer error starts).
+Burnout and Mach come from the truth of simulated flights (the scenario's airspeed Mach), and are estimated on
+real logs (:func:`flight_context`: the accelerometer integrated from liftoff, else the barometric altitude's
+slope).
 """
 
 from __future__ import annotations
@@ -32,9 +39,25 @@ from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
 
-from firmware_model.config import BuildConfig
-from firmware_model.errors import UserError
+from firmware_model.flights.apogee_reference import reference_apogee
+from firmware_model.flights.firmware_inputs import firmware_inputs
+from firmware_model.flights.readers import read_flight
 from firmware_model.flights.record import FlightRecord
+from firmware_model.flights.scenarios import scenario_mach, simulate_scenario
+from firmware_model.flights.sensors import AccelSensor, BaroSensor
+from firmware_model.flights.sim1dof import mach_of
+from firmware_model.model.float_reference import ideal_kalman
+from firmware_model.model.run import run_model
+from firmware_model.model.trace import EVENT_BITS
+from firmware_model.runtime import markdown as md
+from firmware_model.runtime.errors import UserError
+from firmware_model.runtime.pool import ordered_map
+from firmware_model.spec import atmosphere as atm
+from firmware_model.spec.atmosphere import altitude_m
+from firmware_model.spec.build_constants import build_constants
+from firmware_model.spec.config import BuildConfig
+from firmware_model.spec.tuning import TUNINGS as TUNING_NAMES
+from firmware_model.spec.tuning import tuning_fields
 
 
 # ---------------------------------------------------------------------------------------------------- methods
@@ -69,6 +92,8 @@ METHODS: dict[str, Method] = {m.name: m for m in (
     Method("ideal_kalman", "ideal float Kalman", "kalman_baro", engine="ideal"),
 )}
 DEFAULT_METHODS: tuple[str, ...] = tuple(METHODS)
+#: Programs that read the accelerometer (liftoff, velocity): n/a on a log without one, not "miss".
+ACCEL_PROGRAMS: frozenset[str] = frozenset({"recursive", "kalman_accel"})
 
 
 def methods_named(names: Iterable[str] | None) -> list[Method]:
@@ -114,7 +139,6 @@ def _first(events: np.ndarray, bit: int) -> int:
 def detect_from_events(method: str, events: np.ndarray, time_s: np.ndarray, dt: float,
                        apfrac: np.ndarray | None = None, wrap: str = "") -> Detection:
     """A :class:`Detection` from a per-sample ``EVENTS`` column (and ``APFRAC``) on the time axis ``time_s``."""
-    from firmware_model.trace import EVENT_BITS
 
     i = _first(events, EVENT_BITS["APOGEE"])
     lift = _first(events, EVENT_BITS["LIFTOFF"])
@@ -132,12 +156,9 @@ def run_method(method: Method, cfg: BuildConfig, adc: np.ndarray, acc: np.ndarra
     """Run ``method`` built as ``cfg`` over one stream (``adc``/``acc`` counts at dt = 2^-k, sample i at
     ``time_s[i]``) and read its apogee. Firmware methods run the bit-exact integer model."""
     if method.engine == "ideal":
-        from firmware_model.reference import ideal_kalman
 
         trace = ideal_kalman(cfg, adc, acc)
         return detect_from_events(method.name, trace.column("EVENTS"), time_s, cfg.dt)
-    from firmware_model.constants import build_constants
-    from firmware_model.model import run_model
 
     trace = run_model(build_constants(cfg), adc, acc)
     apfrac = trace.column("APFRAC") if "APFRAC" in trace.names else None
@@ -164,7 +185,6 @@ def reference_for(record: FlightRecord) -> Reference:
     if truth is not None and truth.apogee_time_s is not None:
         return Reference(float(truth.apogee_time_s), None if truth.apogee_altitude_m is None
                          else float(truth.apogee_altitude_m), 0.0, "truth")
-    from firmware_model.flights.reference import reference_apogee
 
     ref = reference_apogee(record)
     parts = []
@@ -197,6 +217,15 @@ class FlightSpec:
     label: str | None = None
     format: str | None = None
     method: str = "linear"
+    sensor: str | None = None               # reader options (flights.readers.read_flight): multi-sensor logs,
+    columns: str | None = None              # a column map,
+    site_altitude_m: float | None = None    # the site of an altitude-only log,
+    flight: int | None = None               # the flight of a multi-flight .eeprom
+    late: str = "nominal"                   # a log starting after liftoff: "nominal" 1 g pad, or "refuse" the accel
+
+    def reader_options(self) -> dict[str, Any]:
+        return {"sensor": self.sensor, "columns": self.columns, "site_altitude_m": self.site_altitude_m,
+                "flight": self.flight}
 
     @property
     def name(self) -> str:
@@ -208,15 +237,14 @@ class FlightSpec:
         return base
 
 
-def load_record(source: str, format: str | None = None) -> FlightRecord:
-    """A :class:`FlightRecord` from ``sim:NAME`` (simulated scenario) or a file path."""
+def load_record(source: str, format: str | None = None, **options: Any) -> FlightRecord:
+    """A :class:`FlightRecord` from ``sim:NAME`` (simulated scenario) or a file path (``options``: the reader's,
+    :func:`flights.readers.read_flight`)."""
     if source.startswith("sim:"):
-        from firmware_model.flights.scenarios import simulate_scenario
 
         return simulate_scenario(source[4:])
-    from firmware_model.flights.readers import read_flight
 
-    return read_flight(source, format=format)
+    return read_flight(source, format=format, **options)
 
 
 #: Sensor noise of a "noisy" :class:`FlightSpec` with a named preset: pressure noise (Pa rms, about 0.3 m at sea
@@ -228,7 +256,6 @@ NOISE_ACCEL_COUNTS: float = 20.0
 
 def sensors_for(spec: FlightSpec) -> tuple[Any, Any]:
     """The (BaroSensor, AccelSensor) of ``spec`` (None = the default of :func:`flights.inputs.firmware_inputs`)."""
-    from firmware_model.flights.sensors import AccelSensor, BaroSensor
 
     baro = accel = None
     if spec.baro is not None:
@@ -267,7 +294,6 @@ def altitude_of_counts(inputs: Any) -> Any:
     ground = getattr(inputs, "ground_pressure_pa", None)
     if baro is None or ground is None or not hasattr(baro, "pressure_of_counts"):
         return None
-    from firmware_model.atmosphere import altitude_m
 
     h0 = float(altitude_m(ground))
     lo, hi = float(baro.p_min_pa), float(baro.p_max_pa)
@@ -281,10 +307,94 @@ def altitude_of_counts(inputs: Any) -> Any:
 
 def flight_inputs(record: FlightRecord, spec: FlightSpec) -> Any:
     """The firmware inputs of ``record`` under ``spec`` (:func:`flights.inputs.firmware_inputs`)."""
-    from firmware_model.flights.inputs import firmware_inputs
 
     baro, accel = sensors_for(spec)
-    return firmware_inputs(record, spec.k, baro=baro, accel=accel, method=spec.method, seed=spec.seed)
+    return firmware_inputs(record, spec.k, baro=baro, accel=accel, method=spec.method, seed=spec.seed,
+                           late=spec.late)
+
+
+#: A detection more than this many seconds before the reference is dangerous (issue 20; the charge fires on the
+#: way up).
+EARLY_S: float = 1.0
+#: Mach number above which the table counts a detection as "fast" (the transonic barometer error starts near it).
+FAST_MACH: float = 0.8
+
+
+def burnout_time(record: FlightRecord, liftoff_s: float | None) -> float | None:
+    """First time at or after liftoff at which the axial specific force, averaged over 5 log rows, falls below
+    0 m/s^2 (thrust gone, drag decelerating the coasting rocket), or None without an accelerometer. (Not "after the
+    peak": on real logs the largest reading can be the ejection charge's shock at apogee.)"""
+    f = record.specific_force_mps2()
+    if f is None or liftoff_s is None:
+        return None
+    t = np.asarray(record.time_s)
+    f = np.where(np.isfinite(f), f, np.nan)
+    if f.size < 5:
+        return None
+    mean5 = np.convolve(np.nan_to_num(f, nan=1.0), np.ones(5) / 5.0, mode="valid")   # row i..i+4
+    hit = np.nonzero((t[: mean5.size] >= liftoff_s) & (mean5 < 0.0))[0]
+    return float(t[hit[0]]) if hit.size else None
+
+
+def _liftoff_estimate(record: FlightRecord) -> float | None:
+    """The log's own boost event, else the first time the 5-row mean specific force exceeds 2 g."""
+    ev = record.events or {}
+    for name in ("altos_boost", "liftoff"):
+        if name in ev:
+            return float(ev[name])
+    f = record.specific_force_mps2()
+    if f is None or f.size < 5:
+        return None
+    mean5 = np.convolve(np.nan_to_num(f, nan=0.0), np.ones(5) / 5.0, mode="valid")
+    hit = np.nonzero(mean5 > 2 * atm.G0)[0]
+    return float(record.time_s[hit[0]]) if hit.size else None
+
+
+def flight_context(record: FlightRecord, source: str = "") -> tuple[float | None, np.ndarray | None, str]:
+    """(burnout time, Mach per record sample, where they come from) of a flight.
+
+    Simulated (truth): the simulator's burnout (``provenance.summary.burnout_s``) and its airspeed Mach (scenario
+    flights: :func:`flights.scenarios.scenario_mach`; other records with truth: |v|/c). Real logs: burnout =
+    :func:`burnout_time` from the liftoff estimate; speed = the axial specific force minus g integrated from
+    liftoff until it first falls to zero (after that the rocket is past apogee and slow: 0), else (no
+    accelerometer) the slope of the barometric altitude over 0.5 s; Mach = speed / standard speed of sound at the
+    pad altitude + the barometric altitude (clipped at the pad)."""
+    t = np.asarray(record.time_s, dtype=np.float64)
+    if record.truth is not None and record.truth.velocity_mps is not None:
+        burn = (record.provenance.get("summary") or {}).get("burnout_s") if record.provenance else None
+        if source.startswith("sim:"):
+            mach = np.asarray(scenario_mach(source[4:]), dtype=np.float64)
+        else:
+            mach = np.asarray(mach_of(record), dtype=np.float64)
+        return (None if burn is None else float(burn)), mach, "truth"
+    p = np.asarray(record.pressure_pa, dtype=np.float64)
+    ok = np.isfinite(p) & (p > 0)
+    if ok.sum() < 2:
+        return None, None, "unknown"
+    p_f = np.interp(t, t[ok], p[ok])
+    ground = record.ground_pressure_pa or float(np.median(p_f[: max(1, min(50, p_f.size // 20))]))
+    pad_m = float(atm.altitude_m(ground))
+    h = np.clip(np.asarray(atm.altitude_m(p_f)) - pad_m, 0.0, None)
+    c = np.asarray(atm.speed_of_sound_mps(pad_m + h))
+    lift = _liftoff_estimate(record)
+    f = record.specific_force_mps2()
+    if f is not None and lift is not None:
+        f = np.where(np.isfinite(f), f, atm.G0)
+        v = np.zeros_like(t)
+        i0 = int(np.searchsorted(t, lift))
+        if i0 < t.size - 1:
+            v[i0 + 1:] = np.cumsum(0.5 * ((f[i0 + 1:] - atm.G0) + (f[i0:-1] - atm.G0)) * np.diff(t[i0:]))
+        v[:i0 + 1] = 0.0
+        down = np.nonzero((t > lift + 0.5) & (v <= 0))[0]
+        if down.size:
+            v[down[0]:] = 0.0
+        return burnout_time(record, lift), np.clip(v, 0.0, None) / c, "accelerometer estimate"
+    win = 0.5
+    j = np.clip(np.searchsorted(t, t + win / 2), 0, t.size - 1)
+    i = np.clip(np.searchsorted(t, t - win / 2), 0, t.size - 1)
+    hh = np.asarray(atm.altitude_m(p_f)) - pad_m
+    v = np.where(t[j] > t[i], (hh[j] - hh[i]) / np.maximum(t[j] - t[i], 1e-9), 0.0)
+    return None, np.abs(v) / c, "barometric estimate"
 
 
 @dataclass
@@ -301,6 +411,10 @@ class FlightResult:
     n_samples: int
     report: str = ""
     notes: list[str] = field(default_factory=list)
+    own_computer: str = "AltOS"     # who made ``altos_s``: the log's own flight computer (AltOS, RRC3, CATS, ...)
+    burnout_s: float | None = None                                # truth/estimate, None when unknown
+    mach_at: dict[str, float | None] = field(default_factory=dict)  # method (and "altos") -> Mach at detection
+    mach_source: str = ""                                        # "truth" / "accelerometer estimate" / ...
 
     def error(self, method: str) -> float | None:
         """Detection time - reference time (s, late positive) of ``method`` (``"altos"`` for AltOS), or None."""
@@ -312,9 +426,29 @@ class FlightResult:
         ref = asdict(self.reference)
         return {"name": self.name, "source": self.source, "k": self.k, "sensor": self.sensor,
                 "n_samples": self.n_samples, "reference": ref,
-                "altos": None if self.altos_s is None else {"time_s": self.altos_s, "error_s": self.error("altos")},
+                "altos": None if self.altos_s is None else {"time_s": self.altos_s, "error_s": self.error("altos"),
+                                                            "computer": self.own_computer},
                 "methods": {m: dict(asdict(d), error_s=self.error(m)) for m, d in self.detections.items()},
-                "report": self.report, "notes": self.notes}
+                "report": self.report, "notes": self.notes, "burnout_s": self.burnout_s,
+                "mach_at_detection": self.mach_at, "mach_source": self.mach_source,
+                "flags": {m: self.flags(m) for m in list(self.detections) + (["altos"] if self.altos_s is not None
+                                                                              else [])}}
+
+    def detection_time(self, method: str) -> float | None:
+        if method == "altos":
+            return self.altos_s
+        d = self.detections.get(method)
+        return None if d is None or d.failed else d.time_s
+
+    def flags(self, method: str) -> dict[str, bool]:
+        """``early_1s``: more than :data:`EARLY_S` before the reference; ``before_burnout``: at or before burnout;
+        ``fast``: at Mach >= :data:`FAST_MACH`."""
+        t = self.detection_time(method)
+        e = self.error(method)
+        mach = self.mach_at.get(method)
+        return {"early_1s": e is not None and e < -EARLY_S,
+                "before_burnout": t is not None and self.burnout_s is not None and t <= self.burnout_s,
+                "fast": mach is not None and mach >= FAST_MACH}
 
 
 def _report_text(report: Any) -> str:
@@ -329,8 +463,9 @@ def _report_text(report: Any) -> str:
     return str(report)
 
 
-def _sensor_text(inputs: Any, spec: FlightSpec) -> str:
-    """``<barometer preset> / <accelerometer preset>, noisy|clean|log noise``."""
+def _sensor_text(inputs: Any, spec: FlightSpec, record: FlightRecord | None = None) -> str:
+    """``<barometer preset> / <accelerometer preset>, noisy|clean|log noise``, then ``SYNTHETIC baro`` for an
+    altitude-only log, the sensor of a multi-sensor log, and ``no accel`` when the stream has none."""
     baro = getattr(getattr(inputs, "baro", None), "name", None) or spec.baro or "default"
     accel = getattr(getattr(inputs, "accel", None), "name", None) or spec.accel or "default"
     baro = baro.replace("mpx4115_", "").replace("bit", "-bit")
@@ -338,7 +473,16 @@ def _sensor_text(inputs: Any, spec: FlightSpec) -> str:
         noise = "noisy" if spec.noise else "clean"
     else:
         noise = "log noise" + (" + added" if spec.noise and (spec.baro or spec.accel) else "")
-    return f"{baro}/{accel}, {noise}"
+    extra = ""
+    if record is not None:
+        prov = record.provenance
+        if prov.get("synthetic_baro"):
+            extra += ", SYNTHETIC baro (from altitude)"
+        if prov.get("sensor") and prov.get("format") == "cats_raw":
+            extra += f", {prov['sensor']} of {'/'.join(prov.get('sensors', []))}"
+        if not getattr(inputs, "has_accel", True):
+            extra += ", no accel"
+    return f"{baro}/{accel}, {noise}{extra}"
 
 
 def evaluate_flight(spec: FlightSpec, methods: Sequence[Method] | None = None,
@@ -347,25 +491,20 @@ def evaluate_flight(spec: FlightSpec, methods: Sequence[Method] | None = None,
     """Evaluate one flight: read/simulate it, make its firmware inputs, run every method, compare with the
     reference. ``overrides``: BuildConfig fields applied to every method (e.g. ``rounding``)."""
     methods = list(methods or METHODS.values())
-    record = record if record is not None else load_record(spec.source, spec.format)
+    record = record if record is not None else load_record(spec.source, spec.format, **spec.reader_options())
     inputs = flight_inputs(record, spec)
     return evaluate_inputs(record, inputs, spec, methods, overrides, tuning)
 
 
-#: Tunings ``fwemu evaluate --tuning`` knows: the BuildConfig defaults, or ``firmware_model.tuning.RECOMMENDED``
-#: (per program and k; a k it has no entry for keeps the defaults; ideal_kalman takes kalman_baro's).
-TUNINGS: tuple[str, ...] = ("default", "recommended")
+#: Tunings ``fwemu evaluate/run/compare --tuning`` know: the BuildConfig defaults, or
+#: ``firmware_model.spec.tuning.RECOMMENDED`` (per program and k; a k it has no entry for keeps the defaults;
+#: ideal_kalman takes kalman_baro's).
+TUNINGS: tuple[str, ...] = TUNING_NAMES
 
 
 def tuning_overrides(method: Method, k: int, tuning: str = "default") -> dict[str, Any]:
     """BuildConfig fields ``tuning`` sets for ``method`` at ``k`` (empty for ``default``)."""
-    if tuning == "default":
-        return {}
-    if tuning != "recommended":
-        raise UserError(f"--tuning {tuning!r}: known: {', '.join(TUNINGS)}")
-    from firmware_model.tuning import RECOMMENDED
-
-    return dict(RECOMMENDED.get(method.program, {}).get(k, {}))
+    return tuning_fields(method.program, k, tuning)
 
 
 def evaluate_inputs(record: FlightRecord, inputs: Any, spec: FlightSpec, methods: Sequence[Method],
@@ -378,7 +517,12 @@ def evaluate_inputs(record: FlightRecord, inputs: Any, spec: FlightSpec, methods
     time_s = np.asarray(inputs.time_s, dtype=np.float64)
     detections = {}
     notes: list[str] = []
+    has_accel = bool(getattr(inputs, "has_accel", True))
     for method in methods:
+        if method.program in ACCEL_PROGRAMS and not has_accel:
+            detections[method.name] = Detection(method.name, -1, None, failed="the log has no accelerometer")
+            notes.append(f"{method.name}: not run: the log has no accelerometer")
+            continue
         try:
             cfg = method.config(spec.k, sensor, **{**tuning_overrides(method, spec.k, tuning), **(overrides or {})})
             det = run_method(method, cfg, adc, acc, time_s)
@@ -388,52 +532,29 @@ def evaluate_inputs(record: FlightRecord, inputs: Any, spec: FlightSpec, methods
         if det.wrap:
             notes.append(f"{method.name}: integer wrap at {det.wrap}")
         detections[method.name] = det
-    altos = record.events.get("altos_apogee") if record.events else None
-    return FlightResult(spec.name, spec.source, spec.k, _sensor_text(inputs, spec), reference_for(record),
-                        None if altos is None else float(altos), detections, int(adc.shape[0]),
-                        _report_text(getattr(inputs, "report", None)), notes)
+    own = record.own_apogee()
+    notes += [f"log: {n}" for n in record.provenance.get("notes", []) if _worth_noting(n)]
+    burn, mach, mach_source = flight_context(record, spec.source)
+    mach_at: dict[str, float | None] = {}
+    rec_t = np.asarray(record.time_s, dtype=np.float64)
+    for name, t in [(m, d.time_s) for m, d in detections.items()] + [("altos", None if own is None else own[1])]:
+        if t is not None and mach is not None:
+            mach_at[name] = float(np.interp(t, rec_t, mach))
+    return FlightResult(spec.name, spec.source, spec.k, _sensor_text(inputs, spec, record), reference_for(record),
+                        None if own is None else own[1], detections, int(adc.shape[0]),
+                        _report_text(getattr(inputs, "report", None)), notes,
+                        "AltOS" if own is None else own[0], burn, mach_at, mach_source)
+
+
+def _worth_noting(note: str) -> bool:
+    """Reader notes that change what the firmware sees (copied into the evaluation's notes)."""
+    return any(w in note for w in ("SYNTHETIC", "REFUSED", "WARNING", "median of", "barometer: ", "cut short",
+                                   "sorted", "nominal calibration"))
 
 
 def _evaluate_job(job: tuple[FlightSpec, tuple[str, ...], tuple[tuple[str, Any], ...], str]) -> FlightResult:
     spec, names, overrides, tuning = job
     return evaluate_flight(spec, methods_named(names), dict(overrides), tuning=tuning)
-
-
-def ordered_map(fn: Callable[[Any], Any], items: Sequence[Any], jobs: int = 1,
-                on_result: Callable[[int, Any], None] | None = None) -> list[Any]:
-    """``[fn(x) for x in items]``, in ``jobs`` worker processes when ``jobs`` > 1 (``fn`` and the items must pickle).
-    Results come back in the order of ``items`` whatever the workers' timing; an error or an interrupt terminates
-    the workers at once (as ``fwemu vectors --jobs``). Workers ignore SIGINT (:func:`output.worker_init`) and are
-    spawned, not forked (fork after numba's thread pool ran deadlocks)."""
-    if not isinstance(jobs, int) or isinstance(jobs, bool) or jobs < 1:
-        raise UserError(f"--jobs {jobs!r}: must be a positive integer")
-    out: list[Any] = []
-    if jobs == 1 or len(items) <= 1:
-        for i, item in enumerate(items):
-            out.append(fn(item))
-            if on_result:
-                on_result(i, out[-1])
-        return out
-    import multiprocessing
-
-    from firmware_model.output import worker_init
-
-    # "spawn", not "fork": the numba model runs its kernels on a thread pool (prange), and a child forked from a
-    # parent whose thread pool has run deadlocks in its first parallel kernel (seen: workers asleep on a futex).
-    pool = multiprocessing.get_context("spawn").Pool(min(jobs, len(items)), initializer=worker_init)
-    try:
-        for i, res in enumerate(pool.imap(fn, items)):
-            out.append(res)
-            if on_result:
-                on_result(i, res)
-        pool.close()
-        pool.join()  # every result is in: the workers leave on their own (terminate() after close() once hung)
-        pool = None
-    finally:
-        if pool is not None:  # an error or an interrupt: end the workers at once
-            pool.terminate()
-            pool.join()
-    return out
 
 
 def evaluate_many(specs: Sequence[FlightSpec], methods: Sequence[Method] | None = None,
@@ -478,6 +599,12 @@ class MethodSummary:
     worst_usable_abs_s: float | None = None    # worst |error| over flights whose reference is usable
     worst_usable_flight: str | None = None
     unusable: int = 0                          # detections on flights whose reference carries a warning
+    early_1s: int = 0                          # detections > EARLY_S before the reference (usable references)
+    early_1s_flagged: int = 0                  # the same on flights whose reference carries a warning
+    most_early_1s_flight: str | None = None    # the flight of the most early of those
+    before_burnout: int = 0                    # detections at or before burnout (truth or estimate)
+    fast: int = 0                              # detections at Mach >= FAST_MACH
+    burnout_known: int = 0                     # flights (that ran) whose burnout is known
 
 
 def summarize(results: Sequence[FlightResult], method: str, label: str) -> MethodSummary:
@@ -490,8 +617,15 @@ def summarize(results: Sequence[FlightResult], method: str, label: str) -> Metho
     trio = [(r.error(method), r.name, r.reference.usable) for r in ran]
     trio = [t for t in trio if t[0] is not None]
     got = [(e, name) for e, name, _ in trio]
+    early_usable = [r for r in ran if r.flags(method)["early_1s"] and r.reference.usable]
+    danger = {"early_1s": len(early_usable),
+              "early_1s_flagged": sum(1 for r in ran if r.flags(method)["early_1s"] and not r.reference.usable),
+              "most_early_1s_flight": min(early_usable, key=lambda r: r.error(method)).name if early_usable else None,
+              "before_burnout": sum(1 for r in ran if r.flags(method)["before_burnout"]),
+              "fast": sum(1 for r in ran if r.flags(method)["fast"]),
+              "burnout_known": sum(1 for r in ran if r.burnout_s is not None)}
     if not got:
-        return MethodSummary(method, label, len(ran), 0, None, None, None, None, 0, 0)
+        return MethodSummary(method, label, len(ran), 0, None, None, None, None, 0, 0, **danger)
     a = np.array([abs(e) for e, _ in got])
     worst = int(np.argmax(a))
     early = min(got)
@@ -501,7 +635,7 @@ def summarize(results: Sequence[FlightResult], method: str, label: str) -> Metho
                          float(np.median([e for e, _ in got])), sum(e < 0 for e, _ in got),
                          sum(e > 0 for e, _ in got), float(early[0]) if early[0] < 0 else None,
                          early[1] if early[0] < 0 else None, None if wu[0] is None else float(wu[0]), wu[1],
-                         len(got) - len(usable))
+                         len(got) - len(usable), **danger)
 
 
 def table_methods(results: Sequence[FlightResult]) -> list[tuple[str, str]]:
@@ -511,7 +645,7 @@ def table_methods(results: Sequence[FlightResult]) -> list[tuple[str, str]]:
         for m in r.detections:
             if m not in present:
                 present.append(m)
-    cols = [("altos", "AltOS")] if any(r.altos_s is not None for r in results) else []
+    cols = [("altos", "own computer")] if any(r.altos_s is not None for r in results) else []
     order = [m for m in METHODS if m in present] + [m for m in present if m not in METHODS]
     return cols + [(m, METHODS[m].label if m in METHODS else m) for m in order]
 
@@ -524,11 +658,25 @@ def _fmt_err(x: float | None) -> str:
     return "miss" if x is None else f"{x:+.3f}"
 
 
+def _danger_marks(r: FlightResult, method: str) -> str:
+    f = r.flags(method)
+    marks = []
+    if f["early_1s"]:
+        marks.append("‼")
+    if f["before_burnout"]:
+        marks.append("boost")
+    if f["fast"]:
+        marks.append(f"M{r.mach_at[method]:.2f}")
+    return (" " + " ".join(marks)) if marks else ""
+
+
 def render_markdown(results: Sequence[FlightResult], command: str | None = None) -> str:
-    """The apogee table (seed 000 Tables 1-2 style) and the per-method summary, as Markdown."""
+    """The apogee table (Schultz 2002 Tables 1-2 style) and the per-method summary, as Markdown. The first figures:
+    how many detections of each method came more than 1 s early."""
     cols = table_methods(results)
+    sums = [(label, summarize(results, m, label)) for m, label in cols]
     head = ["flight", "k", "sensor", "reference apogee s (±unc, source)", "alt m"] + [label for _, label in cols]
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    lines = md.header(head)
     for r in results:
         ref = r.reference
         cells = [r.name, str(r.k), r.sensor,
@@ -536,7 +684,9 @@ def render_markdown(results: Sequence[FlightResult], command: str | None = None)
                  _fmt(ref.altitude_m, 0)]
         for m, _ in cols:
             if m == "altos":
-                cells.append("—" if r.altos_s is None else f"{r.altos_s:.2f} ({_fmt_err(r.error('altos'))})")
+                cells.append("—" if r.altos_s is None else
+                             f"{r.own_computer} {r.altos_s:.2f} ({_fmt_err(r.error('altos'))})"
+                             f"{_danger_marks(r, 'altos')}")
             elif m not in r.detections:
                 cells.append("—")
             else:
@@ -544,16 +694,22 @@ def render_markdown(results: Sequence[FlightResult], command: str | None = None)
                 if d.failed:
                     cells.append("n/a")
                 else:
-                    cells.append("miss" if d.time_s is None else f"{d.time_s:.3f} ({_fmt_err(r.error(m))})")
-        lines.append("| " + " | ".join(cells) + " |")
-    out = ["Detection time s (error s = detection - reference; + late, miss = never fired). ⚠: the reference "
+                    cells.append("miss" if d.time_s is None else
+                                 f"{d.time_s:.3f} ({_fmt_err(r.error(m))}){_danger_marks(r, m)}")
+        lines.append(md.row(cells))
+    headline = "; ".join(f"{label} {s.early_1s} of {s.n}" + (f" (+{s.early_1s_flagged} on flagged references)"
+                                                             if s.early_1s_flagged else "") for label, s in sums)
+    out = [f"**Detections more than {EARLY_S:g} s before the reference apogee**: {headline}.", "",
+           "Detection time s (error s = detection - reference; + late, miss = never fired). ‼: more than "
+           f"{EARLY_S:g} s early; boost: at or before burnout; M: Mach at the detection when >= {FAST_MACH:g} "
+           "(burnout and Mach: truth for simulated flights, estimated on logs). ⚠: the reference "
            "carries a warning (the fit is not a free flight near its peak, docs/flights.md); such rows are left out "
-           "of the summary's last column only.", ""] + lines
-    out += ["", "| method | flights | detected | median abs error s | worst abs error s (flight) | median error s "
-            "| early / late | most early s (flight) | worst abs error s, usable references |",
-            "|---|---|---|---|---|---|---|---|---|"]
-    for m, label in cols:
-        s = summarize(results, m, label)
+           "of the summary's last column and of its first count.", ""] + lines
+    out += [""] + md.header(["method", f"> {EARLY_S:g} s early (flight)", "before burnout",
+                             f"above Mach {FAST_MACH:g}", "flights", "detected", "median abs error s",
+                             "worst abs error s (flight)", "median error s", "early / late", "most early s (flight)",
+                             "worst abs error s, usable references"])
+    for (m, label), (_, s) in zip(cols, sums):
         worst = "—" if s.worst_abs_s is None else f"{s.worst_abs_s:.3f} ({s.worst_flight})"
         miss = s.n - s.detected
         worst += f"; {miss} missed" if miss else ""
@@ -562,8 +718,11 @@ def render_markdown(results: Sequence[FlightResult], command: str | None = None)
         most_early = "—" if s.most_early_s is None else f"{s.most_early_s:+.3f} ({s.most_early_flight})"
         usable = "—" if s.worst_usable_abs_s is None else f"{s.worst_usable_abs_s:.3f} ({s.worst_usable_flight})"
         usable += f"; {s.unusable} on flagged references left out" if s.unusable else ""
-        out.append(f"| {label} | {s.n} | {s.detected} | {_fmt(s.median_abs_s)} | {worst} | "
-                   f"{_fmt(s.median_s)} | {s.early} / {s.late} | {most_early} | {usable} |")
+        early = f"{s.early_1s}" + (f" ({s.most_early_1s_flight})" if s.most_early_1s_flight else "")
+        early += f"; +{s.early_1s_flagged} flagged" if s.early_1s_flagged else ""
+        burn = f"{s.before_burnout}" + (f" of {s.burnout_known} known" if s.burnout_known < s.n else "")
+        out.append(md.row([label, early, burn, s.fast, s.n, s.detected, _fmt(s.median_abs_s), worst,
+                           _fmt(s.median_s), f"{s.early} / {s.late}", most_early, usable]))
     if command:
         out += ["", f"Regenerate: `{command}`"]
     return "\n".join(out) + "\n"
@@ -578,6 +737,7 @@ def render_csv(results: Sequence[FlightResult]) -> str:
             "ref_source"]
     for m, _ in cols:
         head += [f"{m}_time_s", f"{m}_error_s"]
+    head += ["burnout_s", "mach_source"] + [f"{m}_mach" for m, _ in cols] + [f"{m}_early_1s" for m, _ in cols]
     w.writerow(head)
 
     def num(x: float | None) -> str:
@@ -589,6 +749,8 @@ def render_csv(results: Sequence[FlightResult]) -> str:
         for m, _ in cols:
             t = r.altos_s if m == "altos" else (r.detections[m].time_s if m in r.detections else None)
             row += [num(t), num(r.error(m))]
+        row += [num(r.burnout_s), r.mach_source] + [num(r.mach_at.get(m)) for m, _ in cols]
+        row += [int(r.flags(m)["early_1s"]) for m, _ in cols]
         w.writerow(row)
     return buf.getvalue()
 
@@ -599,7 +761,9 @@ def render_json(results: Sequence[FlightResult], command: str | None = None) -> 
     doc = {"schema": "fwemu-apogee-table/1", "command": command,
            "rule": {"detection": "time of the first sample with EVENTS.APOGEE set (APFRAC prediction not added; "
                                  "reported as predicted_s)",
-                    "error": "detection time - reference time, s (positive = late)"},
+                    "error": "detection time - reference time, s (positive = late)",
+                    "early_1s": f"error < -{EARLY_S:g} s", "before_burnout": "detection time <= burnout_s",
+                    "fast": f"Mach at the detection >= {FAST_MACH:g}"},
            "flights": [r.to_dict() for r in results],
            "summary": {m: asdict(summarize(results, m, label)) for m, label in cols}}
     return json.dumps(_clean(doc), indent=1, sort_keys=True) + "\n"
@@ -625,7 +789,17 @@ def table_files(results: Sequence[FlightResult], command: str | None = None) -> 
             "apogee.json": render_json(results, command).encode()}
 
 
-__all__ = ["Method", "METHODS", "DEFAULT_METHODS", "methods_named", "Detection", "detect_from_events", "run_method",
+__all__ = ["EARLY_S", "FAST_MACH", "burnout_time", "flight_context", "Method", "METHODS", "DEFAULT_METHODS", "methods_named", "Detection", "detect_from_events", "run_method",
            "Reference", "reference_for", "FlightSpec", "load_record", "flight_inputs", "FlightResult",
            "evaluate_flight", "evaluate_inputs", "evaluate_many", "MethodSummary", "summarize", "render_markdown",
            "render_csv", "render_json", "table_files"]
+
+
+def method_for_firmware(name: str) -> "Method":
+    """The evaluation :class:`Method` for a program or method name (``recursive`` = ``rec_quarter``)."""
+    if name == "recursive":
+        name = "rec_quarter"
+    if name not in METHODS or METHODS[name].engine != "model":
+        known = ["recursive"] + [m for m, v in METHODS.items() if v.engine == "model"]
+        raise UserError(f"--firmware {name!r}: unknown; known: {', '.join(known)}")
+    return METHODS[name]

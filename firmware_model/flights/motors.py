@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from firmware_model.errors import UserError
+from firmware_model.runtime.errors import UserError
 
 DATA_DIR: Path = Path(__file__).resolve().parent / "data"
 

@@ -1,9 +1,9 @@
 """PNG figures of runs and sweeps (matplotlib, imported lazily; the Agg backend, no display needed).
 
-* :func:`plot_run`: seed 002's favourite gnuplot view: raw and filtered altitude (left axis) with the velocity
+* :func:`plot_run`: Schultz n.d.'s favourite gnuplot view: raw and filtered altitude (left axis) with the velocity
   estimate on a second axis, event markers (liftoff, apogee, prediction, reference/truth apogee, AltOS), shaded
   Mach-lockout and barometer-invalid samples; ``zoom`` = a window around apogee.
-* :func:`plot_ratio_sweep`: seed 000 Figure 10: apogee error against R/q (log axis), one line per flight.
+* :func:`plot_ratio_sweep`: Schultz 2002 Figure 10: apogee error against R/q (log axis), one line per flight.
 * :func:`plot_k_sweep`: apogee error against k, one panel per method.
 
 Every function returns the PNG bytes; callers write them atomically.
@@ -16,7 +16,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from firmware_model.errors import UserError
+from firmware_model.model.trace import EVENT_BITS
+from firmware_model.runtime.errors import UserError
 
 
 def _pyplot() -> Any:
@@ -53,10 +54,10 @@ def _spans(t: np.ndarray, mask: np.ndarray) -> list[tuple[float, float]]:
 
 
 def plot_run(run: Any, *, zoom: bool = False, title: str = "", reference_s: float | None = None,
-             altos_s: float | None = None, zoom_halfwidth_s: float | None = None) -> bytes:
+             altos_s: float | None = None, zoom_halfwidth_s: float | None = None,
+             own_computer: str = "AltOS") -> bytes:
     """PNG of a run (:class:`firmware_model.flights.runcsv.RunTable`: ``time_s``, ``raw_altitude_m``,
     ``filtered_altitude_m``, ``velocity_mps``, ``events``, ``event_times()``)."""
-    from firmware_model.trace import EVENT_BITS
 
     plt = _pyplot()
     t = np.asarray(run.time_s, dtype=np.float64)
@@ -92,7 +93,7 @@ def plot_run(run: Any, *, zoom: bool = False, title: str = "", reference_s: floa
         if name in styles and when is not None and lo_t <= when <= hi_t:
             c, ls = styles[name]
             handles.append(ax.axvline(when, color=c, ls=ls, lw=1.2, label=f"{name.lower()} {when:.3f} s"))
-    for label, when, c in (("reference apogee", reference_s, "C2"), ("AltOS apogee", altos_s, "C5")):
+    for label, when, c in (("reference apogee", reference_s, "C2"), (f"{own_computer} apogee", altos_s, "C5")):
         if when is not None and lo_t <= when <= hi_t:
             handles.append(ax.axvline(when, color=c, ls="-.", lw=1.2, label=f"{label} {when:.3f} s"))
     ax.set_xlabel("time (s, the log's own origin)")
@@ -107,7 +108,7 @@ def plot_run(run: Any, *, zoom: bool = False, title: str = "", reference_s: floa
 
 
 def plot_ratio_sweep(res: Any, title: str = "") -> bytes:
-    """PNG of a ratio sweep (seed 000 Figure 10): error (s) against R/q, log x-axis, one line per flight."""
+    """PNG of a ratio sweep (Schultz 2002 Figure 10): error (s) against R/q, log x-axis, one line per flight."""
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(8.5, 5))
     x = np.asarray(res.axis, dtype=np.float64)

@@ -1,33 +1,56 @@
 """Static-pressure errors applied to a flight record (sensor-side effects, before any ADC model).
 
-* :func:`transonic_pressure_error`: the Mach-transition error of seed 002 ("a step increase in pressure altitude
-  when going above Mach 1 and a step decrease when dropping below"): while the rocket flies above the switching
-  Mach number the barometer reads the standard pressure of an altitude ``altitude_step_m`` higher than the true
-  one. Positive ``altitude_step_m`` (the default, +60 m) is the seed's sign: the pressure reads *low* above Mach 1
-  and steps back *up* when the rocket slows through Mach 1, which makes the pressure altitude drop by the step
-  while the rocket still climbs -- the dangerous direction for a barometric apogee detector. A negative value
-  models the opposite sign. The seed gives no magnitude: 60 m (about 200 ft) is our choice, stated in
-  docs/flights-sim.md; ``shape`` "step" switches instantly, "ramp" blends linearly over ``width_mach``, and
-  ``mach_on``/``mach_off`` give hysteresis (on while accelerating through ``mach_on``, off when slowing through
-  ``mach_off``).
+* :func:`real_flight_errors` (**use this one**): what a barometer in a rocket really reads near and above Mach 1,
+  from the signatures measured on the shared logs (docs/flights.md, "Barometer signatures of real flights") and
+  the ranges of the unseen logs in ``../shared/flights/README.md``. Parameters in :class:`BaroErrorModel`
+  (defaults and ranges in :data:`BARO_ERROR_RANGES`); five parts, each a function of the Mach number, the
+  static pressure and the time since an event:
+
+  1. *port error* ``cp_port * q``: the static port reads a fraction of the dynamic pressure ``q = 0.7 p M^2``
+     too high at subsonic speed (prometheus: ~0.04 of q at Mach 0.45), fading out above the transonic range
+     (``dip_mach_off``): the unseen supersonic logs dip for 1-2 s, not for the whole supersonic phase;
+  2. *transonic dip* ``dip_cp * bump(M) * q``: an extra error that grows from ``dip_mach_on`` (0.8), peaks at
+     ``dip_mach_peak`` (1.0) and is gone by ``dip_mach_off``; the pressure reads high, the barometric altitude
+     falls by hundreds of metres while the rocket climbs (prometheus 320-330 m at Mach 0.97, piccard ~940 m at
+     Mach 1.0, below the pad on piccard; unseen logs 100-800 m);
+  3. *shock jump*: when the Mach number crosses ``jump_mach`` (either way: the shock passes the port) the
+     altitude jumps by ``jump_m`` within ``jump_rise_s`` and relaxes with time constant ``jump_decay_s``
+     (piccard +176 m in 0.3 s at Mach 1.0; unseen logs several hundred m);
+  4. *noise bursts* of ``burst_sigma_m`` (altitude, Gaussian, seeded) for ``burst_s`` at staging/separation:
+     at burnout and at the drogue deployment (unseen logs +-100-300 m);
+  5. *ejection spike* at the deployment (apogee + the launch's drogue delay): ``ejection_m`` rising at once and
+     decaying over ``ejection_s`` (measured +14..+135 m for 0.1-0.8 s; unseen logs tens to hundreds of m for
+     0.1-0.5 s).
+
+  Parts 3-5 are altitude offsets at the current altitude, turned into pressure through the standard atmosphere.
+  The Mach number comes from the simulator (1-DOF: |v|/c; RocketPy: its airspeed Mach), so it works on both.
+* :func:`transonic_pressure_error`: the **step (Kumar-style, not realistic)**: a pressure-altitude step of
+  ``altitude_step_m`` (default +60 m, our choice; positive = the pressure reads low above Mach 1, the source's sign)
+  while above Mach 1, from the one-line description of Schultz n.d. ("a step increase in pressure altitude when
+  going above Mach 1 and a step decrease when dropping below"); ``shape`` "step" or "ramp" (over ``width_mach``),
+  ``mach_on``/``mach_off`` hysteresis. Kept so the old scenarios keep their meaning and as a contrast; it
+  resembles nothing measured.
 * :func:`pressure_spikes`: isolated single-sample outliers (a sensor glitch or a bad ADC read), for robustness
   tests: each chosen sample's pressure is offset by +-``magnitude_pa``.
 
-Both take and return a :class:`FlightRecord` (so they apply to 1-DOF and RocketPy flights alike), leave every
+All take and return a :class:`FlightRecord` (so they apply to 1-DOF and RocketPy flights alike), leave every
 other field untouched and append what they did to ``provenance["effects"]``.
 """
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import asdict, dataclass, fields, replace
+from typing import Any
 
 import numpy as np
 
-from firmware_model import atmosphere as atm
-from firmware_model.errors import UserError
 from firmware_model.flights.record import FlightRecord
+from firmware_model.flights.sim1dof import mach_of
+from firmware_model.runtime.errors import UserError
+from firmware_model.spec import atmosphere as atm
 
-#: Default transonic step in pressure altitude (m, positive = reads higher above Mach 1; seed 002's sign).
+#: Default of the step (Kumar-style, not realistic), in pressure altitude (m, positive = reads higher above Mach 1;
+#: Schultz n.d.'s sign).
 DEFAULT_TRANSONIC_STEP_M: float = 60.0
 
 
@@ -70,7 +93,6 @@ def transonic_pressure_error(record: FlightRecord, mach: np.ndarray | None = Non
     per sample; default from the record's truth (|vertical velocity| / standard speed of sound at the site
     altitude + AGL: exact for vertical still-air flights; RocketPy records pass their own airspeed Mach)."""
     if mach is None:
-        from firmware_model.flights.sim1dof import mach_of
         mach = mach_of(record)
     mach = np.asarray(mach, dtype=np.float64)
     if mach.shape != (record.n,):
@@ -116,3 +138,185 @@ def pressure_spikes(record: FlightRecord, times_s=None, count: int = 3, magnitud
     effect = {"effect": "pressure_spikes", "times_s": [float(x) for x in t[idx]],
               "delta_pa": [float(s * magnitude_pa) for s in signs], "seed": seed}
     return _with_effect(record, p, effect)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Barometer errors of real flight
+@dataclass(frozen=True)
+class BaroErrorModel:
+    """Parameters of :func:`real_flight_errors` (module doc). Altitudes in m (positive: the barometric altitude
+    reads higher, i.e. the pressure reads low), times in s, pressure coefficients as fractions of ``q``."""
+
+    cp_port: float = 0.04          # port error at every speed, fraction of q (pressure high)
+    dip_cp: float = 0.06           # extra transonic error at its peak, fraction of q (pressure high)
+    dip_mach_on: float = 0.8
+    dip_mach_peak: float = 1.0
+    dip_mach_off: float = 1.25
+    jump_m: float = 200.0          # altitude jump when the shock passes the port (each crossing of jump_mach)
+    jump_mach: float = 1.0
+    jump_rise_s: float = 0.1
+    jump_decay_s: float = 0.4
+    burst_sigma_m: float = 50.0    # noise bursts at burnout (staging) and at the drogue deployment (separation)
+    burst_s: float = 0.3
+    ejection_m: float = 100.0      # ejection-charge spike at the deployment
+    ejection_s: float = 0.3
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if not np.isfinite(v):
+                raise UserError(f"barometer error model: {f.name} must be finite, got {v!r}")
+        for name in ("jump_rise_s", "jump_decay_s", "burst_s", "ejection_s"):
+            if getattr(self, name) <= 0:
+                raise UserError(f"barometer error model: {name} must be > 0, got {getattr(self, name)!r}")
+        if self.burst_sigma_m < 0:
+            raise UserError(f"barometer error model: burst_sigma_m must be >= 0, got {self.burst_sigma_m!r}")
+        if not self.dip_mach_on < self.dip_mach_peak < self.dip_mach_off:
+            raise UserError("barometer error model: need dip_mach_on < dip_mach_peak < dip_mach_off, got "
+                            f"{self.dip_mach_on}, {self.dip_mach_peak}, {self.dip_mach_off}")
+
+    def to_dict(self) -> dict[str, float]:
+        return asdict(self)
+
+
+#: Plausible range of each parameter (what scenarios and the hypothesis strategy draw from), with its source:
+#: the shared logs (docs/flights.md) and the unseen logs of ../shared/flights/README.md.
+BARO_ERROR_RANGES: dict[str, tuple[float, float]] = {
+    "cp_port": (0.0, 0.06),          # prometheus ~0.04 of q at Mach 0.45
+    "dip_cp": (0.02, 0.10),          # totals near Mach 1: prometheus ~0.06, piccard ~0.15 of q; unseen 100-800 m
+    "dip_mach_on": (0.7, 0.9),
+    "dip_mach_peak": (0.95, 1.05),
+    "dip_mach_off": (1.15, 1.5),
+    "jump_m": (-400.0, 400.0),       # piccard +176 m; unseen "several hundred metres"
+    "jump_mach": (0.95, 1.05),
+    "jump_rise_s": (0.03, 0.3),      # "in a few samples"; piccard 0.3 s
+    "jump_decay_s": (0.2, 1.0),      # piccard back on the dip after ~0.8 s
+    "burst_sigma_m": (10.0, 120.0),  # shared logs <= 22 m; unseen +-100-300 m peaks
+    "burst_s": (0.1, 0.6),
+    "ejection_m": (-300.0, 300.0),   # shared logs +14..+135 m; unseen tens to hundreds of m
+    "ejection_s": (0.1, 0.5),
+}
+
+
+def draw_error_model(rng: np.random.Generator | None = None, u: Any = None) -> BaroErrorModel:
+    """A :class:`BaroErrorModel` with every parameter uniform in :data:`BARO_ERROR_RANGES`: from ``u`` (13 numbers
+    in [0, 1), in the order of the ranges; e.g. drawn by hypothesis) or from ``rng``."""
+    names = list(BARO_ERROR_RANGES)
+    if u is None:
+        u = (rng or np.random.default_rng()).random(len(names))
+    if len(u) != len(names):
+        raise UserError(f"draw_error_model: need {len(names)} unit numbers, got {len(u)}")
+    return BaroErrorModel(**{n: lo + (hi - lo) * float(x)
+                             for n, (lo, hi), x in zip(names, BARO_ERROR_RANGES.values(), u)})
+
+
+def _smoothstep(x: np.ndarray) -> np.ndarray:
+    x = np.clip(x, 0.0, 1.0)
+    return x * x * (3.0 - 2.0 * x)
+
+
+def dip_shape(mach: np.ndarray, model: BaroErrorModel) -> np.ndarray:
+    """0..1: rises from ``dip_mach_on`` to 1 at ``dip_mach_peak``, back to 0 at ``dip_mach_off`` (smoothstep)."""
+    m = np.asarray(mach, dtype=np.float64)
+    up = _smoothstep((m - model.dip_mach_on) / (model.dip_mach_peak - model.dip_mach_on))
+    down = 1.0 - _smoothstep((m - model.dip_mach_peak) / (model.dip_mach_off - model.dip_mach_peak))
+    return np.where(m <= model.dip_mach_peak, up, down)
+
+
+def pressure_coefficient(mach: np.ndarray, model: BaroErrorModel) -> np.ndarray:
+    """The static-pressure error as a fraction of ``q``: ``cp_port`` below ``dip_mach_peak`` fading to 0 at
+    ``dip_mach_off`` (above it the port sits in supersonic flow behind the nose shock: no measured error), plus
+    ``dip_cp * dip_shape``."""
+    m = np.asarray(mach, dtype=np.float64)
+    sub = 1.0 - _smoothstep((m - model.dip_mach_peak) / (model.dip_mach_off - model.dip_mach_peak))
+    return model.cp_port * sub + model.dip_cp * dip_shape(m, model)
+
+
+def shock_crossings(time_s: np.ndarray, mach: np.ndarray, mach_cross: float, min_gap_s: float = 0.2) -> list[float]:
+    """Times at which ``mach`` crosses ``mach_cross`` (either way; crossings closer than ``min_gap_s`` to the
+    previous one are dropped), linearly interpolated between samples."""
+    t = np.asarray(time_s, dtype=np.float64)
+    d = np.asarray(mach, dtype=np.float64) - mach_cross
+    idx = np.nonzero(np.sign(d[1:]) * np.sign(d[:-1]) < 0)[0]
+    out: list[float] = []
+    for i in idx:
+        tc = float(t[i] + (t[i + 1] - t[i]) * d[i] / (d[i] - d[i + 1]))
+        if not out or tc - out[-1] >= min_gap_s:
+            out.append(tc)
+    return out
+
+
+def dynamic_pressure_pa(pressure_pa: np.ndarray, mach: np.ndarray) -> np.ndarray:
+    """``q = gamma/2 p M^2`` (gamma = 1.4): the dynamic pressure from the static pressure and the Mach number."""
+    return 0.7 * np.asarray(pressure_pa, dtype=np.float64) * np.asarray(mach, dtype=np.float64) ** 2
+
+
+def _event_times(record: FlightRecord) -> tuple[float | None, float | None]:
+    """(burnout, drogue deployment) of a simulated record, from its provenance and truth."""
+    summ = record.provenance.get("summary", {}) if record.provenance else {}
+    burn = summ.get("burnout_s")
+    apo = record.truth.apogee_time_s if record.truth is not None else summ.get("apogee_time_s")
+    delay = (record.provenance.get("launch") or {}).get("drogue_delay_s", 0.0) if record.provenance else 0.0
+    deploy = None if apo is None else float(apo) + float(delay or 0.0)
+    return (None if burn is None else float(burn)), deploy
+
+
+def real_flight_errors(record: FlightRecord, mach: np.ndarray | None = None,
+                       model: BaroErrorModel = BaroErrorModel(), seed: int = 0,
+                       burst_times_s: Any = None, deploy_s: float | None = None) -> FlightRecord:
+    """The record with the barometer errors of real flight (module doc). ``mach``: per sample (default: the
+    record's truth, :func:`sim1dof.mach_of`); ``burst_times_s``: where the noise bursts start (default: burnout
+    and the deployment); ``deploy_s``: the ejection charge (default: true apogee + the launch's drogue delay).
+    ``seed``: the bursts' noise. The effect lists every part's times and its largest altitude error."""
+    if mach is None:
+        mach = mach_of(record)
+    mach = np.asarray(mach, dtype=np.float64)
+    if mach.shape != (record.n,):
+        raise UserError(f"{record.name}: mach has shape {mach.shape}, record has ({record.n},)")
+    t = np.asarray(record.time_s, dtype=np.float64)
+    p = np.asarray(record.pressure_pa, dtype=np.float64)
+    burn, deploy = _event_times(record)
+    if deploy_s is not None:
+        deploy = float(deploy_s)
+    bursts = [x for x in (burn, deploy) if x is not None] if burst_times_s is None else \
+        [float(x) for x in np.atleast_1d(burst_times_s)]
+    q = dynamic_pressure_pa(p, mach)
+    p1 = p + pressure_coefficient(mach, model) * q
+    offset = np.zeros_like(t)                       # altitude offsets of parts 3-5 (m)
+    crossings = shock_crossings(t, mach, model.jump_mach)
+    for tc in crossings:
+        tau = t - tc
+        rise = np.clip(tau / model.jump_rise_s, 0.0, 1.0)
+        decay = np.exp(-np.clip(tau - model.jump_rise_s, 0.0, None) / model.jump_decay_s)
+        offset += model.jump_m * np.where(tau >= 0, rise * decay, 0.0)
+    rng = np.random.default_rng(seed)
+    burst_offset = np.zeros_like(t)
+    for tb in bursts:
+        sel = (t >= tb) & (t < tb + model.burst_s)
+        burst_offset[sel] += rng.normal(0.0, model.burst_sigma_m, int(sel.sum()))
+    offset += burst_offset
+    if deploy is not None and model.ejection_m != 0:
+        tau = t - deploy
+        offset += np.where(tau >= 0, model.ejection_m * np.exp(-np.clip(tau, 0.0, None) / (model.ejection_s / 3.0)),
+                           0.0)
+    out = p1.copy()
+    ok = np.isfinite(p1)
+    if np.any(ok & (offset != 0)):
+        sel = ok & (offset != 0)
+        out[sel] = atm.pressure_pa(atm.altitude_m(p1[sel]) + offset[sel])
+    if np.any(~(out[ok] > 0)):
+        raise UserError(f"{record.name}: the barometer error model made a pressure <= 0")
+    err_m = np.full_like(t, np.nan)
+    err_m[ok] = atm.altitude_m(out[ok]) - atm.altitude_m(p[ok])
+    i_min = int(np.nanargmin(err_m))
+    effect = {"effect": "real_flight_errors", "model": model.to_dict(), "seed": seed,
+              "shock_crossings_s": crossings, "burst_times_s": bursts, "deploy_s": deploy,
+              "max_dip_m": float(err_m[i_min]), "max_dip_time_s": float(t[i_min]),
+              "max_dip_mach": float(mach[i_min]), "peak_mach": float(np.max(mach))}
+    return _with_effect(record, out, effect)
+
+
+def baro_error_altitude_m(record: FlightRecord, truth_pressure_pa: np.ndarray) -> np.ndarray:
+    """The barometric altitude error (m) of ``record`` against the error-free pressure ``truth_pressure_pa``."""
+    p = np.asarray(record.pressure_pa, dtype=np.float64)
+    return np.asarray(atm.altitude_m(p)) - np.asarray(atm.altitude_m(np.asarray(truth_pressure_pa)))

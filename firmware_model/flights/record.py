@@ -1,4 +1,4 @@
-"""The flight record: one flight in SI units, whatever it came from (DESIGN.md §7).
+"""The flight record: one flight in SI units, whatever it came from (docs/flights.md).
 
 Every reader and simulator returns a :class:`FlightRecord`; sensor models, resampling, the reference apogee and the
 evaluation take one. Arrays are float64, one value per log row, on the record's own (possibly irregular) time axis;
@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from firmware_model.errors import UserError
+from firmware_model.runtime.errors import UserError
 
 
 @dataclass(frozen=True)
@@ -48,7 +48,11 @@ class FlightRecord:
     * ``events``: the log's own flight-computer events, name -> time (s on the record's axis), e.g.
       ``{"altos_apogee": 21.37}`` (AltosUI: the first row in state ``drogue``), ``{"altos_boost": 0.0}``.
     * ``provenance``: JSON-ready dict: ``source`` (file path or simulator), ``format``, ``licence``, and any reader
-      notes (e.g. rate changes, repeated timestamps dropped, empty fields).
+      notes (e.g. rate changes, repeated timestamps dropped, empty fields); ``own_computer``: the name of the
+      flight computer that wrote the log when it declared an apogee (``events["own_apogee"]``);
+      ``synthetic_baro``: True when ``pressure_pa`` was made from an altitude column (standard atmosphere).
+    * ``row_lines``: (n,) the file's 1-based line number of each row, or None (simulators), so that later stages
+      (resampling) can name a line.
     """
 
     name: str
@@ -62,6 +66,7 @@ class FlightRecord:
     truth: Truth | None = None
     events: dict[str, float] = field(default_factory=dict)
     provenance: dict[str, Any] = field(default_factory=dict)
+    row_lines: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         t = np.asarray(self.time_s, dtype=np.float64)
@@ -78,6 +83,17 @@ class FlightRecord:
             arr = getattr(self, name)
             if arr is not None and np.asarray(arr).shape != (n,):
                 raise UserError(f"{where}: {name} has shape {np.asarray(arr).shape}, time has ({n},)")
+
+    def own_apogee(self) -> tuple[str, float] | None:
+        """The log's own flight computer's apogee: ``(computer, time_s)``, or None when the log has none.
+        AltosUI / .eeprom: AltOS's first ``drogue`` state (``events["altos_apogee"]``); other readers put theirs in
+        ``events["own_apogee"]`` and name the computer in ``provenance["own_computer"]``."""
+        ev = self.events or {}
+        if "own_apogee" in ev:
+            return str(self.provenance.get("own_computer", "own computer")), float(ev["own_apogee"])
+        if "altos_apogee" in ev:
+            return "AltOS", float(ev["altos_apogee"])
+        return None
 
     @property
     def n(self) -> int:

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from firmware_model.errors import UserError
+from firmware_model.runtime.errors import UserError
 
 METHODS: tuple[str, ...] = ("hold", "linear")
 
@@ -93,12 +93,12 @@ def grid(k: int, t_start: float, t_end: float) -> np.ndarray:
     if not isinstance(k, (int, np.integer)) or not 0 <= k <= 16:
         raise UserError(f"resample: k={k!r} must be an integer 0..16 (dt = 2^-k s)")
     if not (math.isfinite(t_start) and math.isfinite(t_end)) or t_end < t_start:
-        raise UserError(f"resample: empty or invalid span {t_start!r} .. {t_end!r} s")
+        raise UserError(f"resample: empty or invalid span {float(t_start)!r} .. {float(t_end)!r} s")
     scale = float(1 << int(k))
     n0 = math.ceil(t_start * scale)
     n1 = math.floor(t_end * scale)
     if n1 < n0:
-        raise UserError(f"resample: span {t_start!r} .. {t_end!r} s holds no multiple of 2^-{k} s")
+        raise UserError(f"resample: span {float(t_start)!r} .. {float(t_end)!r} s holds no multiple of 2^-{k} s")
     return np.arange(n0, n1 + 1, dtype=np.float64) / scale
 
 

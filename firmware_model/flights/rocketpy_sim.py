@@ -12,7 +12,7 @@ altitude of the atmosphere module and the 1-DOF model (which uses constant g0 on
   is constant (total impulse / propellant mass), so its mass loss is proportional to the impulse, as in 1-DOF.
 * Drag: the rocket's Cd(M) curve (times ``cd_scale``) as both RocketPy's power-off and power-on drag.
 * Recorded on the regular grid ``t_k = (k - n_pad) / record_hz`` (t = 0 at ignition, ``pad_s`` of pad before):
-  ``pressure_pa`` = the ISA pressure at the rocket's geopotential altitude, from :mod:`firmware_model.atmosphere`:
+  ``pressure_pa`` = the ISA pressure at the rocket's geopotential altitude, from :mod:`firmware_model.spec.atmosphere`:
   the function RocketPy's standard atmosphere samples (RocketPy's ``Environment.pressure`` is that function
   interpolated linearly on a coarse height grid: up to 28 Pa (~2.4 m) off between grid points, measured at
   500 m; docs/flights-sim.md), so truth altitude and pressure stay consistent;
@@ -33,15 +33,15 @@ parachute trigger noise is 0), so the same inputs give the same bytes; a test ch
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
-from math import pi, radians, sin
+from math import radians, sin
 
 import numpy as np
 
-from firmware_model import atmosphere as atm
-from firmware_model.atmosphere import G0
-from firmware_model.errors import UserError
 from firmware_model.flights.record import FlightRecord, Truth
 from firmware_model.flights.sim1dof import Launch, Rocket, simulate_1dof
+from firmware_model.runtime.errors import UserError
+from firmware_model.spec import atmosphere as atm
+from firmware_model.spec.atmosphere import G0
 
 
 def _import_rocketpy():

@@ -1,6 +1,6 @@
 """The per-sample output of a firmware run in physical units, as ``fwemu run`` writes it and ``fwemu plot`` reads it.
 
-Columns (seed 002's rdaskal3 order first, so its gnuplot recipes work: ``using 1:3`` filtered altitude, ``1:4``
+Columns (Schultz n.d.'s rdaskal3 order first, so its gnuplot recipes work: ``using 1:3`` filtered altitude, ``1:4``
 velocity, ``1:2`` raw altitude): ``time_s, raw_altitude_m, filtered_altitude_m, velocity_mps, accel_mps2``, then
 ``events`` (the EVENTS word), ``new_events`` (names of the bits that set at this sample, ``|``-separated),
 ``cycles`` (68000 clocks of this ``step``; empty when the integer model ran).
@@ -23,8 +23,8 @@ from typing import Any, Callable
 
 import numpy as np
 
-from firmware_model.errors import UserError
-from firmware_model.trace import EVENT_BITS, LATCHED_EVENTS
+from firmware_model.model.trace import EVENT_BITS, LATCHED_EVENTS
+from firmware_model.runtime.errors import UserError
 
 COLUMNS: tuple[str, ...] = ("time_s", "raw_altitude_m", "filtered_altitude_m", "velocity_mps", "accel_mps2",
                             "events", "new_events", "cycles")

@@ -1,10 +1,12 @@
 """The catalogue of named simulated flights for evaluation (docs/flights-sim.md, "Scenarios").
 
 Each :class:`Scenario` is physics only (a rocket, a launch, the simulator, and the static-pressure error effects of
-:mod:`.pressure_errors`); sensor models (ADC bits, noise) and k are applied later by the evaluation, which may use
-the suggested ``tags``. ``simulate_scenario(name)`` is deterministic (same name, same bytes), cached in the
+:mod:`.pressure_errors`: the barometer errors of real flight (``baro_errors``, the ``rb-`` and ``rp-rb-``
+scenarios), the step (Kumar-style, not realistic; ``transonic``) or single-sample spikes); sensor models (ADC
+bits, noise) and k are applied later by the evaluation, which may use the suggested ``tags``. ``simulate_scenario(name)`` is deterministic (same name, same bytes), cached in the
 process, and RocketPy scenarios are also cached on disk (``$FWEMU_CACHE`` or ``~/.cache/fwemu/flights``), keyed
-by a hash of the scenario definition, the simulator sources and the motor/drag data files.
+by a hash of the scenario's physics (rocket, launch, simulator settings), the simulator sources and the
+motor/drag data files (pressure effects are applied after the cache, so changing them does not re-run RocketPy).
 
 Classes by peak Mach: ``subsonic`` < 0.9, ``transonic`` 0.9..1.2, ``supersonic`` 1.3..2.0 (checked by the tests).
 """
@@ -22,11 +24,13 @@ from typing import Any
 
 import numpy as np
 
-from firmware_model.errors import UserError
 from firmware_model.flights.motors import DATA_DIR, load_motor
-from firmware_model.flights.pressure_errors import pressure_spikes, transonic_pressure_error
+from firmware_model.flights.pressure_errors import (BaroErrorModel, draw_error_model, pressure_spikes,
+                                                    real_flight_errors, transonic_pressure_error)
 from firmware_model.flights.record import FlightRecord, Truth
+from firmware_model.flights.rocketpy_sim import simulate_rocketpy_with_mach
 from firmware_model.flights.sim1dof import Launch, Rocket, mach_of, simulate_1dof
+from firmware_model.runtime.errors import UserError
 
 #: Mach-class bounds (peak Mach) asserted by the tests.
 MACH_CLASSES: dict[str, tuple[float, float]] = {"subsonic": (0.0, 0.9), "transonic": (0.9, 1.2),
@@ -38,7 +42,10 @@ class Scenario:
     """A named simulated flight. ``rocket``: :class:`Rocket` fields (``motor`` by name); ``launch``:
     :class:`Launch` fields; ``simulator``: "1dof" or "rocketpy" (then ``rocketpy`` holds wind/rail settings for
     :func:`firmware_model.flights.rocketpy_sim.simulate_rocketpy`); ``transonic``/``spikes``: keyword arguments
-    of the pressure-error functions, or None; ``mach_class``: the peak-Mach class it is meant to be in;
+    of the pressure-error functions, or None; ``baro_errors``: the barometer errors of real flight
+    (:func:`.pressure_errors.real_flight_errors`): ``{"model": {BaroErrorModel fields}, "seed": n}`` (fields not
+    named keep their defaults) or ``{"draw": n, "seed": n}`` (every parameter drawn from
+    :data:`.pressure_errors.BARO_ERROR_RANGES` by ``numpy.random.default_rng(draw)``), or None; ``mach_class``: the peak-Mach class it is meant to be in;
     ``tags``: suggested sensor and k settings for the evaluation."""
 
     name: str
@@ -51,6 +58,7 @@ class Scenario:
     transonic: dict[str, Any] | None = None
     spikes: dict[str, Any] | None = None
     tags: dict[str, Any] = field(default_factory=dict)
+    baro_errors: dict[str, Any] | None = None
 
     def build_rocket(self) -> Rocket:
         kw = dict(self.rocket)
@@ -64,17 +72,30 @@ class Scenario:
         return Launch(**{"record_hz": 1000.0, **self.launch})
 
     def definition(self) -> dict[str, Any]:
-        """JSON-ready definition (what the cache key hashes)."""
+        """JSON-ready definition."""
         return {"name": self.name, "mach_class": self.mach_class, "rocket": self.rocket, "launch": self.launch,
                 "simulator": self.simulator, "rocketpy": self.rocketpy, "transonic": self.transonic,
-                "spikes": self.spikes}
+                "spikes": self.spikes, "baro_errors": self.baro_errors}
+
+    def physics(self) -> dict[str, Any]:
+        """The part of the definition the simulator sees (what the cache key hashes)."""
+        return {"name": self.name, "rocket": self.rocket, "launch": self.launch, "simulator": self.simulator,
+                "rocketpy": self.rocketpy}
+
+    def error_model(self) -> BaroErrorModel | None:
+        """The :class:`BaroErrorModel` of ``baro_errors`` (None without)."""
+        if self.baro_errors is None:
+            return None
+        if "draw" in self.baro_errors:
+            return draw_error_model(np.random.default_rng(int(self.baro_errors["draw"])))
+        return BaroErrorModel(**self.baro_errors.get("model", {}))
 
 
 def _s(name, description, mach_class, rocket, tags, **kw) -> Scenario:
     return Scenario(name=name, description=description, mach_class=mach_class, rocket=rocket, tags=tags, **kw)
 
 
-_TS = {}  # default transonic effect: the seed-002 step with the module's default magnitude
+_TS = {}  # the step (Kumar-style, not realistic) with the module's default magnitude (+60 m)
 _SPIKES = {"count": 4, "magnitude_pa": 1500.0, "seed": 7}
 
 _CATALOGUE: tuple[Scenario, ...] = (
@@ -111,13 +132,13 @@ _CATALOGUE: tuple[Scenario, ...] = (
     _s("trans-l1350-m094", "L1350 rocket peaking at Mach ~0.94: near-sonic, no step", "transonic",
        {"motor": "L1350", "dry_mass_kg": 10.0, "diameter_m": 0.13},
        {"baro": ["analog-10", "analog-16"], "noise": ["noisy"], "k": [6]}),
-    _s("trans-m1670-m105", "M1670 rocket through Mach 1.05 with the seed-002 transonic pressure step", "transonic",
+    _s("trans-m1670-m105", "M1670 rocket through Mach 1.05 with the +60 m step (Kumar-style, not realistic)", "transonic",
        {"motor": "M1670", "dry_mass_kg": 12.0, "diameter_m": 0.127},
        {"baro": ["analog-10", "analog-16", "ms5607"], "noise": ["none", "noisy"], "k": [5, 6, 7]}, transonic=_TS),
     _s("trans-m1670-m105-clean", "trans-m1670-m105 without the pressure step (the pair isolates the effect)",
        "transonic", {"motor": "M1670", "dry_mass_kg": 12.0, "diameter_m": 0.127},
        {"baro": ["analog-16"], "noise": ["noisy"], "k": [6]}),
-    _s("trans-k828-m118", "light K828FJ rocket at Mach ~1.18 with the transonic step", "transonic",
+    _s("trans-k828-m118", "light K828FJ rocket at Mach ~1.18 with the Kumar-style step", "transonic",
        {"motor": "K828FJ", "dry_mass_kg": 3.0, "diameter_m": 0.10},
        {"baro": ["analog-12"], "noise": ["noisy"], "k": [6, 8]}, transonic=_TS),
     _s("trans-m6400-m109", "short-burn M6400 rocket at Mach ~1.1 with a ramped 100 m step", "transonic",
@@ -128,10 +149,10 @@ _CATALOGUE: tuple[Scenario, ...] = (
        {"motor": "L1350", "dry_mass_kg": 10.0, "diameter_m": 0.10},
        {"baro": ["analog-10"], "noise": ["noisy"], "k": [5, 6]}, spikes={**_SPIKES, "seed": 11}),
     # --- supersonic -----------------------------------------------------------------------------------------
-    _s("sup-l1350-m137", "light L1350 rocket at Mach ~1.37 with the transonic step", "supersonic",
+    _s("sup-l1350-m137", "light L1350 rocket at Mach ~1.37 with the Kumar-style step", "supersonic",
        {"motor": "L1350", "dry_mass_kg": 6.0, "diameter_m": 0.10},
        {"baro": ["analog-10", "analog-16"], "noise": ["noisy"], "k": [6, 7]}, transonic=_TS),
-    _s("sup-m1670-m145", "M1670 rocket at Mach ~1.45 with the transonic step, 4.9 km", "supersonic",
+    _s("sup-m1670-m145", "M1670 rocket at Mach ~1.45 with the Kumar-style step, 4.9 km", "supersonic",
        {"motor": "M1670", "dry_mass_kg": 8.0, "diameter_m": 0.10},
        {"baro": ["analog-12", "ms5607"], "noise": ["none", "noisy"], "k": [5, 6]}, transonic=_TS),
     _s("sup-m6400-m167", "M6400 rocket at Mach ~1.67 with a 120 m step", "supersonic",
@@ -140,7 +161,7 @@ _CATALOGUE: tuple[Scenario, ...] = (
     _s("sup-m6400-m167-clean", "sup-m6400-m167 without the pressure step", "supersonic",
        {"motor": "M6400", "dry_mass_kg": 12.0, "diameter_m": 0.10},
        {"baro": ["analog-16", "ms5607"], "noise": ["noisy"], "k": [6]}),
-    _s("sup-m2245-m170-8700m", "M2245 in 80 mm to ~8.7 km at Mach ~1.7 with the transonic step", "supersonic",
+    _s("sup-m2245-m170-8700m", "M2245 in 80 mm to ~8.7 km at Mach ~1.7 with the Kumar-style step", "supersonic",
        {"motor": "M2245", "dry_mass_kg": 12.0, "diameter_m": 0.08},
        {"baro": ["analog-16", "ms5607"], "noise": ["noisy"], "k": [6, 7]}, transonic=_TS),
     _s("sup-m2245-m19-9400m", "M2245 in 80 mm to ~9.4 km at Mach ~1.9 with hysteresis (on 1.0, off 0.95)",
@@ -160,16 +181,16 @@ _CATALOGUE: tuple[Scenario, ...] = (
        {"motor": "K828FJ", "dry_mass_kg": 10.0, "diameter_m": 0.08},
        {"baro": ["analog-12", "analog-16"], "noise": ["none", "noisy"], "k": [6, 7]}, simulator="rocketpy",
        rocketpy={"wind_v": 5.0, "inclination_deg": 85.0, "heading_deg": 90.0}),
-    _s("rp-m1670-m105-vertical", "RocketPy: the M1670 cross-check rocket, vertical, no wind, transonic step",
+    _s("rp-m1670-m105-vertical", "RocketPy: the M1670 cross-check rocket, vertical, no wind, Kumar-style step",
        "transonic", {"motor": "M1670", "dry_mass_kg": 12.0, "diameter_m": 0.127},
        {"baro": ["analog-16", "ms5607"], "noise": ["noisy"], "k": [6]}, simulator="rocketpy",
        rocketpy={"inclination_deg": 90.0}, transonic=_TS),
-    _s("rp-m1670-m105-wind4", "RocketPy: M1670 rocket, 4 m/s wind, rail at 86 deg, transonic step", "transonic",
+    _s("rp-m1670-m105-wind4", "RocketPy: M1670 rocket, 4 m/s wind, rail at 86 deg, Kumar-style step", "transonic",
        {"motor": "M1670", "dry_mass_kg": 12.0, "diameter_m": 0.127},
        {"baro": ["analog-10", "analog-16"], "noise": ["noisy"], "k": [5, 6]}, simulator="rocketpy",
        rocketpy={"wind_u": 4.0, "inclination_deg": 86.0, "heading_deg": 45.0}, transonic=_TS),
     _s("rp-l1350-m137-windprofile", "RocketPy: L1350 rocket at Mach ~1.35, wind rising 2 -> 15 m/s with height, "
-       "rail at 84 deg, transonic step", "supersonic", {"motor": "L1350", "dry_mass_kg": 6.0, "diameter_m": 0.10},
+       "rail at 84 deg, Kumar-style step", "supersonic", {"motor": "L1350", "dry_mass_kg": 6.0, "diameter_m": 0.10},
        {"baro": ["analog-12", "ms5607"], "noise": ["noisy"], "k": [6, 7]}, simulator="rocketpy",
        rocketpy={"wind_u": [[0.0, 2.0], [1000.0, 8.0], [6000.0, 15.0]], "inclination_deg": 84.0,
                  "heading_deg": 270.0}, transonic=_TS),
@@ -177,6 +198,70 @@ _CATALOGUE: tuple[Scenario, ...] = (
        "supersonic", {"motor": "M2245", "dry_mass_kg": 12.0, "diameter_m": 0.08},
        {"baro": ["analog-16", "ms5607"], "noise": ["noisy"], "k": [6, 8]}, simulator="rocketpy",
        rocketpy={"wind_u": 3.0, "inclination_deg": 88.0, "heading_deg": 0.0}, transonic=_TS),
+    # --- barometer errors of real flight (pressure_errors.real_flight_errors; docs/flights.md) --------------------
+    # transonic dip, shock jump, noise bursts at burnout and deployment, ejection spike; defaults or drawn from the
+    # ranges of the shared and unseen logs; every one at k = 5, 6, 7 with 8-16-bit ADCs and the pascal sensor
+    _s("rb-l1350-m094", "L1350 rocket peaking at Mach ~0.94: port error and transonic dip, no shock", "transonic",
+       {"motor": "L1350", "dry_mass_kg": 10.0, "diameter_m": 0.13},
+       {"baro": ["analog-10", "analog-16", "ms5607"], "noise": ["noisy"], "k": [5, 6, 7]},
+       baro_errors={"model": {}, "seed": 1}),
+    _s("rb-m1670-m105", "M1670 rocket hovering at Mach ~1.05 (piccard-like): default real-flight errors",
+       "transonic", {"motor": "M1670", "dry_mass_kg": 12.0, "diameter_m": 0.127},
+       {"baro": ["analog-8", "analog-12", "analog-16"], "noise": ["noisy", "none"], "k": [5, 6, 7]},
+       baro_errors={"model": {}, "seed": 2}),
+    _s("rb-m1670-m105-jumpdown", "as rb-m1670-m105, deep dip (0.10 q) and a -300 m shock jump", "transonic",
+       {"motor": "M1670", "dry_mass_kg": 12.0, "diameter_m": 0.127},
+       {"baro": ["analog-16", "ms5607", "analog-10"], "noise": ["noisy"], "k": [5, 6, 7]},
+       baro_errors={"model": {"dip_cp": 0.10, "jump_m": -300.0}, "seed": 3}),
+    _s("rb-k828-m118", "light K828FJ rocket at Mach ~1.18, errors drawn from the ranges", "transonic",
+       {"motor": "K828FJ", "dry_mass_kg": 3.0, "diameter_m": 0.10},
+       {"baro": ["analog-12", "analog-8", "ms5607"], "noise": ["noisy"], "k": [5, 6, 7]},
+       baro_errors={"draw": 104, "seed": 4}),
+    _s("rb-m6400-m109", "short-burn M6400 rocket at Mach ~1.1, weakest errors of the ranges", "transonic",
+       {"motor": "M6400", "dry_mass_kg": 20.0, "diameter_m": 0.10},
+       {"baro": ["analog-16", "analog-10"], "noise": ["noisy"], "k": [5, 6, 7]},
+       baro_errors={"model": {"cp_port": 0.0, "dip_cp": 0.02, "jump_m": 50.0, "burst_sigma_m": 10.0,
+                              "ejection_m": 20.0}, "seed": 5}),
+    _s("rb-l1350-m137", "light L1350 rocket at Mach ~1.37, default real-flight errors", "supersonic",
+       {"motor": "L1350", "dry_mass_kg": 6.0, "diameter_m": 0.10},
+       {"baro": ["analog-10", "analog-16", "ms5607"], "noise": ["noisy"], "k": [5, 6, 7]},
+       baro_errors={"model": {}, "seed": 6}),
+    _s("rb-m1670-m145-delay", "M1670 at Mach ~1.45, drogue 1 s after apogee, -250 m ejection, 120 m bursts",
+       "supersonic", {"motor": "M1670", "dry_mass_kg": 8.0, "diameter_m": 0.10},
+       {"baro": ["analog-12", "ms5607", "analog-16"], "noise": ["noisy"], "k": [5, 6, 7]},
+       launch={"drogue_delay_s": 1.0},
+       baro_errors={"model": {"ejection_m": -250.0, "burst_sigma_m": 120.0, "burst_s": 0.6}, "seed": 7}),
+    _s("rb-m6400-m167", "M6400 rocket at Mach ~1.67, errors drawn from the ranges", "supersonic",
+       {"motor": "M6400", "dry_mass_kg": 12.0, "diameter_m": 0.10},
+       {"baro": ["analog-16", "analog-8", "analog-12"], "noise": ["noisy", "none"], "k": [5, 6, 7]},
+       baro_errors={"draw": 108, "seed": 8}),
+    _s("rb-m2245-m19-9400m", "M2245 in 80 mm to ~9.4 km at Mach ~1.9, strongest errors of the ranges",
+       "supersonic", {"motor": "M2245", "dry_mass_kg": 10.0, "diameter_m": 0.08},
+       {"baro": ["analog-16", "ms5607", "analog-12"], "noise": ["noisy"], "k": [5, 6, 7]},
+       baro_errors={"model": {"cp_port": 0.06, "dip_cp": 0.10, "dip_mach_off": 1.5, "jump_m": 400.0,
+                              "jump_decay_s": 1.0, "burst_sigma_m": 120.0, "ejection_m": 300.0}, "seed": 9}),
+    _s("rb-l1350-m145-highsite", "light L1350 rocket from a 1,200 m site at Mach ~1.45, errors drawn", "supersonic",
+       {"motor": "L1350", "dry_mass_kg": 6.0, "diameter_m": 0.10},
+       {"baro": ["analog-10", "analog-16", "ms5607"], "noise": ["noisy"], "k": [5, 6, 7]},
+       launch={"site_altitude_m": 1200.0}, baro_errors={"draw": 110, "seed": 10}),
+    _s("rp-rb-m1670-m105-wind4", "RocketPy: M1670 rocket, 4 m/s wind, rail at 86 deg, default real-flight errors",
+       "transonic", {"motor": "M1670", "dry_mass_kg": 12.0, "diameter_m": 0.127},
+       {"baro": ["analog-16", "analog-10", "ms5607"], "noise": ["noisy"], "k": [5, 6, 7]}, simulator="rocketpy",
+       rocketpy={"wind_u": 4.0, "inclination_deg": 86.0, "heading_deg": 45.0}, baro_errors={"model": {}, "seed": 11}),
+    _s("rp-rb-l1350-m137-windprofile", "RocketPy: L1350 rocket at Mach ~1.35, wind 2 -> 15 m/s, rail at 84 deg, "
+       "errors drawn", "supersonic", {"motor": "L1350", "dry_mass_kg": 6.0, "diameter_m": 0.10},
+       {"baro": ["analog-12", "ms5607", "analog-8"], "noise": ["noisy"], "k": [5, 6, 7]}, simulator="rocketpy",
+       rocketpy={"wind_u": [[0.0, 2.0], [1000.0, 8.0], [6000.0, 15.0]], "inclination_deg": 84.0,
+                 "heading_deg": 270.0}, baro_errors={"draw": 112, "seed": 12}),
+    _s("rp-rb-m2245-m17-wind3", "RocketPy: M2245 in 80 mm to ~8.7 km, 3 m/s wind, -350 m shock jump",
+       "supersonic", {"motor": "M2245", "dry_mass_kg": 12.0, "diameter_m": 0.08},
+       {"baro": ["analog-16", "ms5607", "analog-12"], "noise": ["noisy"], "k": [5, 6, 7]}, simulator="rocketpy",
+       rocketpy={"wind_u": 3.0, "inclination_deg": 88.0, "heading_deg": 0.0},
+       baro_errors={"model": {"jump_m": -350.0, "dip_cp": 0.09}, "seed": 13}),
+    _s("rp-rb-m6400-m167-vertical", "RocketPy: M6400 rocket at Mach ~1.67, vertical, default real-flight errors",
+       "supersonic", {"motor": "M6400", "dry_mass_kg": 12.0, "diameter_m": 0.10},
+       {"baro": ["analog-10", "analog-16", "ms5607"], "noise": ["noisy"], "k": [5, 6, 7]}, simulator="rocketpy",
+       rocketpy={"inclination_deg": 90.0}, baro_errors={"model": {}, "seed": 14}),
 )
 
 _BY_NAME: dict[str, Scenario] = {s.name: s for s in _CATALOGUE}
@@ -197,13 +282,17 @@ def get_scenario(name: str) -> Scenario:
 
 
 def scenario_catalogue() -> dict[str, dict[str, Any]]:
-    """name -> {description, mach_class, simulator, transonic, spikes, tags}: the catalogue as data."""
+    """name -> {description, mach_class, simulator, transonic, spikes, baro_errors, tags}: the catalogue as data."""
     return {s.name: {"description": s.description, "mach_class": s.mach_class, "simulator": s.simulator,
-                     "transonic": s.transonic is not None, "spikes": s.spikes is not None, "tags": s.tags}
+                     "transonic": s.transonic is not None, "spikes": s.spikes is not None,
+                     "baro_errors": s.baro_errors is not None, "tags": s.tags}
             for s in _CATALOGUE}
 
 
 def _apply_effects(s: Scenario, rec: FlightRecord, mach: np.ndarray) -> FlightRecord:
+    model = s.error_model()
+    if model is not None:
+        rec = real_flight_errors(rec, mach=mach, model=model, seed=int(s.baro_errors.get("seed", 0)))
     if s.transonic is not None:
         rec = transonic_pressure_error(rec, mach=mach, **s.transonic)
     if s.spikes is not None:
@@ -222,10 +311,12 @@ def cache_dir() -> Path:
 
 
 def cache_key(s: Scenario) -> str:
-    """Content hash of a scenario: its definition, the simulator sources and the data files."""
-    h = hashlib.sha256(json.dumps(s.definition(), sort_keys=True, default=str).encode())
+    """Content hash of a scenario's physics: :meth:`Scenario.physics`, the cache format, the simulator sources and
+    the data files (not the pressure effects: they are applied to the cached record)."""
+    h = hashlib.sha256(json.dumps(s.physics(), sort_keys=True, default=str).encode())
+    h.update(CACHE_FORMAT.encode())
     here = Path(__file__).resolve().parent
-    for src in ("sim1dof.py", "rocketpy_sim.py", "pressure_errors.py", "motors.py", "scenarios.py"):
+    for src in ("sim1dof.py", "rocketpy_sim.py", "motors.py"):
         p = here / src
         if p.exists():
             h.update(p.read_bytes())
@@ -235,6 +326,9 @@ def cache_key(s: Scenario) -> str:
             h.update(p.read_bytes())
     return h.hexdigest()[:24]
 
+
+#: Version of the cache file layout (save_record/load_record); part of the cache key.
+CACHE_FORMAT = "fwemu-scenario-npz/1"
 
 _ARRAYS = ("time_s", "pressure_pa", "accel_mps2")
 _TRUTH = ("altitude_m", "velocity_mps", "accel_mps2")
@@ -278,7 +372,6 @@ def _simulate_physics(s: Scenario) -> tuple[FlightRecord, np.ndarray]:
         rec = simulate_1dof(s.build_rocket(), s.build_launch(), names=[s.name])[0]
         return rec, mach_of(rec)
     if s.simulator == "rocketpy":
-        from firmware_model.flights.rocketpy_sim import simulate_rocketpy_with_mach
         path = cache_dir() / f"{s.name}-{cache_key(s)}.npz"
         if path.exists():
             try:
@@ -317,6 +410,15 @@ def scenario_mach(name: str) -> np.ndarray:
     return _simulate_cached(name)[1]
 
 
+def _effect_label(e: dict[str, Any]) -> str:
+    if e["effect"] == "real_flight_errors":
+        return (f"real-flight errors (dip {e['max_dip_m']:.0f} m at Mach {e['max_dip_mach']:.2f}, "
+                f"jump {e['model']['jump_m']:+.0f} m)")
+    if e["effect"] == "transonic_pressure_error":
+        return f"step {e['altitude_step_m']:+.0f} m (Kumar-style)"
+    return e["effect"].replace("pressure_", "")
+
+
 def scenario_table() -> str:
     """The catalogue as a Markdown table: simulator, class, peak Mach, apogee altitude and time, effects."""
     lines = ["| scenario | simulator | class | peak Mach | apogee (m AGL) | apogee time (s) | pressure effects |",
@@ -325,8 +427,7 @@ def scenario_table() -> str:
         s = get_scenario(n)
         r = simulate_scenario(n)
         summ = r.provenance["summary"]
-        eff = ", ".join(e["effect"].replace("_pressure_error", "").replace("pressure_", "")
-                        for e in r.provenance.get("effects", [])) or "-"
+        eff = ", ".join(_effect_label(e) for e in r.provenance.get("effects", [])) or "-"
         lines.append(f"| {n} | {s.simulator} | {s.mach_class} | {summ['max_mach']:.2f} | "
                      f"{r.truth.apogee_altitude_m:.0f} | {r.truth.apogee_time_s:.2f} | {eff} |")
     return "\n".join(lines)

@@ -23,8 +23,8 @@ from typing import Any
 
 import numpy as np
 
-from firmware_model.atmosphere import G0, altitude_m, density_kg_m3
-from firmware_model.errors import UserError
+from firmware_model.runtime.errors import UserError
+from firmware_model.spec.atmosphere import G0, altitude_m, density_kg_m3
 
 BARO_KINDS: tuple[str, ...] = ("adc", "pascal")
 

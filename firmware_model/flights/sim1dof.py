@@ -8,7 +8,7 @@ Physics (vertical axis, up positive; one column per flight, all flights of a bat
 * ``T(t)``: the motor's piecewise-linear thrust table (t = 0 is ignition); ``m(t) = m_dry + m_prop(t)`` with the
   propellant left proportional to the impulse still to come (:meth:`ThrustCurve.propellant_at`).
 * ``rho``, the speed of sound ``c`` (Mach ``M = |v|/c``) and the recorded pressure come from
-  :mod:`firmware_model.atmosphere` at ``site_altitude_m + z``; inside the integrator density and speed of sound
+  :mod:`firmware_model.spec.atmosphere` at ``site_altitude_m + z``; inside the integrator density and speed of sound
   are looked up in tables of that module's functions at 1 m spacing (linear interpolation; relative error
   < 1e-8), the recorded pressure is the module's exact function.
 * ``Cd(M)``: a (Mach, Cd) table (default: RocketPy's Calisto power-off curve) times ``cd_scale``, held constant
@@ -33,17 +33,20 @@ time and altitude from the internal-step zero crossing of v, interpolated linear
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+import functools
+import importlib.util
+from dataclasses import asdict, dataclass
 from functools import lru_cache
 from math import ceil, pi
 from typing import Sequence
 
 import numpy as np
 
-from firmware_model import atmosphere as atm
-from firmware_model.errors import UserError
 from firmware_model.flights.motors import ThrustCurve, default_drag_curve, load_motor
 from firmware_model.flights.record import FlightRecord, Truth
+from firmware_model.runtime.errors import UserError
+from firmware_model.runtime.output import interrupts_deferred
+from firmware_model.spec import atmosphere as atm
 
 G0 = atm.G0
 
@@ -420,13 +423,19 @@ def _kernel_py(h, m_per, max_steps, site, descent, delay, dry, area, cda_d, cd_r
     events[7] = end_t
 
 
-try:  # the optional 'fast' extra: the same source, compiled
-    import numba as _numba
+#: Whether the optional 'fast' extra (numba) is installed; found without importing it.
+HAVE_NUMBA: bool = importlib.util.find_spec("numba") is not None
 
-    _kernel = _numba.njit(cache=True, nogil=True)(_kernel_py)
-except ImportError:  # pragma: no cover - exercised where numba is absent
-    _numba = None
-    _kernel = None
+
+@functools.cache
+def compiled_kernel():
+    """:func:`_kernel_py` compiled by numba (the same source), or None without numba. A lazy load
+    (docs/architecture.md): importing numba costs about a second, which only a simulation should pay."""
+    if not HAVE_NUMBA:
+        return None
+    import numba  # lazy: heavy, optional
+
+    return numba.njit(cache=True, nogil=True)(_kernel_py)
 
 
 def _integrate_kernel(b: _Batch, kernel):
@@ -450,7 +459,7 @@ def _integrate_kernel(b: _Batch, kernel):
 #: Integrator used by :func:`simulate_1dof` by default: "kernel" (numba-compiled scalar RK4 per flight; needs the
 #: 'fast' extra); without numba: "python" (the same loop uncompiled) up to 8 flights, "numpy" (vectorised over
 #: flights) for larger batches. All three do the same arithmetic (same bytes; tested).
-DEFAULT_ENGINE: str = "kernel" if _kernel is not None else "numpy"
+DEFAULT_ENGINE: str = "kernel" if HAVE_NUMBA else "numpy"
 
 
 def simulate_1dof(rockets: Sequence[Rocket] | Rocket, launch: Launch | Sequence[Launch] = Launch(),
@@ -471,16 +480,15 @@ def simulate_1dof(rockets: Sequence[Rocket] | Rocket, launch: Launch | Sequence[
         raise UserError(f"1-DOF: {nf} rockets but {len(launches)} launches")
     b = _prepare(rockets, launches)
     if engine is None:   # numba if installed; else the uncompiled loop for a few flights, numpy for batches
-        engine = DEFAULT_ENGINE if _kernel is not None else ("python" if nf <= 8 else "numpy")
+        engine = DEFAULT_ENGINE if HAVE_NUMBA else ("python" if nf <= 8 else "numpy")
     if engine == "numpy":
         res = _integrate_numpy(b)
     elif engine == "kernel":
-        if _kernel is None:
+        if not HAVE_NUMBA:
             raise UserError("1-DOF: engine 'kernel' needs numba (install the 'fast' extra) or use engine='numpy'")
-        from firmware_model.output import interrupts_deferred
 
         with interrupts_deferred():  # the first call compiles (seconds): an interrupt waits for it
-            res = _integrate_kernel(b, _kernel)
+            res = _integrate_kernel(b, compiled_kernel())
     elif engine == "python":
         res = _integrate_kernel(b, _kernel_py)
     else:

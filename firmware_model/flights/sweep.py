@@ -1,4 +1,4 @@
-"""Apogee error against the tuning ratio R/q (seed 000 Figure 10) and against the sample period 2^-k, over a set
+"""Apogee error against the tuning ratio R/q (Schultz 2002 Figure 10) and against the sample period 2^-k, over a set
 of flights (docs/evaluation.md, "Sweeps").
 
 * :func:`ratio_sweep`: one method (default ``kalman_baro``) built at each ratio in ``ratios`` on each flight's own
@@ -21,11 +21,22 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from firmware_model.errors import UserError
-from firmware_model.flights.evaluate import (METHODS, FlightSpec, flight_inputs, load_record, methods_named,
-                                             reference_for, run_method, sensor_config)
+from firmware_model.flights.evaluate import (
+    METHODS,
+    FlightSpec,
+    _clean,
+    flight_inputs,
+    load_record,
+    methods_named,
+    reference_for,
+    run_method,
+    sensor_config,
+)
+from firmware_model.runtime import markdown as md
+from firmware_model.runtime.errors import UserError
+from firmware_model.runtime.pool import ordered_map
 
-#: Default R/q grid: 10^1 .. 10^8, four points a decade (seed 000 Figure 10 spans about 10^1 .. 10^8).
+#: Default R/q grid: 10^1 .. 10^8, four points a decade (Schultz 2002 Figure 10 spans about 10^1 .. 10^8).
 DEFAULT_RATIOS: tuple[float, ...] = tuple(float(10 ** (e / 4)) for e in range(4, 33))
 DEFAULT_KS: tuple[int, ...] = (4, 5, 6, 7, 8)
 
@@ -112,14 +123,12 @@ def _k_job(job: tuple[FlightSpec, tuple[str, ...], tuple[int, ...], tuple[tuple[
 
 
 def _map(fn: Callable[[Any], Any], jobs_list: list[Any], jobs: int) -> list[Any]:
-    from firmware_model.flights.evaluate import ordered_map
-
     return ordered_map(fn, jobs_list, jobs)
 
 
 def ratio_sweep(specs: Sequence[FlightSpec], ratios: Sequence[float] = DEFAULT_RATIOS, method: str = "kalman_baro",
                 overrides: dict[str, Any] | None = None, jobs: int = 1) -> SweepResult:
-    """Apogee error of ``method`` at each R/q in ``ratios`` on each flight (seed 000 Figure 10)."""
+    """Apogee error of ``method`` at each R/q in ``ratios`` on each flight (Schultz 2002 Figure 10)."""
     if method not in METHODS or METHODS[method].program not in ("kalman_baro", "kalman_accel"):
         raise UserError(f"ratio sweep: method {method!r} has no R/q (use kalman_baro, kalman_accel or ideal_kalman)")
     if not ratios or any(not (r > 0) for r in ratios):
@@ -174,7 +183,7 @@ def render_markdown(res: SweepResult, command: str | None = None) -> str:
         usable = [f for f in res.flights if res.reference.get(f, {}).get("usable", True)]
         head = ["R/q" if res.kind == "ratio" else "k"] + res.flights + ["median abs", "worst abs",
                                                                         "most early", "worst abs, usable references"]
-        lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+        lines += md.header(head)
         for j, x in enumerate(res.axis):
             cells = [_axis_label(res, x)]
             vals = []
@@ -191,7 +200,7 @@ def render_markdown(res: SweepResult, command: str | None = None) -> str:
             cells.append(f"{min(early):+.3f}" if early else "—")
             uv = [abs(errors[f][j]) for f in usable if errors[f][j] is not None]
             cells.append(f"{max(uv):.3f}" if uv else "—")
-            lines.append("| " + " | ".join(cells) + " |")
+            lines.append(md.row(cells))
         lines.append("")
     notes = sorted({w for f in res.flights for w in res.failed[f] if w})
     if notes:
@@ -222,8 +231,6 @@ def render_csv(res: SweepResult) -> str:
 
 
 def render_json(res: SweepResult, command: str | None = None) -> str:
-    from firmware_model.flights.evaluate import _clean
-
     return json.dumps(_clean({"schema": "fwemu-sweep/1", "command": command, **res.to_dict()}), indent=1,
                       sort_keys=True) + "\n"
 

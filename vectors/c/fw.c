@@ -175,7 +175,7 @@ static void step_recursive(const fw_consts *c, fw_state *st, int32_t adc, int16_
 static void step_seed_literal(const fw_consts *c, fw_state *st, int32_t adc)
 {
     int64_t z = baro_z(c, adc);
-    /* seed 000's listing, subtraction backwards: EST += rs(EST, S) - (z << (8 - S)) */
+    /* Schultz 2002's listing, subtraction backwards: EST += rs(EST, S) - (z << (8 - S)) */
     st->EST = fw_wrap32((int64_t)st->EST + fw_rs(st->EST, c->S, c->ROUND) - ls(z, 8 - c->S));
 }
 

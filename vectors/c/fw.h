@@ -62,7 +62,7 @@ typedef struct {
     fw_gain ACC_G;         /* accelerometer counts -> Q24.8 m/s^2 */
     fw_gain G11T, G21T, G31T; /* kalman_accel transonic barometer gains */
     int32_t MACH_VLO;   /* kalman_accel: above it (after liftoff) the transonic gains are used, Q24.8 m/s */
-    int32_t MACH_VHI;   /* unused since the field-ready change (seed-002 lockout window) */
+    int32_t MACH_VHI;   /* unused since the field-ready change (lockout window of Schultz n.d.) */
     int32_t MACH_E;     /* unused since the field-ready change */
     int32_t BARO_MIN;   /* valid raw range, inclusive: ADC counts, or pascals (the pascal kind) */
     int32_t BARO_MAX;

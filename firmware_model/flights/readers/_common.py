@@ -1,7 +1,7 @@
 """Shared parts of the flight-log readers: reading text, one-line errors naming file and line, number parsing,
 the licence table of known logs, repeated-timestamp handling.
 
-Every reader reports a bad file as one :class:`~firmware_model.errors.UserError` ``"<file>:<line>: <what>"`` (line
+Every reader reports a bad file as one :class:`~firmware_model.runtime.errors.UserError` ``"<file>:<line>: <what>"`` (line
 numbers are 1-based physical lines of the file) and never returns half a record.
 """
 
@@ -13,7 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from firmware_model.errors import UserError
+from firmware_model.runtime.errors import UserError
+from firmware_model.spec.atmosphere import pressure_pa
 
 #: Licence of the logs the project knows by name (../shared/flights/README.md says which is which). A file not
 #: listed here gets ``"unknown"`` unless it states its own (generic CSV: a ``# licence: ...`` comment line).
@@ -91,7 +92,153 @@ def check_time(path: Path, lines: list[int], t: np.ndarray, *, drop_repeats: boo
             keep[i] = False
             dropped += 1
             continue
-        raise fail(path, lines[i], f"time does not increase ({last!r} -> {t[i]!r})")
+        raise fail(path, lines[i], f"time does not increase ({show(last)} -> {show(t[i])})")
     if int(keep.sum()) < 2:
         raise fail(path, lines[-1] if lines else 1, f"a flight needs at least 2 samples, got {int(keep.sum())}")
     return keep, dropped
+
+
+# ---------------------------------------------------------------------------------------------------- tables
+def show(value: object) -> str:
+    """A value as a user would write it in an error text: ``0.01``, not ``np.float64(0.01)``."""
+    if isinstance(value, (float, np.floating)):
+        x = float(value)
+        return repr(int(x)) if x.is_integer() and abs(x) < 1e15 else repr(x)
+    if isinstance(value, np.integer):
+        return str(int(value))
+    return str(value)
+
+
+def header_fields(text: str, delimiter: str = ",", skip_comments: bool = True) -> list[str]:
+    """The stripped fields of the first non-blank line (lines starting with ``#`` skipped when asked), with
+    trailing empty fields removed (RRC3 ends every line with a ``;``); empty list for no such line."""
+    for line in text.splitlines():
+        if not line.strip() or (skip_comments and line.startswith("#")):
+            continue
+        fields = [f.strip() for f in line.split(delimiter)]
+        while fields and not fields[-1]:
+            fields.pop()
+        return fields
+    return []
+
+
+class Table:
+    """A delimited text table: ``header`` (stripped names, trailing empty names removed), ``header_line``,
+    ``rows`` = [(line number, fields)], ``notes`` (rows skipped and why).
+
+    * blank lines and, before the header, ``#`` comment lines are skipped;
+    * a row whose fields are all empty (RRC3 writes ``;;;;;;;`` at the end) is skipped and noted;
+    * a row with fewer fields than the header is an error naming the line, **unless** it is the last line of a
+      file that does not end with a newline (a log cut off mid-row): that row is dropped and noted;
+    * a row with more fields than the header is accepted only when the extra fields are empty.
+    """
+
+    def __init__(self, path: Path, text: str, delimiter: str = ",", min_rows: int = 1,
+                 comments: bool = True, allow_duplicates: bool = False) -> None:
+        self.path = path
+        self.notes: list[str] = []
+        self.header: list[str] = []
+        self.header_line = 0
+        self.rows: list[tuple[int, list[str]]] = []
+        lines = text.splitlines()
+        ends_cleanly = text.endswith(("\n", "\r"))
+        empty_rows = 0
+        for number, line in enumerate(lines, start=1):
+            if not line.strip():
+                continue
+            if not self.header:
+                if comments and line.startswith("#"):
+                    continue
+                fields = [f.strip() for f in line.split(delimiter)]
+                while fields and not fields[-1]:
+                    fields.pop()
+                self.header, self.header_line = fields, number
+                continue
+            fields = line.split(delimiter)
+            if not any(f.strip() for f in fields):
+                empty_rows += 1
+                continue
+            n = len(self.header)
+            if len(fields) < n:
+                if number == len(lines) and not ends_cleanly:
+                    self.notes.append(f"line {number}: last row cut short ({len(fields)} of {n} fields, no newline "
+                                      "at the end of the file): dropped")
+                    continue
+                raise fail(path, number, f"{len(fields)} fields, the header (line {self.header_line}) names {n}")
+            if len(fields) > n and any(f.strip() for f in fields[n:]):
+                raise fail(path, number, f"{len(fields)} fields, the header (line {self.header_line}) names {n}")
+            self.rows.append((number, fields[:n]))
+        if not self.header:
+            raise fail(path, max(1, len(lines)), "no header line")
+        if empty_rows:
+            self.notes.append(f"{empty_rows} rows with every field empty skipped")
+        if len(self.rows) < min_rows:
+            raise fail(path, self.header_line, f"{len(self.rows)} data rows (need at least {min_rows})")
+        dup = sorted({c for c in self.header if c and self.header.count(c) > 1})
+        if dup and not allow_duplicates:
+            raise fail(path, self.header_line, f"column(s) named twice: {', '.join(dup)}")
+
+    @property
+    def lines(self) -> list[int]:
+        return [num for num, _ in self.rows]
+
+    def index(self, name: str) -> int:
+        """Column index of ``name`` (exact), or an error naming the header line."""
+        if name not in self.header:
+            raise fail(self.path, self.header_line, f"missing column {name!r} (columns: {', '.join(self.header)})")
+        return self.header.index(name)
+
+    def floats(self, name: str, *, decimal_comma: bool = False, allow_empty: bool = False) -> np.ndarray:
+        """Column ``name`` as float64; errors name the file, line, column and the text as written."""
+        j = self.index(name)
+        out = np.empty(len(self.rows))
+        for i, (num, fields) in enumerate(self.rows):
+            s = fields[j]
+            if decimal_comma:
+                s = s.replace(",", ".")
+            try:
+                out[i] = parse_float(self.path, num, name, s, allow_empty=allow_empty)
+            except UserError:
+                if decimal_comma:   # name the field as the user wrote it
+                    raise parse_error(self.path, num, name, fields[j], allow_empty) from None
+                raise
+        return out
+
+    def strings(self, name: str) -> list[str]:
+        j = self.index(name)
+        return [fields[j].strip() for _, fields in self.rows]
+
+
+def parse_error(path: Path, line: int, column: str, text: str, allow_empty: bool) -> UserError:
+    s = text.strip()
+    if not s and not allow_empty:
+        return fail(path, line, f"{column}: empty field")
+    return fail(path, line, f"{column}: cannot parse {s!r} as a number")
+
+
+def gaps_note(t: np.ndarray, lines: list[int], limit_s: float = 1.0) -> list[str]:
+    """Notes for intervals longer than ``limit_s`` between rows (line numbers as in the file)."""
+    d = np.diff(t)
+    big = np.nonzero(d > limit_s)[0]
+    out = [f"gap of {show(round(float(d[i]), 6))} s between line {lines[i]} and line {lines[i + 1]}"
+           for i in big[:5]]
+    if big.size > 5:
+        out.append(f"... {big.size - 5} more gaps over {show(limit_s)} s")
+    return out
+
+
+#: Site altitude (m above sea level) assumed for an altitude-only log when none is given: sea level.
+DEFAULT_SITE_ALTITUDE_M: float = 0.0
+
+
+def synthetic_pressure(altitude_agl_m: np.ndarray, site_altitude_m: float | None, source: str = "given"
+                       ) -> tuple[np.ndarray, str]:
+    """Pressure (Pa) a barometer would have read at ``altitude_agl_m`` above a site at ``site_altitude_m`` (None:
+    :data:`DEFAULT_SITE_ALTITUDE_M`) through the standard atmosphere, and the note that says so."""
+    site = DEFAULT_SITE_ALTITUDE_M if site_altitude_m is None else float(site_altitude_m)
+    if not math.isfinite(site) or not -500.0 <= site <= 10000.0:
+        raise UserError(f"site altitude {show(site)} m: must be a number between -500 and 10000 m")
+    p = np.asarray(pressure_pa(np.asarray(altitude_agl_m, dtype=np.float64) + site), dtype=np.float64)
+    how = source if site_altitude_m is not None else "the default, sea level: give the site altitude to change it"
+    return p, (f"SYNTHETIC BAROMETER: the log has altitude, not pressure; pressure = standard atmosphere at "
+               f"altitude + site altitude {site:.1f} m ({how})")

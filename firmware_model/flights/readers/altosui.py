@@ -2,6 +2,9 @@
 
 What the reader relies on (docs/flights.md, "AltosUI"):
 
+* Without the comment lines (older or trimmed exports) the first line names the columns (``time,acceleration,
+  pressure,altitude,height,speed,temperature,...``), possibly without ``state``/``state_name``: then the record has
+  no AltOS events. Detected by a first line naming time, pressure, acceleration and one more AltosUI column.
 * Lines starting with ``#`` are comments; ``# Key: value`` comments (config, serial, software version) are kept
   in ``provenance["altos_config"]``; the **last** comment line holds the column names (``#version,serial,...``).
 * v5 header quirk: AltOS 1.0.x wrote ``main_voltageaccel_x`` (two names without the comma); the name is split.
@@ -26,23 +29,40 @@ from pathlib import Path
 
 import numpy as np
 
-from firmware_model.atmosphere import G0
 from firmware_model.flights.readers._common import check_time, fail, licence_of, parse_float, read_text
 from firmware_model.flights.record import FlightRecord
+from firmware_model.spec.atmosphere import G0
 
 REQUIRED: tuple[str, ...] = ("time", "state_name", "pressure", "acceleration")
 #: The v5 header quirk and its repair.
 QUIRKS: dict[str, tuple[str, ...]] = {"main_voltageaccel_x": ("main_voltage", "accel_x")}
 
 
+#: Columns of which a headerless export's first line must name at least two besides time and pressure.
+HEADERLESS_MARKS: frozenset[str] = frozenset({"acceleration", "altitude", "height", "speed", "state_name",
+                                              "accel_speed", "baro_speed"})
+
+
 def looks_like(text: str) -> bool:
     """True when the text is an AltosUI CSV: a comment line naming the columns ``#version,serial,...`` with
-    ``time``, ``state_name`` and ``pressure``."""
+    ``time``, ``state_name`` and ``pressure``, or (an export without the comment lines) a first line naming
+    ``time``, ``pressure``, ``acceleration`` and one more AltosUI column (``altitude``, ``height``, ``speed``, ...)."""
     for line in text.splitlines()[:200]:
         if line.startswith("#version"):
             names = {n.strip() for n in line[1:].split(",")}
             return {"time", "state_name", "pressure"} <= names
-    return False
+    return _headerless(text) is not None
+
+
+def _headerless(text: str) -> int | None:
+    """Line number of a headerless export's column line, or None."""
+    for number, line in enumerate(text.splitlines()[:200], start=1):
+        if not line.strip() or line.startswith("#"):
+            continue
+        names = {n.strip() for n in line.split(",")}
+        ok = {"time", "pressure", "acceleration"} <= names and len(names & HEADERLESS_MARKS) >= 2
+        return number if ok else None
+    return None
 
 
 def header_names(line: str) -> list[str]:
@@ -62,8 +82,12 @@ def read(path: Path) -> FlightRecord:
     header_line = 0
     config: dict[str, str] = {}
     data: list[tuple[int, list[str]]] = []
+    plain = None if any(ln.startswith("#version") for ln in lines[:200]) else _headerless(text)
     for number, line in enumerate(lines, start=1):
         if not line.strip():
+            continue
+        if number == plain:
+            header, header_line = header_names(line), number
             continue
         if line.startswith("#"):
             if data:
@@ -79,14 +103,16 @@ def read(path: Path) -> FlightRecord:
         data.append((number, line.split(",")))
     if header is None:
         raise fail(path, len(lines), "no '#version,...' header line (not an AltosUI CSV?)")
-    missing = [c for c in REQUIRED if c not in header]
+    required = REQUIRED if plain is None or "state_name" in header else tuple(c for c in REQUIRED
+                                                                            if c != "state_name")
+    missing = [c for c in required if c not in header]
     if missing:
         raise fail(path, header_line, f"missing column(s) {', '.join(missing)}")
     if not data:
         raise fail(path, header_line, "no data rows")
     col = {name: header.index(name) for name in REQUIRED + ("temperature", "version")
            if name in header}
-    need = max(col[c] for c in REQUIRED) + 1
+    need = max(col[c] for c in required) + 1
     version = data[0][1][col["version"]].strip() if "version" in col else "?"
 
     n = len(data)
@@ -104,14 +130,17 @@ def read(path: Path) -> FlightRecord:
         t[i] = parse_float(path, num, "time", fields[col["time"]])
         p[i] = parse_float(path, num, "pressure", fields[col["pressure"]])
         if not p[i] > 0:
-            raise fail(path, num, f"pressure: {p[i]!r} Pa is not positive")
+            raise fail(path, num, f"pressure: {fields[col['pressure']].strip()} Pa is not positive")
         acc[i] = parse_float(path, num, "acceleration", fields[col["acceleration"]])
         if temp is not None and col["temperature"] < len(fields):
             temp[i] = parse_float(path, num, "temperature", fields[col["temperature"]], allow_empty=True)
-        state = fields[col["state_name"]].strip()
-        if not state:
-            raise fail(path, num, "state_name: empty field")
-        states.append(state)
+        if "state_name" in col:
+            state = fields[col["state_name"]].strip()
+            if not state:
+                raise fail(path, num, "state_name: empty field")
+            states.append(state)
+        else:
+            states.append("")
 
     keep, repeats = check_time(path, line_of, t, drop_repeats=True)
     conflicting = 0
@@ -127,8 +156,12 @@ def read(path: Path) -> FlightRecord:
 
     events: dict[str, float] = {}
     for ti, state in zip(t, states):
-        events.setdefault(f"altos_{state}", float(ti))
+        if state:
+            events.setdefault(f"altos_{state}", float(ti))
     notes: list[str] = []
+    if plain is not None:
+        notes.append("no '#version' comment line: the first line names the columns"
+                     + ("" if "state_name" in col else "; no state_name column, so no AltOS events or apogee"))
     if "altos_drogue" in events:
         events["altos_apogee"] = events["altos_drogue"]
     elif "altos_main" in events:
@@ -153,9 +186,10 @@ def read(path: Path) -> FlightRecord:
     else:
         baro_hint = "unknown"
     provenance = {
-        "source": str(path), "format": "altosui", "csv_version": version, "licence": licence, "origin": origin,
+        "source": str(path), "format": "altosui", "own_computer": "AltOS", "csv_version": version,
+        "licence": licence, "origin": origin,
         "rows": n, "altos_config": config, "baro_sensor_hint": baro_hint, "notes": notes,
         "repeated_timestamps_dropped": int(repeats), "conflicting_repeats": int(conflicting),
     }
     return FlightRecord(name=path.stem, time_s=t, pressure_pa=p, accel_mps2=acc + G0, temperature_c=temp,
-                        events=events, provenance=provenance)
+                        events=events, provenance=provenance, row_lines=np.asarray(line_of)[keep])

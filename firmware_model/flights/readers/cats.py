@@ -22,9 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
-from firmware_model.atmosphere import G0
-from firmware_model.flights.readers._common import check_time, fail, licence_of, parse_float, read_text
+from firmware_model.flights.readers._common import check_time, fail, licence_of, parse_float, read_text, show
 from firmware_model.flights.record import FlightRecord
+from firmware_model.spec.atmosphere import G0
 
 BARO_HEADER: tuple[str, ...] = ("ts", "id", "T", "P")
 IMU_HEADER: tuple[str, ...] = ("ts", "id", "Ax", "Ay", "Az", "Gx", "Gy", "Gz")
@@ -122,7 +122,7 @@ def read(path: Path) -> FlightRecord:
     baro = _table(baro_path, BARO_HEADER, ("ts", "T", "P"))
     bad = np.nonzero(~(baro["P"] > 0))[0]
     if bad.size:
-        raise fail(baro_path, int(baro["_lines"][bad[0]]), f"P: {baro['P'][bad[0]]!r} Pa is not positive")
+        raise fail(baro_path, int(baro["_lines"][bad[0]]), f"P: {show(baro['P'][bad[0]])} Pa is not positive")
     t = baro["ts"]
     accel = None
     axis_info: dict[str, object] = {}

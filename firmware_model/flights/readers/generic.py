@@ -4,7 +4,7 @@ Columns (names are case-sensitive; other columns are ignored):
 
 * ``time_s`` (required): s, strictly increasing.
 * barometer, exactly one of: ``pressure_pa``; ``pressure_hpa`` (x100); ``altitude_m``: standard-atmosphere
-  (geopotential, MSL) altitude, converted to pressure with :func:`firmware_model.atmosphere.pressure_pa` (an AGL
+  (geopotential, MSL) altitude, converted to pressure with :func:`firmware_model.spec.atmosphere.pressure_pa` (an AGL
   log then flies as if launched from sea level).
 * accelerometer, optional, at most one of: ``accel_mps2`` (axial specific force, +9.81 on the pad) or ``accel_g``
   (the same in g, x g0).
@@ -27,9 +27,9 @@ from pathlib import Path
 
 import numpy as np
 
-from firmware_model.atmosphere import G0, pressure_pa
 from firmware_model.flights.readers._common import check_time, fail, licence_of, parse_float, read_text
 from firmware_model.flights.record import FlightRecord, Truth
+from firmware_model.spec.atmosphere import G0, pressure_pa
 
 BARO_COLUMNS: tuple[str, ...] = ("pressure_pa", "pressure_hpa", "altitude_m")
 ACCEL_COLUMNS: tuple[str, ...] = ("accel_mps2", "accel_g")
@@ -126,7 +126,7 @@ def read(path: Path) -> FlightRecord:
         p = np.asarray(pressure_pa(raw), dtype=np.float64)
     bad = np.nonzero(~(p > 0) & np.isfinite(p))[0]
     if bad.size:
-        raise fail(path, line_of[int(bad[0])], f"{baro[0]}: {raw[bad[0]]!r} gives a pressure <= 0 Pa")
+        raise fail(path, line_of[int(bad[0])], f"{baro[0]}: {rows[int(bad[0])][1][idx[baro[0]]].strip()} gives a pressure <= 0 Pa")
     acc = None
     if accel:
         acc = values[accel[0]] * (G0 if accel[0] == "accel_g" else 1.0)
@@ -169,7 +169,7 @@ def read(path: Path) -> FlightRecord:
     }
     return FlightRecord(name=meta.get("name", path.stem), time_s=t, pressure_pa=p, accel_mps2=acc,
                         temperature_c=values.get("temperature_c"), ground_pressure_pa=ground, truth=truth,
-                        provenance=provenance)
+                        provenance=provenance, row_lines=np.asarray(line_of))
 
 
 def _fmt(x: float) -> str:

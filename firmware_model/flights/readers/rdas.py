@@ -1,6 +1,6 @@
-"""RDAS text exports (AED Electronics RDAS; the data files of seed 000 and seed 002).
+"""RDAS text exports (AED Electronics RDAS; the data files of Schultz 2002 and Schultz n.d.).
 
-No RDAS file is in ../shared/flights, so this reader follows what the seeds' programs read (seed 000 Appendix A
+No RDAS file is in ../shared/flights, so this reader follows what Schultz's programs read (Schultz 2002 Appendix A
 ``RDASfilter.c`` and Appendix B ``kapogee.c``: ``sscanf(buf, "%s %lf %lf %d")``) and documents every assumption
 (docs/flights.md, "RDAS"):
 
@@ -10,12 +10,12 @@ No RDAS file is in ../shared/flights, so this reader follows what the seeds' pro
   non-blank line must be a data line.
 * **raw** export (every acceleration and pressure value an integer in 0..1023): 10-bit ADC counts.
   Pressure: counts fall with pressure at 0.009/kPa of the 10-bit full scale (an MPX4115A-class sensor:
-  0.0092 counts/Pa, 108.6 Pa = about 9 m = 30 ft per count at sea level, seed 000's "1 count is about 30 feet");
+  0.0092 counts/Pa, 108.6 Pa = about 9 m = 30 ft per count at sea level, Schultz 2002's "1 count is about 30 feet");
   the export does not give the offset, so the pad (rows with time < 0, else the first 10 rows) is put at the
-  standard sea-level pressure 101,325 Pa. Acceleration: counts, the pad mean is +1 g (seed 000: "offset taken on
+  standard sea-level pressure 101,325 Pa. Acceleration: counts, the pad mean is +1 g (Schultz 2002: "offset taken on
   the pad as 1 g"), scale **assumed** 1023 counts per 100 g (a +-50 g sensor); kept as ``accel_counts`` with that
   calibration so a user can replace it.
-* **interpreted** export (otherwise): ``pressure`` is altitude in feet above the pad (seed 002 plots it as
+* **interpreted** export (otherwise): ``pressure`` is altitude in feet above the pad (Schultz n.d. plots it as
   "Altitude (feet)"), converted with the standard atmosphere from sea level; ``acceleration`` is ft/s^2 along the
   axis, re-based so the pad mean reads +1 g whatever offset the export used.
 """
@@ -27,9 +27,9 @@ from pathlib import Path
 
 import numpy as np
 
-from firmware_model.atmosphere import G0, P0_PA, pressure_pa
 from firmware_model.flights.readers._common import check_time, fail, parse_float, read_text
 from firmware_model.flights.record import FlightRecord
+from firmware_model.spec.atmosphere import G0, P0_PA, pressure_pa
 
 FT: float = 0.3048
 #: Raw export: 10-bit ADC; pressure slope 0.009 of full scale per kPa (MPX4115A class); accelerometer +-50 g.

@@ -1,0 +1,1 @@
+"""cli: the ``fwemu`` command, one module per command. Nothing imports it."""

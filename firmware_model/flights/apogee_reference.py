@@ -1,0 +1,354 @@
+"""What a flight's firmware answers are judged against: liftoff, the pad, and the reference apogee.
+
+:func:`reference_apogee` (docs/flights.md, "Reference apogee"):
+
+* a record with truth (simulators): the true apogee, uncertainty 0, source ``"truth"``;
+* a real log: a robust least-squares parabola through the **barometric altitude** near its peak, source
+  ``"baro_parabola"``. Altitude: standard-atmosphere altitude of each pressure minus that of the ground pressure
+  (``record.ground_pressure_pa``, else the median pad pressure, :func:`ground_pressure`).
+
+  1. Isolated spikes: within 3.75 s of the highest point of the 7-sample running median, a sample is a spike when it
+     differs from the median of its 7-sample neighbourhood by more than max(6 sigma, 3 m), sigma from
+     :func:`noise_scale`; spikes are never used.
+  2. The peak: the highest point of the 7-sample running median of the samples left.
+  3. Fit: ``h = c0 + c1 (t - tp) + c2 (t - tp)^2`` by least squares over the samples with |t - tp| <= w, each
+     sample weighted by the time it represents (half the sum of its two intervals: a 100 samples/s ascent and a
+     10 samples/s descent count by duration, not by rows), iterated: residuals beyond 3 x their robust scale
+     (1.4826 x weighted MAD, at least 0.25 m) are dropped and the fit repeated, at most 10 times. A fit needs
+     c2 < 0, at least 8 samples, and samples on both sides of the vertex; the vertex ``tp - c1 / (2 c2)`` must lie
+     inside the window.
+  4. Nominal window w = 1.5 s; the uncertainty is the largest distance of the vertex time from the nominal one over
+     the windows w = 1.0, 1.25, 1.5, 2.0, 2.5 s and the nominal window shifted by +-0.25 s (all that give a valid
+     fit), at least half the log's median interval near the peak (the time resolution of the data).
+  5. Deployment: when the log says its own computer fired a recovery charge (:data:`DEPLOY_EVENTS`, the earliest)
+     and the samples up to that moment hold the vertex, only they are fitted: windows [t_d - 2w, t_d] for the
+     same w (nominal 1.5 s), the uncertainty the larger of their spread and twice the vertex's standard error. After a charge the flight is no longer free (a
+     parachute opens) and the ejection disturbs the pressure for seconds, so samples after it bias the vertex
+     (measured: 2012-10-20 serial 068, whose whole-window fit sat 0.6 s after the deployment with a curvature of
+     -20 m/s^2). When they do not hold it (the charge fired before apogee) rules 3-4 stand as they are.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+
+from firmware_model.flights.readers import read_flight
+from firmware_model.flights.record import FlightRecord
+from firmware_model.runtime.errors import UserError
+from firmware_model.spec.atmosphere import G0, altitude_m
+
+NOMINAL_WINDOW_S: float = 1.5
+WINDOWS_S: tuple[float, ...] = (1.0, 1.25, 1.5, 2.0, 2.5)
+SHIFTS_S: tuple[float, ...] = (-0.25, 0.25)
+SPIKE_MIN_M: float = 3.0
+SPIKE_SIGMAS: float = 6.0
+MEDIAN_HALF: int = 3
+#: Events a reader sets where the log's own computer fired a recovery charge (rule 5).
+DEPLOY_EVENTS: tuple[str, ...] = ("altos_apogee", "altos_drogue", "altos_main")
+
+
+@dataclass(frozen=True)
+class ReferenceApogee:
+    """The reference apogee: ``time_s`` on the record's axis, ``altitude_m`` above the pad, ``uncertainty_s``,
+    ``source`` (``truth`` / ``baro_parabola``), ``window_s`` (the nominal fit half-width; 0 for truth), ``notes``
+    (per-window vertices, spikes rejected ...)."""
+
+    time_s: float
+    altitude_m: float
+    uncertainty_s: float
+    source: str
+    window_s: float
+    notes: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+# ---------------------------------------------------------------------------------------------- liftoff and pad
+def liftoff_time(record: FlightRecord) -> float:
+    """Time of liftoff on the record's axis.
+
+    In order: truth (the sample before the true velocity first exceeds 0.01 m/s, or the altitude 1 mm), else the
+    accelerometer (the first time the specific force stays above pad + 2 g for 50 ms, backed off to the last
+    sample before it below pad + 0.5 g), else the log's ``altos_boost`` event, else the barometer (the last
+    sample below 3 m and the first above 30 m over the pad median, extrapolated back to rest assuming constant
+    acceleration), else the record's first time."""
+    t = np.asarray(record.time_s, dtype=np.float64)
+    tr = record.truth
+    if tr is not None and tr.velocity_mps is not None:
+        up = np.nonzero(np.asarray(tr.velocity_mps) > 0.01)[0]
+        if up.size:
+            return float(t[max(0, int(up[0]) - 1)])
+    if tr is not None and tr.altitude_m is not None:
+        up = np.nonzero(np.asarray(tr.altitude_m) > 0.001)[0]
+        if up.size:
+            return float(t[max(0, int(up[0]) - 1)])
+    f = record.specific_force_mps2()
+    if f is not None and np.sum(np.isfinite(f)) > 10:
+        first = np.isfinite(f) & (t <= t[0] + 0.25)
+        pad = float(np.median(f[first])) if first.any() else G0
+        if pad > 1.5 * G0:      # the log starts accelerating (after liftoff / during ignition): the nominal 1 g
+            pad = G0
+        hi = np.nan_to_num(f, nan=-np.inf) > pad + 2.0 * G0
+        for i in np.nonzero(hi)[0]:
+            j = np.searchsorted(t, t[i] + 0.05)
+            if j <= t.size and np.all(hi[i:j]):
+                low = np.nonzero(np.nan_to_num(f[: i + 1], nan=np.inf) < pad + 0.5 * G0)[0]
+                return float(t[int(low[-1])]) if low.size else float(t[0])
+    if "altos_boost" in record.events:
+        return float(record.events["altos_boost"])
+    p = np.asarray(record.pressure_pa, dtype=np.float64)
+    ok = np.isfinite(p)
+    h = np.full(p.shape, np.nan)
+    h[ok] = altitude_m(p[ok])
+    h0 = float(np.nanmedian(h[: max(10, min(100, h.size // 20))]))
+    above = np.nonzero(np.nan_to_num(h - h0, nan=-np.inf) > 30.0)[0]
+    if above.size:
+        low = np.nonzero(np.nan_to_num(h[: above[0]] - h0, nan=np.inf) < 3.0)[0]
+        if not low.size:
+            return float(t[0])
+        t3, t30 = float(t[int(low[-1])]), float(t[int(above[0])])
+        # constant acceleration from rest: h ~ t^2, so 3 m is reached at sqrt(3/30) of the time to 30 m
+        return max(float(t[0]), t30 - (t30 - t3) / (1.0 - (3.0 / 30.0) ** 0.5))
+    return float(t[0])
+
+
+def ground_pressure(record: FlightRecord) -> float:
+    """Pressure at the pad: ``record.ground_pressure_pa`` if stated, else the median pressure over the samples
+    before liftoff (at least the first 5 finite samples when the log starts at liftoff)."""
+    if record.ground_pressure_pa is not None:
+        return float(record.ground_pressure_pa)
+    t = np.asarray(record.time_s)
+    p = np.asarray(record.pressure_pa, dtype=np.float64)
+    ok = np.isfinite(p)
+    if not ok.any():
+        raise UserError(f"{record.provenance.get('source', record.name)}: no pressure values")
+    before = ok & (t < liftoff_time(record))
+    if before.sum() < 5:
+        before = ok & (np.cumsum(ok) <= 5)
+    return float(np.median(p[before]))
+
+
+def baro_altitude(record: FlightRecord) -> np.ndarray:
+    """Barometric altitude above the pad (m): standard atmosphere, NaN where the pressure is missing."""
+    p = np.asarray(record.pressure_pa, dtype=np.float64)
+    h = np.full(p.shape, np.nan)
+    ok = np.isfinite(p) & (p > 0)
+    h[ok] = np.asarray(altitude_m(p[ok])) - float(altitude_m(ground_pressure(record)))
+    return h
+
+
+# --------------------------------------------------------------------------------------------- reference apogee
+def _running_median(y: np.ndarray, half: int) -> np.ndarray:
+    padded = np.pad(y, half, mode="edge")
+    return np.median(np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1), axis=1)
+
+
+def noise_scale(h: np.ndarray, pad: np.ndarray) -> float:
+    """Robust noise of an altitude series (m): the largest of 1.4826 x MAD of the residuals from the 7-sample
+    running median over the flight, 1.4826 x MAD of the pad samples, and the pad's quantization step / sqrt(12)
+    (quantized logs often have a MAD of exactly 0)."""
+    r = h - _running_median(h, MEDIAN_HALF)
+    parts = [1.4826 * float(np.median(np.abs(r - np.median(r))))]
+    hp = h[pad]
+    if hp.size >= 10:
+        parts.append(1.4826 * float(np.median(np.abs(hp - np.median(hp)))))
+        steps = np.abs(np.diff(np.unique(hp)))
+        if steps.size:
+            parts.append(float(np.min(steps)) / math.sqrt(12.0))
+    return max(parts)
+
+
+def spikes(h: np.ndarray, noise: float) -> np.ndarray:
+    """Mask of isolated spikes of a finite altitude series (rule 1 above)."""
+    r = h - _running_median(h, MEDIAN_HALF)
+    return np.abs(r) > max(SPIKE_SIGMAS * noise, SPIKE_MIN_M)
+
+
+def _weights(t: np.ndarray) -> np.ndarray:
+    d = np.diff(t)
+    w = np.empty_like(t)
+    w[1:-1] = 0.5 * (d[:-1] + d[1:])
+    w[0], w[-1] = d[0], d[-1]
+    return w
+
+
+def _fit(t: np.ndarray, h: np.ndarray, w: np.ndarray, tp: float, lo: float, hi: float
+         ) -> tuple[float, float, int, int, float] | None:
+    """Robust weighted parabola over lo <= t <= hi: (vertex time, vertex altitude, used, rejected, curvature
+    m/s^2) or None."""
+    sel = (t >= lo) & (t <= hi)
+    ts, hs, ws = t[sel] - tp, h[sel], w[sel]
+    keep = np.ones(ts.size, dtype=bool)
+    for _ in range(10):
+        if keep.sum() < 8:
+            return None
+        a = np.vstack([np.ones(keep.sum()), ts[keep], ts[keep] ** 2]).T
+        sw = np.sqrt(ws[keep])
+        coef, *_ = np.linalg.lstsq(a * sw[:, None], hs[keep] * sw, rcond=None)
+        r = hs - (coef[0] + coef[1] * ts + coef[2] * ts ** 2)
+        rk = np.abs(r[keep])
+        order = np.argsort(rk)
+        cw = np.cumsum(ws[keep][order])
+        wmad = rk[order][np.searchsorted(cw, 0.5 * cw[-1])]
+        scale = max(1.4826 * wmad, 0.25)
+        new = np.abs(r) <= 3.0 * scale
+        if np.array_equal(new, keep):
+            break
+        keep = new
+    c0, c1, c2 = coef
+    if not c2 < 0:
+        return None
+    tv = -c1 / (2.0 * c2)
+    if not (lo - tp <= tv <= hi - tp) or not (np.any(ts[keep] < tv) and np.any(ts[keep] > tv)):
+        return None
+    return float(tp + tv), float(c0 + c1 * tv + c2 * tv * tv), int(keep.sum()), int((~keep).sum()), float(2 * c2)
+
+
+def deployment_time(record: FlightRecord) -> float | None:
+    """The first time the log's own flight computer fired a recovery charge (the earliest of the reader's
+    :data:`DEPLOY_EVENTS`), or None."""
+    times = [float(record.events[k]) for k in DEPLOY_EVENTS if record.events.get(k) is not None]
+    return min(times) if times else None
+
+
+def _deployment_cut_fits(t: np.ndarray, h: np.ndarray, w: np.ndarray, deploy: float
+                         ) -> dict[str, tuple[float, float, int, int, float]]:
+    """Rule 5: fits over the samples up to the deployment only, windows [deploy - 2 w, deploy] keyed like the
+    symmetric ones (``+-w``), or {} when the nominal one has no vertex there (the charge fired before apogee)."""
+    sel = t <= deploy
+    ts, hs, ws = t[sel], h[sel], w[sel]
+    fits = {}
+    for win in WINDOWS_S:
+        f = _fit(ts, hs, ws, deploy - win, deploy - 2.0 * win, deploy)
+        if f is not None:
+            fits[f"+-{win:g}"] = f
+    return fits if f"+-{NOMINAL_WINDOW_S:g}" in fits else {}
+
+
+def _vertex_standard_error(t: np.ndarray, h: np.ndarray, lo: float, hi: float, tv: float) -> float:
+    """Standard error (s) of the vertex time of a parabola over lo <= t <= hi, from the residual scale and the
+    least-squares covariance (delta method): a fit that sees few samples past its vertex (a deployment just after
+    apogee) is a near extrapolation, which the window spread alone understates. Unweighted and untrimmed (every
+    sample of the window, outliers too: a conservative scale); the pre-deployment samples are evenly spaced."""
+    sel = (t >= lo) & (t <= hi)
+    ts, hs = t[sel] - tv, h[sel]
+    a = np.vstack([np.ones(ts.size), ts, ts ** 2]).T
+    coef, *_ = np.linalg.lstsq(a, hs, rcond=None)
+    r = hs - a @ coef
+    sigma2 = float(r @ r) / max(ts.size - 3, 1)
+    cov = sigma2 * np.linalg.inv(a.T @ a)
+    c1, c2 = coef[1], coef[2]
+    if not c2 < 0:
+        return math.inf
+    g = np.array([0.0, -1.0 / (2 * c2), c1 / (2 * c2 * c2)])       # d(vertex)/d(c0, c1, c2) about tv
+    return float(math.sqrt(max(g @ cov @ g, 0.0)))
+
+
+def reference_apogee(record: FlightRecord) -> ReferenceApogee:
+    """The reference apogee of ``record`` (module docstring)."""
+    tr = record.truth
+    if tr is not None and tr.apogee_time_s is not None:
+        alt = tr.apogee_altitude_m
+        if alt is None and tr.altitude_m is not None:
+            alt = float(np.interp(tr.apogee_time_s, record.time_s, tr.altitude_m))
+        return ReferenceApogee(time_s=float(tr.apogee_time_s), altitude_m=float(alt) if alt is not None else math.nan,
+                               uncertainty_s=0.0, source="truth", window_s=0.0, notes={})
+    where = record.provenance.get("source", record.name)
+    t_all = np.asarray(record.time_s, dtype=np.float64)
+    h_all = baro_altitude(record)
+    ok = np.isfinite(h_all)
+    t, h = t_all[ok], h_all[ok]
+    if t.size < 20:
+        raise UserError(f"{where}: too few barometer samples ({t.size}) for a reference apogee")
+    pad = t < liftoff_time(record)
+    noise = noise_scale(h, pad)
+    # the peak of the running median (robust to up to 3 consecutive outliers), then spikes near it only: far
+    # from the peak a fast, irregularly sampled descent differs from its running median without being a spike
+    tp0 = float(t[int(np.argmax(_running_median(h, MEDIAN_HALF)))])
+    region = np.abs(t - tp0) <= max(WINDOWS_S) + max(abs(s) for s in SHIFTS_S) + 1.0
+    spike = np.zeros(t.shape, dtype=bool)
+    spike[region] = spikes(h[region], noise)
+    t_c, h_c = t[~spike], h[~spike]
+    smooth = _running_median(h_c, MEDIAN_HALF)
+    ip = int(np.argmax(smooth))
+    tp = float(t_c[ip])
+    w = _weights(t_c)
+    deploy = deployment_time(record)
+    cut = {} if deploy is None else _deployment_cut_fits(t_c, h_c, w, deploy)
+    fits: dict[str, tuple[float, float, int, int, float]] = dict(cut)
+    if not cut:
+        for win in WINDOWS_S:
+            f = _fit(t_c, h_c, w, tp, tp - win, tp + win)
+            if f is not None:
+                fits[f"+-{win:g}"] = f
+        for sh in SHIFTS_S:
+            f = _fit(t_c, h_c, w, tp, tp + sh - NOMINAL_WINDOW_S, tp + sh + NOMINAL_WINDOW_S)
+            if f is not None:
+                fits[f"+-{NOMINAL_WINDOW_S:g} shifted {sh:+g}"] = f
+    nominal = fits.get(f"+-{NOMINAL_WINDOW_S:g}")
+    if nominal is None:
+        if not fits:
+            raise UserError(f"{where}: no parabola fits the barometric altitude near its peak "
+                            f"(t = {tp:.3f} s, {h_c[ip]:.1f} m): is there an apogee in this log?")
+        nominal = min(fits.values(), key=lambda f: abs(f[0] - tp))
+    if cut:
+        near = (t_c >= deploy - 2.0 * NOMINAL_WINDOW_S) & (t_c <= deploy)
+    else:
+        near = (t_c > tp - NOMINAL_WINDOW_S) & (t_c < tp + NOMINAL_WINDOW_S)
+    resolution = 0.5 * float(np.median(np.diff(t_c[near]))) if near.sum() > 2 else 0.0
+    spread = max(abs(f[0] - nominal[0]) for f in fits.values())
+    if cut:
+        se = _vertex_standard_error(t_c, h_c, deploy - 2.0 * NOMINAL_WINDOW_S, deploy, nominal[0])
+        spread = max(spread, 2.0 * se)
+    notes = {
+        "peak_sample_s": tp, "peak_sample_m": float(h_c[ip]), "spikes_rejected": int(spike.sum()),
+        "spike_times_s": [float(x) for x in t[spike][:20]], "noise_m": noise,
+        "ground_pressure_pa": ground_pressure(record),
+        "fits": {k: {"time_s": v[0], "altitude_m": v[1], "used": v[2], "rejected": v[3], "curvature_mps2": v[4]}
+                 for k, v in fits.items()},
+        "curvature_mps2": nominal[4],
+        "resolution_s": resolution,
+        "deployment_s": deploy,
+        "deployment_cut": bool(cut),
+    }
+    if not -2.0 * G0 <= nominal[4] <= -0.25 * G0:
+        notes["warning"] = (f"fitted curvature {nominal[4]:.2f} m/s^2 is far from -g: the flight is not ballistic "
+                            "near its peak (early deployment?); treat this reference with care")
+    return ReferenceApogee(time_s=nominal[0], altitude_m=nominal[1], uncertainty_s=max(spread, resolution),
+                           source="baro_parabola", window_s=NOMINAL_WINDOW_S, notes=notes)
+
+
+# ------------------------------------------------------------------------------------------------ a table
+def reference_table(paths: list[str], format: str | None = None) -> str:  # noqa: A002
+    """The Markdown table of docs/flights.md for flight logs ``paths``: reference apogee, its uncertainty,
+    altitude, fitted curvature, spikes rejected, and the log's own computer's apogee against it where the log has
+    one (AltOS's first drogue state, an RRC3's Drogue event, CATS's EV_APOGEE, ...: ``FlightRecord.own_apogee``).
+    ``python -m firmware_model.flights.apogee_reference LOG...`` prints it."""
+
+    out = ["| log | reference apogee (s) | ± (s) | altitude AGL (m) | curvature (m/s²) | spikes rejected "
+           "| own computer's apogee (s) | own − reference (s) |", "|---|---|---|---|---|---|---|---|"]
+    for path in paths:
+        rec = read_flight(path, format=format)
+        ref = reference_apogee(rec)
+        own = rec.own_apogee()
+        warn = " ⚠" if "warning" in ref.notes else ""
+        curv = ref.notes.get("curvature_mps2")
+        out.append(f"| {rec.name} | {ref.time_s:.3f}{warn} | {ref.uncertainty_s:.3f} | {ref.altitude_m:.1f} | "
+                   + ("—" if curv is None else f"{curv:.1f}") + f" | {ref.notes.get('spikes_rejected', 0)} | "
+                   + ("— | — |" if own is None else f"{own[0]} {own[1]:.2f} | {own[1] - ref.time_s:+.2f} |"))
+    return "\n".join(out)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    import sys
+
+    try:
+        print(reference_table(sys.argv[1:]))
+    except UserError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        raise SystemExit(2) from None

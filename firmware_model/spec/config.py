@@ -1,0 +1,377 @@
+"""Build configuration of a firmware program: the user-facing, physical-units description from which the integer
+build constants (docs/firmware-spec.md §3) are derived by :mod:`firmware_model.spec.build_constants`.
+
+Everything here is in SI units or raw sensor counts; nothing here is in Q formats. Validation errors are
+:class:`~firmware_model.runtime.errors.UserError` naming the field and the value.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from firmware_model.runtime.errors import UserError
+
+#: TeleMetrum v1 (MP3H6115A through a 16-bit-scaled ADC; the AltosUI log notes in docs/flights.md): raw = (P/1000*0.009 - 0.095)*32752,
+#: i.e. P(raw) = PA_AT_ZERO + PA_PER_COUNT * raw.
+TELEMETRUM_PA_PER_COUNT: float = 1000.0 / (0.009 * 2047 * 16)
+TELEMETRUM_PA_AT_ZERO: float = 0.095 / 0.009 * 1000.0
+
+#: Firmware programs, in the order of docs/firmware-spec.md.
+PROGRAMS: tuple[str, ...] = ("recursive", "kalman_baro", "kalman_accel", "recursive_seed_literal")
+#: Rounding modes for every right shift (docs/firmware-spec.md §1).
+ROUNDINGS: tuple[str, ...] = ("floor", "half_up")
+#: Process-noise models for the gain design (docs/gain-design.md).
+NOISE_MODELS: tuple[str, ...] = ("accel_only", "jerk", "dwna")
+#: Barometer input kinds (docs/firmware-spec.md §2): a 16-bit ADC word, or a digital sensor's 32-bit pascal word.
+BARO_KINDS: tuple[str, ...] = ("adc", "pascal")
+#: The pascal kind's table covers words 0..2^PA_TABLE_BITS - 1 Pa (docs/firmware-spec.md §2a).
+PA_TABLE_BITS: int = 17
+#: Default valid range of a pascal word (the MS5607's 10..1200 mbar).
+PA_DEFAULT_RANGE: tuple[int, int] = (1000, 120000)
+#: Default table segment shift of the pascal kind: nodes every 2^7 = 128 Pa (1,025 nodes; docs/numerics.md).
+PA_DEFAULT_ALT_SHIFT: int = 7
+
+
+@dataclass(frozen=True)
+class BuildConfig:
+    """One firmware build.
+
+    Sensor description:
+      * ``baro_kind``: ``adc`` (an analog sensor through an ADC: the 16-bit register ``BARO_ADC``) or ``pascal`` (a
+        digital sensor, MS5607-like, reporting integer pascals in the signed 32-bit register ``BARO_PA``;
+        docs/firmware-spec.md §2). For ``pascal``: ``baro_bits`` is ignored (the word is 32-bit), the transfer
+        function is the identity (``baro_pa_per_count``/``baro_pa_at_zero`` must be null), ``baro_min``/``baro_max``
+        are pascals (default 1,000..120,000, inside 0..2^17-1), ``baro_sign`` -1 (pressure falls as the rocket
+        climbs), ``units_per_metre`` is pascals per metre at the pad, ``baro_sigma`` pascals.
+      * ``baro_bits``: barometer ADC width (bits, 8..16); ``baro_sign``: -1 for a pressure ADC (falls as the rocket
+        climbs), +1 for a reading that grows with altitude.
+      * ``units_per_metre``: barometer counts per metre of altitude near the pad (> 0). For a pressure ADC this is
+        counts/Pa x rho*g; it converts the velocity thresholds into state units (Q24.8 counts/s).
+      * ``accel_counts_per_mps2``: accelerometer counts per m/s^2 (> 0; positive counts = upward acceleration).
+    Filter:
+      * ``k``: sample period dt = 2^-k s (0..10). ``rounding``: ``floor`` or ``half_up``.
+      * recursive: ``shift`` S (weight 2^-S, 1..8), ``threshold_q8`` (apogee threshold below the extreme in Q24.8
+        units of 1/256 count: 128 = 1/2 LSB, 64 = 1/4, 32 = 1/8), ``gate_mps`` (velocity gate, m/s).
+      * Kalman: ``noise_model`` (``accel_only``, ``jerk``, ``dwna``), ``ratio`` (R/q, measurement variance over
+        process-noise intensity), ``baro_sigma`` (barometer noise, counts), ``accel_sigma`` (accelerometer noise,
+        counts), ``mach_lo_mps``/``mach_hi_mps`` (Mach-lockout velocity window, m/s), ``mach_innov_m`` (innovation
+        that triggers lockout, m), ``baro_min``/``baro_max`` (valid raw ADC range; ``None`` = full range).
+      * all: ``liftoff_mps`` (liftoff velocity threshold, m/s).
+    Field-ready Kalman inputs (docs/firmware-spec.md §2a, §6; the Kalman programs run in metres):
+      * ``baro_pa_per_count``, ``baro_pa_at_zero``: the barometer's linear transfer function, ``P(c) =
+        baro_pa_at_zero - baro_sign * baro_pa_per_count * c`` (Pa); ``None`` = TeleMetrum v1's MP3H6115A
+        (3.3925 Pa/count at 16 bits, scaled by 2^(16-bits); 10,555.6 Pa at count 0).
+      * ``alt_shift``: altitude-table segment width 2^alt_shift counts (``None`` = bits - 9: 513 nodes).
+      * ``cal_p``: pad calibration over 2^cal_p valid samples (0..8; ``None`` = min(8, max(0, k - 2)), a quarter
+        second of pad).
+      * ``gate_sigmas``: innovation gate in steady-state innovation sigmas (0 = no gate); ``gate_hold_s``: how long
+        (s) the gate may stay closed before it opens (GATE_N = max(1, round(gate_hold_s * 2^k))).
+      * ``apogee_hold_s``: X2 < 0 this long (APO_N = max(1, round(apogee_hold_s * 2^k)) samples) declares apogee.
+      * ``transonic_r_factor``: kalman_accel's barometer variance factor above ``mach_lo_mps`` (>= 1).
+    Recursive field-ready logic (docs/firmware-spec.md §5): ``cal_p`` (ACC0 averaged over 2^cal_p pad samples),
+    ``gate_sigmas``/``gate_hold_s`` and ``baro_rate_mps`` (barometer rate gate: a sample further than
+    ``baro_rate_mps * units_per_metre * dt + gate_sigmas * sqrt(2) * baro_sigma`` counts from the last used one is
+    not used, for up to GATE_N samples), ``apogee_hold_s`` (after an accelerometer clip, apogee needs this long of
+    evidence).
+    """
+
+    program: str = "kalman_baro"
+    k: int = 7
+    rounding: str = "floor"
+    baro_bits: int = 16
+    baro_sign: int = -1
+    units_per_metre: float = 3.5
+    accel_counts_per_mps2: float = 2048.0 / 9.80665
+    shift: int = 5
+    threshold_q8: int = 64
+    gate_mps: float = 61.0
+    noise_model: str = "accel_only"
+    ratio: float = 50_000.0
+    baro_sigma: float = 2.0
+    accel_sigma: float = 20.0
+    mach_lo_mps: float = 244.0
+    mach_hi_mps: float = 366.0
+    mach_innov_m: float = 30.0
+    baro_min: int | None = None
+    baro_max: int | None = None
+    liftoff_mps: float = 30.0
+    baro_pa_per_count: float | None = None
+    baro_pa_at_zero: float | None = None
+    alt_shift: int | None = None
+    cal_p: int | None = None
+    gate_sigmas: float = 6.0
+    gate_hold_s: float = 0.1
+    apogee_hold_s: float = 0.06
+    transonic_r_factor: float = 100.0
+    baro_kind: str = "adc"
+    baro_rate_mps: float = 400.0
+    extra: dict[str, Any] = field(default_factory=dict, compare=False, hash=False)
+
+    def __post_init__(self) -> None:
+        self.validate()
+
+    # ------------------------------------------------------------------ validation
+    def validate(self) -> None:
+        """Raise :class:`UserError` naming the first field whose value is out of its documented range."""
+
+        def bad(name: str, why: str) -> UserError:
+            return UserError(f"build config: {name}={getattr(self, name)!r}: {why}")
+
+        for name in ("k", "baro_bits", "baro_sign", "shift", "threshold_q8", "baro_min", "baro_max"):
+            if isinstance(getattr(self, name), bool):
+                raise bad(name, "must be an integer, not true/false")
+        for name in ("units_per_metre", "accel_counts_per_mps2", "ratio", "baro_sigma", "accel_sigma", "gate_mps",
+                     "liftoff_mps", "mach_lo_mps", "mach_hi_mps", "mach_innov_m"):
+            if isinstance(getattr(self, name), bool):
+                raise bad(name, "must be a number, not true/false")
+        for name in ("baro_min", "baro_max"):
+            if getattr(self, name) is not None and not isinstance(getattr(self, name), int):
+                raise bad(name, "must be an integer ADC code or null")
+        if not isinstance(self.extra, dict):
+            raise bad("extra", "must be a JSON object (free-form notes carried into the vectors' build_config)")
+        if not isinstance(self.program, str) or self.program not in PROGRAMS:
+            raise bad("program", f"must be one of {', '.join(PROGRAMS)}")
+        if not isinstance(self.k, int) or not 0 <= self.k <= 10:
+            raise bad("k", "sample period 2^-k needs an integer k in 0..10")
+        if not isinstance(self.rounding, str) or self.rounding not in ROUNDINGS:
+            raise bad("rounding", f"must be one of {', '.join(ROUNDINGS)}")
+        if not isinstance(self.baro_kind, str) or self.baro_kind not in BARO_KINDS:
+            raise bad("baro_kind", f"must be one of {', '.join(BARO_KINDS)}")
+        if not isinstance(self.baro_bits, int) or not 8 <= self.baro_bits <= 16:
+            raise bad("baro_bits", "barometer ADC width must be 8..16 bits")
+        if not isinstance(self.baro_sign, int) or self.baro_sign not in (1, -1):
+            raise bad("baro_sign", "must be +1 or -1")
+        for name in ("units_per_metre", "accel_counts_per_mps2", "ratio", "baro_sigma", "accel_sigma"):
+            value = getattr(self, name)
+            if not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+                raise bad(name, "must be a finite number > 0")
+        if not isinstance(self.shift, int) or not 1 <= self.shift <= 8:
+            raise bad("shift", "recursive filter shift S must be 1..8 (ADC << (8-S) must be a left shift)")
+        if not isinstance(self.threshold_q8, int) or not 1 <= self.threshold_q8 <= 1 << 20:
+            raise bad("threshold_q8", "apogee threshold must be 1..2^20 (Q24.8)")
+        if not isinstance(self.noise_model, str) or self.noise_model not in NOISE_MODELS:
+            raise bad("noise_model", f"must be one of {', '.join(NOISE_MODELS)}")
+        for name in ("gate_mps", "liftoff_mps", "mach_lo_mps", "mach_hi_mps", "mach_innov_m"):
+            value = getattr(self, name)
+            if not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
+                raise bad(name, "must be a finite number >= 0")
+        if self.mach_lo_mps >= self.mach_hi_mps:
+            raise bad("mach_lo_mps", f"must be below mach_hi_mps={self.mach_hi_mps}")
+        for name in ("baro_pa_per_count",):
+            value = getattr(self, name)
+            if value is not None and (not isinstance(value, (int, float)) or isinstance(value, bool)
+                                      or not math.isfinite(value) or value <= 0):
+                raise bad(name, "must be a finite number > 0 (Pa per count) or null")
+        if self.baro_pa_at_zero is not None and (not isinstance(self.baro_pa_at_zero, (int, float))
+                                                 or isinstance(self.baro_pa_at_zero, bool)
+                                                 or not math.isfinite(self.baro_pa_at_zero)):
+            raise bad("baro_pa_at_zero", "must be a finite number (Pa) or null")
+        if self.pascal:
+            if self.baro_sign != -1:
+                raise bad("baro_sign", "a pascal word falls as the rocket climbs: baro_sign must be -1")
+            for name in ("baro_pa_per_count", "baro_pa_at_zero"):
+                if getattr(self, name) is not None:
+                    raise bad(name, "a pascal barometer reports pascals (identity transfer function): must be null")
+        tb = self.table_bits
+        lo_shift = 6 if self.pascal else 1      # pascal: 2^(17-6)+1 nodes = 8,196 bytes, the most the 16 KB ROM holds
+        if self.alt_shift is not None and (isinstance(self.alt_shift, bool) or not isinstance(self.alt_shift, int)
+                                           or not lo_shift <= self.alt_shift <= min(15, tb - 1)):
+            raise bad("alt_shift", f"altitude-table segment shift must be {lo_shift}..{min(15, tb - 1)} or null"
+                      + (" (a pascal table of 2^(17-alt_shift)+1 nodes must fit the 16 KB ROM)" if self.pascal else ""))
+        if self.cal_p is not None and (isinstance(self.cal_p, bool) or not isinstance(self.cal_p, int)
+                                       or not 0 <= self.cal_p <= 8):
+            raise bad("cal_p", "pad calibration over 2^cal_p samples needs cal_p in 0..8 (or null)")
+        for name in ("gate_sigmas", "gate_hold_s", "apogee_hold_s", "baro_rate_mps"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
+                raise bad(name, "must be a finite number >= 0")
+        if (isinstance(self.transonic_r_factor, bool) or not isinstance(self.transonic_r_factor, (int, float))
+                or not math.isfinite(self.transonic_r_factor) or self.transonic_r_factor < 1):
+            raise bad("transonic_r_factor", "must be a finite number >= 1")
+        full = (1 << tb) - 1
+        lo, hi = self.baro_range
+        if not 0 <= lo <= hi <= full:
+            raise bad("baro_min", f"valid {'pascal' if self.pascal else 'ADC'} range [{lo}, {hi}] must lie inside "
+                                  f"[0, {full}]")
+
+    # ------------------------------------------------------------------ derived
+    @property
+    def dt(self) -> float:
+        """Sample period in seconds (2^-k)."""
+        return 2.0 ** -self.k
+
+    @property
+    def pascal(self) -> bool:
+        """True for the pascal barometer kind (a digital sensor's 32-bit word, docs/firmware-spec.md §2)."""
+        return self.baro_kind == "pascal"
+
+    @property
+    def table_bits(self) -> int:
+        """Width of the words the altitude table covers: ``baro_bits`` (ADC) or :data:`PA_TABLE_BITS` (pascal)."""
+        return PA_TABLE_BITS if self.pascal else self.baro_bits
+
+    @property
+    def baro_word_bits(self) -> int:
+        """Width of the barometer register: ``baro_bits`` (ADC) or 32 (the pascal word)."""
+        return 32 if self.pascal else self.baro_bits
+
+    @property
+    def baro_word_range(self) -> tuple[int, int]:
+        """What the barometer input register can hold: 0..2^bits-1 (ADC) or the signed 32-bit range (pascal)."""
+        return (-(1 << 31), (1 << 31) - 1) if self.pascal else (0, (1 << self.baro_bits) - 1)
+
+    @property
+    def baro_range(self) -> tuple[int, int]:
+        """Valid raw barometer range (inclusive), with ``None`` bounds replaced by the ADC's full range (pascal:
+        :data:`PA_DEFAULT_RANGE`)."""
+        full = (1 << self.baro_bits) - 1
+        dlo, dhi = PA_DEFAULT_RANGE if self.pascal else (0, full)
+        lo = dlo if self.baro_min is None else self.baro_min
+        hi = dhi if self.baro_max is None else self.baro_max
+        return lo, hi
+
+    @property
+    def baro_transfer(self) -> tuple[float, float]:
+        """``(pa_per_count, pa_at_zero)`` of the barometer with the TeleMetrum defaults filled in; the pascal
+        kind's identity (1 Pa per count, 0 Pa at word 0: with ``baro_sign`` -1, ``P(c) = c``)."""
+        if self.pascal:
+            return 1.0, 0.0
+        a = (TELEMETRUM_PA_PER_COUNT * 2.0 ** (16 - self.baro_bits) if self.baro_pa_per_count is None
+             else float(self.baro_pa_per_count))
+        b = TELEMETRUM_PA_AT_ZERO if self.baro_pa_at_zero is None else float(self.baro_pa_at_zero)
+        return a, b
+
+    @property
+    def cal_p_bits(self) -> int:
+        """The pad-calibration exponent with the default (a quarter second: min(8, max(0, k - 2))) filled in."""
+        return min(8, max(0, self.k - 2)) if self.cal_p is None else int(self.cal_p)
+
+    @property
+    def alt_shift_bits(self) -> int:
+        """The altitude-table segment shift with the default (ADC: bits - 9, at least 1; pascal:
+        :data:`PA_DEFAULT_ALT_SHIFT`) filled in."""
+        if self.alt_shift is not None:
+            return int(self.alt_shift)
+        return PA_DEFAULT_ALT_SHIFT if self.pascal else max(1, self.baro_bits - 9)
+
+    def replace(self, **changes: Any) -> BuildConfig:
+        """Return a copy with ``changes`` applied (validated)."""
+        return dataclasses.replace(self, **changes)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The config as a JSON-ready dict (``extra`` omitted when empty, ``baro_kind`` when ``adc``: the ADC
+        builds' configs read as before the pascal kind existed)."""
+        data = dataclasses.asdict(self)
+        if not data["extra"]:
+            del data["extra"]
+        if data["baro_kind"] == "adc":
+            del data["baro_kind"]
+        return data
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any], where: str = "build config") -> BuildConfig:
+        """Build a config from a dict, rejecting unknown keys with a message naming ``where`` and the key."""
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(data) - names)
+        if unknown:
+            raise UserError(f"{where}: unknown field(s) {', '.join(unknown)}; known: {', '.join(sorted(names))}")
+        try:
+            return cls(**data)
+        except TypeError as exc:  # wrong type for a field
+            raise UserError(f"{where}: {exc}") from None
+
+    @classmethod
+    def from_file(cls, path: str | Path) -> BuildConfig:
+        """Read a config from a JSON file (see :func:`read_config_file`); errors name the file."""
+        return cls.from_dict(read_config_file(path), where=str(path))
+
+
+#: Smallest tuning ratio R/q inside the documented input range (docs/numerics.md: no wrap-around above it).
+MIN_RATIO: dict[str, float] = {"kalman_baro": 1e3, "kalman_accel": 10.0}
+
+
+def check_documented_range(cfg: BuildConfig, where: str = "build config") -> None:
+    """Refuse user settings outside the documented input range (docs/numerics.md "No wrap-around"): a Kalman
+    tuning ratio R/q below :data:`MIN_RATIO` (gains so large that the states can wrap around int32)."""
+    low = MIN_RATIO.get(cfg.program)
+    if low is not None and cfg.ratio < low:
+        raise UserError(f"{where}: ratio={cfg.ratio!r} is below the documented range for {cfg.program} "
+                        f"(R/q >= {low:g}; below it the integer states can wrap around, docs/numerics.md)")
+
+
+def _line_of_key(text: str, key: str, occurrence: int) -> int:
+    """1-based line of the ``occurrence``-th ``"key":`` in ``text`` (0 when not found)."""
+    import re
+
+    hits = [m.start() for m in re.finditer(re.escape(json.dumps(key)) + r"\s*:", text)]
+    if len(hits) >= occurrence:
+        return text.count("\n", 0, hits[occurrence - 1]) + 1
+    return 0
+
+
+def read_config_file(path: str | Path) -> dict[str, Any]:
+    """The JSON object of a build-config file. UTF-8 (a byte-order mark is accepted); duplicate keys, a
+    non-object top level, invalid JSON or undecodable bytes raise :class:`UserError` naming the file (and line)."""
+    path = Path(path)
+    try:
+        raw = path.read_bytes()
+    except FileNotFoundError:
+        raise UserError(f"{path}: no such build config file") from None
+    except IsADirectoryError:
+        raise UserError(f"{path}: is a folder, not a build config file") from None
+    except OSError as exc:
+        raise UserError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = raw.count(b"\n", 0, exc.start) + 1
+        raise UserError(f"{path}:{line}: not UTF-8 text (byte 0x{raw[exc.start]:02x})") from None
+    dupes: list[str] = []
+
+    def pairs(items: list[tuple[str, Any]]) -> dict[str, Any]:
+        seen: dict[str, Any] = {}
+        for key, value in items:
+            if key in seen and not dupes:
+                dupes.append(key)
+            seen[key] = value
+        return seen
+
+    try:
+        data = json.loads(text, object_pairs_hook=pairs)
+    except json.JSONDecodeError as exc:
+        raise UserError(f"{path}:{exc.lineno}:{exc.colno}: invalid JSON: {exc.msg}") from None
+    except RecursionError:
+        raise UserError(f"{path}: invalid JSON: nested too deeply") from None
+    if dupes:
+        line = _line_of_key(text, dupes[0], 2)
+        raise UserError(f"{path}{f':{line}' if line else ''}: duplicate key {dupes[0]!r} (JSON keys must be unique)")
+    if not isinstance(data, dict):
+        raise UserError(f"{path}: a build config must be a JSON object")
+    return data
+
+
+def load_config(path: str | Path | None = None, overrides: dict[str, Any] | None = None,
+                flag_names: dict[str, str] | None = None) -> BuildConfig:
+    """The build config of a command: the file ``path`` (default: the :class:`BuildConfig` defaults), then the
+    command-line ``overrides`` (``None`` values = not given) on top. One rule for every command: **flags override
+    the file**, except that a flag naming a different ``program`` than the file is a contradiction and an error
+    (a config file is tuned for the program it names). ``flag_names`` maps a field to its flag for messages
+    (``{"program": "--firmware"}``). The result is validated and checked against the documented range
+    (:func:`check_documented_range`)."""
+    given = {key: value for key, value in (overrides or {}).items() if value is not None}
+    names = {"program": "--program"} | (flag_names or {})
+    where = str(path) if path is not None else "build config"
+    data: dict[str, Any] = {}
+    if path is not None:
+        data = read_config_file(path)
+        if "program" in data and "program" in given and data["program"] != given["program"]:
+            raise UserError(f"{path}: program={data['program']!r} contradicts {names['program']} "
+                            f"{given['program']}; a build config is tuned for one program: drop one of them")
+    cfg = BuildConfig.from_dict(data | given, where=where)
+    check_documented_range(cfg, where)
+    return cfg

@@ -1,0 +1,298 @@
+"""Steady-state Kalman gain design for the 3-state constant-acceleration model (float64, numpy only).
+
+State ``x = [alt, vel, acc]`` in barometer units (``units`` = barometer counts x BARO_SIGN, so that ``alt``
+grows with altitude), ``units/s`` and ``units/s^2``; sample period ``dt = 2^-k`` s::
+
+    F = [[1, dt, dt^2/2],      baro only:    H = [1 0 0],              R = baro_sigma^2            (counts^2)
+         [0, 1,  dt    ],      baro + accel: H = [[1 0 0], [0 0 1]],   R = diag(baro_sigma^2, sa^2)
+         [0, 0,  1     ]]                    sa = accel_sigma * units_per_metre / accel_counts_per_mps2 (units/s^2)
+
+Process noise ``Q`` per noise model, with ``q = baro_sigma^2 / ratio`` (so that ``R/q`` equals ``ratio`` for the
+barometer; docs/gain-design.md explains each ``q``):
+
+* ``accel_only``: ``Q = diag(0, 0, q)``; ``q`` is the variance (units^2/s^4) added to the acceleration state
+  **per sample** (Schultz, Schultz n.d.; the Digital Detection of Rocket Apogee notes' ``Q = [0 0 0; 0 0 0; 0 0 1]``). Not scaled by dt.
+* ``jerk``: continuous white-noise jerk of spectral density ``q`` (units^2/s^5), discretised exactly:
+  ``Q = q [[dt^5/20, dt^4/8, dt^3/6], [dt^4/8, dt^3/3, dt^2/2], [dt^3/6, dt^2/2, dt]]`` (ESP June 2001, AltOS).
+* ``dwna``: discrete white-noise acceleration increment: ``Q = G G^T q`` with ``G = [dt^2/2, dt, 1]^T``; ``q`` is
+  the variance (units^2/s^4) of the per-sample acceleration change, which also moves velocity and altitude.
+
+The gain returned is the **filter-form** (a posteriori) steady-state gain ``K = P H^T (H P H^T + R)^-1`` with
+``P`` the a priori (predicted) covariance solving the DARE ``P = F (P - P H^T (H P H^T + R)^-1 H P) F^T + Q``;
+the firmware applies it after its predict step: ``x += K (z - H x)``. (The predictor-form gain that
+``control.dlqe`` and kapogee use is ``F K``.) The closed-loop matrix is ``(I - K H) F``.
+
+The DARE is solved with the structure-preserving doubling algorithm in time-scaled coordinates
+``x' = diag(1, dt, dt^2) x`` (where ``F`` no longer depends on dt, which keeps dt = 2^-10 well conditioned), then
+polished with Riccati steps and checked: residual, symmetry, positive (semi)definiteness, and every closed-loop
+pole strictly inside the unit circle. A design that fails any check raises :class:`UserError` naming the config.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from firmware_model.runtime.errors import UserError
+from firmware_model.spec.config import NOISE_MODELS, BuildConfig
+
+#: Gain names by (measurement, state): Gi1 for the barometer innovation, Gi2 for the accelerometer's.
+GAIN_NAMES_BARO: tuple[str, ...] = ("G11", "G21", "G31")
+GAIN_NAMES_ACCEL: tuple[str, ...] = ("G12", "G22", "G32")
+#: kalman_accel's transonic barometer gains (docs/firmware-spec.md §6 step 5).
+GAIN_NAMES_TRANSONIC: tuple[str, ...] = ("G11T", "G21T", "G31T")
+
+#: A closed-loop pole this close to the unit circle (1 - |lambda| below it) means a degenerate design.
+POLE_MARGIN: float = 1e-9
+#: Relative DARE residual accepted after the solve.
+RESIDUAL_TOL: float = 1e-9
+_MAX_DOUBLINGS: int = 80
+
+
+# ---------------------------------------------------------------------------------------------------- models
+def transition(dt: float) -> np.ndarray:
+    """State transition F of the constant-acceleration model for sample period ``dt`` (s)."""
+    return np.array([[1.0, dt, dt * dt / 2.0], [0.0, 1.0, dt], [0.0, 0.0, 1.0]])
+
+
+def process_noise(model: str, dt: float, q: float) -> np.ndarray:
+    """Process-noise covariance Q (3x3, units^2, units^2/s^2, units^2/s^4 blocks) for ``model`` with intensity
+    ``q`` (units^2/s^4 per sample for ``accel_only`` and ``dwna``; units^2/s^5 spectral density for ``jerk``)."""
+    if model == "accel_only":
+        return np.diag([0.0, 0.0, q])
+    if model == "jerk":
+        return q * np.array([[dt**5 / 20, dt**4 / 8, dt**3 / 6],
+                             [dt**4 / 8, dt**3 / 3, dt**2 / 2],
+                             [dt**3 / 6, dt**2 / 2, dt]])
+    if model == "dwna":
+        g = np.array([[dt * dt / 2.0], [dt], [1.0]])
+        return q * (g @ g.T)
+    raise UserError(f"noise_model={model!r}: must be one of {', '.join(NOISE_MODELS)}")
+
+
+def measurement(with_accel: bool, baro_sigma: float, accel_sigma_units: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """(H, R) for the barometer alone (1x3, 1x1; R in counts^2) or barometer + accelerometer (2x3, 2x2; R =
+    diag(baro_sigma^2, accel_sigma_units^2) with the accelerometer sigma already in units/s^2)."""
+    if with_accel:
+        return np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]), np.diag([baro_sigma**2, accel_sigma_units**2])
+    return np.array([[1.0, 0.0, 0.0]]), np.array([[baro_sigma**2]])
+
+
+# ---------------------------------------------------------------------------------------------------- DARE
+@dataclass(frozen=True)
+class SteadyState:
+    """A steady-state Kalman filter design (all arrays float64, physical units).
+
+    * ``K``: filter-form gain, 3 x m (column j for measurement j); ``P_prior`` / ``P_post``: a priori / a posteriori
+      covariance; ``poles``: eigenvalues of (I - K H) F sorted by decreasing modulus; ``iterations``: doublings
+      used; ``residual``: relative DARE residual.
+    """
+
+    K: np.ndarray
+    P_prior: np.ndarray
+    P_post: np.ndarray
+    poles: np.ndarray
+    iterations: int
+    residual: float
+    F: np.ndarray = field(repr=False)
+    H: np.ndarray = field(repr=False)
+    Q: np.ndarray = field(repr=False)
+    R: np.ndarray = field(repr=False)
+
+
+def _riccati_step(F: np.ndarray, H: np.ndarray, Q: np.ndarray, R: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """One a-priori Riccati step P -> F (I - K H) P F^T + Q in Joseph-free symmetric form."""
+    S = H @ P @ H.T + R
+    K = np.linalg.solve(S, H @ P).T  # P H^T S^-1 (S symmetric)
+    Pp = P - K @ S @ K.T
+    Pn = F @ Pp @ F.T + Q
+    return (Pn + Pn.T) / 2.0
+
+
+def _dare_residual(F: np.ndarray, H: np.ndarray, Q: np.ndarray, R: np.ndarray, P: np.ndarray) -> float:
+    diff = _riccati_step(F, H, Q, R, P) - P
+    return float(np.max(np.abs(diff)) / max(np.max(np.abs(P)), np.max(np.abs(Q)), 1e-300))
+
+
+def solve_dare(F: np.ndarray, H: np.ndarray, Q: np.ndarray, R: np.ndarray, where: str = "design") -> tuple[np.ndarray, int]:
+    """A priori steady-state covariance P of the filter DARE ``P = F (P - P H^T (H P H^T + R)^-1 H P) F^T + Q``
+    by the structure-preserving doubling algorithm (SDA; quadratic convergence, so poles near 1 cost ~log2 of
+    the time constant). Returns (P, doublings). Raises :class:`UserError` naming ``where`` when it does not
+    converge or produces non-finite values."""
+    n = F.shape[0]
+    eye = np.eye(n)
+    A = F.T.copy()                       # control-form DARE X = A^T X (I + G X)^-1 A + Hq with A = F^T
+    G = H.T @ np.linalg.solve(R, H)
+    Hq = (Q + Q.T) / 2.0
+    for it in range(1, _MAX_DOUBLINGS + 1):
+        W = eye + G @ Hq
+        try:
+            WinvA = np.linalg.solve(W, A)
+            WinvG = np.linalg.solve(W, G)
+        except np.linalg.LinAlgError:
+            raise UserError(f"{where}: Riccati doubling hit a singular matrix (degenerate design)") from None
+        A_new = A @ WinvA
+        G_new = G + A @ WinvG @ A.T
+        H_new = Hq + A.T @ Hq @ WinvA
+        H_new = (H_new + H_new.T) / 2.0
+        G_new = (G_new + G_new.T) / 2.0
+        if not (np.all(np.isfinite(H_new)) and np.all(np.isfinite(G_new)) and np.all(np.isfinite(A_new))):
+            raise UserError(f"{where}: Riccati doubling diverged (non-finite covariance; degenerate design)")
+        change = np.max(np.abs(H_new - Hq)) / max(np.max(np.abs(H_new)), 1e-300)
+        A, G, Hq = A_new, G_new, H_new
+        if change < 1e-15 and np.max(np.abs(A)) < 1e-12 * max(1.0, np.max(np.abs(F))):
+            break
+    else:
+        raise UserError(f"{where}: Riccati doubling did not converge in {_MAX_DOUBLINGS} doublings "
+                        "(degenerate process noise: some state gets no noise and its gain decays to zero)")
+    P = Hq
+    for _ in range(3):  # polish: the fixed point is attracting, a few steps remove doubling round-off
+        P = _riccati_step(F, H, Q, R, P)
+    return P, it
+
+
+def steady_state(F: np.ndarray, H: np.ndarray, Q: np.ndarray, R: np.ndarray, where: str = "design") -> SteadyState:
+    """Steady-state filter-form Kalman design for (F, H, Q, R) (any consistent units), with the checks of the
+    module docstring. ``where`` names the configuration in error messages."""
+    F, H, Q, R = (np.atleast_2d(np.asarray(a, dtype=np.float64)) for a in (F, H, Q, R))
+    for name, a in (("F", F), ("H", H), ("Q", Q), ("R", R)):
+        if not np.all(np.isfinite(a)):
+            raise UserError(f"{where}: {name} has non-finite entries")
+    if np.any(np.linalg.eigvalsh((R + R.T) / 2) <= 0):
+        raise UserError(f"{where}: measurement noise R must be positive definite")
+    if np.min(np.linalg.eigvalsh((Q + Q.T) / 2)) < -1e-12 * max(np.max(np.abs(Q)), 1e-300):
+        raise UserError(f"{where}: process noise Q must be positive semidefinite")
+    if not np.any(Q):
+        raise UserError(f"{where}: process noise Q is zero (ratio too large?): the gains would decay to zero")
+    P, its = solve_dare(F, H, Q, R, where)
+    S = H @ P @ H.T + R
+    K = np.linalg.solve(S, H @ P).T
+    P_post = (np.eye(F.shape[0]) - K @ H) @ P
+    P_post = (P_post + P_post.T) / 2.0
+    poles = np.linalg.eigvals((np.eye(F.shape[0]) - K @ H) @ F)
+    poles = poles[np.argsort(-np.abs(poles), kind="stable")]
+    residual = _dare_residual(F, H, Q, R, P)
+    if not np.all(np.isfinite(K)) or residual > RESIDUAL_TOL:
+        raise UserError(f"{where}: steady-state Riccati solution not found (relative residual {residual:.3g})")
+    scale = max(np.max(np.abs(P)), 1e-300)
+    if np.min(np.linalg.eigvalsh(P)) < -1e-9 * scale:
+        raise UserError(f"{where}: Riccati solution is not positive semidefinite (degenerate design)")
+    rho = float(np.max(np.abs(poles)))
+    if not rho < 1.0 - POLE_MARGIN:
+        raise UserError(f"{where}: closed-loop pole |lambda| = {rho:.12f} is not inside the unit circle "
+                        f"(degenerate design: a state gets no process noise and its gain decays to zero)")
+    return SteadyState(K=K, P_prior=P, P_post=P_post, poles=poles, iterations=its, residual=residual,
+                       F=F, H=H, Q=Q, R=R)
+
+
+# ---------------------------------------------------------------------------------------------------- from a config
+def accel_sigma_units(cfg: BuildConfig) -> float:
+    """Accelerometer noise in state units: accel_sigma (counts) * units_per_metre / accel_counts_per_mps2
+    (units/s^2)."""
+    return cfg.accel_sigma * cfg.units_per_metre / cfg.accel_counts_per_mps2
+
+
+def describe(cfg: BuildConfig) -> str:
+    """A short name of the design parameters of ``cfg`` for messages."""
+    return (f"build config (program={cfg.program}, k={cfg.k}, noise_model={cfg.noise_model}, ratio={cfg.ratio:g}, "
+            f"baro_sigma={cfg.baro_sigma:g}, accel_sigma={cfg.accel_sigma:g})")
+
+
+def design_kalman(k: int, noise_model: str, ratio: float | None, *, with_accel: bool = False,
+                  baro_sigma: float = 1.0, accel_sigma_units: float = 1.0, q: float | None = None,
+                  where: str | None = None) -> SteadyState:
+    """Steady-state design for dt = 2^-k s (k = 0..10), ``noise_model`` and R/q = ``ratio`` (q = baro_sigma^2 /
+    ratio), barometer only or barometer + accelerometer (barometer sigma in counts, accelerometer sigma in
+    units/s^2). Alternatively give the process-noise intensity ``q`` itself (units of the model, see the module
+    docstring) and ``ratio=None``. Gains in physical units: column 0 for the barometer innovation (per unit:
+    1, 1/s, 1/s^2), column 1 for the accelerometer innovation (per units/s^2: s^2, s, 1). Raises
+    :class:`UserError` for k outside 0..10, ratio or q <= 0, a bad model or a degenerate design."""
+    if (ratio is None) == (q is None):
+        raise UserError(f"design (k={k}, noise_model={noise_model}): give exactly one of ratio={ratio!r} and q={q!r}")
+    where = where or (f"design (k={k}, noise_model={noise_model}, "
+                      + (f"ratio={ratio!r})" if ratio is not None else f"q={q!r})"))
+    if isinstance(k, bool) or not isinstance(k, int) or not 0 <= k <= 10:
+        raise UserError(f"{where}: k={k!r}: sample period 2^-k needs an integer k in 0..10")
+    for name, val in (("ratio", ratio), ("q", q), ("baro_sigma", baro_sigma), ("accel_sigma", accel_sigma_units)):
+        if val is None:
+            continue
+        if isinstance(val, bool) or not isinstance(val, (int, float)) or not math.isfinite(val) or val <= 0:
+            raise UserError(f"{where}: {name}={val!r}: must be a finite number > 0")
+    if noise_model not in NOISE_MODELS:
+        raise UserError(f"{where}: noise_model={noise_model!r}: must be one of {', '.join(NOISE_MODELS)}")
+    dt = math.ldexp(1.0, -k)
+    norm = baro_sigma**2  # K is invariant under a common scaling of Q and R: solve with R_baro = 1
+    if q is None:
+        q = norm / ratio
+        q_norm = 1.0 / ratio  # not q / norm: the design must depend on the ratio alone, to the last bit
+    else:
+        q_norm = q / norm
+    F = transition(dt)
+    Q = process_noise(noise_model, dt, q)
+    H, R = measurement(with_accel, baro_sigma, accel_sigma_units)
+    # Time-scaled coordinates x' = T x, T = diag(1, dt, dt^2); accelerometer measurement scaled by dt^2 too.
+    T = np.array([1.0, dt, dt * dt])
+    Sm = np.array([1.0, dt * dt]) if with_accel else np.array([1.0])
+    Fs = transition(1.0)
+    Qs = process_noise(noise_model, dt, q_norm) * np.outer(T, T)
+    Hs = H / T[None, :] * Sm[:, None]
+    Rs = R * np.outer(Sm, Sm) / norm  # the barometer entry is exactly 1
+    ss = steady_state(Fs, Hs, Qs, Rs, where)
+    K = ss.K / T[:, None] * Sm[None, :]
+    P_prior = ss.P_prior * norm / np.outer(T, T)
+    P_post = ss.P_post * norm / np.outer(T, T)
+    return SteadyState(K=K, P_prior=P_prior, P_post=P_post, poles=ss.poles, iterations=ss.iterations,
+                       residual=ss.residual, F=F, H=H, Q=Q, R=R)
+
+
+def design_config(cfg: BuildConfig) -> SteadyState:
+    """The steady-state design of a Kalman build config (``kalman_baro``: baro only; ``kalman_accel``: baro +
+    accel). Raises :class:`UserError` for a recursive program or a degenerate design."""
+    if cfg.program not in ("kalman_baro", "kalman_accel"):
+        raise UserError(f"build config: program={cfg.program!r} has no Kalman gains to design")
+    return design_kalman(cfg.k, cfg.noise_model, cfg.ratio, with_accel=cfg.program == "kalman_accel",
+                         baro_sigma=cfg.baro_sigma, accel_sigma_units=accel_sigma_units(cfg), where=describe(cfg))
+
+
+def transonic_design(cfg: BuildConfig) -> SteadyState:
+    """kalman_accel's transonic design: the same process noise q = baro_sigma^2 / ratio, the barometer's variance
+    multiplied by ``transonic_r_factor`` (its weight falls, never to zero: a floor, not a lockout)."""
+    if cfg.program != "kalman_accel":
+        raise UserError(f"build config: program={cfg.program!r} has no transonic gains")
+    return design_kalman(cfg.k, cfg.noise_model, None, q=cfg.baro_sigma**2 / cfg.ratio, with_accel=True,
+                         baro_sigma=cfg.baro_sigma * math.sqrt(cfg.transonic_r_factor),
+                         accel_sigma_units=accel_sigma_units(cfg), where=describe(cfg) + " (transonic)")
+
+
+def innovation_sigma_m(cfg: BuildConfig) -> float:
+    """Steady-state standard deviation (m) of the barometer innovation, sqrt(H P H^T + R) of the design, converted
+    from barometer units with the pad's ``units_per_metre`` (docs/firmware-spec.md §6 step 4: the gate)."""
+    ss = design_config(cfg)
+    return math.sqrt(float(ss.P_prior[0, 0] + ss.R[0, 0])) / cfg.units_per_metre
+
+
+def float_gains(cfg: BuildConfig) -> dict[str, float]:
+    """Unquantized gains of ``cfg`` by name: G11 G21 G31 (1, 1/s, 1/s^2), and for kalman_accel G12 G22 G32
+    (s^2, s, 1), the transonic G11T G21T G31T and ACC_G (Q24.8 m/s^2 per accelerometer count: the Kalman programs
+    run in metres; the gains are the same in metres as in barometer units because K is invariant under a common
+    scaling of Q and R). Empty for recursive programs."""
+    if cfg.program not in ("kalman_baro", "kalman_accel"):
+        return {}
+    ss = design_config(cfg)
+    gains = {name: float(ss.K[i, 0]) for i, name in enumerate(GAIN_NAMES_BARO)}
+    if cfg.program == "kalman_accel":
+        gains.update({name: float(ss.K[i, 1]) for i, name in enumerate(GAIN_NAMES_ACCEL)})
+        tr = transonic_design(cfg)
+        gains.update({name: float(tr.K[i, 0]) for i, name in enumerate(GAIN_NAMES_TRANSONIC)})
+        gains["ACC_G"] = 256.0 / cfg.accel_counts_per_mps2
+    return gains
+
+
+def closed_loop_poles(ss: SteadyState, K: np.ndarray | None = None) -> np.ndarray:
+    """Eigenvalues of (I - K H) F for the design (or for another gain ``K``, e.g. the quantized one), sorted by
+    decreasing modulus."""
+    K = ss.K if K is None else np.asarray(K, dtype=np.float64)
+    poles = np.linalg.eigvals((np.eye(3) - K @ ss.H) @ ss.F)
+    return poles[np.argsort(-np.abs(poles), kind="stable")]

@@ -1,0 +1,284 @@
+"""The firmware assembled and run on the emulated 68000 equals the integer model (firmware_model.model.run) on EVERY
+state word of EVERY sample (and after init), for every program, k = 4..8 and both roundings.
+
+Inputs: hypothesis streams from the public strategies (uniform random, edge patterns with rounding ties, quick
+flights), seeded synthetic flights with a transonic barometer error and an out-of-range barometer (so Mach
+lockout, baro-invalid, liftoff, apogee and apogee prediction all happen: checked, so the flight logic is really
+exercised), and a few long streams. Also: the harness's sequencing, counters and fault reporting.
+
+The two sides are independent implementations of docs/firmware-spec.md (68000 assembly vs numpy); neither is
+derived from the other.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from tests.support.profiles import examples
+
+pytest.importorskip("isa.assembler")
+pytest.importorskip("isa.cpu")
+
+from firmware_model.flights import strategies as fst  # noqa: E402
+from firmware_model.firmware.assemble import STACK_TOP, build_firmware  # noqa: E402
+from firmware_model.spec.config import PROGRAMS, BuildConfig  # noqa: E402
+from firmware_model.firmware.harness import FirmwareTrace, run_firmware  # noqa: E402
+from firmware_model.model.streams import FlightParams, synthetic_flight  # noqa: E402
+from firmware_model.model.run import run_model  # noqa: E402
+from firmware_model.model.trace import EVENT_BITS  # noqa: E402
+
+KS = (4, 5, 6, 7, 8)
+ROUNDINGS = ("floor", "half_up")
+KALMAN = ("kalman_baro", "kalman_accel")
+
+
+def assert_same(cfg_or_build: object, adc: np.ndarray, acc: np.ndarray | None = None) -> FirmwareTrace:
+    """Run CPU and model on the same input; fail at the first differing word with a reproducer."""
+    build = cfg_or_build if hasattr(cfg_or_build, "step_address") else build_firmware(cfg_or_build)  # type: ignore
+    cpu = run_firmware(build, adc, acc)
+    model = run_model(build.consts, adc, acc)
+    assert cpu.names == model.names
+    if not np.array_equal(cpu.init_words, model.init_words):
+        pytest.fail(f"{build.program_name}: after init cpu {cpu.init_words.tolist()} != model "
+                    f"{model.init_words.tolist()} ({cpu.names}); adc[0]={int(np.ravel(adc)[0])}")
+    if not np.array_equal(cpu.words, model.words):
+        bad = np.argwhere(cpu.words != model.words)[0]
+        i = tuple(bad[:-1])
+        word = cpu.names[bad[-1]]
+        pytest.fail(f"{build.program_name} K={build.consts.K} ROUND={build.consts.ROUND}: sample {i} word {word}: "
+                    f"cpu {cpu.words[i].tolist()} != model {model.words[i].tolist()} ({cpu.names}); "
+                    f"equates={build.consts.equates()}; adc[:{i[-1] + 1}]={np.asarray(adc)[..., :i[-1] + 1].tolist()}"
+                    + ("" if acc is None else f"; acc[:{i[-1] + 1}]={np.asarray(acc)[..., :i[-1] + 1].tolist()}"))
+    return cpu
+
+
+def assert_reaches_apogee(trace: FirmwareTrace, cfg: BuildConfig) -> None:
+    """The flight set LIFTOFF and then APOGEE (programs with an EVENTS word)."""
+    if "EVENTS" not in trace.names:
+        return
+    events = int(np.bitwise_or.reduce(trace.column("EVENTS")))
+    for bit in ("LIFTOFF", "APOGEE"):
+        assert events & EVENT_BITS[bit], f"{cfg.program} k={cfg.k} {cfg.rounding}: the flight never set {bit}"
+
+
+def _cfg(program: str, k: int, rounding: str, **kw: object) -> BuildConfig:
+    """A build; the Kalman programs get the altitude table of the synthetic flights' linear sensor (the golden
+    vectors' case sensor), so that the flights below are physically consistent (field-ready, spec §2a)."""
+    if program in KALMAN and "baro_pa_per_count" not in kw:
+        from firmware_model.vectors.cases import _flight_sensor
+
+        kw["baro_pa_per_count"], kw["baro_pa_at_zero"] = _flight_sensor(16)
+    return BuildConfig(program=program, k=k, rounding=rounding, **kw)  # type: ignore[arg-type]
+
+
+COMBOS = [(p, k, r) for p in PROGRAMS for k in KS for r in ROUNDINGS]
+
+
+def flight_lengths(cfg: BuildConfig) -> tuple[int, int]:
+    """(min_len, max_len) samples of the quick flights for ``cfg``: long enough at every k that every shape
+    ``fst.flight_like_streams`` draws reaches apogee. Its slowest shape coasts for 1/8 of the stream, i.e. climbs
+    at g x duration / 8 after burnout: the stream lasts long enough for 15 m/s above the liftoff speed (Kalman
+    programs: 35 s at the default 30 m/s) or, for the recursive programs, above the velocity gate that arms their
+    apogee detection (62 s at the default 61 m/s), up to 15 % longer. The streams were 8..400 (200) samples, too
+    short to lift off at k >= 6: 3 of the 60 quick-flight runs reached apogee, none of the random build configs'."""
+    speed = max(cfg.liftoff_mps, cfg.gate_mps if cfg.program.startswith("recursive") else 0.0) + 15.0
+    seconds = 8.0 * speed / 9.80665
+    per_s = 1 << cfg.k
+    return math.ceil(seconds * per_s), math.ceil(1.15 * seconds * per_s)
+
+
+# ---------------------------------------------------------------------------------------------------- random streams
+@pytest.mark.parametrize("program,k,rounding", COMBOS)
+@settings(max_examples=examples(4))
+@given(data=st.data())
+def test_cpu_equals_model_random_and_edge_streams(program: str, k: int, rounding: str, data: st.DataObject) -> None:
+    """Uniform random ADC/accelerometer values (the worst case for headroom and rounding: wrap-around included)
+    and edge patterns (constant, full-scale steps/alternation, ramps, rounding ties), 1..120 samples."""
+    adc = data.draw(st.one_of(fst.adc_streams(min_len=1, max_len=120),
+                              fst.edge_streams(length=data.draw(st.integers(1, 120), label="length"),
+                                               shifts=(5, 6, 7, 8))), label="adc")
+    acc = data.draw(st.one_of(
+        st.just(np.zeros_like(adc)),
+        fst.accel_streams(min_len=len(adc), max_len=len(adc)),
+        st.integers(-32768, 32767).map(lambda c: np.full(len(adc), c, dtype=np.int64)),
+    ), label="acc")
+    assert_same(_cfg(program, k, rounding), adc, acc)
+
+
+@pytest.mark.parametrize("program,k,rounding", [c for c in COMBOS if c[0] in KALMAN or c[0] == "recursive"])
+@settings(max_examples=examples(2))
+@given(data=st.data())
+def test_cpu_equals_model_quick_flights(program: str, k: int, rounding: str, data: st.DataObject) -> None:
+    """Flight-shaped streams (pad, boost, coast, apogee, descent + noise) of 35-72 s (:func:`flight_lengths`):
+    liftoff and apogee at every k (asserted, so the flight logic is compared, not only the filter's pad)."""
+    cfg = _cfg(program, k, rounding)
+    lo, hi = flight_lengths(cfg)
+    adc, acc = data.draw(fst.flight_like_streams(cfg, min_len=lo, max_len=hi), label="flight")
+    assert_reaches_apogee(assert_same(cfg, adc, acc), cfg)
+
+
+@settings(max_examples=examples(12))
+@given(cfg=fst.build_configs(), data=st.data())
+def test_cpu_equals_model_random_build_configs(cfg: BuildConfig, data: st.DataObject) -> None:
+    """Random designs: noise model, R/q ratio (hence every gain mantissa and shift), S, threshold, rounding, k; on
+    flights long enough to reach apogee (:func:`flight_lengths`)."""
+    lo, hi = flight_lengths(cfg)
+    adc, acc = data.draw(fst.flight_like_streams(cfg, min_len=lo, max_len=hi), label="flight")
+    assert_reaches_apogee(assert_same(cfg, adc, acc), cfg)
+
+
+@settings(max_examples=examples(10))
+@given(program=st.sampled_from(PROGRAMS), k=st.sampled_from(KS), rounding=st.sampled_from(ROUNDINGS),
+       baro_sign=st.sampled_from((1, -1)), bits=st.integers(8, 16), data=st.data())
+def test_cpu_equals_model_sign_bits_and_range(program: str, k: int, rounding: str, baro_sign: int, bits: int,
+                                              data: st.DataObject) -> None:
+    """BARO_SIGN +1/-1, ADC widths 8..16 and a restricted valid range (BARO_MIN/BARO_MAX checks)."""
+    full = (1 << bits) - 1
+    lo = data.draw(st.integers(0, full), label="baro_min")
+    hi = data.draw(st.integers(lo, full), label="baro_max")
+    cfg = _cfg(program, k, rounding, baro_sign=baro_sign, baro_bits=bits, baro_min=lo, baro_max=hi)
+    adc = data.draw(st.one_of(fst.adc_streams(bits=bits, max_len=80),
+                              fst.edge_streams(bits=bits, length=60)), label="adc")
+    acc = data.draw(fst.accel_streams(min_len=len(adc), max_len=len(adc)), label="acc")
+    assert_same(cfg, adc, acc)
+
+
+# ---------------------------------------------------------------------------------------------------- flight logic
+# A Mach window moved down to 40..100 m/s (20 m innovation) and a 40 m barometer error while the true speed is in
+# 50..90 m/s: the same lockout code runs as in a transonic flight, on a short flight (12 g for 1 s).
+LOW_MACH = dict(mach_lo_mps=40.0, mach_hi_mps=100.0, mach_innov_m=20.0, baro_max=65000)
+LOW_MACH_FLIGHT = FlightParams(boost_accel_g=12.0, burn_s=1.0, transonic_error_m=40.0,
+                               transonic_band_mps=(50.0, 90.0), after_apogee_s=1.5)
+KALMAN_EVENTS = ("LIFTOFF", "APOGEE", "MACH_LOCKOUT", "BARO_INVALID", "APOGEE_PREDICTED", "BARO_REJECT")
+#: Bits a program never sets (spec §4-§6): the transonic gains (MACH_LOCKOUT bit) exist only in kalman_accel.
+NEVER_SET = {"kalman_baro": ("MACH_LOCKOUT", "ARMED", "GATE_HIGH"), "kalman_accel": ("ARMED", "GATE_HIGH")}
+
+
+@pytest.mark.parametrize("program", KALMAN)
+@pytest.mark.parametrize("rounding", ROUNDINGS)
+@pytest.mark.parametrize("k", KS)
+def test_cpu_equals_model_flights_all_kalman_events(program: str, k: int, rounding: str) -> None:
+    """Two flights per build, CPU == model on every sample of both: (a) a barometer error inside a (lowered) Mach
+    window plus samples above BARO_MAX; (b) clean flights with the default config. Together they must set every
+    event bit of the program (kalman_accel: all Kalman bits; kalman_baro: all but MACH_LOCKOUT, which it must
+    never set), so the whole flight logic is compared, not just the filter, and APFRAC must be written."""
+    s = synthetic_flight(k, seed=k, params=LOW_MACH_FLIGHT)
+    adc = s.adc.copy()
+    adc[len(adc) // 3::97] = 65535              # over-range glitches: BARO_INVALID
+    glitchy = assert_same(_cfg(program, k, rounding, **LOW_MACH), adc, s.acc)
+    events = int(np.bitwise_or.reduce(glitchy.column("EVENTS")))
+    apfrac = int(glitchy.column("APFRAC").max())
+    expected = [bit for bit in KALMAN_EVENTS if bit not in NEVER_SET[program]]
+    want = sum(EVENT_BITS[bit] for bit in expected)
+    # Apogee prediction needs 0 < X2 < -rs(X3, K) on some sample, which noise can jump over (at k = 4 the
+    # per-sample velocity step is ~0.6 m/s): up to 8 seeded clean flights, stopping when every event was seen.
+    for seed in range(k + 1, k + 9):
+        if events & want == want:
+            break
+        f = synthetic_flight(k, seed=seed, params=FlightParams(boost_accel_g=12.0, burn_s=1.0, after_apogee_s=1.5))
+        clean = assert_same(_cfg(program, k, rounding), f.adc, f.acc)
+        events |= int(np.bitwise_or.reduce(clean.column("EVENTS")))
+        apfrac = max(apfrac, int(clean.column("APFRAC").max()))
+    for bit in expected:
+        assert events & EVENT_BITS[bit], f"{program} k={k} {rounding}: the flights never set {bit}"
+    for bit in NEVER_SET[program]:
+        assert not events & EVENT_BITS[bit], f"{program} k={k} {rounding}: {bit} must never be set"
+    assert apfrac > 0
+
+
+@pytest.mark.parametrize("rounding", ROUNDINGS)
+@pytest.mark.parametrize("k", KS)
+def test_cpu_equals_model_recursive_flight_all_events(k: int, rounding: str) -> None:
+    """A subsonic flight for the recursive filter: LIFTOFF, GATE_HIGH, ARMED and APOGEE must all occur, in that
+    order (ARMED strictly after GATE_HIGH: the velocity came back below the gate)."""
+    s = synthetic_flight(k, seed=100 + k, params=FlightParams(after_apogee_s=2.0))
+    cpu = assert_same(_cfg("recursive", k, rounding, threshold_q8=128), s.adc, s.acc)
+    events = np.bitwise_or.reduce(cpu.column("EVENTS"))
+    for bit in ("LIFTOFF", "GATE_HIGH", "ARMED", "APOGEE"):
+        assert events & EVENT_BITS[bit], f"recursive k={k} {rounding}: the flight never set {bit}"
+    order = [cpu.first_event(bit) for bit in ("LIFTOFF", "GATE_HIGH", "ARMED", "APOGEE")]
+    assert order == sorted(set(order)), f"recursive k={k} {rounding}: first samples {order}"
+
+
+@pytest.mark.parametrize("program", PROGRAMS)
+@pytest.mark.parametrize("rounding", ROUNDINGS)
+def test_cpu_equals_model_long_streams(program: str, rounding: str) -> None:
+    """Thousands of samples: a full synthetic flight at k = 7 (pad to landing-ish) plus uniform noise streams."""
+    s = synthetic_flight(7, seed=7, params=FlightParams(after_apogee_s=6.0))
+    assert len(s.adc) > 1000
+    assert_same(_cfg(program, 7, rounding), s.adc, s.acc)
+    rng = np.random.default_rng(1234)
+    n = 1500
+    assert_same(_cfg(program, 6, rounding), rng.integers(0, 65536, n), rng.integers(-32768, 32768, n))
+
+
+# ---------------------------------------------------------------------------------------------------- harness
+def test_harness_many_streams_and_counters() -> None:
+    """(streams, n) input gives the same words as one stream at a time; cycles, stack and RAM counters."""
+    cfg = _cfg("kalman_accel", 6, "half_up")
+    build = build_firmware(cfg)
+    rng = np.random.default_rng(5)
+    adc = rng.integers(20000, 20100, (3, 50))
+    acc = rng.integers(-500, 3000, (3, 50))
+    many = assert_same(build, adc, acc)
+    assert many.words.shape == (3, 50, 12) and many.cycles.shape == (3, 50)
+    for j in range(3):
+        one = run_firmware(build, adc[j], acc[j])
+        assert np.array_equal(one.words, many.words[j]) and np.array_equal(one.cycles, many.cycles[j])
+    # Every filter step (after the pad calibration) takes at least the straight-line MULG work, and the harness saw
+    # the 4-byte return address only.
+    ncal = 1 << build.consts.CAL_P
+    assert many.cycles[:, ncal:].min() > 500 and many.cycles[:, :ncal].min() > 0
+    assert int(np.asarray(many.init_cycles).min()) > 0
+    assert many.stack_bytes == 4
+    assert many.ram_written == build.ram_bytes + 4
+    assert STACK_TOP - 4 >= 0x4000 + build.ram_bytes  # the stack never meets the variables
+
+
+def test_harness_sequencing_init_sees_sample_zero() -> None:
+    """init reads sample 0 (X1 = GND = alt(adc) by the table, spec §2a), then step runs on sample 0 again: spec §7
+    (the first step is the first pad-calibration sample: SUMZ = alt(adc), CAL = 1)."""
+    build = build_firmware(_cfg("kalman_baro", 5, "floor"))
+    tr = run_firmware(build, np.array([40000, 40000]))
+    t, s = build.consts.ALT_TABLE, build.consts.ALT_SHIFT
+    i, f = 40000 >> s, 40000 & ((1 << s) - 1)
+    alt = t[i] + (t[i + 1] - t[i]) * f // (1 << s)            # floor rounding, Python's exact floor division
+    assert tr.init_words[tr.names.index("X1")] == alt == tr.init_words[tr.names.index("GND")]
+    assert tr.words[0, tr.names.index("SUMZ")] == alt and tr.words[0, tr.names.index("CAL")] == 1
+    assert tr.words.shape == (2, 10)
+
+
+def test_harness_fault_names_sample() -> None:
+    """A CPU fault (here the per-call clock limit) is re-raised with the sample index and the same fault class."""
+    from isa.errors import CPUFault, LimitExceeded
+
+    build = build_firmware(_cfg("kalman_accel", 5, "floor", cal_p=0))
+    init_clocks = run_firmware(build, np.array([40000])).init_cycles
+    with pytest.raises(LimitExceeded, match="sample 1") as info:   # sample 0 is the (short) calibration step
+        run_firmware(build, np.array([40000, 40000, 40000]), max_cycles_per_call=int(init_clocks) + 10)
+    assert isinstance(info.value, CPUFault)
+    bad = dataclasses.replace(build, step_address=build.step_address + 1)   # odd PC: address error
+    with pytest.raises(CPUFault, match="sample 0"):
+        run_firmware(bad, np.array([100]))
+
+
+@pytest.mark.parametrize("adc,acc,match", [
+    (np.array([70000]), None, r"adc: sample 0 = 70000 outside 0\.\.65535"),
+    (np.array([1, -1]), None, r"adc: sample 1 = -1"),
+    (np.array([1, 2]), np.array([0, 40000]), r"acc: sample 1 = 40000"),
+    (np.array([1, 2]), np.array([0]), r"acc: shape"),
+    (np.array([], dtype=np.int64), None, r"empty"),
+    (np.array([1.5]), None, r"not an integer"),
+])
+def test_harness_rejects_bad_input(adc: np.ndarray, acc: np.ndarray | None, match: str) -> None:
+    from firmware_model.runtime.errors import UserError
+
+    build = build_firmware(_cfg("recursive", 5, "floor"))
+    with pytest.raises(UserError, match=match):
+        run_firmware(build, adc, acc)

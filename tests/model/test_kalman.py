@@ -1,0 +1,386 @@
+"""Integer model of the Kalman programs (docs/firmware-spec.md §6) against the float mirror and the ideal filter.
+
+The integer-vs-mirror bound is derived in :func:`firmware_model.model.float_reference.kalman_switched_bound` and
+docs/numerics.md ("Switched bound") from the LSB (rounding of each shift and of the altitude table's
+interpolation), the gains actually applied at each sample (barometer used or gated, transonic gains), the pad
+calibration's rounding and the gain quantization; it holds while both runs take the same decisions, and where they
+differ the mirror's innovation must lie within the derived margin of the gate.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from firmware_model.flights import strategies as fst
+from firmware_model.spec.config import BuildConfig
+from firmware_model.spec.build_constants import build_constants
+from firmware_model.spec.fixed import QGain
+from firmware_model.spec.fixed import mulg
+from firmware_model.model.run import run_model
+from firmware_model.model.float_reference import ideal_kalman, kalman_switched_bound, mirror, riccati_iteration
+from firmware_model.model.trace import EVENT_BITS
+from tests.support.profiles import examples
+
+DECISION_BITS = EVENT_BITS["MACH_LOCKOUT"] | EVENT_BITS["BARO_INVALID"] | EVENT_BITS["BARO_REJECT"]
+
+
+def _check_bound(consts, adc, acc, int_consts=None, fm=None) -> np.ndarray:
+    """Integer model vs float mirror within :func:`kalman_switched_bound` on every sample up to the first
+    decision (gate, transonic) on which the two runs differ; such a difference is allowed only where the mirror's
+    innovation is within the derived margin of the gate (the integer run may legitimately fall on the other
+    side). Returns max observed/bound per state. ``fm``: the mirror of (consts, adc, acc) when the caller has it
+    already (the mirror is deterministic: the same run)."""
+    tr = run_model(consts if int_consts is None else int_consts, adc, acc)
+    fm = mirror(consts, adc, acc) if fm is None else fm
+    assert tr.first_wrap == -1, (tr.first_wrap, tr.wrap_word)
+    sb = kalman_switched_bound(consts, fm, adc, acc)
+    di = tr.column("EVENTS") & DECISION_BITS
+    df = fm.column("EVENTS").astype(np.int64) & DECISION_BITS
+    rej_i, rej_f = tr.column("REJ"), fm.column("REJ").astype(np.int64)
+    diff = np.flatnonzero((di != df) | (tr.column("CAL") != fm.column("CAL")) | (rej_i != rej_f))
+    n = int(diff[0]) if diff.size else len(adc)
+    if diff.size:
+        i = n
+        gate = bool((di[i] ^ df[i]) & EVENT_BITS["BARO_REJECT"]) or rej_i[i] != rej_f[i]
+        if (di[i] ^ df[i]) & EVENT_BITS["MACH_LOCKOUT"]:
+            assert _transonic_ambiguous(consts, tr, fm, sb, i), i
+        if gate:   # one run inside the gate, the other outside: only where the mirror's e1 is within the margin
+            e1 = _mirror_e1(consts, fm, adc, i)
+            assert abs(abs(e1) - consts.E_GATE) <= sb.e1_margin[i] + 1e-6, (i, e1, consts.E_GATE, sb.e1_margin[i])
+        assert (di[i] ^ df[i]) & ~(EVENT_BITS["BARO_REJECT"] | EVENT_BITS["MACH_LOCKOUT"]) == 0, i
+    d = np.abs(tr.words[:n, :3] - fm.words[:n, :3])
+    assert np.all(d <= sb.bound[:n] * (1 + 1e-9) + 1e-6), (np.argwhere(d > sb.bound[:n] + 1e-6)[:3], d.max(0))
+    return (d / np.maximum(sb.bound[:n], 1e-300)).max(axis=0) if n else np.zeros(3)
+
+
+def _mirror_e1(consts, fm, adc, i) -> float:
+    from firmware_model.model.float_reference import _alt_mirror_e1
+
+    prev = fm.words[i - 1] if i else fm.init_words
+    dt = 2.0 ** -consts.K
+    return _alt_mirror_e1(consts, float(adc[i]), prev[0] + prev[1] * dt + prev[2] * dt * dt / 2)
+
+
+def _transonic_ambiguous(consts, tr, fm, sb, i) -> bool:
+    """The transonic decision X2 > MACH_VLO may differ when the mirror's predicted X2 is within the bound."""
+    prev = fm.words[i - 1]
+    x2p = prev[1] + prev[2] * 2.0 ** -consts.K
+    return abs(x2p - consts.MACH_VLO) <= sb.bound[i - 1][1] + sb.bound[i - 1][2] + 2
+
+
+@st.composite
+def _case(draw):
+    cfg = draw(fst.build_configs(programs=("kalman_baro", "kalman_accel")))
+    kind = draw(st.sampled_from(("random", "edge", "flight")))
+    if kind == "flight":
+        adc, acc = draw(fst.flight_like_streams(cfg, max_len=400))
+    else:
+        adc = draw(fst.adc_streams(max_len=300) if kind == "random" else fst.edge_streams(length=300))
+        acc = draw(fst.accel_streams(min_len=len(adc), max_len=len(adc)))
+    return cfg, adc, acc
+
+
+@settings(max_examples=examples(30, ci=10), deadline=None)
+@given(case=_case())
+def test_kalman_within_derived_bound_of_float_mirror(case):
+    cfg, adc, acc = case
+    _check_bound(build_constants(cfg), adc, acc)
+
+
+def _noisy_walk(k, n=1500, spikes=True, walk=0.5):
+    """A slow random walk (``walk`` counts rms per sample) plus 2 counts of noise around count 30,000, the
+    accelerometer at 1 g plus noise; optionally two single-sample spikes of 600 counts (~170 m)."""
+    rng = np.random.default_rng(k)
+    adc = np.clip(np.round(30000 + np.cumsum(rng.normal(0, walk, n)) + rng.normal(0, 2, n)), 0, 65535).astype(np.int64)
+    if spikes:
+        adc[n // 2] += 600       # single-sample spikes, far outside the gate: rejected by both runs
+        adc[2 * n // 3] -= 600
+    acc = np.round(2048 + rng.normal(0, 20, n)).astype(np.int64)
+    return adc, acc
+
+
+@pytest.mark.parametrize("program", ["kalman_baro", "kalman_accel"])
+@pytest.mark.parametrize("k", [4, 5, 6, 7, 8])
+@pytest.mark.parametrize("rounding", ["floor", "half_up"])
+def test_kalman_bound_on_long_noisy_streams_with_spikes(program, k, rounding):
+    """1500 samples of a slow random walk plus noise with two single-sample spikes (rejected by the gate in both
+    runs), the case where floor biases build up; the bound follows the gate's decisions."""
+    # the accelerometer says "no acceleration": a barometer walk it cannot see would (rightly) be gated
+    adc, acc = _noisy_walk(k, walk=0.5 if program == "kalman_baro" else 0.02)
+    cfg = BuildConfig(program=program, k=k, rounding=rounding, ratio=50000.0 if program == "kalman_baro" else 100.0)
+    consts = build_constants(cfg)
+    fm = mirror(consts, adc, acc)
+    rej = np.flatnonzero(fm.column("EVENTS").astype(np.int64) & EVENT_BITS["BARO_REJECT"])
+    assert len(adc) // 2 in rej and 2 * len(adc) // 3 in rej
+    ratio = _check_bound(consts, adc, acc, fm=fm)
+    assert ratio.max() > 0.005  # the bound is not vacuous: the observed error is a visible fraction of it
+
+
+def test_bound_has_teeth_a_wrong_gain_breaks_it():
+    """The same check fails when the integer model runs with a G21 that is 2 % off (a porting bug), on a fast
+    random walk (large innovations; no gate, so that every sample is compared)."""
+    cfg = BuildConfig(program="kalman_baro", k=6, gate_sigmas=0.0)
+    consts = build_constants(cfg)
+    g = consts.gains["G21"]
+    bad = dataclasses.replace(consts, gains={**consts.gains, "G21": QGain(int(g.m * 1.02), g.s, g.target)})
+    adc, acc = _noisy_walk(6, spikes=False, walk=50.0)
+    _check_pair(consts, consts, adc, acc)
+    with pytest.raises(AssertionError):
+        _check_pair(bad, consts, adc, acc)
+
+
+def _check_pair(int_consts, mirror_consts, adc, acc):
+    """_check_bound with the integer model built from ``int_consts`` (a deliberate defect) and the mirror and
+    bound from the correct ``mirror_consts``."""
+    _check_bound(mirror_consts, adc, acc, int_consts=int_consts)
+
+
+def test_bound_has_teeth_a_wrong_table_node_breaks_it():
+    """One altitude-table node 1/8 m off (a table copied wrongly) in the segment the stream uses breaks it."""
+    consts = build_constants(BuildConfig(program="kalman_baro", k=6))
+    adc, acc = _noisy_walk(6, spikes=False)
+    j = int(np.median(adc)) >> consts.ALT_SHIFT
+    table = list(consts.ALT_TABLE)
+    table[j] += 32
+    bad = dataclasses.replace(consts, ALT_TABLE=tuple(table))
+    _check_pair(consts, consts, adc, acc)          # the correct model passes the same check
+    with pytest.raises(AssertionError):
+        _check_pair(bad, consts, adc, acc)
+
+
+def test_bound_has_teeth_a_wrong_gate_breaks_it():
+    """An integer model whose gate is off (E_GATE = max, a dropped comparison) or 4x too wide fails the check
+    on a stream with a spike of 2.5 gates: the decisions differ where the mirror's innovation is far from its
+    gate (the correct model passes the same check)."""
+    consts = build_constants(BuildConfig(program="kalman_accel", k=6, ratio=100.0))
+    adc, acc = _noisy_walk(6, walk=0.02)
+    _check_pair(consts, consts, adc, acc)
+    for e_gate in (2**31 - 1, consts.E_GATE * 4):
+        adc2 = adc.copy()
+        adc2[300] += int(2.5 * consts.E_GATE / 256 * 3.9)   # ~3.9 counts/m at count 30,000: 2.5 gates
+        _check_pair(consts, consts, adc2, acc)
+        with pytest.raises(AssertionError):
+            _check_pair(dataclasses.replace(consts, E_GATE=e_gate), consts, adc2, acc)
+
+
+@pytest.mark.parametrize("program, ratio", [("kalman_baro", 50000.0), ("kalman_accel", 100.0)])
+@pytest.mark.parametrize("noise_model", ["accel_only", "jerk", "dwna"])
+@pytest.mark.parametrize("k", [4, 6, 8])
+def test_design_gains_match_plain_riccati_iteration(program, ratio, noise_model, k):
+    """The design's doubling solution equals an independent plain Riccati iteration (float_reference.riccati_iteration)."""
+    cfg = BuildConfig(program=program, k=k, noise_model=noise_model, ratio=ratio)
+    K, _ = riccati_iteration(cfg)
+    consts = build_constants(cfg)
+    names = [("G11", "G21", "G31"), ("G12", "G22", "G32")]
+    for j in range(K.shape[1]):
+        for i in range(3):
+            assert K[i, j] == pytest.approx(consts.float_gains[names[j][i]], rel=1e-6)
+
+
+@pytest.mark.parametrize("program", ["kalman_baro", "kalman_accel"])
+def test_mirror_equals_steady_state_ideal_and_time_varying_converges(program):
+    """With a one-sample pad calibration and no gate the mirror is the steady-state ideal filter in metres (same
+    algebra, two codes); the time-varying filter from P0 converges to it."""
+    cfg = BuildConfig(program=program, k=6, ratio=50000.0 if program == "kalman_baro" else 100.0, cal_p=0,
+                      gate_sigmas=0.0)
+    consts = build_constants(cfg)
+    rng = np.random.default_rng(5)
+    n = 3000
+    adc = np.clip(np.round(30000 + rng.normal(0, 2, n)), 0, 65535).astype(np.int64)
+    acc = np.round(rng.normal(0, 20, n)).astype(np.int64)
+    fm = mirror(consts, adc, acc)
+    ss = ideal_kalman(cfg, adc, acc, steady=True)
+    tv = ideal_kalman(cfg, adc, acc)
+    assert (fm.column("EVENTS").astype(int) & DECISION_BITS).sum() == 0
+    for i, name in enumerate(("X1", "X2", "X3")):
+        scale = max(1.0, np.abs(ss.column(name)).max())
+        assert np.abs(fm.column(name) - ss.column(name)).max() <= 1e-9 * 2 ** 24 + 1e-12 * scale
+        late = slice(n - 200, n)
+        assert np.abs(tv.column(name)[late] - ss.column(name)[late]).max() <= 0.02 * 256
+
+
+@settings(max_examples=examples(30), deadline=None)
+@given(cfg=fst.build_configs(programs=("kalman_baro", "kalman_accel")), data=st.data())
+def test_kalman_table_translation_invariant_exactly(cfg, data):
+    """Adding an integer c to every altitude-table node gives X1 + c, GND + c, SUMZ + 2^CAL_P c and identical
+    X2, X3, EVENTS, APFRAC and counters: the predict never reads X1's absolute value and e1 = h - X1, the pad
+    average rs(SUMZ + 2^p c, p) = rs(SUMZ, p) + c exactly."""
+    adc = data.draw(fst.adc_streams(max_len=150))
+    acc = data.draw(fst.accel_streams(min_len=len(adc), max_len=len(adc)))
+    consts = build_constants(cfg)
+    c = data.draw(st.integers(-(1 << 22), 1 << 22))
+    shifted = dataclasses.replace(consts, ALT_TABLE=tuple(v + c for v in consts.ALT_TABLE))
+    t0, t1 = run_model(consts, adc, acc), run_model(shifted, adc, acc)
+    assert t0.first_wrap == -1 and t1.first_wrap == -1
+    ok = (adc >= consts.BARO_MIN) & (adc <= consts.BARO_MAX)
+    if not ok[0]:
+        return   # init stores 0 for an invalid first sample: X1 is not translated until calibration ends
+    cal = t0.column("CAL")
+    done = cal >= (1 << consts.CAL_P)
+    assert np.array_equal(t1.column("X1"), t0.column("X1") + c)
+    assert np.array_equal(t1.column("GND")[done], t0.column("GND")[done] + c)
+    assert np.array_equal(t1.column("SUMZ"), t0.column("SUMZ") + c * cal)
+    for name in t0.names:
+        if name not in ("X1", "GND", "SUMZ"):
+            assert np.array_equal(t1.column(name), t0.column(name)), name
+
+
+def _fixed_point_box(consts) -> tuple[tuple[int, int], tuple[int, int], tuple[int, int]]:
+    """Bounds on (X1 - h, X2, X3), h = alt(adc), at any fixed point of kalman_baro under a constant input (no
+    flight logic firing, no gate). At a fixed point: mulg(e, G31) = 0; rs(X3, K) = -mulg(e, G21); rs(X2, K) +
+    rs(X3, 2K+1) = -mulg(e, G11); X1 - h = mulg(e, G11) - e, with e = h - X1_predicted. Enumerating e over the (small) zero set
+    of mulg(., G31) gives the box."""
+    mode = "half_up" if consts.ROUND else "floor"
+    g = consts.gains
+    K = consts.K
+    es = np.arange(-(1 << 20), 1 << 20, dtype=np.int64)
+    es = es[mulg(es, g["G31"], mode) == 0]
+    c1 = mulg(es, g["G11"], mode)
+    c2 = mulg(es, g["G21"], mode)
+    d1 = c1 - es
+    # rs(X3, K) = -c2  ->  X3 in [-c2 * 2^K - (floor: 0 | half_up: 2^(K-1)), ... + 2^K - 1]
+    lo3 = (-c2.max()) * 2 ** K - 2 ** K
+    hi3 = (-c2.min()) * 2 ** K + 2 ** K
+    r3 = max(abs(lo3), abs(hi3)) >> (K + 1)   # |rs(X3, 2K+1)| <= that + 1
+    lo2 = (-c1.max() - r3 - 1) * 2 ** K - 2 ** K
+    hi2 = (-c1.min() + r3 + 1) * 2 ** K + 2 ** K
+    return (int(d1.min()), int(d1.max())), (int(lo2), int(hi2)), (int(lo3), int(hi3))
+
+
+@pytest.mark.parametrize("k", [4, 6, 8])
+@pytest.mark.parametrize("rounding", ["floor", "half_up"])
+def test_kalman_constant_input_settles_into_fixed_point_box(k, rounding):
+    """After a step to a constant level the integer filter stops inside the fixed-point box above (floor: always
+    a fixed point; half_up at k >= 7 can end in a small limit cycle instead, reported in docs/numerics.md, and
+    then the box is checked on the cycle's extent too)."""
+    consts = build_constants(BuildConfig(program="kalman_baro", k=k, rounding=rounding, gate_sigmas=0.0))
+    rng = np.random.default_rng(100 + k)
+    n = 6000 * 2 ** max(0, k - 7)   # settling takes longer as the closed-loop poles approach 1
+    a = rng.integers(27000, 65536, size=(8, 1))   # pressures above the table floor (a constant altitude)
+    b = rng.integers(27000, 65536, size=(8, 1))
+    adc = np.repeat(b, n, axis=1)
+    adc[:, :20] = a
+    tr = run_model(consts, adc, np.zeros_like(adc))
+    assert not tr.any_wrap
+    tail = tr.words[:, -500:, :3]
+    (l1, h1), (l2, h2), (l3, h3) = _fixed_point_box(consts)
+    from firmware_model.spec.alt_table import AltTable
+
+    table = AltTable(consts.ALT_TABLE, consts.ALT_SHIFT, 16)
+    d1 = tail[..., 0] - table.lookup(b, rounding)
+    stationary = np.all(tail[:, -1] == tail[:, -2], axis=-1)
+    if rounding == "floor":
+        assert stationary.all()
+    for s in np.flatnonzero(stationary):
+        assert l1 <= d1[s, -1] <= h1, (d1[s, -1], l1, h1)
+        assert l2 <= tail[s, -1, 1] <= h2 and l3 <= tail[s, -1, 2] <= h3
+
+
+@pytest.mark.parametrize("program", ["kalman_baro", "kalman_accel"])
+@pytest.mark.parametrize("k", [4, 6, 8, 10])
+def test_no_wrap_for_worst_case_inputs_inside_the_range(program, k):
+    """Full-scale alternation (0 / 65535 every sample), full-scale steps, and the accelerometer swinging between
+    -32768 and 32767: no .l value leaves int32 for the default designs (headroom: docs/numerics.md)."""
+    cfg = BuildConfig(program=program, k=k, ratio=50000.0 if program == "kalman_baro" else 100.0)
+    consts = build_constants(cfg)
+    n = 3000
+    alt = np.tile([0, 65535], n // 2)
+    step = np.where(np.arange(n) < n // 2, 0, 65535)
+    adc = np.stack([alt, 65535 - alt, step, 65535 - step])
+    acc = np.stack([np.tile([-32768, 32767], n // 2), np.tile([32767, -32768], n // 2),
+                    np.where(np.arange(n) < 10, -32768, 32767), np.zeros(n, dtype=np.int64)])
+    tr = run_model(consts, adc, acc)
+    assert not tr.any_wrap, (tr.first_wrap, tr.wrap_word)
+
+
+def test_wrap_detected_outside_the_design_range():
+    """A design far outside the documented tuning range (R/q = 1e-5 at k = 10) wraps on full-scale steps of the
+    altitude (count 0 = 16 km, count 65535 = -6 km, 40-sample square wave); the model reports the first sample
+    and the word. (The metres scale bounds |altitude| by ~31 km, so R/q = 1e-3 no longer wraps.)"""
+    cfg = BuildConfig(program="kalman_baro", k=10, ratio=1e-5, noise_model="accel_only", cal_p=0, gate_sigmas=0.0)
+    consts = build_constants(cfg)
+    adc = np.where(np.arange(400) % 40 < 20, 0, 65535)
+    tr = run_model(consts, adc)
+    assert tr.any_wrap and tr.first_wrap >= 20
+    assert tr.wrap_word in ("X1", "X2", "X3", "e1") or tr.wrap_word.startswith("mulg")
+
+
+# ---------------------------------------------------------------------------------------------------- transonic flight
+# Spec §6 (history: kalman_baro used to lock out too, and kalman_accel's lockout (Schultz n.d.) set X1 to the measurement;
+# the field-ready change replaced the lockout by transonic barometer gains in kalman_accel and an innovation gate). The transonic flight of the committed vectors: 14 g for 2.5 s, peak ~307 m/s,
+# the barometer reads 60 m high while the true speed is in 290..375 m/s (a step up entering, down leaving).
+def _fast_flight(program: str, k: int, rounding: str, error_m: float = 60.0):
+    from firmware_model.model.streams import flight_params_for, synthetic_flight, true_trajectory
+    from firmware_model.vectors.cases import FAST_FLIGHT_SEED, case_config
+
+    cfg = case_config(program, rounding, k, 16)
+    p = dataclasses.replace(flight_params_for(cfg, fast=True), transonic_error_m=error_m)
+    s = synthetic_flight(k, 16, FAST_FLIGHT_SEED, p)
+    _, speed, _ = true_trajectory(k, p)
+    lo, hi = p.transonic_band_mps
+    band = np.flatnonzero((speed > lo) & (speed < hi))
+    return run_model(build_constants(cfg), s.adc, s.acc), s, band
+
+
+@pytest.mark.parametrize("rounding", ["floor", "half_up"])
+@pytest.mark.parametrize("k", [4, 5, 6, 7, 8])
+def test_kalman_baro_transonic_flight_declares_apogee_without_lockout(k, rounding):
+    """kalman_baro never sets MACH_LOCKOUT and declares apogee after the transonic band; the 60 m transonic
+    barometer error (gated for GATE_N samples, then absorbed) moves the detection by at most 0.15 s against the
+    same flight without it (measured floor: 1, 1, 2, 2, 29 samples at k = 4..8); for k >= 5 the detection is
+    within 0.5 s of the true apogee (measured +0.31, +0.02, -0.02, +0.08 s). k = 4 is excluded from the truth
+    window: at 16 samples/s the default R/q = 50,000 is so slow that the velocity overshoots and undershoots
+    (3.5 s early with or without the transonic error; a tuning limit, docs/firmware-spec.md History)."""
+    tr, s, band = _fast_flight("kalman_baro", k, rounding)
+    assert band.size > 0
+    ev = tr.column("EVENTS")
+    assert not (ev & EVENT_BITS["MACH_LOCKOUT"]).any()
+    apogee = tr.first_event("APOGEE")
+    assert apogee > band.max(), (apogee, band.max())
+    clean, _, _ = _fast_flight("kalman_baro", k, rounding, error_m=0.0)
+    assert abs(apogee - clean.first_event("APOGEE")) * 2.0 ** -k <= 0.15
+    if k >= 5:
+        assert abs(apogee - s.truth["apogee_sample"]) * 2.0 ** -k <= 0.5, (apogee, s.truth)
+
+
+@pytest.mark.parametrize("rounding", ["floor", "half_up"])
+@pytest.mark.parametrize("k", [5, 6, 7, 8])
+def test_kalman_accel_transonic_flight_reduces_baro_weight_and_declares_apogee(k, rounding):
+    """kalman_accel uses its transonic barometer gains (MACH_LOCKOUT bit) exactly on the samples after liftoff
+    whose predicted X2 exceeds MACH_VLO, a contiguous run that covers the transonic band; the barometer keeps
+    correcting meanwhile (no state is pinned: X1 follows the barometer, X2 keeps changing). Apogee comes after
+    the run, within 0.25 s of the true apogee (measured -0.09 .. -0.06 s at k = 5..8; before the field-ready
+    change the lead was 28..273 samples, ~1 s at k >= 7) and within 0.05 s of the same flight without the
+    transonic error."""
+    tr, s, band = _fast_flight("kalman_accel", k, rounding)
+    ev = tr.column("EVENTS")
+    locked = np.flatnonzero(ev & EVENT_BITS["MACH_LOCKOUT"])
+    assert locked.size >= 2 and np.all(np.diff(locked) == 1), locked
+    assert locked.min() <= band.min() and locked.max() >= band.max(), (locked, band.min(), band.max())
+    x2, x3 = tr.column("X2"), tr.column("X3")
+    consts = build_constants(tr_cfg := _fast_cfg("kalman_accel", k, rounding))
+    mode = rounding
+    from firmware_model.spec.fixed import rs
+
+    pred = x2[:-1] + rs(x3[:-1], consts.K, mode)
+    lift = np.flatnonzero(ev & EVENT_BITS["LIFTOFF"]).min()
+    want = np.flatnonzero((pred > consts.MACH_VLO) & (np.arange(1, len(x2)) > lift)) + 1
+    assert np.array_equal(locked, want[want < len(x2)]), (locked[:5], want[:5])
+    assert len(np.unique(x2[locked])) > locked.size // 2      # velocity is not frozen
+    apogee = tr.first_event("APOGEE")
+    assert apogee > locked.max()
+    assert abs(apogee - s.truth["apogee_sample"]) * 2.0 ** -k <= 0.25, (apogee, s.truth)
+    clean, _, _ = _fast_flight("kalman_accel", k, rounding, error_m=0.0)
+    assert abs(apogee - clean.first_event("APOGEE")) * 2.0 ** -k <= 0.05
+    assert tr_cfg.program == "kalman_accel"
+
+
+def _fast_cfg(program, k, rounding):
+    from firmware_model.vectors.cases import case_config
+
+    return case_config(program, rounding, k, 16)
