@@ -139,20 +139,26 @@ def edge_streams(bits: int = 16, length: int = 64, shifts: Sequence[int] = (5,))
 
 
 def flight_like_streams(cfg: BuildConfig | None = None, max_len: int = 400, noise_counts: float = 2.0,
-                        ) -> st.SearchStrategy[tuple[np.ndarray, np.ndarray]]:
-    """Quick synthetic flights ``(adc, acc)`` for ``cfg`` (default :class:`BuildConfig()`) of 8..``max_len``
+                        min_len: int = 8) -> st.SearchStrategy[tuple[np.ndarray, np.ndarray]]:
+    """Quick synthetic flights ``(adc, acc)`` for ``cfg`` (default :class:`BuildConfig()`) of ``min_len``..``max_len``
     samples at 2^-k s: pad, constant boost, drag-free coast under -g, descent (until the pad level, then rest),
     with the apogee at 40..80 % of the stream (the boost acceleration follows from the drawn times), then
     altitude -> barometer counts (``units_per_metre``, ``baro_sign``, centred so that the trajectory stays
     inside ``0..2^baro_bits-1``) plus Gaussian noise of ``noise_counts`` (from a drawn seed) and the
     accelerometer (``accel_counts_per_mps2`` x specific force; 1 g on the pad, clipped to 16 bits). Not a
     simulator (see firmware_model's flight inputs for that): a shape with an apogee that hypothesis can shrink.
+    The slowest shape drawn (apogee at 40 %, 15 % on the pad, burning half the climb) coasts for 1/8 of the
+    stream, i.e. reaches g x duration / 8 (1.23 m/s per second of stream): to pass a filter's liftoff speed
+    (30 m/s by default) or velocity gate (61 m/s) and reach apogee at every k, ``min_len`` must be tens of seconds
+    of samples (tests/firmware/test_cpu_vs_model.py ``flight_lengths``).
     """
+    if not 1 <= min_len <= max_len:
+        raise ValueError(f"flight_like_streams: min_len={min_len} must be in 1..max_len={max_len}")
     cfg = cfg or BuildConfig()
 
     @st.composite
     def _flight(draw: st.DrawFn) -> tuple[np.ndarray, np.ndarray]:
-        n = draw(st.integers(8, max_len))
+        n = draw(st.integers(min_len, max_len))
         dt = cfg.dt
         g = 9.80665
         duration = n * dt

@@ -13,6 +13,7 @@ derived from the other.
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 import pytest
@@ -58,6 +59,15 @@ def assert_same(cfg_or_build: object, adc: np.ndarray, acc: np.ndarray | None = 
     return cpu
 
 
+def assert_reaches_apogee(trace: FirmwareTrace, cfg: BuildConfig) -> None:
+    """The flight set LIFTOFF and then APOGEE (programs with an EVENTS word)."""
+    if "EVENTS" not in trace.names:
+        return
+    events = int(np.bitwise_or.reduce(trace.column("EVENTS")))
+    for bit in ("LIFTOFF", "APOGEE"):
+        assert events & EVENT_BITS[bit], f"{cfg.program} k={cfg.k} {cfg.rounding}: the flight never set {bit}"
+
+
 def _cfg(program: str, k: int, rounding: str, **kw: object) -> BuildConfig:
     """A build; the Kalman programs get the altitude table of the synthetic flights' linear sensor (the golden
     vectors' case sensor), so that the flights below are physically consistent (field-ready, spec §2a)."""
@@ -69,6 +79,19 @@ def _cfg(program: str, k: int, rounding: str, **kw: object) -> BuildConfig:
 
 
 COMBOS = [(p, k, r) for p in PROGRAMS for k in KS for r in ROUNDINGS]
+
+
+def flight_lengths(cfg: BuildConfig) -> tuple[int, int]:
+    """(min_len, max_len) samples of the quick flights for ``cfg``: long enough at every k that every shape
+    ``fst.flight_like_streams`` draws reaches apogee. Its slowest shape coasts for 1/8 of the stream, i.e. climbs
+    at g x duration / 8 after burnout: the stream lasts long enough for 15 m/s above the liftoff speed (Kalman
+    programs: 35 s at the default 30 m/s) or, for the recursive programs, above the velocity gate that arms their
+    apogee detection (62 s at the default 61 m/s), up to 15 % longer. The streams were 8..400 (200) samples, too
+    short to lift off at k >= 6: 3 of the 60 quick-flight runs reached apogee, none of the random build configs'."""
+    speed = max(cfg.liftoff_mps, cfg.gate_mps if cfg.program.startswith("recursive") else 0.0) + 15.0
+    seconds = 8.0 * speed / 9.80665
+    per_s = 1 << cfg.k
+    return math.ceil(seconds * per_s), math.ceil(1.15 * seconds * per_s)
 
 
 # ---------------------------------------------------------------------------------------------------- random streams
@@ -93,18 +116,22 @@ def test_cpu_equals_model_random_and_edge_streams(program: str, k: int, rounding
 @settings(max_examples=examples(2))
 @given(data=st.data())
 def test_cpu_equals_model_quick_flights(program: str, k: int, rounding: str, data: st.DataObject) -> None:
-    """Flight-shaped streams (pad, boost, coast, apogee, descent + noise) up to 400 samples."""
+    """Flight-shaped streams (pad, boost, coast, apogee, descent + noise) of 35-72 s (:func:`flight_lengths`):
+    liftoff and apogee at every k (asserted, so the flight logic is compared, not only the filter's pad)."""
     cfg = _cfg(program, k, rounding)
-    adc, acc = data.draw(fst.flight_like_streams(cfg, max_len=400), label="flight")
-    assert_same(cfg, adc, acc)
+    lo, hi = flight_lengths(cfg)
+    adc, acc = data.draw(fst.flight_like_streams(cfg, min_len=lo, max_len=hi), label="flight")
+    assert_reaches_apogee(assert_same(cfg, adc, acc), cfg)
 
 
 @settings(max_examples=examples(12))
 @given(cfg=fst.build_configs(), data=st.data())
 def test_cpu_equals_model_random_build_configs(cfg: BuildConfig, data: st.DataObject) -> None:
-    """Random designs: noise model, R/q ratio (hence every gain mantissa and shift), S, threshold, rounding, k."""
-    adc, acc = data.draw(fst.flight_like_streams(cfg, max_len=200), label="flight")
-    assert_same(cfg, adc, acc)
+    """Random designs: noise model, R/q ratio (hence every gain mantissa and shift), S, threshold, rounding, k; on
+    flights long enough to reach apogee (:func:`flight_lengths`)."""
+    lo, hi = flight_lengths(cfg)
+    adc, acc = data.draw(fst.flight_like_streams(cfg, min_len=lo, max_len=hi), label="flight")
+    assert_reaches_apogee(assert_same(cfg, adc, acc), cfg)
 
 
 @settings(max_examples=examples(10))

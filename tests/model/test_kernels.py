@@ -30,7 +30,7 @@ from firmware_model.spec.build_constants import build_constants
 from firmware_model.spec.fixed import QGain
 from firmware_model.runtime.errors import UserError
 from firmware_model.spec.fixed import rs as rs_exact
-from firmware_model.model.streams import synthetic_flight
+from firmware_model.model.streams import FlightParams, synthetic_flight
 from firmware_model.model.run import compiled_kernels, pure_kernels, run_model
 from tests.support.model_numpy import run_model_numpy
 from firmware_model.model.trace import EVENT_BITS, LATCHED_EVENTS, STATE_WORDS
@@ -278,6 +278,39 @@ def test_python_path_equals_compiled_on_a_short_flight(program, rounding):
     py = run_model(consts, adc, acc, engine="python")
     _same_trace(run_model(consts, adc, acc), py, f"{program} {rounding} auto/python")
     _same_trace(run_model_numpy(consts, adc, acc), py, f"{program} {rounding} numpy/python")
+
+
+#: A 20 g boost on the synthetic flights' +-16 g accelerometer (2048 counts/g): the int16 register sits at 32767
+#: for the whole burn, i.e. after liftoff, where the recursive program's ACC_CLIP logic (spec section 5, step 3) runs.
+CLIP_FLIGHT = FlightParams(boost_accel_g=20.0, burn_s=0.8, after_apogee_s=3.0)
+
+
+@pytest.mark.parametrize("program", PROGRAMS)
+@pytest.mark.parametrize("rounding", ["floor", "half_up"])
+@pytest.mark.parametrize("k", [4, 6])
+def test_kernels_equal_numpy_model_on_a_clipping_accelerometer(program, rounding, k):
+    """A flight whose accelerometer clips after liftoff (checked: samples at 32767 inside the burn, after the
+    LIFTOFF sample of the programs that read the accelerometer; the recursive program sets ACC_CLIP), with a
+    random stream beside it: the compiled kernels == the numpy model (and == the Python-int path at k = 4)."""
+    s = synthetic_flight(k, seed=11, params=CLIP_FLIGHT)
+    clipped = np.flatnonzero(s.acc == 32767)
+    burn = (CLIP_FLIGHT.pad_s * 2 ** k, (CLIP_FLIGHT.pad_s + CLIP_FLIGHT.burn_s) * 2 ** k)
+    assert clipped.size >= CLIP_FLIGHT.burn_s * 2 ** k * 0.75, clipped.size   # most of the burn at the rail
+    assert burn[0] <= clipped.min() and clipped.max() <= burn[1] + 1, (clipped.min(), clipped.max(), burn)
+    rng = np.random.default_rng(12)
+    adc = np.stack([s.adc, rng.integers(0, 65536, len(s.adc))])
+    acc = np.stack([s.acc, rng.choice(np.array([-32768, 32767, 0, 1]), len(s.acc))])
+    consts = build_constants(BuildConfig(program=program, k=k, rounding=rounding))
+    fast = run_model(consts, adc, acc)
+    if program in ("recursive", "kalman_accel"):  # the accelerometer programs: it clips after their liftoff
+        events = fast.column("EVENTS")[0]
+        liftoff = int(np.flatnonzero(events & EVENT_BITS["LIFTOFF"])[0])
+        assert (clipped > liftoff).sum() >= clipped.size // 2, (liftoff, clipped.min())
+        if program == "recursive":
+            assert np.bitwise_or.reduce(events) & EVENT_BITS["ACC_CLIP"]
+    _same_trace(fast, run_model_numpy(consts, adc, acc), f"{program} k={k} {rounding} numba/numpy")
+    if k == 4:
+        _same_trace(fast, run_model(consts, adc, acc, engine="python"), f"{program} k={k} {rounding} numba/python")
 
 
 def test_engine_argument_and_env_switch():
