@@ -56,6 +56,10 @@ def add_flight_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--rounding", choices=("floor", "half_up"), help="rounding of every build (default floor)")
     p.add_argument("--jobs", "-j", type=positive_int, default=1, metavar="N",
                    help="worker processes (default 1; output identical for any N)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="run the flights on a Dask cluster instead: a scheduler ADDRESS (tcp://host:8786) or local:N "
+                        "(a LocalCluster of N workers, started for the run); needs the 'montecarlo' extra; output "
+                        "identical to --jobs")
 
 
 def add_reader_arguments(p: argparse.ArgumentParser) -> None:

@@ -41,7 +41,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
     overrides = {"rounding": args.rounding} if args.rounding else {}
     command = "fwemu " + " ".join(shlex.quote(a) for a in sys.argv[1:]) if sys.argv[1:2] == ["evaluate"] else None
     results = evaluate_many(specs, methods, overrides, jobs=args.jobs, progress=progress_printer("evaluate"),
-                            tuning=args.tuning)
+                            tuning=args.tuning, scheduler=args.scheduler)
     files = table_files(results, command)
     with staged_folder(args.out) as stage:
         for name, data in files.items():

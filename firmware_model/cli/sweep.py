@@ -66,14 +66,16 @@ def run_sweep(args: argparse.Namespace) -> int:
     files: dict[str, bytes] = {}
     shown = []
     if args.what in ("ratio", "both"):
-        res = sweep.ratio_sweep(specs, parse_ratios(args.ratios), args.method, overrides, jobs=args.jobs)
+        res = sweep.ratio_sweep(specs, parse_ratios(args.ratios), args.method, overrides, jobs=args.jobs,
+                                scheduler=args.scheduler)
         files["ratio.md"] = sweep.render_markdown(res, command).encode()
         files["ratio.csv"] = sweep.render_csv(res).encode()
         files["ratio.json"] = sweep.render_json(res, command).encode()
         files["ratio.png"] = plot.plot_ratio_sweep(res)
         shown.append(files["ratio.md"].decode())
     if args.what in ("k", "both"):
-        res = sweep.k_sweep(specs, parse_ks(args.ks), args.methods, overrides, jobs=args.jobs)
+        res = sweep.k_sweep(specs, parse_ks(args.ks), args.methods, overrides, jobs=args.jobs,
+                            scheduler=args.scheduler)
         files["k.md"] = sweep.render_markdown(res, command).encode()
         files["k.csv"] = sweep.render_csv(res).encode()
         files["k.json"] = sweep.render_json(res, command).encode()

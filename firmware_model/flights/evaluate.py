@@ -577,9 +577,10 @@ def _evaluate_job(job: tuple[FlightSpec, tuple[str, ...], tuple[tuple[str, Any],
 def evaluate_many(specs: Sequence[FlightSpec], methods: Sequence[Method] | None = None,
                   overrides: dict[str, Any] | None = None, jobs: int = 1,
                   progress: Callable[[int, int, str], None] | None = None,
-                  tuning: str = "default") -> list[FlightResult]:
-    """Evaluate every flight (``jobs`` > 1: that many processes); results in the order of ``specs`` whatever the
-    order of completion, so the table is byte-identical to ``jobs=1``."""
+                  tuning: str = "default", scheduler: str | None = None) -> list[FlightResult]:
+    """Evaluate every flight (``jobs`` > 1: that many processes; ``scheduler``: a Dask cluster instead,
+    :func:`firmware_model.runtime.pool.ordered_map`); results in the order of ``specs`` whatever the order of
+    completion, so the table is byte-identical to ``jobs=1``."""
     methods = list(methods or METHODS.values())
     names = tuple(m.name for m in methods)
     ov = tuple(sorted((overrides or {}).items()))
@@ -593,7 +594,7 @@ def evaluate_many(specs: Sequence[FlightSpec], methods: Sequence[Method] | None 
 
     if tuning not in TUNINGS:
         raise UserError(f"--tuning {tuning!r}: known: {', '.join(TUNINGS)}")
-    return ordered_map(_evaluate_job, [(spec, names, ov, tuning) for spec in specs], jobs, done)
+    return ordered_map(_evaluate_job, [(spec, names, ov, tuning) for spec in specs], jobs, done, scheduler)
 
 
 # ---------------------------------------------------------------------------------------------------- the table

@@ -122,19 +122,19 @@ def _k_job(job: tuple[FlightSpec, tuple[str, ...], tuple[int, ...], tuple[tuple[
                                    "usable": ref.usable}
 
 
-def _map(fn: Callable[[Any], Any], jobs_list: list[Any], jobs: int) -> list[Any]:
-    return ordered_map(fn, jobs_list, jobs)
+def _map(fn: Callable[[Any], Any], jobs_list: list[Any], jobs: int, scheduler: str | None) -> list[Any]:
+    return ordered_map(fn, jobs_list, jobs, scheduler=scheduler)
 
 
 def ratio_sweep(specs: Sequence[FlightSpec], ratios: Sequence[float] = DEFAULT_RATIOS, method: str = "kalman_baro",
-                overrides: dict[str, Any] | None = None, jobs: int = 1) -> SweepResult:
+                overrides: dict[str, Any] | None = None, jobs: int = 1, scheduler: str | None = None) -> SweepResult:
     """Apogee error of ``method`` at each R/q in ``ratios`` on each flight (Schultz 2002 Figure 10)."""
     if method not in METHODS or METHODS[method].program not in ("kalman_baro", "kalman_accel"):
         raise UserError(f"ratio sweep: method {method!r} has no R/q (use kalman_baro, kalman_accel or ideal_kalman)")
     if not ratios or any(not (r > 0) for r in ratios):
         raise UserError(f"ratio sweep: ratios must be > 0, got {list(ratios)}")
     ov = tuple(sorted((overrides or {}).items()))
-    out = _map(_ratio_job, [(s, method, tuple(float(r) for r in ratios), ov) for s in specs], jobs)
+    out = _map(_ratio_job, [(s, method, tuple(float(r) for r in ratios), ov) for s in specs], jobs, scheduler)
     res = SweepResult("ratio", [float(r) for r in ratios], [o[0] for o in out], method, {}, {})
     for name, errs, why, ref in out:
         res.errors[name], res.failed[name], res.reference[name] = errs, why, ref
@@ -142,11 +142,11 @@ def ratio_sweep(specs: Sequence[FlightSpec], ratios: Sequence[float] = DEFAULT_R
 
 
 def k_sweep(specs: Sequence[FlightSpec], ks: Sequence[int] = DEFAULT_KS, methods: Sequence[str] | None = None,
-            overrides: dict[str, Any] | None = None, jobs: int = 1) -> SweepResult:
+            overrides: dict[str, Any] | None = None, jobs: int = 1, scheduler: str | None = None) -> SweepResult:
     """Apogee error of each method at each k on each flight."""
     names = tuple(m.name for m in methods_named(methods))
     ov = tuple(sorted((overrides or {}).items()))
-    out = _map(_k_job, [(s, names, tuple(int(k) for k in ks), ov) for s in specs], jobs)
+    out = _map(_k_job, [(s, names, tuple(int(k) for k in ks), ov) for s in specs], jobs, scheduler)
     res = SweepResult("k", [float(k) for k in ks], [o[0] for o in out], ",".join(names), {}, {})
     for m in names:
         res.per_method[m] = {}

@@ -1,4 +1,6 @@
-"""The one process pool of every ``--jobs`` command (vectors, evaluate, sweep).
+"""The process pools of the ``--jobs`` commands: :func:`ordered_map` (evaluate, sweep: every backend of the task
+engine, local processes or Dask) and :func:`start_pool` / :func:`end_pool` (vectors, whose workers start before
+the case matrix is built, so their start-up overlaps it).
 
 Workers are *spawned*, not forked: the numba model runs its kernels on a thread pool, and a child forked from a
 parent whose thread pool has run deadlocks in its first parallel kernel (seen: workers asleep on a futex). They
@@ -14,7 +16,7 @@ import multiprocessing
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from firmware_model.runtime.errors import UserError
+from firmware_model.runtime.engine import parse_scheduler, run_chunks
 from firmware_model.runtime.output import worker_init, worker_signals_ignored
 
 
@@ -34,27 +36,22 @@ def end_pool(pool: Any, completed: bool) -> None:
 
 
 def ordered_map(fn: Callable[[Any], Any], items: Sequence[Any], jobs: int = 1,
-                on_result: Callable[[int, Any], None] | None = None) -> list[Any]:
-    """``[fn(x) for x in items]``, in ``jobs`` worker processes when ``jobs`` > 1 (``fn`` and the items must
-    pickle). Results come back in the order of ``items`` whatever the workers' timing; an error or an interrupt
-    ends the workers at once. ``on_result(i, result)`` is called as each result arrives, in order."""
-    if not isinstance(jobs, int) or isinstance(jobs, bool) or jobs < 1:
-        raise UserError(f"--jobs {jobs!r}: must be a positive integer")
-    out: list[Any] = []
-    if jobs == 1 or len(items) <= 1:
-        for i, item in enumerate(items):
-            out.append(fn(item))
+                on_result: Callable[[int, Any], None] | None = None, scheduler: str | None = None) -> list[Any]:
+    """``[fn(x) for x in items]`` through the task engine (:func:`firmware_model.runtime.engine.run_chunks`), one
+    item a task: in this process (``jobs`` = 1), in ``jobs`` local worker processes, or on a Dask cluster when
+    ``scheduler`` names one (``ADDRESS`` or ``local:N``, :func:`~firmware_model.runtime.engine.parse_scheduler`).
+    ``fn`` and the items must pickle. Results come back in the order of ``items`` whatever the workers' timing, so
+    the output is the same for every backend; ``on_result(i, result)`` is called in that order as soon as the
+    results up to ``i`` are in. An error or an interrupt ends the workers at once."""
+    backend = parse_scheduler(scheduler, jobs)
+    items = list(items)
+    out: list[Any] = [None] * len(items)
+    have = [False] * len(items)
+    nxt = 0
+    for i, res in run_chunks(fn, items, backend):
+        out[i], have[i] = res, True
+        while nxt < len(items) and have[nxt]:
             if on_result:
-                on_result(i, out[-1])
-        return out
-    pool = start_pool(min(jobs, len(items)))
-    completed = False
-    try:
-        for i, res in enumerate(pool.imap(fn, items)):
-            out.append(res)
-            if on_result:
-                on_result(i, res)
-        completed = True
-    finally:
-        end_pool(pool, completed)
+                on_result(nxt, out[nxt])
+            nxt += 1
     return out

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from firmware_model.cli.main import main
+from firmware_model.runtime.engine import dask_available
 
 SHARED = Path(os.environ.get("FWEMU_SHARED_FLIGHTS") or Path(__file__).resolve().parents[2].parent / "shared" / "flights")
 needs_shared = pytest.mark.skipif(not SHARED.is_dir(), reason="../shared/flights is absent")
@@ -107,13 +108,12 @@ def test_run_on_a_generic_csv_of_prometheus_matches_the_table_and_the_cpu(tmp_pa
     apogee table's row (so within the reference's uncertainty + the method's error), the emulated CPU and the
     integer model give the same words on every sample."""
     from firmware_model.firmware.assemble import build_firmware
-    from firmware_model.spec.build_constants import build_constants
-    from firmware_model.flights.evaluate import (METHODS, FlightSpec, evaluate_flight, flight_inputs,
-                                                 sensor_config)
+    from firmware_model.firmware.harness import run_firmware
+    from firmware_model.flights.evaluate import METHODS, FlightSpec, evaluate_flight, flight_inputs, sensor_config
     from firmware_model.flights.export import generic_csv
     from firmware_model.flights.readers import read_flight
-    from firmware_model.firmware.harness import run_firmware
     from firmware_model.model.run import run_model
+    from firmware_model.spec.build_constants import build_constants
 
     log = read_flight(PROMETHEUS)
     generic = tmp_path / "prometheus.csv"
@@ -179,6 +179,22 @@ def test_evaluate_jobs_gives_identical_files(tmp_path, capsys):
         assert rows[2]["ref_source"] and rows[2]["altos_time_s"]          # AltOS's own detection is reported
 
 
+
+@pytest.mark.skipif(not dask_available(), reason="Dask's distributed scheduler (the 'montecarlo' extra) not installed")
+def test_evaluate_and_sweep_on_a_dask_cluster_give_the_local_bytes(tmp_path, capsys):
+    """evaluate and sweep run their flights through the task engine: a 2-worker LocalCluster gives the same files
+    as one process (issue 23: the task unit is plain data, the backend a thin layer)."""
+    flights = [SHORT_SIM, "sim:sub-k400-900m"]
+    for cmd, extra, names in (("evaluate", ["--methods", "kalman_baro,rec_quarter"], ("apogee.md", "apogee.csv")),
+                              ("sweep", ["--what", "ratio", "--ratios", "1000,50000"], ("ratio.md", "ratio.csv"))):
+        base = [cmd, *flights, "--k", "5", *extra]
+        assert main(base + ["--out", str(tmp_path / cmd / "one")]) == 0
+        assert main(base + ["--scheduler", "local:2", "--out", str(tmp_path / cmd / "dask")]) == 0
+        capsys.readouterr()
+        for name in names:
+            one = (tmp_path / cmd / "one" / name).read_bytes()
+            assert one == (tmp_path / cmd / "dask" / name).read_bytes().replace(b" --scheduler local:2", b""), name
+
 def test_evaluate_errors(tmp_path, capsys):
     _one_line_error(capsys, ["evaluate", str(tmp_path / "missing.csv"), "--out", str(tmp_path / "o")],
                     "missing.csv")
@@ -201,9 +217,9 @@ def test_sweep_small(tmp_path, capsys):
 
 def test_harness_progress_callback_changes_nothing():
     from firmware_model.firmware.assemble import build_firmware
-    from firmware_model.spec.config import BuildConfig
     from firmware_model.firmware.harness import run_firmware
     from firmware_model.model.streams import synthetic_flight
+    from firmware_model.spec.config import BuildConfig
 
     s = synthetic_flight(5, 16, seed=3)
     build = build_firmware(BuildConfig(program="kalman_baro", k=5))
