@@ -25,22 +25,29 @@ from isa.errors import IsaError
 
 single_threaded_blas()  # before any subcommand imports numpy (firmware_model/runtime/blas_threads.py says why)
 
+#: Every subcommand and the module that registers it, in help order. ``fwemu COMMAND ...`` imports only that
+#: command's module (a command's domain modules and their dependencies, e.g. hypothesis for check-port, cost up
+#: to 0.3 s to import: every run would pay for all of them); ``fwemu``, ``fwemu --help`` and an unknown command
+#: import them all. tests/cli/test_structure.py checks this table against what the modules register.
+COMMANDS: dict[str, str] = {
+    "asm": "isa.cli",
+    "exec": "isa.cli",
+    "design": "firmware_model.cli.design",
+    "compare": "firmware_model.cli.compare",
+    "budget": "firmware_model.cli.budget",
+    "vectors": "firmware_model.cli.vectors",
+    "simulate": "firmware_model.cli.simulate",
+    "run": "firmware_model.cli.run",
+    "plot": "firmware_model.cli.plot",
+    "evaluate": "firmware_model.cli.evaluate",
+    "sweep": "firmware_model.cli.sweep",
+    "check-port": "firmware_model.cli.check_port",
+    "reconstruct": "firmware_model.cli.reconstruct",
+    "montecarlo": "firmware_model.cli.montecarlo",
+}
+
 #: Modules that contribute subcommands, in help order.
-COMMAND_MODULES: tuple[str, ...] = (
-    "isa.cli",
-    "firmware_model.cli.design",
-    "firmware_model.cli.compare",
-    "firmware_model.cli.budget",
-    "firmware_model.cli.vectors",
-    "firmware_model.cli.simulate",
-    "firmware_model.cli.run",
-    "firmware_model.cli.plot",
-    "firmware_model.cli.evaluate",
-    "firmware_model.cli.sweep",
-    "firmware_model.cli.check_port",
-    "firmware_model.cli.reconstruct",
-    "firmware_model.cli.montecarlo",
-)
+COMMAND_MODULES: tuple[str, ...] = tuple(dict.fromkeys(COMMANDS.values()))
 
 
 _ROLE = re.compile(r":[a-z]+:`~?(?:[\w.]*\.)?([^`<>]+?)`")
@@ -66,13 +73,15 @@ def _clean_help(parser: argparse.ArgumentParser) -> None:
                 _clean_help(sub)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """Build the ``fwemu`` argument parser from every module in :data:`COMMAND_MODULES`."""
+def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
+    """Build the ``fwemu`` argument parser: from the module of the command ``argv`` names (its first word that is
+    not an option), or from every module in :data:`COMMAND_MODULES` when it names none or an unknown one."""
     parser = argparse.ArgumentParser(prog="fwemu", description=__doc__.splitlines()[0] if __doc__ else None)
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
     subparsers.required = True
-    for name in COMMAND_MODULES:
-        module = importlib.import_module(name)
+    first = next((a for a in argv or () if not a.startswith("-")), None)
+    for name in ((COMMANDS[first],) if first in COMMANDS else COMMAND_MODULES):
+        module = importlib.import_module(name)  # lazy by design: only the command that runs (table above)
         module.register(subparsers)
     _clean_help(parser)
     return parser
@@ -177,7 +186,7 @@ def _declare_out_early(argv: Sequence[str], output: Any) -> None:
 def _run(argv: Sequence[str] | None, output: Any, user_errors: tuple[type[BaseException], ...]) -> int:
     try:
         try:
-            parser = build_parser()
+            parser = build_parser(sys.argv[1:] if argv is None else argv)
             args = parser.parse_args(argv)
             code = int(args.func(args) or 0)
             output.raise_if_interrupted()  # a signal whose exception a finalizer swallowed still ends the run

@@ -26,6 +26,23 @@ def test_budget_command_lives_in_cli_budget() -> None:
     assert sub.choices["budget"].get_default("func").__module__ == "firmware_model.cli.budget"
 
 
+def test_the_command_table_is_what_the_modules_register() -> None:
+    """cli.main.COMMANDS (which module to import for which command) against the full parser: every command is in
+    the table under the module that registers it, and a parser built for one command gives that command's help
+    exactly as the full parser does."""
+    from firmware_model.cli import main as cli
+
+    parser = cli.build_parser()
+    sub = next(a for a in parser._actions if a.__class__.__name__ == "_SubParsersAction")
+    assert set(sub.choices) == set(cli.COMMANDS)
+    for name, p in sub.choices.items():
+        assert p.get_default("func").__module__ == cli.COMMANDS[name], name
+        one = cli.build_parser([name, "--help"])
+        one_sub = next(a for a in one._actions if a.__class__.__name__ == "_SubParsersAction")
+        assert list(one_sub.choices) == [n for n, m in cli.COMMANDS.items() if m == cli.COMMANDS[name]]
+        assert one_sub.choices[name].format_help() == p.format_help(), name
+
+
 def _help_texts() -> dict[str, str]:
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     texts = {}
