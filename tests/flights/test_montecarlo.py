@@ -19,19 +19,20 @@ import numpy as np
 import pytest
 
 from firmware_model.cli.main import main
-from firmware_model.runtime.errors import UserError
 from firmware_model.flights.export import generic_csv
 from firmware_model.flights.firmware_inputs import firmware_inputs
 from firmware_model.flights.montecarlo import pipeline
+from firmware_model.flights.montecarlo import spec as spec_mod
 from firmware_model.flights.montecarlo.results import flights_for, have_pyarrow, read_rows, wilson
 from firmware_model.flights.montecarlo.run import run_montecarlo
-from firmware_model.flights.montecarlo.sim import drag_table, simulate_batch, P_COLS
+from firmware_model.flights.montecarlo.sim import P_COLS, drag_table, simulate_batch
 from firmware_model.flights.montecarlo.spec import draw, flight_rng, load_spec, read_spec_file
 from firmware_model.flights.readers import read_flight
 from firmware_model.flights.scenarios import get_scenario
 from firmware_model.flights.sensors import AccelSensor, BaroSensor
 from firmware_model.flights.sim1dof import Launch, simulate_1dof
 from firmware_model.runtime.engine import Backend
+from firmware_model.runtime.errors import UserError
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -330,6 +331,33 @@ def test_transonic_dip_model_reads_low_inside_the_mach_band():
     assert len(runs) == 2                          # through the band accelerating, and again slowing down
     t_apo_sample = int(round(a.events[0, 1] * 32)) + 64
     assert runs[1][-1] < t_apo_sample              # both during the climb
+
+
+def test_real_flight_model_matches_the_deterministic_model_of_issue_20():
+    """The Monte Carlo's "real_flight" pressure error (batched over flights, per-flight parameters) equals
+    flights.pressure_errors.real_flight_errors (issue 20) flight by flight, its noise bursts and ejection spike off:
+    port error, transonic dip, and the jump at each crossing of jump_mach."""
+    from firmware_model.flights import pressure_errors as pe
+    from firmware_model.flights.record import FlightRecord
+    from firmware_model.spec import atmosphere as atm
+    dt = 1 / 32
+    t = np.arange(0, 30, dt)
+    h = 4000 * np.sin(np.pi * t / 60)                                  # climbing, pressure falling
+    p = atm.pressure_pa(h)
+    machs = np.vstack([1.4 * np.sin(np.pi * t / 30), 0.6 * np.sin(np.pi * t / 30)])   # through Mach 1 twice; never
+    models = [pe.BaroErrorModel(jump_m=350.0, dip_cp=0.09, jump_decay_s=0.6, burst_sigma_m=0.0, ejection_m=0.0),
+              pe.BaroErrorModel(jump_m=-120.0, cp_port=0.01, burst_sigma_m=0.0, ejection_m=0.0)]
+    names = list(spec_mod.PRESSURE_ERROR_PARAMS["real_flight"])
+    prm = {n: np.array([getattr(m, n) for m in models]) for n in names}
+    prm["_dt"] = np.full(2, dt)
+    got = pipeline.PRESSURE_ERROR_MODELS["real_flight"](np.vstack([p, p]), machs, prm)
+    for f, model in enumerate(models):
+        rec = FlightRecord(name=f"f{f}", time_s=t, pressure_pa=p.copy())
+        want = pe.real_flight_errors(rec, machs[f], model, burst_times_s=[]).pressure_pa
+        np.testing.assert_allclose(got[f], want, rtol=1e-12, atol=1e-9)
+    dip = atm.altitude_m(got[0]) - h
+    assert dip.min() < -200.0 and np.diff(dip).max() > 100.0        # a deep dip, and the shock's jump
+    assert not np.array_equal(got[1], p)                             # the subsonic flight: its port error only
 
 
 def test_rocket_table_preset_choice_and_accel_range():

@@ -25,13 +25,12 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from types import SimpleNamespace
 from typing import Any, Callable
 
 import numpy as np
 
-from firmware_model.spec import atmosphere as atm
-from firmware_model.spec.build_constants import build_constants
-from firmware_model.runtime.errors import UserError
+from firmware_model.flights import pressure_errors
 from firmware_model.flights.evaluate import METHODS, sensor_config, tuning_overrides
 from firmware_model.flights.firmware_inputs import firmware_inputs
 from firmware_model.flights.montecarlo.sim import P_COLS, T0_K, drag_table, simulate_batch
@@ -42,6 +41,9 @@ from firmware_model.flights.sensors import AccelSensor, BaroSensor
 from firmware_model.flights.sim1dof import Launch, Rocket, simulate_1dof
 from firmware_model.model.run import run_model
 from firmware_model.model.trace import EVENT_BITS
+from firmware_model.runtime.errors import UserError
+from firmware_model.spec import atmosphere as atm
+from firmware_model.spec.build_constants import build_constants
 
 G0 = atm.G0
 
@@ -92,12 +94,40 @@ def _dip_model(p: np.ndarray, mach: np.ndarray, prm: dict[str, np.ndarray]) -> n
     return out
 
 
+def _real_flight_model(p: np.ndarray, mach: np.ndarray, prm: dict[str, np.ndarray]) -> np.ndarray:
+    """The barometer errors of real flight (:func:`firmware_model.flights.pressure_errors.real_flight_errors`,
+    issue 20), batched over flights with per-flight parameters: the port error and the transonic dip
+    (:func:`~firmware_model.flights.pressure_errors.pressure_coefficient` of the Mach number, times ``q``), and the
+    altitude jump at each crossing of ``jump_mach`` (the shock passing the port), rising over ``jump_rise_s`` and
+    relaxing with ``jump_decay_s``. Not here: the noise bursts and the ejection spike of the deterministic model
+    (they need the burnout and deployment times of each flight; the Monte Carlo's spikes stand in for them)."""
+    dt = float(prm["_dt"][0])
+    col = {k: v[:, None] for k, v in prm.items() if not k.startswith("_")}
+    shape = SimpleNamespace(**col)
+    out = p + pressure_errors.pressure_coefficient(mach, shape) * pressure_errors.dynamic_pressure_pa(p, mach)
+    d = mach - col["jump_mach"]
+    cross = np.sign(d[:, 1:]) * np.sign(d[:, :-1]) < 0
+    if cross.any():
+        t = np.arange(p.shape[1]) * dt
+        offset = np.zeros(p.shape)
+        for f, j in zip(*np.nonzero(cross)):
+            tc = t[j] + dt * d[f, j] / (d[f, j] - d[f, j + 1])
+            tau = t - tc
+            rise = np.clip(tau / prm["jump_rise_s"][f], 0.0, 1.0)
+            decay = np.exp(-np.clip(tau - prm["jump_rise_s"][f], 0.0, None) / prm["jump_decay_s"][f])
+            offset[f] += prm["jump_m"][f] * np.where(tau >= 0, rise * decay, 0.0)
+        sel = offset != 0
+        out[sel] = atm.pressure_pa(atm.altitude_m(out[sel]) + offset[sel])
+    return out
+
+
 #: name -> f(pressure (nf, n), airspeed Mach (nf, n), {param: (nf,) values}) -> pressure. The parameters are
 #: declared in :data:`firmware_model.flights.montecarlo.spec.PRESSURE_ERROR_PARAMS` under the same name.
 PRESSURE_ERROR_MODELS: dict[str, Callable[[np.ndarray, np.ndarray, dict[str, np.ndarray]], np.ndarray]] = {
     "none": lambda p, mach, prm: p,
     "step": _step_model,
     "transonic_dip": _dip_model,
+    "real_flight": _real_flight_model,
 }
 
 
@@ -273,6 +303,7 @@ def sense_chunk(spec: dict[str, Any], seed: int, flight_ids: list[int] | tuple[i
     ground = atm.pressure_pa(tsc[:, 0] * site[:, 0])
     pe = spec["pressure_error"]
     pe_prm = {p: np.array([float(prm[f"pressure_error.{p}"]) for prm in params]) for p in pe["params"]}
+    pe_prm["_dt"] = np.full(nf, plan.dt)        # the stream's sample period (time-dependent models)
     pressure = PRESSURE_ERROR_MODELS[pe["model"]](pressure, mach, pe_prm)
     # spikes, then sensor noise, each flight from its own generator at its own length
     nb1 = np.zeros((nf, n_max))

@@ -96,9 +96,8 @@ def read_rows(path: Path, columns: Iterable[str] | None = None) -> dict[str, np.
     """The rows file as columns (numpy arrays; strings as object arrays)."""
     cols = None if columns is None else list(columns)
     if path.suffix == ".parquet":
-        import pyarrow.parquet as pq
-
         import pyarrow as pa
+        import pyarrow.parquet as pq
 
         t = pq.read_table(path, columns=cols)
         out = {}

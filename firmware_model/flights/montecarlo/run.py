@@ -21,12 +21,19 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
-from firmware_model.runtime.errors import UserError
 from firmware_model.flights.montecarlo import pipeline
-from firmware_model.flights.montecarlo.results import (encode, have_pyarrow, merge, read_rows, summarize,
-                                                       write_figures, write_summary)
+from firmware_model.flights.montecarlo.results import (
+    encode,
+    have_pyarrow,
+    merge,
+    read_rows,
+    summarize,
+    write_figures,
+    write_summary,
+)
 from firmware_model.flights.montecarlo.spec import distributions, fingerprint, is_dispersed, slot_names
 from firmware_model.runtime.engine import Backend, ChunkStore, run_chunks
+from firmware_model.runtime.errors import UserError
 
 _SOURCES = ("pipeline.py", "sim.py", "spec.py", "results.py")
 

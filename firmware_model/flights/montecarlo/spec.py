@@ -22,17 +22,17 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import tomllib
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import tomllib
 
-from firmware_model.runtime.errors import UserError
 from firmware_model.flights.evaluate import METHODS
 from firmware_model.flights.pressure_errors import DEFAULT_TRANSONIC_STEP_M
 from firmware_model.flights.scenarios import get_scenario
 from firmware_model.flights.sensors import ACCEL_PRESETS, BARO_PRESETS
+from firmware_model.runtime.errors import UserError
 
 #: Dispersed parameters in their fixed slot order (never reorder: append). name -> (default, meaning).
 PARAMETERS: dict[str, tuple[Any, str]] = {
@@ -74,12 +74,17 @@ PRESET_PARAMS: dict[str, dict[str, Any]] = {"baro": BARO_PRESETS, "accel": ACCEL
 #: "transonic_dip" is a stand-in for the signatures of real supersonic logs (the barometric altitude falls by
 #: 100-800 m during the transonic passage, pressure reading high, and jumps back when the shock passes the port:
 #: ../shared/flights/README.md): while the airspeed Mach is inside [mach_lo, mach_hi] the barometer reads the
-#: standard pressure of ``dip_m`` lower; "none" is no error. Another model (e.g. a measured transonic signature) is added by declaring its parameters
+#: standard pressure of ``dip_m`` lower; "real_flight" is issue 20's model of
+#: what real barometers read near Mach 1 (port error, transonic dip, shock jump; parameters and ranges as
+#: :class:`firmware_model.flights.pressure_errors.BaroErrorModel` and ``BARO_ERROR_RANGES``); "none" is no error. Another model (e.g. a measured transonic signature) is added by declaring its parameters
 #: here and its function in :data:`firmware_model.flights.montecarlo.pipeline.PRESSURE_ERROR_MODELS`.
 PRESSURE_ERROR_PARAMS: dict[str, dict[str, float]] = {
     "none": {},
     "step": {"altitude_step_m": DEFAULT_TRANSONIC_STEP_M, "mach_on": 1.0, "mach_off": 1.0, "width_mach": 0.0},
     "transonic_dip": {"dip_m": 400.0, "mach_lo": 0.9, "mach_hi": 1.1},
+    # the barometer errors of real flight (issue 20; defaults: pressure_errors.BaroErrorModel)
+    "real_flight": {"cp_port": 0.04, "dip_cp": 0.06, "dip_mach_on": 0.8, "dip_mach_peak": 1.0, "dip_mach_off": 1.25,
+                    "jump_m": 200.0, "jump_mach": 1.0, "jump_rise_s": 0.1, "jump_decay_s": 0.4},
 }
 
 #: Integer-model methods (evaluate's METHODS without the float ideal Kalman filter).
