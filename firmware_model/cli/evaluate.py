@@ -11,7 +11,7 @@ from pathlib import Path
 from firmware_model.cli.args import add_flight_arguments, specs_from_args
 from firmware_model.flights.evaluate import evaluate_many, methods_named, table_files
 from firmware_model.runtime.output import staged_folder
-from firmware_model.runtime.progress import progress_printer
+from firmware_model.runtime.progress import Progress
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -40,7 +40,8 @@ def run_evaluate(args: argparse.Namespace) -> int:
     methods = methods_named(args.methods)
     overrides = {"rounding": args.rounding} if args.rounding else {}
     command = "fwemu " + " ".join(shlex.quote(a) for a in sys.argv[1:]) if sys.argv[1:2] == ["evaluate"] else None
-    results = evaluate_many(specs, methods, overrides, jobs=args.jobs, progress=progress_printer("evaluate"),
+    results = evaluate_many(specs, methods, overrides, jobs=args.jobs,
+                            progress=Progress(0, "evaluate", unit="flights"),
                             tuning=args.tuning, scheduler=args.scheduler)
     files = table_files(results, command)
     with staged_folder(args.out) as stage:

@@ -5,26 +5,14 @@ from __future__ import annotations
 
 import sys
 import time
-from typing import Callable
-
-
-def progress_printer(label: str) -> Callable[[int, int, str], None]:
-    """A callback ``progress(i, n, name)`` that draws ``label [i/n] name``, ending the line when ``i >= n``."""
-    show = sys.stderr.isatty()
-
-    def progress(i: int, n: int, name: str) -> None:
-        if show:
-            end = "\n" if i >= n else ""
-            print(f"\r\033[K{label} [{i}/{n}] {name}", end=end, file=sys.stderr, flush=True)
-
-    return progress
 
 
 class Progress:
     """A one-line progress bar on stderr, drawn only when stderr is a terminal (or ``enabled`` forces it):
     ``label [####....] done/total unit rate/s what``, redrawn at most every ``interval`` seconds.
 
-    ``step(what, amount)`` counts work done; ``update(done, total)`` sets it (the harness's callback);
+    ``step(what, amount)`` counts work done; ``update(done, total, what)`` sets it (the callback of the harness and of
+    ``evaluate_many``);
     ``close()`` ends the line. ``eta``: also show the time left at the mean rate so far."""
 
     def __init__(self, total: int, label: str, enabled: bool | None = None, unit: str = "samples",
@@ -44,14 +32,14 @@ class Progress:
         self.done += amount
         self._draw(what)
 
-    def update(self, done: int, total: int) -> None:
+    def update(self, done: int, total: int, what: str = "") -> None:
         self.done, self.total = done, max(total, 1)
-        self._draw("")
+        self._draw(what)
         if done >= total:
             self.close()
 
-    def __call__(self, done: int, total: int) -> None:
-        self.update(done, total)
+    def __call__(self, done: int, total: int, what: str = "") -> None:
+        self.update(done, total, what)
 
     def _draw(self, what: str) -> None:
         if not self.enabled:
