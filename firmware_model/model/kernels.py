@@ -102,6 +102,7 @@ REJ_R = 8
 NEG_R = 9
 PHASE_R = 10
 CST_R = 11
+CLP_R = 12
 #: Kalman (both programs; kalman_baro leaves ACC0 and SUMA at 0 and does not output them):
 X1 = 0
 X2 = 1
@@ -120,8 +121,10 @@ CST = 13
 DLY = 14
 VB = 15
 LOCK = 16
+CLP = 17
+E0 = 18
 #: Length of the per-stream state array (the largest program's).
-N_STATE = 17
+N_STATE = 19
 
 #: PHASE values (docs/firmware-spec.md §4a; equal to firmware_model.trace.PHASES' indices, checked by a test).
 PH_PAD = 0
@@ -132,10 +135,11 @@ PH_DESCENT = 4
 
 #: State entries output per program, in firmware_model.model.trace.STATE_WORDS order.
 OUT_COLS: dict[str, tuple[int, ...]] = {
-    "recursive": (EST, EXT, VEL, ACC0_R, EVENTS_R, ZL_R, SUMA_R, CAL_R, REJ_R, NEG_R, PHASE_R, CST_R),
+    "recursive": (EST, EXT, VEL, ACC0_R, EVENTS_R, ZL_R, SUMA_R, CAL_R, REJ_R, NEG_R, PHASE_R, CST_R, CLP_R),
     "recursive_seed_literal": (EST,),
     "kalman_baro": (X1, X2, X3, EVENTS, APFRAC, GND, SUMZ, CAL, REJ, NEG, PHASE, CST, DLY, VB),
-    "kalman_accel": (X1, X2, X3, ACC0, EVENTS, APFRAC, GND, SUMZ, SUMA, CAL, REJ, NEG, PHASE, CST, DLY, VB, LOCK),
+    "kalman_accel": (X1, X2, X3, ACC0, EVENTS, APFRAC, GND, SUMZ, SUMA, CAL, REJ, NEG, PHASE, CST, DLY, VB, LOCK,
+                     CLP, E0),
 }
 
 #: Constant indices (docs/firmware-spec.md §3); gains as (mantissa, shift) pairs.
@@ -183,20 +187,22 @@ C_A_COAST = 40
 C_COAST_N = 41
 C_V_DESC = 42
 C_DU = 43
+C_A_DRAG = 44
+C_CLIP_N = 45
 #: The altitude table's nodes follow the scalars: c[C_ALT + j] is node j (docs/firmware-spec.md §2a).
-C_ALT = 44
-N_CONST = 44
+C_ALT = 46
+N_CONST = 46
 _SCALARS = ("K", "ROUND", "BARO_SIGN", "S", "THR", "V_LIFT", "V_GATE", "MACH_VLO", "MACH_VHI", "MACH_E",
             "BARO_MIN", "BARO_MAX")
 _GAINS = ("G11", "G21", "G31", "G12", "G22", "G32", "ACC_G", "G11T", "G21T", "G31T")
 _SCALARS2 = ("ALT_SHIFT", "CAL_P", "E_GATE", "GATE_N", "APO_N", "MACH_N", "DLY_N", "DV", "A_COAST", "COAST_N",
-             "V_DESC", "DU")
+             "V_DESC", "DU", "A_DRAG", "CLIP_N")
 
 #: Wrap ids returned by the steps: the name of the quantity (as firmware_model.model.run.ModelTrace.wrap_word).
 WRAP_NAMES: tuple[str, ...] = ("", "EST", "VEL", "X1", "X2", "X3", "e1", "e2", "mulg(acc,ACC_G)",
                                "mulg(e1,G11)", "mulg(e1,G21)", "mulg(e1,G31)",
                                "mulg(e2,G12)", "mulg(e2,G22)", "mulg(e2,G32)", "SUMZ", "SUMA",
-                               "mulg(e1,G11T)", "mulg(e1,G21T)", "mulg(e1,G31T)", "EXT")
+                               "mulg(e1,G11T)", "mulg(e1,G21T)", "mulg(e1,G31T)", "EXT", "E0")
 W_NONE = 0
 W_EST = 1
 W_VEL = 2
@@ -218,6 +224,7 @@ W_E1G11T = 17
 W_E1G21T = 18
 W_E1G31T = 19
 W_EXT = 20
+W_E0 = 21
 
 #: Event bits (docs/firmware-spec.md §4; equal to firmware_model.model.trace.EVENT_BITS, checked by a test).
 LIFTOFF = 1
@@ -229,7 +236,8 @@ APOGEE_PREDICTED = 32
 GATE_HIGH = 64
 BARO_REJECT = 128
 ACC_CLIP = 256
-LATCHED = LIFTOFF | ARMED | APOGEE | APOGEE_PREDICTED | GATE_HIGH | ACC_CLIP
+CLIP_CLEAR = 512
+LATCHED = LIFTOFF | ARMED | APOGEE | APOGEE_PREDICTED | GATE_HIGH | ACC_CLIP | CLIP_CLEAR
 
 INT32_MIN = -2147483648
 INT32_MAX = 2147483647
@@ -296,6 +304,7 @@ def recursive_init(st, adc, acc, c):  # type: ignore[no-untyped-def]
     st[NEG_R] = 0
     st[PHASE_R] = PH_PAD
     st[CST_R] = 0
+    st[CLP_R] = 0
 
 
 @njit(cache=True, inline="always")
@@ -331,11 +340,24 @@ def recursive_step(st, adc, acc, c):  # type: ignore[no-untyped-def]
                     st[PHASE_R] = PH_COAST
             else:
                 st[CST_R] = 0
+        elif st[PHASE_R] == PH_COAST and (ev & ACC_CLIP) != 0 and (ev & CLIP_CLEAR) == 0:
+            if acc - st[ACC0_R] >= -c[C_A_DRAG]:
+                st[CLP_R] = st[CLP_R] + 1
+                if st[CLP_R] >= (1 << c[C_K]):
+                    ev |= CLIP_CLEAR
+            else:
+                st[CLP_R] = 0
         elif st[PHASE_R] == PH_APOGEE and vel < -c[C_V_DESC]:
             st[PHASE_R] = PH_DESCENT
         # 3. accelerometer at its rail: VEL underestimates from now on
-        if (ev & LIFTOFF) != 0 and (ev & ARMED) == 0 and acc == 32767:
-            ev |= ACC_CLIP
+        if st[PHASE_R] == PH_BOOST and (ev & ACC_CLIP) == 0:
+            if acc == 32767:
+                st[CLP_R] = st[CLP_R] + 1
+                if st[CLP_R] >= c[C_CLIP_N]:
+                    ev |= ACC_CLIP
+                    st[CLP_R] = 0
+            else:
+                st[CLP_R] = 0
         # 4a. armed once VEL is back below the gate, on a sample after the one that set GATE_HIGH (4b runs after)
         if (ev & GATE_HIGH) != 0 and (ev & ARMED) == 0 and vel < c[C_V_GATE]:
             ev |= ARMED
@@ -372,7 +394,7 @@ def recursive_step(st, adc, acc, c):  # type: ignore[no-untyped-def]
         ext = est
         st[NEG_R] = 0
     elif (ev & ARMED) != 0 and (ev & APOGEE) == 0:
-        if ext - est >= c[C_THR]:
+        if ext - est >= c[C_THR] and ((ev & ACC_CLIP) == 0 or (ev & CLIP_CLEAR) != 0):
             st[NEG_R] = st[NEG_R] + 1
             need = c[C_APO_N] if (ev & ACC_CLIP) != 0 else 1
             if st[NEG_R] >= need:
@@ -440,6 +462,8 @@ def kalman_init(st, adc, acc, c):  # type: ignore[no-untyped-def]
     st[DLY] = 0
     st[VB] = 0
     st[LOCK] = 0
+    st[CLP] = 0
+    st[E0] = 0
 
 
 @njit(cache=True, inline="always")
@@ -506,7 +530,35 @@ def kalman_step(st, adc, acc, c, accel):  # type: ignore[no-untyped-def]
     locked = False
     rebase = False
     if accel:
-        if (ev & LIFTOFF) != 0 and x2 > c[C_MACH_VLO]:
+        if (ev & ACC_CLIP) != 0 and (ev & CLIP_CLEAR) == 0:
+            # after an accelerometer clip: the barometer stays out until the drag reading has been low for a
+            # 2^(k+1)-sample window in coast, which then re-bases the velocity (§6 step 4, "clip")
+            locked = True
+            st[LOCK] = c[C_MACH_N]
+            if st[PHASE] == PH_COAST and a >= -c[C_A_DRAG] and baro_ok:
+                e = h - x1
+                w = _note(w, e, W_E1)
+                e = _w32(e)
+                st[CLP] = st[CLP] + 1
+                if st[CLP] <= (1 << K):
+                    s0 = st[E0] - e
+                else:
+                    s0 = st[E0] + e
+                w = _note(w, s0, W_E0)
+                st[E0] = _w32(s0)
+                if st[CLP] == (2 << K):
+                    x2 = x2 + rs(st[E0], K, rnd)
+                    w = _note(w, x2, W_X2)
+                    x2 = _w32(x2)
+                    st[VB] = x2
+                    st[LOCK] = 0
+                    ev |= CLIP_CLEAR
+                    locked = False
+                    rebase = True
+            else:
+                st[CLP] = 0
+                st[E0] = 0
+        elif (ev & LIFTOFF) != 0 and x2 > c[C_MACH_VLO]:
             st[LOCK] = c[C_MACH_N]
             locked = True
         elif st[LOCK] > 1:
@@ -589,6 +641,15 @@ def kalman_step(st, adc, acc, c, accel):  # type: ignore[no-untyped-def]
         ev |= LIFTOFF
         st[PHASE] = PH_BOOST
         st[DLY] = c[C_DLY_N]
+    # 7b. accelerometer at its rail for CLIP_N samples in boost: the integral underestimates the speed from now on
+    if accel and st[PHASE] == PH_BOOST and (ev & ACC_CLIP) == 0:
+        if acc == 32767:
+            st[CLP] = st[CLP] + 1
+            if st[CLP] >= c[C_CLIP_N]:
+                ev |= ACC_CLIP
+                st[CLP] = 0
+        else:
+            st[CLP] = 0
     # 8. plausibility bound: VB follows X2, falling by at most DV and rising by at most DU per sample
     vb = st[VB] - c[C_DV]
     if vb < x2:
@@ -605,7 +666,7 @@ def kalman_step(st, adc, acc, c, accel):  # type: ignore[no-untyped-def]
         else:
             st[CST] = 0
     if st[PHASE] == PH_COAST:
-        if st[DLY] == 0 and vb < 0:
+        if st[DLY] == 0 and vb < 0 and ((ev & ACC_CLIP) == 0 or (ev & CLIP_CLEAR) != 0):
             st[NEG] = st[NEG] + 1
             if st[NEG] >= c[C_APO_N]:
                 ev |= APOGEE

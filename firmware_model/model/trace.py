@@ -13,13 +13,13 @@ import numpy as np
 #: State words per program, in output order: (name, size in bytes).
 STATE_WORDS: dict[str, tuple[tuple[str, int], ...]] = {
     "recursive": (("EST", 4), ("EXT", 4), ("VEL", 4), ("ACC0", 4), ("EVENTS", 2), ("ZL", 4), ("SUMA", 4),
-                  ("CAL", 2), ("REJ", 2), ("NEG", 2), ("PHASE", 2), ("CST", 2)),
+                  ("CAL", 2), ("REJ", 2), ("NEG", 2), ("PHASE", 2), ("CST", 2), ("CLP", 2)),
     "recursive_seed_literal": (("EST", 4),),
     "kalman_baro": (("X1", 4), ("X2", 4), ("X3", 4), ("EVENTS", 2), ("APFRAC", 2), ("GND", 4), ("SUMZ", 4),
                     ("CAL", 2), ("REJ", 2), ("NEG", 2), ("PHASE", 2), ("CST", 2), ("DLY", 2), ("VB", 4)),
     "kalman_accel": (("X1", 4), ("X2", 4), ("X3", 4), ("ACC0", 4), ("EVENTS", 2), ("APFRAC", 2), ("GND", 4),
                      ("SUMZ", 4), ("SUMA", 4), ("CAL", 2), ("REJ", 2), ("NEG", 2), ("PHASE", 2), ("CST", 2),
-                     ("DLY", 2), ("VB", 4), ("LOCK", 2)),
+                     ("DLY", 2), ("VB", 4), ("LOCK", 2), ("CLP", 2), ("E0", 4)),
 }
 
 #: Values of the ``PHASE`` word (docs/firmware-spec.md §4a), by name.
@@ -36,10 +36,12 @@ EVENT_BITS: dict[str, int] = {
     "GATE_HIGH": 1 << 6,
     "BARO_REJECT": 1 << 7,
     "ACC_CLIP": 1 << 8,
+    "CLIP_CLEAR": 1 << 9,
 }
 #: Bits that stay set once set (all but the per-sample MACH_LOCKOUT, BARO_INVALID and BARO_REJECT).
 LATCHED_EVENTS: int = (EVENT_BITS["LIFTOFF"] | EVENT_BITS["ARMED"] | EVENT_BITS["APOGEE"]
-                       | EVENT_BITS["APOGEE_PREDICTED"] | EVENT_BITS["GATE_HIGH"] | EVENT_BITS["ACC_CLIP"])
+                       | EVENT_BITS["APOGEE_PREDICTED"] | EVENT_BITS["GATE_HIGH"] | EVENT_BITS["ACC_CLIP"]
+                       | EVENT_BITS["CLIP_CLEAR"])
 
 
 def word_names(program: str) -> tuple[str, ...]:

@@ -77,6 +77,8 @@ class FirmwareConstants:
     COAST_N: int = 1
     V_DESC: int = 0
     DU: int = 1
+    A_DRAG: int = 0
+    CLIP_N: int = 1
 
     @property
     def ALT_N(self) -> int:
@@ -154,7 +156,10 @@ def build_constants(cfg: BuildConfig) -> FirmwareConstants:
     phases = {} if cfg.program == "recursive_seed_literal" else dict(
         A_COAST=_round_int("A_COAST", cfg.coast_mps2 * (cfg.accel_counts_per_mps2 if recursive else kalman_v), where),
         COAST_N=samples("COAST_N", cfg.coast_s, 1),
-        V_DESC=_round_int("V_DESC", cfg.descent_mps * (rec_v if recursive else kalman_v), where))
+        V_DESC=_round_int("V_DESC", cfg.descent_mps * (rec_v if recursive else kalman_v), where),
+        A_DRAG=_round_int("A_DRAG", (G0 + cfg.clip_drag_mps2) * (cfg.accel_counts_per_mps2 if recursive else kalman_v),
+                          where),
+        CLIP_N=samples("CLIP_N", cfg.clip_s, 1))
     if not recursive:
         phases.update(DLY_N=samples("DLY_N", cfg.mach_delay_s, 0), MACH_N=samples("MACH_N", cfg.mach_settle_s, 1),
                       DV=max(1, _round_int("DV", (G0 + cfg.drag_mps2) * kalman_v * cfg.dt, where)),

@@ -130,6 +130,8 @@ class BuildConfig:
     drag_mps2: float = 5.0 * 9.80665
     thrust_mps2: float = 30.0 * 9.80665
     descent_mps: float = 5.0
+    clip_drag_mps2: float = 0.25 * 9.80665
+    clip_s: float = 0.25
     quant_alt_m: float = 3000.0
     extra: dict[str, Any] = field(default_factory=dict, compare=False, hash=False)
 
