@@ -40,6 +40,7 @@ _PREDICTED = EVENT_BITS["APOGEE_PREDICTED"]
 _GATE_HIGH = EVENT_BITS["GATE_HIGH"]
 _BARO_REJECT = EVENT_BITS["BARO_REJECT"]
 _ACC_CLIP = EVENT_BITS["ACC_CLIP"]
+_CLIP_CLEAR = EVENT_BITS["CLIP_CLEAR"]
 
 
 @dataclass
@@ -145,14 +146,16 @@ def _mirror_recursive(consts: "FirmwareConstants", adc: np.ndarray, acc: np.ndar
     neg = np.zeros(n_streams, dtype=np.int64)
     phase = np.zeros(n_streams, dtype=np.int64)
     cst = np.zeros(n_streams, dtype=np.int64)
+    clp = np.zeros(n_streams, dtype=np.int64)
     ncal = 1 << int(consts.CAL_P)
+    clear_n = 1 << int(consts.K)
 
     def row() -> np.ndarray:
         return np.stack([est, ext, vel, acc0, ev.astype(float), zl, suma, cal.astype(float), rej.astype(float),
-                         neg.astype(float), phase.astype(float), cst.astype(float)], axis=-1)
+                         neg.astype(float), phase.astype(float), cst.astype(float), clp.astype(float)], axis=-1)
 
     init = row()
-    out = np.empty((n_streams, n, 12))
+    out = np.empty((n_streams, n, 13))
     for i in range(n):
         a = acc[:, i]
         ev = ev & LATCHED_EVENTS
@@ -170,8 +173,16 @@ def _mirror_recursive(consts: "FirmwareConstants", adc: np.ndarray, acc: np.ndar
         low = (a - acc0) < -consts.A_COAST
         cst = np.where(boost, np.where(low, cst + 1, 0), cst)
         phase = np.where(boost & low & (cst >= consts.COAST_N), 2, phase)
+        dragc = run & ~boost & (phase == 2) & ((ev & _ACC_CLIP) != 0) & ((ev & _CLIP_CLEAR) == 0)
+        dlow = (a - acc0) >= -consts.A_DRAG
+        clp = np.where(dragc, np.where(dlow, clp + 1, 0), clp)
+        ev = np.where(dragc & dlow & (clp >= clear_n), ev | _CLIP_CLEAR, ev)
         phase = np.where(run & ~boost & (phase == 3) & (vel < -consts.V_DESC), 4, phase)
-        ev = np.where(run & ((ev & _LIFTOFF) != 0) & ((ev & _ARMED) == 0) & (a == 32767), ev | _ACC_CLIP, ev)
+        railc = run & (phase == 1) & ((ev & _ACC_CLIP) == 0)
+        clp = np.where(railc, np.where(a == 32767, clp + 1, 0), clp)
+        clipped = railc & (a == 32767) & (clp >= consts.CLIP_N)
+        ev = np.where(clipped, ev | _ACC_CLIP, ev)
+        clp = np.where(clipped, 0, clp)
         ev = np.where(run & ((ev & _GATE_HIGH) != 0) & ((ev & _ARMED) == 0) & (vel < consts.V_GATE), ev | _ARMED,
                       ev)
         ev = np.where(run & ((ev & _LIFTOFF) != 0) & (vel > consts.V_GATE), ev | _GATE_HIGH, ev)
@@ -190,7 +201,7 @@ def _mirror_recursive(consts: "FirmwareConstants", adc: np.ndarray, acc: np.ndar
         up = est > ext
         ext = np.where(up, est, ext)
         live = ~up & ((ev & _ARMED) != 0) & ((ev & _APOGEE) == 0)
-        below = ext - est >= consts.THR
+        below = (ext - est >= consts.THR) & (((ev & _ACC_CLIP) == 0) | ((ev & _CLIP_CLEAR) != 0))
         neg = np.where(up, 0, np.where(live, np.where(below, neg + 1, 0), neg))
         need = np.where((ev & _ACC_CLIP) != 0, int(consts.APO_N), 1)
         fire = live & below & (neg >= need)
@@ -221,7 +232,7 @@ def _mirror_kalman(consts: "FirmwareConstants", g: dict[str, float], adc: np.nda
     x1 = h_all[:, 0]
     # the state before the first sample: X1 = GND = the first sample's altitude, ACC0 = the first acc, the rest 0
     cols = [x1, zeros, zeros] + ([acc[:, 0]] if accel else []) + [zeros, zeros, x1, zeros]
-    init = np.stack(cols + ([zeros] if accel else []) + [zeros, zeros, zeros] + [zeros] * (5 if accel else 4),
+    init = np.stack(cols + ([zeros] if accel else []) + [zeros, zeros, zeros] + [zeros] * (7 if accel else 4),
                     axis=-1)
     out = np.empty((n_streams, n, init.shape[-1]))
     for s in range(n_streams):
@@ -246,6 +257,8 @@ def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: 
     mach_vlo, v_lift = consts.MACH_VLO, consts.V_LIFT
     mach_n, dly_n, dv, du = int(consts.MACH_N), int(consts.DLY_N), float(consts.DV), float(consts.DU)
     a_coast, coast_n, v_desc = float(consts.A_COAST), int(consts.COAST_N), float(consts.V_DESC)
+    a_drag, clip_n = float(consts.A_DRAG), int(consts.CLIP_N)
+    half_n, win_n = 1 << int(consts.K), 2 << int(consts.K)
     acc_g = g["ACC_G"] if accel else 0.0
     g11, g21, g31 = (float(g[n]) for n in ("G11", "G21", "G31"))
     g12, g22, g32 = (float(g[n]) for n in ("G12", "G22", "G32")) if accel else (0.0, 0.0, 0.0)
@@ -253,7 +266,8 @@ def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: 
     x1 = gnd = hs[0]
     x2 = x3 = sumz = suma = apfrac = vb = 0.0
     acc0 = accs[0]
-    cal = rej = neg = ev = phase = cst = dly = lock = 0
+    cal = rej = neg = ev = phase = cst = dly = lock = clp = 0
+    e0 = 0.0
     rows = []
     for h, baro_ok, a in zip(hs, oks, accs):
         ev = ev & LATCHED_EVENTS
@@ -279,7 +293,21 @@ def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: 
             # 4. Mach lockout (kalman_accel)
             locked = rebase = False
             if accel:
-                if (ev & _LIFTOFF) != 0 and x2 > mach_vlo:
+                if (ev & _ACC_CLIP) != 0 and (ev & _CLIP_CLEAR) == 0:
+                    # after a clip: locked until a drag-low window of 2^(K+1) samples re-bases the velocity
+                    lock, locked = mach_n, True
+                    if phase == 2 and (a - acc0) * acc_g >= -a_drag and baro_ok:
+                        e = h - x1
+                        clp = clp + 1
+                        e0 = e0 - e if clp <= half_n else e0 + e
+                        if clp == win_n:
+                            x2 = x2 + e0 * dt
+                            vb = x2
+                            lock, locked, rebase = 0, False, True
+                            ev = ev | _CLIP_CLEAR
+                    else:
+                        clp, e0 = 0, 0.0
+                elif (ev & _LIFTOFF) != 0 and x2 > mach_vlo:
                     lock, locked = mach_n, True
                 elif lock > 1:
                     lock, locked = lock - 1, True
@@ -323,6 +351,14 @@ def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: 
                 ev = ev | _LIFTOFF
                 phase = 1
                 dly = dly_n
+            if accel and phase == 1 and (ev & _ACC_CLIP) == 0:
+                if a == 32767:
+                    clp = clp + 1
+                    if clp >= clip_n:
+                        ev = ev | _ACC_CLIP
+                        clp = 0
+                else:
+                    clp = 0
             # 8. plausibility bound
             vb = min(max(x2, vb - dv), vb + du)
             # 9. phases and apogee
@@ -334,7 +370,7 @@ def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: 
                 else:
                     cst = 0
             if phase == 2:
-                if dly == 0 and vb < 0:
+                if dly == 0 and vb < 0 and ((ev & _ACC_CLIP) == 0 or (ev & _CLIP_CLEAR) != 0):
                     neg = neg + 1
                     if neg >= apo_n:
                         ev = ev | _APOGEE
@@ -349,7 +385,8 @@ def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: 
                 apfrac = min(65536.0 * x2 / d, 65535.0)
                 ev = ev | _PREDICTED
         if accel:
-            rows.append((x1, x2, x3, acc0, ev, apfrac, gnd, sumz, suma, cal, rej, neg, phase, cst, dly, vb, lock))
+            rows.append((x1, x2, x3, acc0, ev, apfrac, gnd, sumz, suma, cal, rej, neg, phase, cst, dly, vb, lock,
+                         clp, e0))
         else:
             rows.append((x1, x2, x3, ev, apfrac, gnd, sumz, cal, rej, neg, phase, cst, dly, vb))
     return rows
@@ -583,7 +620,8 @@ def kalman_switched_bound(consts: "FirmwareConstants", fm: FloatTrace, adc: np.n
 
     where ``H_t``/``K_t`` are the measurement rows and design gains applied at sample t (both rows; the
     accelerometer row only when the barometer was not used: gated, invalid, Mach lockout; on a re-base sample the
-    predicted X1 is dropped and X1 carries the table's rounding), ``u`` the predict rounding, ``r_t`` the rounding of each gain multiply, the gain quantization times the
+    predicted X1 is dropped and X1 carries the table's rounding; on the velocity re-base after an accelerometer
+    clip X2 also carries the window's innovation error, sum of the margins times 2^-K, plus rho(K)), ``u`` the predict rounding, ``r_t`` the rounding of each gain multiply, the gain quantization times the
     integer innovation (|e1_int| <= |e1_mirror| + margin), the table interpolation's rounding times the
     barometer gains, and the accelerometer scale's rounding and quantization. Pad calibration leaves ``delta_0 =
     (rho(CAL_P) + rho(ALT_SHIFT), 0, 0)`` (GND) and an ACC0 error of rho(CAL_P) counts. Then ``|delta_t| <=
@@ -616,6 +654,11 @@ def kalman_switched_bound(consts: "FirmwareConstants", fm: FloatTrace, adc: np.n
     cal_prev = prev[:, names.index("CAL")]
     if accel:
         lock_prev, lock_now = prev[:, names.index("LOCK")], w[:, names.index("LOCK")]
+        ev_prev = prev[:, names.index("EVENTS")].astype(np.int64)
+        # the velocity re-base after a clip (§6 step 4): CLIP_CLEAR set on this sample; its window is the 2^(K+1)
+        # samples ending here
+        clip_rebase = ((ev & _CLIP_CLEAR) != 0) & ((ev_prev & _CLIP_CLEAR) == 0)
+        win_n = 2 << int(consts.K)
     ncal = 1 << int(consts.CAL_P)
     n = len(adc)
     bound = np.zeros((n, 3))
@@ -702,13 +745,19 @@ def kalman_switched_bound(consts: "FirmwareConstants", fm: FloatTrace, adc: np.n
         x1p = prev[t, 0] + prev[t, 1] * dt + prev[t, 2] * dt * dt / 2
         pred_b = absF @ B + u
         margin[t] = pred_b[0] + rho_alt
-        rebase = bool(accel and lock_prev[t] == 1 and lock_now[t] == 0 and not ev[t] & _MACH)
+        crebase = bool(accel and clip_rebase[t])
+        rebase = crebase or bool(accel and lock_prev[t] == 1 and lock_now[t] == 0 and not ev[t] & _MACH)
         used = bool(ok[t] and not (ev[t] & (_BARO_REJECT | _MACH)) and not rebase)
         locked = bool(accel and ev[t] & _MACH)
         A, iku, bcols, acols = step_consts(used, rebase, locked)
         r = np.zeros(3)
         if rebase:
             r[0] += rho_alt
+        if crebase:
+            # X2 += rs(E0, K): E0 sums the window's innovations h - X1 (predicted), each within margin of the
+            # mirror's (the X1 prediction's bound plus the table's rounding), so |dE0| <= sum of the margins and
+            # the re-base adds |dE0| 2^-K + rho(K) to X2's error (column 1 of I - K H is e_1 on this sample)
+            r[1] += float(margin[max(0, t - win_n + 1):t + 1].sum()) * dt + rho(K)
         if used:
             e1 = h_all[t] - x1p if h_all is not None else _alt_mirror_e1(consts, adc[t], x1p)
             e1_int = abs(e1) + margin[t]

@@ -63,7 +63,7 @@ def test_kernel_numbering_matches_the_trace_contract():
     for name, bit in EVENT_BITS.items():
         assert getattr(KC, name) == bit
     assert KC.LATCHED == LATCHED_EVENTS
-    assert len(KC.WRAP_NAMES) == 21 and len(set(KC.WRAP_NAMES)) == 21 and KC.WRAP_NAMES[0] == ""
+    assert len(KC.WRAP_NAMES) == 22 and len(set(KC.WRAP_NAMES)) == 22 and KC.WRAP_NAMES[0] == ""
     assert KP.COMPILED is False
 
 
@@ -306,8 +306,15 @@ def test_kernels_equal_numpy_model_on_a_clipping_accelerometer(program, rounding
         events = fast.column("EVENTS")[0]
         liftoff = int(np.flatnonzero(events & EVENT_BITS["LIFTOFF"])[0])
         assert (clipped > liftoff).sum() >= clipped.size // 2, (liftoff, clipped.min())
-        if program == "recursive":
-            assert np.bitwise_or.reduce(events) & EVENT_BITS["ACC_CLIP"]
+        # CLIP_N rail samples set ACC_CLIP; the coast then clears it (recursive: 2^k drag-low samples; kalman_accel:
+        # the 2^(k+1)-sample window that re-bases the velocity), before apogee
+        seen = np.bitwise_or.reduce(events)
+        assert seen & EVENT_BITS["ACC_CLIP"] and seen & EVENT_BITS["CLIP_CLEAR"], seen
+        clear = int(np.flatnonzero(events & EVENT_BITS["CLIP_CLEAR"])[0])
+        apogee = np.flatnonzero(events & EVENT_BITS["APOGEE"])
+        assert apogee.size and clear < apogee[0], (clear, apogee[:1])
+        if program == "kalman_accel":
+            assert fast.column("E0")[0][clear - 1] != 0 and fast.column("CLP")[0][clear - 1] == 2 ** (k + 1) - 1
     _same_trace(fast, run_model_numpy(consts, adc, acc), f"{program} k={k} {rounding} numba/numpy")
     if k == 4:
         _same_trace(fast, run_model(consts, adc, acc, engine="python"), f"{program} k={k} {rounding} numba/python")

@@ -219,9 +219,14 @@ def test_after_a_clip_a_short_dip_does_not_fire_apogee(k):
     assert at <= dipped.first_event("APOGEE") < at + n
     acc = s.acc.copy()
     lift = clean.first_event("LIFTOFF")
-    acc[lift + 1] = 32767                               # one sample at the rail during the boost
+    shock = run_model(consts, adc, np.where(np.arange(len(acc)) == lift + 1, 32767, acc))
+    assert not shock.column("EVENTS").max() & CLIP      # one sample at the rail (a shock) is not a clip
+    assert shock.first_event("APOGEE") == dipped.first_event("APOGEE")
+    acc[lift + 1:lift + 1 + consts.CLIP_N] = 32767      # CLIP_N samples at the rail during the boost
     clipped = run_model(consts, adc, acc)
-    assert clipped.column("EVENTS")[lift + 1] & CLIP
+    ev = clipped.column("EVENTS")
+    assert not ev[lift + consts.CLIP_N - 1] & CLIP and ev[lift + consts.CLIP_N] & CLIP
+    assert clipped.first_event("CLIP_CLEAR") < at       # the coast's drag reading is low long before apogee
     assert clipped.first_event("APOGEE") >= at + n
     assert clipped.first_event("APOGEE") <= apogee + 2 * consts.APO_N
 

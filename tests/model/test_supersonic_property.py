@@ -21,7 +21,7 @@ from firmware_model.model.trace import EVENT_BITS, PHASES
 from firmware_model.spec.build_constants import build_constants
 from firmware_model.vectors.cases import case_config
 from tests.support.profiles import examples
-from tests.support.transonic import DipFlight, dip_flights, dip_stream
+from tests.support.transonic import DipFlight, clipped_dip_flights, dip_flights, dip_stream
 
 PROGRAMS = ("recursive", "kalman_baro", "kalman_accel")
 COAST = PHASES.index("COAST")
@@ -55,6 +55,27 @@ def test_no_detection_more_than_1s_early_on_supersonic_flights(rounding: str, f:
             ev, lock = tr.column("EVENTS"), tr.column("LOCK")
             assert (ev & EVENT_BITS["MACH_LOCKOUT"]).any()
             assert ((lock[:-1] == 1) & (lock[1:] == 0)).any()        # the barometer came back: a re-base
+
+
+@settings(max_examples=examples(15, ci=8), deadline=None)
+@given(f=clipped_dip_flights())
+@pytest.mark.parametrize("rounding", ["floor", "half_up"])
+def test_no_detection_more_than_1s_early_when_the_accelerometer_clips(rounding: str, f: DipFlight) -> None:
+    """The same on 20-50 g boosts that hold the +-16 g accelerometer at its rail for the whole burn: the
+    accelerometer programs set ACC_CLIP, clear it in the coast (CLIP_CLEAR) before they declare apogee, and fire
+    within [-1 s, +3 s] of the truth (a clipped integral is a lower bound of the speed: without the clip logic
+    they fire in the transonic passage, the teeth test below)."""
+    for program in PROGRAMS:
+        lead, tr, s = _lead_s(program, rounding, f)
+        assert s["error_m"].min() <= -99.0 and s["peak_mps"] > 300.0
+        assert (s["acc"] == 32767).sum() >= 0.3 * 2**f.k * 0.9
+        assert lead is not None, f"{program}: no apogee on {f}"
+        assert lead >= -1.0, f"{program} {rounding}: apogee {lead:+.2f} s before the truth on {f}"
+        if program != "kalman_baro":
+            assert lead <= 3.0, f"{program} {rounding}: apogee {lead:+.2f} s after the truth on {f}"
+            ev = tr.column("EVENTS")
+            clip, clear = tr.first_event("ACC_CLIP"), tr.first_event("CLIP_CLEAR")
+            assert 0 < clip < clear < tr.first_event("APOGEE"), (clip, clear)
 
 
 #: A flight of the property's kind (found by drawing from it) on which kalman_baro with the issue-20 logic

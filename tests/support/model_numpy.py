@@ -34,6 +34,7 @@ _PREDICTED = EVENT_BITS["APOGEE_PREDICTED"]
 _GATE_HIGH = EVENT_BITS["GATE_HIGH"]
 _BARO_REJECT = EVENT_BITS["BARO_REJECT"]
 _ACC_CLIP = EVENT_BITS["ACC_CLIP"]
+_CLIP_CLEAR = EVENT_BITS["CLIP_CLEAR"]
 _PH_PAD, _PH_BOOST, _PH_COAST, _PH_APOGEE, _PH_DESCENT = (np.int64(v) for v in range(5))
 
 
@@ -97,7 +98,7 @@ def run_model_numpy(consts: "FirmwareConstants", adc: np.ndarray, acc: np.ndarra
 # ---------------------------------------------------------------------------------------------------- recursive
 def _run_recursive(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np.ndarray,
                    tr: _WrapTracker) -> tuple[np.ndarray, np.ndarray]:
-    """docs/firmware-spec.md §5 (EST, EXT, VEL, ACC0, EVENTS, ZL, SUMA, CAL, REJ, NEG, PHASE, CST)."""
+    """docs/firmware-spec.md §5 (EST, EXT, VEL, ACC0, EVENTS, ZL, SUMA, CAL, REJ, NEG, PHASE, CST, CLP)."""
     n_streams, n = adc.shape
     S = int(consts.S)
     z_all = adc * np.int64(consts.BARO_SIGN)
@@ -114,8 +115,10 @@ def _run_recursive(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc:
     neg = np.zeros(n_streams, dtype=np.int64)
     phase = np.zeros(n_streams, dtype=np.int64)
     cst = np.zeros(n_streams, dtype=np.int64)
-    init = np.stack([est, ext, vel, acc0, ev, zl, suma, cal, rej, neg, phase, cst], axis=-1)
-    out = np.empty((n_streams, n, 12), dtype=np.int64)
+    clp = np.zeros(n_streams, dtype=np.int64)
+    init = np.stack([est, ext, vel, acc0, ev, zl, suma, cal, rej, neg, phase, cst, clp], axis=-1)
+    out = np.empty((n_streams, n, 13), dtype=np.int64)
+    a_drag, clip_n, clear_n = np.int64(consts.A_DRAG), np.int64(consts.CLIP_N), np.int64(1 << int(consts.K))
     a_coast, coast_n, v_desc = np.int64(consts.A_COAST), np.int64(consts.COAST_N), np.int64(consts.V_DESC)
     v_lift, v_gate, thr = np.int64(consts.V_LIFT), np.int64(consts.V_GATE), np.int64(consts.THR)
     cal_p = int(consts.CAL_P)
@@ -144,9 +147,19 @@ def _run_recursive(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc:
         low = (a - acc0) < -a_coast
         cst = np.where(boost, np.where(low, cst + 1, 0), cst)
         phase = np.where(boost & low & (cst >= coast_n), _PH_COAST, phase)
+        # after a clip, in coast: 2^K consecutive samples with a drag reading at or below A_DRAG clear it
+        dragc = run & ~boost & (phase == _PH_COAST) & ((ev & _ACC_CLIP) != 0) & ((ev & _CLIP_CLEAR) == 0)
+        dlow = (a - acc0) >= -a_drag
+        clp = np.where(dragc, np.where(dlow, clp + 1, 0), clp)
+        ev = np.where(dragc & dlow & (clp >= clear_n), ev | _CLIP_CLEAR, ev)
         phase = np.where(run & ~boost & (phase == _PH_APOGEE) & (vel < -v_desc), _PH_DESCENT, phase)
-        # 3. accelerometer at its rail before arming
-        ev = np.where(run & ((ev & _LIFTOFF) != 0) & ((ev & _ARMED) == 0) & (a == 32767), ev | _ACC_CLIP, ev)
+        # 3. accelerometer at its rail for CLIP_N samples in a row, in boost
+        railc = run & (phase == _PH_BOOST) & ((ev & _ACC_CLIP) == 0)
+        rail = a == 32767
+        clp = np.where(railc, np.where(rail, clp + 1, 0), clp)
+        clipped = railc & rail & (clp >= clip_n)
+        ev = np.where(clipped, ev | _ACC_CLIP, ev)
+        clp = np.where(clipped, 0, clp)
         # 4a. armed once VEL is back below the gate, on a sample after the one that set GATE_HIGH (4b runs after)
         ev = np.where(run & ((ev & _GATE_HIGH) != 0) & ((ev & _ARMED) == 0) & (vel < v_gate), ev | _ARMED, ev)
         # 4b. the accelerometer velocity has exceeded the gate since liftoff
@@ -169,13 +182,13 @@ def _run_recursive(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc:
         up = est > ext
         ext = np.where(up, est, ext)
         live = ~up & ((ev & _ARMED) != 0) & ((ev & _APOGEE) == 0)
-        below = ext - est >= thr
+        below = (ext - est >= thr) & (((ev & _ACC_CLIP) == 0) | ((ev & _CLIP_CLEAR) != 0))
         neg = np.where(up, 0, np.where(live, np.where(below, neg + 1, 0), neg))
         need = np.where((ev & _ACC_CLIP) != 0, apo_n, np.int64(1))
         fire = live & below & (neg >= need)
         ev = np.where(fire, ev | _APOGEE, ev)
         phase = np.where(fire, _PH_APOGEE, phase)
-        for j, col in enumerate((est, ext, vel, acc0, ev, zl, suma, cal, rej, neg, phase, cst)):
+        for j, col in enumerate((est, ext, vel, acc0, ev, zl, suma, cal, rej, neg, phase, cst, clp)):
             out[:, i, j] = col
     return init, out
 
@@ -200,7 +213,7 @@ def _run_seed_literal(consts: "FirmwareConstants", mode: str, adc: np.ndarray, a
 def _run_kalman(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np.ndarray,
                 tr: _WrapTracker) -> tuple[np.ndarray, np.ndarray]:
     """docs/firmware-spec.md §6 (kalman_baro: X1 X2 X3 EVENTS APFRAC GND SUMZ CAL REJ NEG PHASE CST DLY VB;
-    kalman_accel: X1 X2 X3 ACC0 EVENTS APFRAC GND SUMZ SUMA CAL REJ NEG PHASE CST DLY VB LOCK)."""
+    kalman_accel: X1 X2 X3 ACC0 EVENTS APFRAC GND SUMZ SUMA CAL REJ NEG PHASE CST DLY VB LOCK CLP E0)."""
     accel = consts.program == "kalman_accel"
     n_streams, n = adc.shape
     K = int(consts.K)
@@ -235,10 +248,12 @@ def _run_kalman(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np
     dly = np.zeros(n_streams, dtype=np.int64)
     vb = np.zeros(n_streams, dtype=np.int64)
     lock = np.zeros(n_streams, dtype=np.int64)
+    clp = np.zeros(n_streams, dtype=np.int64)
+    e0 = np.zeros(n_streams, dtype=np.int64)
 
     def row():
         cols = [x1, x2, x3] + ([acc0] if accel else []) + [ev, apfrac, gnd, sumz] + ([suma] if accel else [])
-        return cols + [cal, rej, neg, phase, cst, dly, vb] + ([lock] if accel else [])
+        return cols + [cal, rej, neg, phase, cst, dly, vb] + ([lock, clp, e0] if accel else [])
 
     init = np.stack(row(), axis=-1)
     out = np.empty((n_streams, n, init.shape[-1]), dtype=np.int64)
@@ -246,6 +261,8 @@ def _run_kalman(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np
     e_gate, gate_n, apo_n = np.int64(consts.E_GATE), np.int64(consts.GATE_N), np.int64(consts.APO_N)
     mach_n, dly_n, dv, du = (np.int64(v) for v in (consts.MACH_N, consts.DLY_N, consts.DV, consts.DU))
     a_coast, coast_n, v_desc = np.int64(consts.A_COAST), np.int64(consts.COAST_N), np.int64(consts.V_DESC)
+    a_drag, clip_n = np.int64(consts.A_DRAG), np.int64(consts.CLIP_N)
+    half_n, win_n = np.int64(1 << K), np.int64(2 << K)
     for i in range(n):
         ev = ev & LATCHED_EVENTS
         baro_ok = baro_ok_all[:, i]
@@ -277,12 +294,28 @@ def _run_kalman(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np
         locked = np.zeros(n_streams, dtype=bool)
         rebase = np.zeros(n_streams, dtype=bool)
         if accel:
-            fast = run & ((ev & _LIFTOFF) != 0) & (x2 > vlo)
-            settle = run & ~fast & (lock > 1)
-            last = run & ~fast & (lock == 1)
-            locked = fast | settle | (last & ~baro_ok)
-            rebase = last & baro_ok
-            lock = np.where(fast, mach_n, np.where(settle, lock - 1, np.where(rebase, 0, lock)))
+            # after a clip: locked until a 2^(K+1)-sample window of drag-low coast samples re-bases the velocity
+            clipm = run & ((ev & _ACC_CLIP) != 0) & ((ev & _CLIP_CLEAR) == 0)
+            win = clipm & (phase == _PH_COAST) & (a >= -a_drag) & baro_ok
+            if win.any():
+                e = tr.w32(np.where(win, h - x1, 0), i, "e1")
+                clp = np.where(win, clp + 1, clp)
+                s0 = np.where(clp <= half_n, e0 - e, e0 + e)
+                e0 = np.where(win, tr.w32(np.where(win, s0, 0), i, "E0"), e0)
+            clp = np.where(clipm & ~win, 0, clp)
+            e0 = np.where(clipm & ~win, 0, e0)
+            done = win & (clp == win_n)
+            if done.any():
+                x2 = np.where(done, tr.w32(np.where(done, x2 + rs(e0, K, mode), 0), i, "X2"), x2)
+            vb = np.where(done, x2, vb)
+            ev = np.where(done, ev | _CLIP_CLEAR, ev)
+            fast = run & ~clipm & ((ev & _LIFTOFF) != 0) & (x2 > vlo)
+            settle = run & ~clipm & ~fast & (lock > 1)
+            last = run & ~clipm & ~fast & (lock == 1)
+            locked = (clipm & ~done) | fast | settle | (last & ~baro_ok)
+            rebase = (last & baro_ok) | done
+            lock = np.where(clipm, np.where(done, 0, mach_n),
+                            np.where(fast, mach_n, np.where(settle, lock - 1, np.where(rebase, 0, lock))))
             ev = np.where(locked, ev | _MACH, ev)
         # 5. innovation and gate (a re-base sets X1 = h and uses no barometer correction)
         x1 = np.where(rebase, h, x1)
@@ -315,6 +348,14 @@ def _run_kalman(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np
         ev = np.where(lifting, ev | _LIFTOFF, ev)
         phase = np.where(lifting, _PH_BOOST, phase)
         dly = np.where(lifting, dly_n, dly)
+        # accelerometer at its rail for CLIP_N samples in a row, in boost (kalman_accel)
+        if accel:
+            railc = run & (phase == _PH_BOOST) & ((ev & _ACC_CLIP) == 0)
+            rail = acc[:, i] == 32767
+            clp = np.where(railc, np.where(rail, clp + 1, 0), clp)
+            clipped = railc & rail & (clp >= clip_n)
+            ev = np.where(clipped, ev | _ACC_CLIP, ev)
+            clp = np.where(clipped, 0, clp)
         # 8. plausibility bound
         vb = np.where(run, np.minimum(np.maximum(x2, vb - dv), vb + du), vb)
         # 9. phases and apogee
@@ -323,7 +364,7 @@ def _run_kalman(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np
         cst = np.where(boost, np.where(low, cst + 1, 0), cst)
         phase = np.where(boost & low & (cst >= coast_n), _PH_COAST, phase)
         coast = run & (phase == _PH_COAST)
-        evid = coast & (dly == 0) & (vb < 0)
+        evid = coast & (dly == 0) & (vb < 0) & (((ev & _ACC_CLIP) == 0) | ((ev & _CLIP_CLEAR) != 0))
         neg = np.where(coast, np.where(evid, neg + 1, 0), neg)
         fire = evid & (neg >= apo_n)
         ev = np.where(fire, ev | _APOGEE, ev)
