@@ -89,6 +89,11 @@ class BuildConfig:
         rises by at most thrust_mps2 * dt per sample (DU), so a velocity spike of the estimate cannot hold apogee off.
       * ``coast_mps2``/``coast_s``: PHASE = COAST after the acceleration stayed below -coast_mps2 for coast_s
         (COAST_N samples); apogee only from COAST (Kalman). ``descent_mps``: DESCENT after apogee below -descent_mps.
+      * ``clip_s``: ACC_CLIP needs the accelerometer at its rail (32767) for this long in boost (CLIP_N samples; a
+        thrust above the range holds it there for the burn, a shock for milliseconds); ``clip_drag_mps2``: after
+        ACC_CLIP, a drag reading at or below this (A_DRAG = g + it, in the program's units) is "drag-low": no
+        apogee evidence counts until the drag reading has been low for 2^k samples (recursive) or a 2^(k+1)-sample
+        drag-low window has re-based the velocity on the barometer (kalman_accel; docs/firmware-spec.md §5, §6).
       * ``quant_alt_m``: the Kalman design's barometer sigma is at least the barometer's quantization step /
         sqrt(12) in metres at this height above the pad (docs/gain-design.md "Quantization floor").
     """
@@ -210,7 +215,8 @@ class BuildConfig:
                                        or not 0 <= self.cal_p <= 8):
             raise bad("cal_p", "pad calibration over 2^cal_p samples needs cal_p in 0..8 (or null)")
         for name in ("gate_sigmas", "gate_hold_s", "apogee_hold_s", "baro_rate_mps", "mach_settle_s", "mach_delay_s",
-                     "coast_mps2", "coast_s", "drag_mps2", "thrust_mps2", "descent_mps", "quant_alt_m"):
+                     "coast_mps2", "coast_s", "drag_mps2", "thrust_mps2", "descent_mps", "quant_alt_m", "clip_drag_mps2",
+                     "clip_s"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
                 raise bad(name, "must be a finite number >= 0")
