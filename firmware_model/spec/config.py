@@ -89,6 +89,10 @@ class BuildConfig:
         rises by at most thrust_mps2 * dt per sample (DU), so a velocity spike of the estimate cannot hold apogee off.
       * ``coast_mps2``/``coast_s``: PHASE = COAST after the acceleration stayed below -coast_mps2 for coast_s
         (COAST_N samples); apogee only from COAST (Kalman). ``descent_mps``: DESCENT after apogee below -descent_mps.
+      * ``accel_model_g``: kalman_accel's design adds this model error (g, rms) to the accelerometer's noise: the
+        axial reading is taken as the vertical acceleration, which on a flight tilted by theta misreads a drag or
+        thrust D by D (1 - cos theta) (0.06 D at 20 degrees), plus scale errors; default 0 (the noise alone), the
+        recommended tuning 0.05 g (docs/gain-design.md, docs/evaluation.md "Accelerometer model error").
       * ``clip_s``: ACC_CLIP needs the accelerometer at its rail (32767) for this long in boost (CLIP_N samples; a
         thrust above the range holds it there for the burn, a shock for milliseconds); ``clip_drag_mps2``: after
         ACC_CLIP, a drag reading at or below this (A_DRAG = g + it, in the program's units) is "drag-low": no
@@ -112,6 +116,7 @@ class BuildConfig:
     ratio: float = 50_000.0
     baro_sigma: float = 2.0
     accel_sigma: float = 20.0
+    accel_model_g: float = 0.0
     mach_lo_mps: float = 244.0
     mach_hi_mps: float = 366.0
     mach_innov_m: float = 30.0
@@ -216,7 +221,7 @@ class BuildConfig:
             raise bad("cal_p", "pad calibration over 2^cal_p samples needs cal_p in 0..8 (or null)")
         for name in ("gate_sigmas", "gate_hold_s", "apogee_hold_s", "baro_rate_mps", "mach_settle_s", "mach_delay_s",
                      "coast_mps2", "coast_s", "drag_mps2", "thrust_mps2", "descent_mps", "quant_alt_m", "clip_drag_mps2",
-                     "clip_s"):
+                     "clip_s", "accel_model_g"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
                 raise bad(name, "must be a finite number >= 0")

@@ -220,9 +220,12 @@ def design_baro_sigma(cfg: BuildConfig) -> float:
 
 
 def accel_sigma_units(cfg: BuildConfig) -> float:
-    """Accelerometer noise in state units: accel_sigma (counts, at least the 1/sqrt(12) count of its own
-    quantization) * units_per_metre / accel_counts_per_mps2 (units/s^2)."""
-    return max(cfg.accel_sigma, QUANT_RMS) * cfg.units_per_metre / cfg.accel_counts_per_mps2
+    """Accelerometer error in state units: the root sum of squares of accel_sigma (counts, at least the 1/sqrt(12)
+    count of its own quantization) and the model error ``accel_model_g`` (g, in counts: the axial reading taken as
+    vertical on a tilted flight), times units_per_metre / accel_counts_per_mps2 (units/s^2)."""
+    noise = max(cfg.accel_sigma, QUANT_RMS)
+    model = cfg.accel_model_g * G0 * cfg.accel_counts_per_mps2
+    return math.hypot(noise, model) * cfg.units_per_metre / cfg.accel_counts_per_mps2
 
 
 def describe(cfg: BuildConfig) -> str:
