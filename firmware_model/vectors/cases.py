@@ -33,7 +33,7 @@ GAIN_NAMES: tuple[str, ...] = ("G11", "G21", "G31", "G12", "G22", "G32", "ACC_G"
 SCALAR_CONSTANTS: tuple[str, ...] = ("K", "ROUND", "BARO_SIGN", "S", "THR", "V_LIFT", "V_GATE", "MACH_VLO",
                                      "MACH_VHI", "MACH_E", "BARO_MIN", "BARO_MAX", "ALT_SHIFT", "ALT_N", "CAL_P",
                                      "E_GATE", "GATE_N", "APO_N", "MACH_N", "DLY_N", "DV", "A_COAST", "COAST_N",
-                                     "V_DESC", "DU")
+                                     "V_DESC", "DU", "A_DRAG", "CLIP_N")
 
 # ------------------------------------------------------------------------------------------- the case matrix
 #: k values (sample period 2^-k s) of the committed set.
@@ -63,7 +63,9 @@ Q_FORMATS: dict[str, dict[str, str]] = {
                   "REJ": "uint16 rejected barometer samples in a row",
                   "NEG": "uint16 apogee evidence samples in a row",
                   "PHASE": "uint16 flight phase (0 pad, 1 boost, 2 coast, 3 apogee, 4 descent)",
-                  "CST": "uint16 coast samples in a row"},
+                  "CST": "uint16 coast samples in a row",
+                  "CLP": "uint16 clip counter (boost: rail samples in a row; after ACC_CLIP: drag-low coast samples "
+                         "in a row)"},
     "recursive_seed_literal": {"EST": "Q24.8 barometer units (z = BARO_SIGN*adc)"},
     "kalman_baro": {"X1": "Q24.8 m (table altitude)", "X2": "Q24.8 m/s", "X3": "Q24.8 m/s^2",
                     "EVENTS": "uint16 event bits", "APFRAC": "UQ0.16 fraction of a sample period",
@@ -82,7 +84,10 @@ Q_FORMATS: dict[str, dict[str, str]] = {
                      "PHASE": "uint16 flight phase (0 pad, 1 boost, 2 coast, 3 apogee, 4 descent)",
                      "CST": "uint16 coast samples in a row", "DLY": "uint16 Mach-delay samples left",
                      "VB": "Q24.8 m/s (plausibility bound)",
-                     "LOCK": "uint16 Mach lockout samples left (0: barometer in use)"},
+                     "LOCK": "uint16 Mach lockout samples left (0: barometer in use)",
+                     "CLP": "uint16 clip counter (boost: rail samples in a row; after ACC_CLIP: samples of the "
+                            "re-base window so far)",
+                     "E0": "Q24.8 m (re-base window: sum of the second half's innovations minus the first's)"},
 }
 
 
@@ -231,10 +236,16 @@ def tail_case_specs(require_logs: bool = True) -> list[CaseSpec]:
 #: The subset run on the ATmega2560 under simavr (must fit 64 KiB of program-memory data: the Kalman cases carry
 #: 14-17 words per sample and a 2 KiB altitude table since issue 20, so one flight per program family runs:
 #: kalman_accel's, whose C path (step_kalman with the accelerometer) is a superset of kalman_baro's, and the
-#: recursive one in floor rounding; the long transonic and the supersonic flights are left to the host).
+#: recursive one in floor rounding; the long transonic and the supersonic flights are left to the host). Since the
+#: clipped-accelerometer change (CLP in recursive, CLP and E0 in kalman_accel: 13 and 19 words a sample) the
+#: recursive half_up edge_step case (1.8 KB) is left out: with it the data ran 220 bytes past 64 KiB (the recursive
+#: flight's adc array read wrong through pgm_read_word); recursive half_up keeps edge_ties, recursive edge_step keeps
+#: floor. The Schultz 2002 listing's pascal edge_ties (0.4 KB) takes its place: the pascal word on the AVR for the
+#: third program family, and the subset stays at 20 cases.
 AVR_CASES: tuple[str, ...] = tuple(
     [case_name("recursive", "floor", 4, 16, "flight")]
-    + [case_name(p, "floor", PASCAL_K, 32, "edge_ties") for p in ("recursive", "kalman_accel")]
+    + [case_name(p, "floor", PASCAL_K, 32, "edge_ties") for p in ("recursive", "kalman_accel", "recursive_seed_literal")]
     + [case_name("kalman_accel", "half_up", 4, 16, "flight")]
-    + [case_name(p, r, 4, 16, "edge_" + kind) for p in PROGRAMS for r in ROUNDINGS for kind in ("ties", "step")]
+    + [case_name(p, r, 4, 16, "edge_" + kind) for p in PROGRAMS for r in ROUNDINGS for kind in ("ties", "step")
+       if (p, r, kind) != ("recursive", "half_up", "step")]
 )

@@ -68,6 +68,11 @@ MUTANTS: list[tuple[str, str, str, str, str, str]] = [
      "                st->EVENTS |= FW_EV_BARO_REJECT;\n            } else {",
      "            } else if ((int32_t)st->REJ <= c->GATE_N) {\n                st->REJ = (uint16_t)(st->REJ + 1u);\n"
      "                st->EVENTS |= FW_EV_BARO_REJECT;\n            } else {"),
+    ("clip_evidence", "apogee evidence during an accelerometer clip (the coast test without 'not ACC_CLIP or "
+     "CLIP_CLEAR')", "kalman_accel", "floor",
+     "        if (st->DLY == 0u && st->VB < 0 && (!(st->EVENTS & FW_EV_ACC_CLIP) || "
+     "(st->EVENTS & FW_EV_CLIP_CLEAR))) {",
+     "        if (st->DLY == 0u && st->VB < 0) {"),
 ]
 SHRUNK_MAX = 300
 BUDGET_S = 60.0

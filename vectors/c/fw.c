@@ -87,6 +87,8 @@ void fw_init(fw_program prog, const fw_consts *c, fw_state *st, int32_t adc, int
     st->PHASE = FW_PH_PAD;
     st->CST = st->DLY = st->LOCK = 0;
     st->VB = 0;
+    st->CLP = 0;
+    st->E0 = 0;
     switch (prog) {
     case FW_RECURSIVE:
         st->EST = z8;
@@ -139,12 +141,31 @@ static void step_recursive(const fw_consts *c, fw_state *st, int32_t adc, int16_
             } else {
                 st->CST = 0;
             }
+        } else if (st->PHASE == FW_PH_COAST && (st->EVENTS & FW_EV_ACC_CLIP) && !(st->EVENTS & FW_EV_CLIP_CLEAR)) {
+            /* after a clip: CLIP_CLEAR once the drag reading acc - ACC0 >= -A_DRAG for 2^K coast samples in a row */
+            if ((int64_t)acc - (int64_t)st->ACC0 >= -(int64_t)c->A_DRAG) {
+                st->CLP = (uint16_t)(st->CLP + 1u);
+                if ((int32_t)st->CLP >= ((int32_t)1 << c->K)) {
+                    st->EVENTS |= FW_EV_CLIP_CLEAR;
+                }
+            } else {
+                st->CLP = 0;
+            }
         } else if (st->PHASE == FW_PH_APOGEE && (int64_t)st->VEL < -(int64_t)c->V_DESC) {
             st->PHASE = FW_PH_DESCENT;
         }
-        /* 3. the accelerometer at its rail before arming: VEL underestimates from now on */
-        if ((st->EVENTS & FW_EV_LIFTOFF) && !(st->EVENTS & FW_EV_ARMED) && acc == 32767) {
-            st->EVENTS |= FW_EV_ACC_CLIP;
+        /* 3. the accelerometer at its rail (32767) for CLIP_N samples in a row in boost: VEL underestimates from
+              now on */
+        if (st->PHASE == FW_PH_BOOST && !(st->EVENTS & FW_EV_ACC_CLIP)) {
+            if (acc == 32767) {
+                st->CLP = (uint16_t)(st->CLP + 1u);
+                if ((int32_t)st->CLP >= c->CLIP_N) {
+                    st->EVENTS |= FW_EV_ACC_CLIP;
+                    st->CLP = 0;
+                }
+            } else {
+                st->CLP = 0;
+            }
         }
         /* 4. velocity gate: a. armed when VEL is back below the gate (GATE_HIGH from an earlier sample);
               b. GATE_HIGH once VEL exceeds the gate after liftoff */
@@ -172,12 +193,13 @@ static void step_recursive(const fw_consts *c, fw_state *st, int32_t adc, int16_
         st->ZL = zw;
         st->EST = fw_wrap32((int64_t)st->EST + ls(z, 8 - c->S) - fw_rs(st->EST, c->S, c->ROUND));
     }
-    /* 6. extreme and apogee (after ACC_CLIP: APO_N samples of evidence) */
+    /* 6. extreme and apogee (after ACC_CLIP: no evidence until CLIP_CLEAR, then APO_N samples of it) */
     if (st->EST > st->EXT) {
         st->EXT = st->EST;
         st->NEG = 0;
     } else if ((st->EVENTS & FW_EV_ARMED) && !(st->EVENTS & FW_EV_APOGEE)) {
-        if ((int64_t)st->EXT - (int64_t)st->EST >= (int64_t)c->THR) {
+        if ((int64_t)st->EXT - (int64_t)st->EST >= (int64_t)c->THR
+            && (!(st->EVENTS & FW_EV_ACC_CLIP) || (st->EVENTS & FW_EV_CLIP_CLEAR))) {
             int32_t need = (st->EVENTS & FW_EV_ACC_CLIP) ? c->APO_N : 1;
             st->NEG = (uint16_t)(st->NEG + 1u);
             if ((int32_t)st->NEG >= need) {
@@ -203,7 +225,7 @@ static void step_kalman(const fw_consts *c, fw_state *st, int32_t adc, int16_t a
     const int32_t K = c->K;
     const int32_t ncal = (int32_t)1 << c->CAL_P;
     int64_t t1, t2;
-    int32_t h = 0, e1 = 0, e2 = 0;
+    int32_t h = 0, e1 = 0, e2 = 0, a = 0;
     int baro_ok, use, locked = 0, rebase = 0;
     int64_t c1_1 = 0, c1_2 = 0, c1_3 = 0, c2_1 = 0, c2_2 = 0, c2_3 = 0;
 
@@ -240,15 +262,40 @@ static void step_kalman(const fw_consts *c, fw_state *st, int32_t adc, int16_t a
     st->X2 = fw_wrap32((int64_t)st->X2 + t2);
     /* 3. accelerometer innovation (kalman_accel) */
     if (with_accel) {
-        int32_t a = fw_mulg((int64_t)acc - (int64_t)st->ACC0, c->ACC_G, mode);
+        a = fw_mulg((int64_t)acc - (int64_t)st->ACC0, c->ACC_G, mode);
         e2 = fw_wrap32((int64_t)a - (int64_t)st->X3);
         c2_1 = fw_mulg(e2, c->G12, mode);
         c2_2 = fw_mulg(e2, c->G22, mode);
         c2_3 = fw_mulg(e2, c->G32, mode);
     }
-    /* 4. Mach lockout (kalman_accel): no barometer while X2 > MACH_VLO and MACH_N samples after; then re-base */
+    /* 4. Mach lockout (kalman_accel): after ACC_CLIP no barometer until a 2^(K+1)-sample drag-low coast window
+          re-bases X2 from the innovation drift (second half minus first half, over 1 s); else no barometer while
+          X2 > MACH_VLO and MACH_N samples after; then re-base */
     if (with_accel) {
-        if ((st->EVENTS & FW_EV_LIFTOFF) && st->X2 > c->MACH_VLO) {
+        if ((st->EVENTS & FW_EV_ACC_CLIP) && !(st->EVENTS & FW_EV_CLIP_CLEAR)) {
+            locked = 1;
+            st->LOCK = (uint16_t)c->MACH_N;
+            if (st->PHASE == FW_PH_COAST && (int64_t)a >= -(int64_t)c->A_DRAG && baro_ok) {
+                int64_t e = fw_wrap32((int64_t)h - (int64_t)st->X1); /* X1 predicted */
+                st->CLP = (uint16_t)(st->CLP + 1u);
+                if ((int32_t)st->CLP <= ((int32_t)1 << K)) {
+                    st->E0 = fw_wrap32((int64_t)st->E0 - e);
+                } else {
+                    st->E0 = fw_wrap32((int64_t)st->E0 + e);
+                }
+                if ((int32_t)st->CLP == ((int32_t)2 << K)) {
+                    st->X2 = fw_wrap32((int64_t)st->X2 + fw_rs(st->E0, K, mode));
+                    st->VB = st->X2;
+                    st->LOCK = 0;
+                    st->EVENTS |= FW_EV_CLIP_CLEAR;
+                    locked = 0;
+                    rebase = 1;
+                }
+            } else {
+                st->CLP = 0;
+                st->E0 = 0;
+            }
+        } else if ((st->EVENTS & FW_EV_LIFTOFF) && st->X2 > c->MACH_VLO) {
             st->LOCK = (uint16_t)c->MACH_N;
             locked = 1;
         } else if (st->LOCK > 1u) {
@@ -308,6 +355,18 @@ static void step_kalman(const fw_consts *c, fw_state *st, int32_t adc, int16_t a
         st->PHASE = FW_PH_BOOST;
         st->DLY = (uint16_t)c->DLY_N;
     }
+    /* 7b. kalman_accel: the accelerometer at its rail (32767) for CLIP_N samples in a row in boost */
+    if (with_accel && st->PHASE == FW_PH_BOOST && !(st->EVENTS & FW_EV_ACC_CLIP)) {
+        if (acc == 32767) {
+            st->CLP = (uint16_t)(st->CLP + 1u);
+            if ((int32_t)st->CLP >= c->CLIP_N) {
+                st->EVENTS |= FW_EV_ACC_CLIP;
+                st->CLP = 0;
+            }
+        } else {
+            st->CLP = 0;
+        }
+    }
     /* 8. plausibility bound VB = min(max(X2, VB - DV), VB + DU), exact in int64 (the result is an int32) */
     {
         int64_t vb = (int64_t)st->VB - (int64_t)c->DV;
@@ -332,7 +391,7 @@ static void step_kalman(const fw_consts *c, fw_state *st, int32_t adc, int16_t a
         }
     }
     if (st->PHASE == FW_PH_COAST) {
-        if (st->DLY == 0u && st->VB < 0) {
+        if (st->DLY == 0u && st->VB < 0 && (!(st->EVENTS & FW_EV_ACC_CLIP) || (st->EVENTS & FW_EV_CLIP_CLEAR))) {
             st->NEG = (uint16_t)(st->NEG + 1u);
             if ((int32_t)st->NEG >= c->APO_N) {
                 st->EVENTS |= FW_EV_APOGEE;
@@ -385,8 +444,8 @@ int fw_words(fw_program prog, const fw_state *st, int32_t out[FW_MAX_WORDS])
     case FW_RECURSIVE:
         out[0] = st->EST; out[1] = st->EXT; out[2] = st->VEL; out[3] = st->ACC0; out[4] = st->EVENTS;
         out[5] = st->ZL; out[6] = st->SUMA; out[7] = st->CAL; out[8] = st->REJ; out[9] = st->NEG;
-        out[10] = st->PHASE; out[11] = st->CST;
-        return 12;
+        out[10] = st->PHASE; out[11] = st->CST; out[12] = st->CLP;
+        return 13;
     case FW_RECURSIVE_SEED_LITERAL:
         out[0] = st->EST;
         return 1;
@@ -399,8 +458,8 @@ int fw_words(fw_program prog, const fw_state *st, int32_t out[FW_MAX_WORDS])
         out[0] = st->X1; out[1] = st->X2; out[2] = st->X3; out[3] = st->ACC0; out[4] = st->EVENTS;
         out[5] = st->APFRAC; out[6] = st->GND; out[7] = st->SUMZ; out[8] = st->SUMA; out[9] = st->CAL;
         out[10] = st->REJ; out[11] = st->NEG; out[12] = st->PHASE; out[13] = st->CST; out[14] = st->DLY;
-        out[15] = st->VB; out[16] = st->LOCK;
-        return 17;
+        out[15] = st->VB; out[16] = st->LOCK; out[17] = st->CLP; out[18] = st->E0;
+        return 19;
     }
     return 0;
 }
@@ -408,21 +467,21 @@ int fw_words(fw_program prog, const fw_state *st, int32_t out[FW_MAX_WORDS])
 const char *fw_word_name(fw_program prog, int i)
 {
     static const char *const rec[] = {"EST", "EXT", "VEL", "ACC0", "EVENTS", "ZL", "SUMA", "CAL", "REJ", "NEG",
-                                      "PHASE", "CST"};
+                                      "PHASE", "CST", "CLP"};
     static const char *const lit[] = {"EST"};
     static const char *const kb[] = {"X1", "X2", "X3", "EVENTS", "APFRAC", "GND", "SUMZ", "CAL", "REJ", "NEG",
                                      "PHASE", "CST", "DLY", "VB"};
     static const char *const ka[] = {"X1", "X2", "X3", "ACC0", "EVENTS", "APFRAC", "GND", "SUMZ", "SUMA", "CAL",
-                                     "REJ", "NEG", "PHASE", "CST", "DLY", "VB", "LOCK"};
+                                     "REJ", "NEG", "PHASE", "CST", "DLY", "VB", "LOCK", "CLP", "E0"};
     switch (prog) {
     case FW_RECURSIVE:
-        return (i >= 0 && i < 12) ? rec[i] : "?";
+        return (i >= 0 && i < 13) ? rec[i] : "?";
     case FW_RECURSIVE_SEED_LITERAL:
         return (i == 0) ? lit[0] : "?";
     case FW_KALMAN_BARO:
         return (i >= 0 && i < 14) ? kb[i] : "?";
     case FW_KALMAN_ACCEL:
-        return (i >= 0 && i < 17) ? ka[i] : "?";
+        return (i >= 0 && i < 19) ? ka[i] : "?";
     }
     return "?";
 }

@@ -31,7 +31,9 @@ typedef enum {
 #define FW_EV_APOGEE_PREDICTED 0x0020u /* latched */
 #define FW_EV_GATE_HIGH        0x0040u /* latched (recursive: VEL has exceeded V_GATE since liftoff) */
 #define FW_EV_BARO_REJECT      0x0080u /* this sample only (Kalman: innovation outside the gate, not used) */
-#define FW_EV_ACC_CLIP         0x0100u /* latched (recursive: the accelerometer read its rail before ARMED) */
+#define FW_EV_ACC_CLIP         0x0100u /* latched: the accelerometer read its rail CLIP_N samples in a row in boost */
+#define FW_EV_CLIP_CLEAR       0x0200u /* latched: after ACC_CLIP, the drag reading was low long enough in coast
+                                          (recursive 2^K samples; kalman_accel 2^(K+1), with the velocity re-base) */
 #define FW_EV_PER_SAMPLE       (FW_EV_MACH_LOCKOUT | FW_EV_BARO_INVALID | FW_EV_BARO_REJECT)
 
 /* The altitude table lives in program memory on an AVR (PROGMEM); FW_ALT_READ reads one node. */
@@ -80,6 +82,9 @@ typedef struct {
     int32_t COAST_N;    /* coast: consecutive samples below -A_COAST */
     int32_t V_DESC;     /* descent: after apogee, velocity below -V_DESC (Kalman X2; recursive VEL) */
     int32_t DU;         /* Kalman: the plausibility bound VB rises by at most DU per sample, Q24.8 m/s */
+    int32_t A_DRAG;     /* clip clear: drag reading at or above -A_DRAG (recursive acc - ACC0, counts; kalman_accel
+                           the accelerometer reading a, Q24.8 m/s^2) */
+    int32_t CLIP_N;     /* ACC_CLIP after CLIP_N rail samples (acc = 32767) in a row in boost */
     const int32_t *ALT; /* [ALT_N] table nodes, Q24.8 m (FW_ALT_READ) */
 } fw_consts;
 
@@ -96,6 +101,9 @@ typedef struct {
     uint16_t PHASE, CST;     /* flight phase (FW_PH_*) and consecutive coast samples */
     uint16_t DLY, LOCK;      /* Kalman: Mach delay countdown; kalman_accel: Mach lockout / settling countdown */
     int32_t VB;              /* Kalman: plausibility bound max(X2, VB - DV), Q24.8 m/s */
+    uint16_t CLP;            /* rail samples in a row in boost; after ACC_CLIP, drag-low coast samples in a row */
+    int32_t E0;              /* kalman_accel: innovation drift over the clip-clear window (second half minus first
+                                half), Q24.8 m */
 } fw_state;
 
 /* Flight phases of the PHASE word (docs/firmware-spec.md section 4a). */
@@ -106,7 +114,7 @@ typedef struct {
 #define FW_PH_DESCENT 4u
 
 /* Maximum number of output words of any program. */
-#define FW_MAX_WORDS 17
+#define FW_MAX_WORDS 19
 
 /* Exact helpers (exposed for unit tests). */
 int32_t fw_wrap32(int64_t x);                      /* x reduced to int32 two's complement */
