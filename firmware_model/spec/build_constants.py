@@ -106,13 +106,13 @@ class FirmwareConstants:
     def equates(self) -> dict[str, int]:
         """Assembler symbols (all int32): K ROUND BARO_SIGN S THR V_LIFT V_GATE MACH_VLO MACH_VHI MACH_E BARO_MIN
         BARO_MAX ALT_SHIFT ALT_N CAL_P E_GATE GATE_N APO_N PASCAL (1: the barometer is the 32-bit pascal word
-        ``BARO_PA``) MACH_N DLY_N DV A_COAST COAST_N V_DESC DU (issue 20's flight logic) and, per gain,
+        ``BARO_PA``) MACH_N DLY_N DV A_COAST COAST_N V_DESC DU A_DRAG CLIP_N (issue 20's flight logic) and, per gain,
         ``<NAME>_M`` and ``<NAME>_S``. (The
         table nodes themselves are ROM data: :meth:`data_source`.)"""
         eq = {name: int(getattr(self, name)) for name in
               ("K", "ROUND", "BARO_SIGN", "S", "THR", "V_LIFT", "V_GATE", "MACH_VLO", "MACH_VHI", "MACH_E",
                "BARO_MIN", "BARO_MAX", "ALT_SHIFT", "ALT_N", "CAL_P", "E_GATE", "GATE_N", "APO_N", "PASCAL",
-               "MACH_N", "DLY_N", "DV", "A_COAST", "COAST_N", "V_DESC", "DU")}
+               "MACH_N", "DLY_N", "DV", "A_COAST", "COAST_N", "V_DESC", "DU", "A_DRAG", "CLIP_N")}
         for name, g in self.gains.items():
             eq[f"{name}_M"] = int(g.m)
             eq[f"{name}_S"] = int(g.s)

@@ -215,7 +215,7 @@ def test_firmware_sources_assemble(program: str, rounding: str) -> None:
 # step on the emulated CPU and check it against docs/firmware-spec.md §5/§6 written out below as a one-step
 # oracle with Python integers.
 
-LIFTOFF, ARMED, APOGEE, MACH, INVALID, PRED, GATE_HIGH, REJECT, CLIP = 1, 2, 4, 8, 16, 32, 64, 128, 256
+LIFTOFF, ARMED, APOGEE, MACH, INVALID, PRED, GATE_HIGH, REJECT, CLIP, CLEAR = 1, 2, 4, 8, 16, 32, 64, 128, 256, 512
 LATCHED = LIFTOFF | ARMED | APOGEE | PRED | GATE_HIGH
 
 
@@ -238,7 +238,7 @@ def spec_kalman_step(c: object, st: dict[str, int], adc: int, acc: int) -> dict[
     g = {name: (q.m, q.s) for name, q in c.gains.items()}
     accel = "ACC_G" in g
     st = dict(st)
-    ev = st["EVENTS"] & LATCHED
+    ev = st["EVENTS"] & (LATCHED | CLIP | CLEAR)
     ok = c.BARO_MIN <= adc <= c.BARO_MAX
     if not ok:
         ev |= INVALID
@@ -261,10 +261,23 @@ def spec_kalman_step(c: object, st: dict[str, int], adc: int, acc: int) -> dict[
     t1 = rs_exact(x2, K, h) + rs_exact(x3, 2 * K + 1, h)             # 2. predict
     t2 = rs_exact(x3, K, h)
     x1, x2 = wrap32(x1 + t1), wrap32(x2 + t2)
-    e2 = wrap32(_mulg_exact(acc - st["ACC0"], *g["ACC_G"], h) - x3) if accel else 0   # 3. accel innovation
+    a = _mulg_exact(acc - st["ACC0"], *g["ACC_G"], h) if accel else 0
+    e2 = wrap32(a - x3) if accel else 0                               # 3. accel innovation
     locked = rebase = False
     if accel:                                                         # 4. Mach lockout
-        if ev & LIFTOFF and x2 > c.MACH_VLO:
+        if ev & CLIP and not ev & CLEAR:                              # after a clip: the re-base window
+            st["LOCK"], locked = c.MACH_N, True
+            if st["PHASE"] == 2 and a >= -c.A_DRAG and ok:
+                e = wrap32(hh - x1)
+                st["CLP"] += 1
+                st["E0"] = wrap32(st["E0"] - e if st["CLP"] <= 1 << K else st["E0"] + e)
+                if st["CLP"] == 2 << K:
+                    x2 = wrap32(x2 + rs_exact(st["E0"], K, h))
+                    st["VB"], st["LOCK"], locked, rebase = x2, 0, False, True
+                    ev |= CLEAR
+            else:
+                st["CLP"], st["E0"] = 0, 0
+        elif ev & LIFTOFF and x2 > c.MACH_VLO:
             st["LOCK"], locked = c.MACH_N, True
         elif st["LOCK"] > 1:
             st["LOCK"], locked = st["LOCK"] - 1, True
@@ -306,6 +319,14 @@ def spec_kalman_step(c: object, st: dict[str, int], adc: int, acc: int) -> dict[
     elif x2 > c.V_LIFT:
         ev |= LIFTOFF
         st["PHASE"], st["DLY"] = 1, c.DLY_N
+    if accel and st["PHASE"] == 1 and not ev & CLIP:                  # the accelerometer at its rail in boost
+        if acc == 32767:
+            st["CLP"] += 1
+            if st["CLP"] >= c.CLIP_N:
+                ev |= CLIP
+                st["CLP"] = 0
+        else:
+            st["CLP"] = 0
     st["VB"] = min(max(x2, st["VB"] - c.DV), st["VB"] + c.DU)         # 8. plausibility bound
     if st["PHASE"] == 1:                                              # 9. phases and apogee
         if x3 < -c.A_COAST:
@@ -315,7 +336,7 @@ def spec_kalman_step(c: object, st: dict[str, int], adc: int, acc: int) -> dict[
         else:
             st["CST"] = 0
     if st["PHASE"] == 2:
-        if st["DLY"] == 0 and st["VB"] < 0:
+        if st["DLY"] == 0 and st["VB"] < 0 and (not ev & CLIP or ev & CLEAR):
             st["NEG"] += 1
             if st["NEG"] >= c.APO_N:
                 ev |= APOGEE
@@ -340,9 +361,9 @@ def spec_kalman_step(c: object, st: dict[str, int], adc: int, acc: int) -> dict[
 def spec_recursive_step(c: object, st: dict[str, int], adc: int, acc: int) -> dict[str, int]:
     """docs/firmware-spec.md §5 steps 0-6, one sample, exact integers."""
     h = bool(c.ROUND)
-    ev = st["EVENTS"] & (LATCHED | CLIP)                            # 0. per-sample bits
+    ev = st["EVENTS"] & (LATCHED | CLIP | CLEAR)                    # 0. per-sample bits
     vel, acc0, suma, cal = st["VEL"], st["ACC0"], st["SUMA"], st["CAL"]
-    phase, cst = st["PHASE"], st["CST"]
+    phase, cst, clp = st["PHASE"], st["CST"], st["CLP"]
     if cal < (1 << c.CAL_P):                                         # 1. pad calibration
         suma, cal = suma + acc, cal + 1
         if cal == 1 << c.CAL_P:
@@ -359,10 +380,23 @@ def spec_recursive_step(c: object, st: dict[str, int], adc: int, acc: int) -> di
                     phase = 2
             else:
                 cst = 0
+        elif phase == 2 and ev & CLIP and not ev & CLEAR:            # after a clip: drag-low samples
+            if acc - acc0 >= -c.A_DRAG:
+                clp += 1
+                if clp >= 1 << c.K:
+                    ev |= CLEAR
+            else:
+                clp = 0
         elif phase == 3 and vel < -c.V_DESC:
             phase = 4
-        if ev & LIFTOFF and not ev & ARMED and acc == 32767:         # 3. the accelerometer at its rail
-            ev |= CLIP
+        if phase == 1 and not ev & CLIP:                             # 3. the accelerometer at its rail
+            if acc == 32767:
+                clp += 1
+                if clp >= c.CLIP_N:
+                    ev |= CLIP
+                    clp = 0
+            else:
+                clp = 0
         if ev & GATE_HIGH and not ev & ARMED and vel < c.V_GATE:     # 4a (GATE_HIGH from an earlier sample)
             ev |= ARMED
         if ev & LIFTOFF and vel > c.V_GATE:                          # 4b
@@ -385,7 +419,7 @@ def spec_recursive_step(c: object, st: dict[str, int], adc: int, acc: int) -> di
     if est > ext:                                                    # 6.
         ext, neg = est, 0
     elif ev & ARMED and not ev & APOGEE:
-        if ext - est >= c.THR:
+        if ext - est >= c.THR and (not ev & CLIP or ev & CLEAR):
             neg += 1
             if neg >= (c.APO_N if ev & CLIP else 1):
                 ev |= APOGEE
@@ -393,7 +427,7 @@ def spec_recursive_step(c: object, st: dict[str, int], adc: int, acc: int) -> di
         else:
             neg = 0
     return dict(st, EST=est, EXT=ext, VEL=vel, ACC0=acc0, EVENTS=ev, ZL=zl, SUMA=suma, CAL=cal, REJ=rej, NEG=neg,
-                PHASE=phase, CST=cst)
+                PHASE=phase, CST=cst, CLP=clp)
 
 
 class _Board:
@@ -440,7 +474,8 @@ def _kalman_state(board: _Board, **words: int) -> dict[str, int]:
     """A full Kalman state (calibrated unless CAL is given) restricted to the build's variables."""
     c = board.build.consts
     base = {"X1": 0, "X2": 0, "X3": 0, "ACC0": 0, "EVENTS": 0, "APFRAC": 0, "GND": 0, "SUMZ": 0, "SUMA": 0,
-            "CAL": 1 << c.CAL_P, "REJ": 0, "NEG": 0, "PHASE": 0, "CST": 0, "DLY": 0, "VB": 0, "LOCK": 0}
+            "CAL": 1 << c.CAL_P, "REJ": 0, "NEG": 0, "PHASE": 0, "CST": 0, "DLY": 0, "VB": 0, "LOCK": 0, "CLP": 0,
+            "E0": 0}
     base.update(words)
     return {name: base[name] for name in board.build.variables}
 
@@ -460,7 +495,8 @@ def test_kalman_one_step_boundaries(program: str, k: int, rounding: str, data: s
     acc0 = data.draw(st.integers(-32768, 32767), label="ACC0")
     acc = data.draw(st.one_of(st.just(acc0), st.integers(-32768, 32767)), label="acc")
     events = data.draw(st.sampled_from((0, LIFTOFF, LIFTOFF | APOGEE, LIFTOFF | PRED, LIFTOFF | MACH | INVALID,
-                                        LIFTOFF | REJECT, LIFTOFF | GATE_HIGH)),
+                                        LIFTOFF | REJECT, LIFTOFF | GATE_HIGH, LIFTOFF | CLIP, LIFTOFF | CLIP,
+                                        LIFTOFF | CLIP | CLEAR, LIFTOFF | CLIP | MACH)),
                        label="EVENTS")
     x3 = data.draw(st.one_of(st.just(0), _near(0, -(1 << (15 + k)), -(1 << 30), INT32_MIN, INT32_MAX)), label="X3")
     mode = data.draw(st.sampled_from(("window", "predict", "free")), label="mode")
@@ -494,8 +530,21 @@ def test_kalman_one_step_boundaries(program: str, k: int, rounding: str, data: s
     lock = data.draw(st.sampled_from((0, 0, 1, 2, c.MACH_N)), label="LOCK")
     if mode == "free":
         x3 = data.draw(st.one_of(st.just(x3), _near(-c.A_COAST)), label="X3_coast")
+    # the clip logic: the rail (32767), the drag reading at/next to -A_DRAG, the counter at the window's half, end
+    # and CLIP_N, E0 near 0 and the int32 ends
+    if program == "kalman_accel":
+        edge = data.draw(st.sampled_from(("none", "rail", "drag")), label="clip_edge")
+        if edge == "rail":
+            acc = 32767
+        elif edge == "drag":
+            per = c.gains["ACC_G"].m / 2.0 ** c.gains["ACC_G"].s       # Q24.8 m/s^2 per count
+            acc = max(-32768, min(32767, acc0 + round(-c.A_DRAG / per) + data.draw(st.integers(-1, 1), label="da")))
+    clp = data.draw(st.sampled_from((0, 1, (1 << k) - 1, 1 << k, (1 << k) + 1, (2 << k) - 1,
+                                     max(0, c.CLIP_N - 1))), label="CLP")
+    e0 = data.draw(st.one_of(_near(0, INT32_MIN, INT32_MAX), st.integers(INT32_MIN, INT32_MAX)), label="E0")
     state = _kalman_state(board, X1=x1, X2=x2, X3=x3, ACC0=acc0, EVENTS=events, CAL=cal, REJ=rej, NEG=neg,
-                          SUMZ=sumz, SUMA=suma, GND=12345, PHASE=phase, CST=cstv, DLY=dly, VB=vb, LOCK=lock)
+                          SUMZ=sumz, SUMA=suma, GND=12345, PHASE=phase, CST=cstv, DLY=dly, VB=vb, LOCK=lock,
+                          CLP=clp, E0=e0)
     got = board.step(dict(state), adc, acc)
     want = spec_kalman_step(c, dict(state), adc, acc)
     want = {name: want[name] for name in board.build.variables}
@@ -530,7 +579,7 @@ def test_recursive_one_step_boundaries(k: int, rounding: str, data: st.DataObjec
         st.sampled_from((0, LIFTOFF, LIFTOFF | GATE_HIGH, LIFTOFF | GATE_HIGH | ARMED,
                          LIFTOFF | GATE_HIGH | ARMED | APOGEE, LIFTOFF | CLIP | GATE_HIGH | ARMED,
                          LIFTOFF | GATE_HIGH | REJECT)),
-        st.sets(st.sampled_from((LIFTOFF, GATE_HIGH, ARMED, APOGEE, CLIP, REJECT))).map(sum)), label="EVENTS")
+        st.sets(st.sampled_from((LIFTOFF, GATE_HIGH, ARMED, APOGEE, CLIP, CLEAR, REJECT))).map(sum)), label="EVENTS")
     ncal = 1 << c.CAL_P
     cal = data.draw(st.sampled_from((ncal, ncal, ncal, ncal - 1, 0)), label="CAL")
     suma = data.draw(st.integers(-(1 << 23), 1 << 23), label="SUMA")
@@ -543,8 +592,13 @@ def test_recursive_one_step_boundaries(k: int, rounding: str, data: st.DataObjec
     if data.draw(st.booleans(), label="coast_edge"):
         acc = max(-32768, min(32767, acc0 - c.A_COAST + data.draw(st.integers(-1, 1), label="da")))
         vel = wrap32(-c.V_DESC + data.draw(st.integers(-1, 1), label="dv") - (acc - acc0))
+    # the clip logic: the drag reading at/next to -A_DRAG (the rail comes from the acc draw), CLP at/next to 2^K
+    # and CLIP_N
+    if data.draw(st.booleans(), label="drag_edge"):
+        acc = max(-32768, min(32767, acc0 - c.A_DRAG + data.draw(st.integers(-1, 1), label="dd")))
+    clp = data.draw(st.sampled_from((0, 1, (1 << k) - 1, 1 << k, max(0, c.CLIP_N - 1), c.CLIP_N)), label="CLP")
     state = {"EST": est, "EXT": ext, "VEL": vel, "ACC0": acc0, "EVENTS": events, "ZL": zl, "SUMA": suma,
-             "CAL": cal, "REJ": rej, "NEG": neg, "PHASE": phase, "CST": cstv}
+             "CAL": cal, "REJ": rej, "NEG": neg, "PHASE": phase, "CST": cstv, "CLP": clp}
     got = board.step(dict(state), adc, acc)
     assert got == spec_recursive_step(c, dict(state), adc, acc), f"k={k} {rounding} state={state} adc={adc}"
 

@@ -352,3 +352,28 @@ def test_cpu_equals_model_supersonic_dip_flights_reach_every_new_branch(program:
         assert (ev & EVENT_BITS["MACH_LOCKOUT"]).any()
         assert ((lock[:-1] == 1) & (lock[1:] == 1) & ((ev[1:] & EVENT_BITS["BARO_INVALID"]) != 0)).any()
         assert ((lock[:-1] == 1) & (lock[1:] == 0)).any()
+
+
+@pytest.mark.parametrize("program", ["recursive", "kalman_accel"])
+@pytest.mark.parametrize("k, rounding", [(5, "floor"), (5, "half_up"), (7, "floor"), (7, "half_up")])
+def test_cpu_equals_model_on_a_clipped_supersonic_flight(program: str, k: int, rounding: str) -> None:
+    """The clip logic (spec §5 steps 2, 3, 6; §6 steps 4, 7, 9) on the emulated 68000: a 30 g boost at the +-16 g
+    accelerometer's rail for 1.4 s with a 400 m transonic dip (tests/model/test_kalman.py's clipped flight): every
+    word of every sample equal, and the run really went through ACC_CLIP, the drag-low counting (recursive) or the
+    2^(k+1)-sample window and the velocity re-base (kalman_accel), CLIP_CLEAR and then APOGEE."""
+    from firmware_model.model.streams import flight_params_for
+    from firmware_model.vectors.cases import case_config
+    from tests.support.transonic import DipFlight, dip_stream
+
+    cfg = case_config(program, rounding, k, 16)
+    f = DipFlight(k=k, boost_g=30.0, burn_s=1.4, drag_per_m=0.0002, dip_m=400.0, dip_s=1.5, jump_m=150.0,
+                  burst_m=50.0, burst_at=0.1, seed=k)
+    s = dip_stream(f, flight_params_for(cfg))
+    cpu = assert_same(cfg, s["adc"], s["acc"])
+    clip, clear, apogee = (cpu.first_event(b) for b in ("ACC_CLIP", "CLIP_CLEAR", "APOGEE"))
+    assert 0 < clip < clear < apogee, (clip, clear, apogee)
+    clp = cpu.column("CLP")
+    assert clp[clear - 1] == (2 ** (k + 1) - 1 if program == "kalman_accel" else 2 ** k - 1), clp[clear - 1]
+    if program == "kalman_accel":
+        x2 = cpu.column("X2")
+        assert x2[clear] - x2[clear - 1] > 100 * 256       # the re-base restores > 100 m/s the rail cut off

@@ -11,11 +11,12 @@
 *
 * Field-ready logic (spec section 5): ACC0 averaged over 2^CAL_P pad samples; a barometer rate gate (a sample
 * more than E_GATE counts from the last used one is not used, for up to GATE_N samples: BARO_REJECT; then EST
-* and EXT are re-based by the shift and it is used); ACC_CLIP
-* latched when the accelerometer reads its rail (32767) before ARMED, after which APOGEE needs APO_N samples.
+* and EXT are re-based by the shift and it is used); ACC_CLIP latched when the accelerometer reads its rail (32767)
+* for CLIP_N samples in a row in BOOST, after which APOGEE needs APO_N samples of evidence, none counting until
+* CLIP_CLEAR: the drag reading acc - ACC0 >= -A_DRAG for 2^K samples in a row in COAST (issue 20).
 *
 * Contract: docs/firmware-spec.md section 5.  Constants (S, THR, V_LIFT, V_GATE, ROUND, BARO_SIGN, CAL_P, E_GATE,
-* GATE_N, APO_N) come from the build.  Entry points: init, step (JSR/RTS).  Uses D0-D7; no stack beyond the
+* GATE_N, APO_N, A_COAST, COAST_N, V_DESC, A_DRAG, CLIP_N, K) come from the build.  Entry points: init, step (JSR/RTS).  Uses D0-D7; no stack beyond the
 * return address.
 *****************************************************************************************************************
         include "fwemu.inc"
@@ -49,6 +50,7 @@ init    READZS  d0,0                    ; z
         clr.w   (NEG).w
         clr.w   (PHASE).w               ; PH_PAD
         clr.w   (CST).w
+        clr.w   (CLP).w
         rts
 
 *****************************************************************************************************************
@@ -88,10 +90,11 @@ step    move.w  (EVENTS).w,d7
         ble.s   .phase
         ori.w   #EV_LIFTOFF,d7
         move.w  #PH_BOOST,(PHASE).w
-*---- phases: BOOST: CST counts acc - ACC0 < -A_COAST, COAST_N -> COAST; APOGEE and VEL < -V_DESC: DESCENT ---------
+*---- phases: BOOST: CST counts acc - ACC0 < -A_COAST, COAST_N -> COAST; COAST after a clip: CLP counts drag-low
+*     samples (acc - ACC0 >= -A_DRAG), 2^K -> CLIP_CLEAR; APOGEE and VEL < -V_DESC: DESCENT ----------------------------
 .phase  move.w  (PHASE).w,d0
         cmpi.w  #PH_BOOST,d0
-        bne.s   .desc
+        bne.s   .coastc
         move.l  d6,d3
         sub.l   (ACC0).w,d3             ; acc - ACC0 (exact)
         cmpi.l  #-A_COAST,d3
@@ -105,19 +108,48 @@ step    move.w  (EVENTS).w,d7
         bra.s   .clip
 .cst0   clr.w   (CST).w
         bra.s   .clip
+.coastc cmpi.w  #PH_COAST,d0
+        bne.s   .desc
+        move.w  d7,d3
+        andi.w  #EV_ACC_CLIP|EV_CLIP_CLEAR,d3
+        cmpi.w  #EV_ACC_CLIP,d3         ; equal only for "ACC_CLIP and not CLIP_CLEAR"
+        bne.s   .clip
+        move.l  d6,d3
+        sub.l   (ACC0).w,d3             ; acc - ACC0 (exact)
+        cmpi.l  #-A_DRAG,d3
+        blt.s   .clp0                   ; drag high
+        move.w  (CLP).w,d3
+        addq.w  #1,d3                   ; CLP < 2^K <= 1024 here
+        move.w  d3,(CLP).w
+        cmpi.w  #1<<K,d3
+        bcs.s   .clip
+        ori.w   #EV_CLIP_CLEAR,d7
+        bra.s   .clip
+.clp0   clr.w   (CLP).w
+        bra.s   .clip
 .desc   cmpi.w  #PH_APOGEE,d0
         bne.s   .clip
         cmpi.l  #-V_DESC,d1
         bge.s   .clip
         move.w  #PH_DESCENT,(PHASE).w
-*---- 3. LIFTOFF and not ARMED and acc == 32767 (the rail): set ACC_CLIP --------------------------------------------
-.clip   moveq   #EV_LIFTOFF|EV_ARMED,d0
-        and.w   d7,d0
-        subq.w  #EV_LIFTOFF,d0          ; zero only for "LIFTOFF and not ARMED"
+*---- 3. BOOST and not ACC_CLIP: CLP counts acc == 32767 (the rail); CLIP_N in a row set ACC_CLIP, CLP = 0 -------
+.clip   move.w  (PHASE).w,d0
+        cmpi.w  #PH_BOOST,d0
+        bne.s   .gate
+        move.w  d7,d0
+        andi.w  #EV_ACC_CLIP,d0
         bne.s   .gate
         cmpi.w  #32767,d6
-        bne.s   .gate
+        bne.s   .clpz
+        move.w  (CLP).w,d0
+        addq.w  #1,d0                   ; CLP < CLIP_N <= 32767 here
+        cmpi.w  #CLIP_N,d0
+        bcs.s   .clps
         ori.w   #EV_ACC_CLIP,d7
+        moveq   #0,d0
+.clps   move.w  d0,(CLP).w
+        bra.s   .gate
+.clpz   clr.w   (CLP).w
 *---- 4a. GATE_HIGH and not ARMED and VEL < V_GATE: set ARMED -------------------------------------------------------
 *     (GATE_HIGH as it was before 4b of this sample: the sample that sets GATE_HIGH cannot also set ARMED)
 .gate   moveq   #EV_GATE_HIGH|EV_ARMED,d0
@@ -185,6 +217,10 @@ step    move.w  (EVENTS).w,d7
         sub.l   d2,d0                   ; EXT - EST: exact as an UNSIGNED long, since 0 <= EXT - EST < 2^32 here
         cmpi.l  #THR,d0
         bcs.s   .reset                  ; unsigned below the threshold: no evidence
+        move.w  d7,d1
+        andi.w  #EV_ACC_CLIP|EV_CLIP_CLEAR,d1
+        cmpi.w  #EV_ACC_CLIP,d1
+        beq.s   .reset                  ; clipped and not yet cleared: no evidence
         move.w  (NEG).w,d1
         addq.w  #1,d1                   ; NEG < APO_N <= 32767 here: no overflow
         move.w  d1,(NEG).w
@@ -219,3 +255,4 @@ REJ:    ds.w    1                       ; consecutive rejected barometer samples
 NEG:    ds.w    1                       ; consecutive armed samples with EXT - EST >= THR
 PHASE:  ds.w    1                       ; flight phase PH_* (fwemu.inc; reported, not used by the apogee logic)
 CST:    ds.w    1                       ; consecutive BOOST samples with acc - ACC0 < -A_COAST
+CLP:    ds.w    1                       ; BOOST: consecutive rail samples; COAST after ACC_CLIP: drag-low samples
