@@ -235,7 +235,7 @@ def test_flight_vector_cases_carry_provenance_and_licence():
     from firmware_model.vectors.flight_cases import FLIGHT_CASES
 
     docs = _flight_vector_docs()
-    assert len(docs) == sum(len(c[4]) for c in FLIGHT_CASES) == 10
+    assert len(docs) == sum(len(c[4]) for c in FLIGHT_CASES) == 11
     shared = Path(os.environ.get("FWEMU_SHARED_FLIGHTS")
                   or Path(__file__).resolve().parents[2].parent / "shared" / "flights")
     for name, doc in docs.items():
