@@ -308,6 +308,22 @@ def recursive_init(st, adc, acc, c):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True, inline="always")
+def _rail_count(st, i_clp, phase, ev, acc, clip_n):  # type: ignore[no-untyped-def]
+    """docs/firmware-spec.md §5 step 3 and §6 step 7 (the accelerometer programs): in BOOST and before ACC_CLIP,
+    st[i_clp] counts consecutive samples at the accelerometer's rail (32767); the CLIP_N-th sets ACC_CLIP and
+    CLP = 0. Returns EVENTS."""
+    if phase == PH_BOOST and (ev & ACC_CLIP) == 0:
+        if acc == 32767:
+            st[i_clp] = st[i_clp] + 1
+            if st[i_clp] >= clip_n:
+                ev |= ACC_CLIP
+                st[i_clp] = 0
+        else:
+            st[i_clp] = 0
+    return ev
+
+
+@njit(cache=True, inline="always")
 def recursive_step(st, adc, acc, c):  # type: ignore[no-untyped-def]
     """docs/firmware-spec.md §5 steps 0-6; returns the first wrap id of the sample (0: none)."""
     rnd = c[C_ROUND]
@@ -349,15 +365,8 @@ def recursive_step(st, adc, acc, c):  # type: ignore[no-untyped-def]
                 st[CLP_R] = 0
         elif st[PHASE_R] == PH_APOGEE and vel < -c[C_V_DESC]:
             st[PHASE_R] = PH_DESCENT
-        # 3. accelerometer at its rail: VEL underestimates from now on
-        if st[PHASE_R] == PH_BOOST and (ev & ACC_CLIP) == 0:
-            if acc == 32767:
-                st[CLP_R] = st[CLP_R] + 1
-                if st[CLP_R] >= c[C_CLIP_N]:
-                    ev |= ACC_CLIP
-                    st[CLP_R] = 0
-            else:
-                st[CLP_R] = 0
+        # 3. accelerometer at its rail for CLIP_N samples in boost: VEL underestimates from now on
+        ev = _rail_count(st, CLP_R, st[PHASE_R], ev, acc, c[C_CLIP_N])
         # 4a. armed once VEL is back below the gate, on a sample after the one that set GATE_HIGH (4b runs after)
         if (ev & GATE_HIGH) != 0 and (ev & ARMED) == 0 and vel < c[C_V_GATE]:
             ev |= ARMED
@@ -642,14 +651,8 @@ def kalman_step(st, adc, acc, c, accel):  # type: ignore[no-untyped-def]
         st[PHASE] = PH_BOOST
         st[DLY] = c[C_DLY_N]
     # 7b. accelerometer at its rail for CLIP_N samples in boost: the integral underestimates the speed from now on
-    if accel and st[PHASE] == PH_BOOST and (ev & ACC_CLIP) == 0:
-        if acc == 32767:
-            st[CLP] = st[CLP] + 1
-            if st[CLP] >= c[C_CLIP_N]:
-                ev |= ACC_CLIP
-                st[CLP] = 0
-        else:
-            st[CLP] = 0
+    if accel:
+        ev = _rail_count(st, CLP, st[PHASE], ev, acc, c[C_CLIP_N])
     # 8. plausibility bound: VB follows X2, falling by at most DV and rising by at most DU per sample
     vb = st[VB] - c[C_DV]
     if vb < x2:

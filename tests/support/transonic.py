@@ -81,17 +81,15 @@ def dip_stream(f: DipFlight, params: FlightParams, pascal: bool = False) -> dict
             "dip_samples": np.concatenate(dips), "error_m": err, "pad_s": p.pad_s}
 
 
-@st.composite
-def dip_flights(draw, k: st.SearchStrategy[int] = st.sampled_from((5, 6, 7))) -> DipFlight:
-    """Hypothesis strategy: supersonic 1-DOF flights (peak Mach ~1-2 at 8-14 g, so the +-16 g accelerometer does
-    not clip) with a 100-800 m dip of 1-2 s around each Mach 1 crossing, a 0-300 m jump after it and a noise
-    burst of 0-200 m rms in the first 40 % of the ascent (staging)."""
-    boost_g = draw(st.floats(8.0, 14.0), label="boost_g")
+def _draw_dip_flight(draw, k: st.SearchStrategy[int], boost: tuple[float, float], min_burn_s: float) -> DipFlight:
+    """One flight of the strategies below: a boost of ``boost`` g (uniform) to Mach 1.05-2.0, burning at least
+    ``min_burn_s``, with the barometer errors of the module docstring."""
+    boost_g = draw(st.floats(*boost), label="boost_g")
     mach = draw(st.floats(1.05, 2.0), label="target_mach")
     drag = draw(st.floats(0.0001, 0.0004), label="drag_per_m")
     # burn time to reach the target speed, with the drag at the target speed subtracted from the thrust
     net = boost_g * 9.80665 - drag * (mach * MACH1_MPS) ** 2 * 0.5
-    burn = min(8.0, mach * MACH1_MPS / max(net, 20.0))
+    burn = max(min_burn_s, min(8.0, mach * MACH1_MPS / max(net, 20.0)))
     return DipFlight(k=draw(k, label="k"), boost_g=boost_g, burn_s=burn, drag_per_m=drag,
                      dip_m=draw(st.floats(100.0, 800.0), label="dip_m"),
                      dip_s=draw(st.floats(1.0, 2.0), label="dip_s"),
@@ -99,6 +97,14 @@ def dip_flights(draw, k: st.SearchStrategy[int] = st.sampled_from((5, 6, 7))) ->
                      burst_m=draw(st.floats(0.0, 200.0), label="burst_m"),
                      burst_at=draw(st.floats(0.02, 0.4), label="burst_at"),
                      seed=draw(st.integers(0, 2**31 - 1), label="seed"))
+
+
+@st.composite
+def dip_flights(draw, k: st.SearchStrategy[int] = st.sampled_from((5, 6, 7))) -> DipFlight:
+    """Hypothesis strategy: supersonic 1-DOF flights (peak Mach ~1-2 at 8-14 g, so the +-16 g accelerometer does
+    not clip) with a 100-800 m dip of 1-2 s around each Mach 1 crossing, a 0-300 m jump after it and a noise
+    burst of 0-200 m rms in the first 40 % of the ascent (staging)."""
+    return _draw_dip_flight(draw, k, (8.0, 14.0), 0.0)
 
 
 @st.composite
@@ -106,15 +112,4 @@ def clipped_dip_flights(draw, k: st.SearchStrategy[int] = st.sampled_from((5, 6,
     """Hypothesis strategy: supersonic flights of :func:`dip_flights`' kind whose boost (20-50 g) exceeds the
     +-16 g accelerometer for the whole burn (0.3 s or more): the integrated velocity then misses up to ~34 g x the
     burn time, the case of docs/firmware-spec.md History "Clipped accelerometer"."""
-    boost_g = draw(st.floats(20.0, 50.0), label="boost_g")
-    mach = draw(st.floats(1.05, 2.0), label="target_mach")
-    drag = draw(st.floats(0.0001, 0.0004), label="drag_per_m")
-    net = boost_g * 9.80665 - drag * (mach * MACH1_MPS) ** 2 * 0.5
-    burn = max(0.3, min(8.0, mach * MACH1_MPS / max(net, 20.0)))
-    return DipFlight(k=draw(k, label="k"), boost_g=boost_g, burn_s=burn, drag_per_m=drag,
-                     dip_m=draw(st.floats(100.0, 800.0), label="dip_m"),
-                     dip_s=draw(st.floats(1.0, 2.0), label="dip_s"),
-                     jump_m=draw(st.floats(0.0, 300.0), label="jump_m"),
-                     burst_m=draw(st.floats(0.0, 200.0), label="burst_m"),
-                     burst_at=draw(st.floats(0.02, 0.4), label="burst_at"),
-                     seed=draw(st.integers(0, 2**31 - 1), label="seed"))
+    return _draw_dip_flight(draw, k, (20.0, 50.0), 0.3)

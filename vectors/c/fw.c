@@ -110,6 +110,24 @@ void fw_init(fw_program prog, const fw_consts *c, fw_state *st, int32_t adc, int
     }
 }
 
+/* spec sections 5 step 3 and 6 step 7 (the accelerometer programs): in boost and before ACC_CLIP, CLP counts
+   consecutive samples at the accelerometer's rail (32767); the CLIP_N-th sets ACC_CLIP and CLP = 0. A macro on
+   the state's fields (st->CLP, st->EVENTS), so a port that keeps other types for them still compiles it. */
+#define RAIL_COUNT(st, acc, clip_n)                                        \
+    do {                                                                   \
+        if ((st)->PHASE == FW_PH_BOOST && !((st)->EVENTS & FW_EV_ACC_CLIP)) { \
+            if ((acc) == 32767) {                                          \
+                (st)->CLP = (uint16_t)((st)->CLP + 1u);                    \
+                if ((int32_t)(st)->CLP >= (clip_n)) {                      \
+                    (st)->EVENTS |= FW_EV_ACC_CLIP;                        \
+                    (st)->CLP = 0;                                         \
+                }                                                          \
+            } else {                                                       \
+                (st)->CLP = 0;                                             \
+            }                                                              \
+        }                                                                  \
+    } while (0)
+
 static void step_recursive(const fw_consts *c, fw_state *st, int32_t adc, int16_t acc)
 {
     int64_t z = baro_z(c, adc);
@@ -156,17 +174,7 @@ static void step_recursive(const fw_consts *c, fw_state *st, int32_t adc, int16_
         }
         /* 3. the accelerometer at its rail (32767) for CLIP_N samples in a row in boost: VEL underestimates from
               now on */
-        if (st->PHASE == FW_PH_BOOST && !(st->EVENTS & FW_EV_ACC_CLIP)) {
-            if (acc == 32767) {
-                st->CLP = (uint16_t)(st->CLP + 1u);
-                if ((int32_t)st->CLP >= c->CLIP_N) {
-                    st->EVENTS |= FW_EV_ACC_CLIP;
-                    st->CLP = 0;
-                }
-            } else {
-                st->CLP = 0;
-            }
-        }
+        RAIL_COUNT(st, acc, c->CLIP_N);
         /* 4. velocity gate: a. armed when VEL is back below the gate (GATE_HIGH from an earlier sample);
               b. GATE_HIGH once VEL exceeds the gate after liftoff */
         if ((st->EVENTS & FW_EV_GATE_HIGH) && !(st->EVENTS & FW_EV_ARMED) && st->VEL < c->V_GATE) {
@@ -356,16 +364,8 @@ static void step_kalman(const fw_consts *c, fw_state *st, int32_t adc, int16_t a
         st->DLY = (uint16_t)c->DLY_N;
     }
     /* 7b. kalman_accel: the accelerometer at its rail (32767) for CLIP_N samples in a row in boost */
-    if (with_accel && st->PHASE == FW_PH_BOOST && !(st->EVENTS & FW_EV_ACC_CLIP)) {
-        if (acc == 32767) {
-            st->CLP = (uint16_t)(st->CLP + 1u);
-            if ((int32_t)st->CLP >= c->CLIP_N) {
-                st->EVENTS |= FW_EV_ACC_CLIP;
-                st->CLP = 0;
-            }
-        } else {
-            st->CLP = 0;
-        }
+    if (with_accel) {
+        RAIL_COUNT(st, acc, c->CLIP_N);
     }
     /* 8. plausibility bound VB = min(max(X2, VB - DV), VB + DU), exact in int64 (the result is an int32) */
     {
