@@ -216,7 +216,7 @@ def test_firmware_sources_assemble(program: str, rounding: str) -> None:
 # oracle with Python integers.
 
 LIFTOFF, ARMED, APOGEE, MACH, INVALID, PRED, GATE_HIGH, REJECT, CLIP, CLEAR = 1, 2, 4, 8, 16, 32, 64, 128, 256, 512
-LATCHED = LIFTOFF | ARMED | APOGEE | PRED | GATE_HIGH
+LATCHED = LIFTOFF | ARMED | APOGEE | PRED | GATE_HIGH | CLIP | CLEAR
 
 
 def _mulg_exact(e: int, m: int, s: int, half_up: bool) -> int:
@@ -238,7 +238,7 @@ def spec_kalman_step(c: object, st: dict[str, int], adc: int, acc: int) -> dict[
     g = {name: (q.m, q.s) for name, q in c.gains.items()}
     accel = "ACC_G" in g
     st = dict(st)
-    ev = st["EVENTS"] & (LATCHED | CLIP | CLEAR)
+    ev = st["EVENTS"] & LATCHED
     ok = c.BARO_MIN <= adc <= c.BARO_MAX
     if not ok:
         ev |= INVALID
@@ -261,22 +261,25 @@ def spec_kalman_step(c: object, st: dict[str, int], adc: int, acc: int) -> dict[
     t1 = rs_exact(x2, K, h) + rs_exact(x3, 2 * K + 1, h)             # 2. predict
     t2 = rs_exact(x3, K, h)
     x1, x2 = wrap32(x1 + t1), wrap32(x2 + t2)
-    a = _mulg_exact(acc - st["ACC0"], *g["ACC_G"], h) if accel else 0
-    e2 = wrap32(a - x3) if accel else 0                               # 3. accel innovation
+    a = _mulg_exact(acc - st["ACC0"], *g["ACC_G"], h) if accel else 0   # 3. accel innovation
+    e2 = wrap32(a - x3) if accel else 0
     locked = rebase = False
     if accel:                                                         # 4. Mach lockout
-        if ev & CLIP and not ev & CLEAR:                              # after a clip: the re-base window
-            st["LOCK"], locked = c.MACH_N, True
+        if ev & CLIP and not ev & CLEAR:                              # clip: barometer out until the window
+            locked = True
+            st["LOCK"] = c.MACH_N
             if st["PHASE"] == 2 and a >= -c.A_DRAG and ok:
                 e = wrap32(hh - x1)
                 st["CLP"] += 1
                 st["E0"] = wrap32(st["E0"] - e if st["CLP"] <= 1 << K else st["E0"] + e)
-                if st["CLP"] == 2 << K:
+                if st["CLP"] == 2 << K:                               # complete: re-base the velocity
                     x2 = wrap32(x2 + rs_exact(st["E0"], K, h))
-                    st["VB"], st["LOCK"], locked, rebase = x2, 0, False, True
+                    st["VB"] = x2
+                    st["LOCK"] = 0
                     ev |= CLEAR
+                    locked, rebase = False, True
             else:
-                st["CLP"], st["E0"] = 0, 0
+                st["CLP"] = st["E0"] = 0
         elif ev & LIFTOFF and x2 > c.MACH_VLO:
             st["LOCK"], locked = c.MACH_N, True
         elif st["LOCK"] > 1:
@@ -319,7 +322,7 @@ def spec_kalman_step(c: object, st: dict[str, int], adc: int, acc: int) -> dict[
     elif x2 > c.V_LIFT:
         ev |= LIFTOFF
         st["PHASE"], st["DLY"] = 1, c.DLY_N
-    if accel and st["PHASE"] == 1 and not ev & CLIP:                  # the accelerometer at its rail in boost
+    if accel and st["PHASE"] == 1 and not ev & CLIP:                  # 7b. accelerometer at its rail
         if acc == 32767:
             st["CLP"] += 1
             if st["CLP"] >= c.CLIP_N:
@@ -361,7 +364,7 @@ def spec_kalman_step(c: object, st: dict[str, int], adc: int, acc: int) -> dict[
 def spec_recursive_step(c: object, st: dict[str, int], adc: int, acc: int) -> dict[str, int]:
     """docs/firmware-spec.md §5 steps 0-6, one sample, exact integers."""
     h = bool(c.ROUND)
-    ev = st["EVENTS"] & (LATCHED | CLIP | CLEAR)                    # 0. per-sample bits
+    ev = st["EVENTS"] & LATCHED                                      # 0. per-sample bits
     vel, acc0, suma, cal = st["VEL"], st["ACC0"], st["SUMA"], st["CAL"]
     phase, cst, clp = st["PHASE"], st["CST"], st["CLP"]
     if cal < (1 << c.CAL_P):                                         # 1. pad calibration
@@ -380,7 +383,7 @@ def spec_recursive_step(c: object, st: dict[str, int], adc: int, acc: int) -> di
                     phase = 2
             else:
                 cst = 0
-        elif phase == 2 and ev & CLIP and not ev & CLEAR:            # after a clip: drag-low samples
+        elif phase == 2 and ev & CLIP and not ev & CLEAR:            # drag-low coast samples after a clip
             if acc - acc0 >= -c.A_DRAG:
                 clp += 1
                 if clp >= 1 << c.K:
@@ -474,10 +477,33 @@ def _kalman_state(board: _Board, **words: int) -> dict[str, int]:
     """A full Kalman state (calibrated unless CAL is given) restricted to the build's variables."""
     c = board.build.consts
     base = {"X1": 0, "X2": 0, "X3": 0, "ACC0": 0, "EVENTS": 0, "APFRAC": 0, "GND": 0, "SUMZ": 0, "SUMA": 0,
-            "CAL": 1 << c.CAL_P, "REJ": 0, "NEG": 0, "PHASE": 0, "CST": 0, "DLY": 0, "VB": 0, "LOCK": 0, "CLP": 0,
-            "E0": 0}
+            "CAL": 1 << c.CAL_P, "REJ": 0, "NEG": 0, "PHASE": 0, "CST": 0, "DLY": 0, "VB": 0, "LOCK": 0,
+            "CLP": 0, "E0": 0}
     base.update(words)
     return {name: base[name] for name in board.build.variables}
+
+
+def _clp_values(c: object) -> tuple[int, ...]:
+    """The clip counter CLP at/next to its boundaries: CLIP_N (rail count in BOOST), 2^K (recursive: CLIP_CLEAR;
+    kalman_accel: the window's half) and 2^(K+1) (kalman_accel: the window complete)."""
+    return tuple(sorted({max(0, v) for v in (0, 1, c.CLIP_N - 2, c.CLIP_N - 1, c.CLIP_N, (1 << c.K) - 1, 1 << c.K,
+                                               (1 << c.K) + 1, (2 << c.K) - 2, (2 << c.K) - 1)}))
+
+
+def _acc_near_drag(c: object, acc0: int, step: int) -> int:
+    """An accelerometer word whose a = mulg(acc - ACC0, ACC_G) (spec §6 step 3) is the step-th one at or above
+    -A_DRAG (step >= 0) or below it (step < 0), clamped to the 16-bit range: a == -A_DRAG itself when a word
+    gives it."""
+    m, sh = c.gains["ACC_G"].m, c.gains["ACC_G"].s
+    h = bool(c.ROUND)
+    a = lambda x: _mulg_exact(x - acc0, m, sh, h)   # noqa: E731 - increasing in x (ACC_G > 0)
+    x = acc0 - (c.A_DRAG << sh) // max(1, m)        # about where a crosses -A_DRAG
+    x = max(-32768, min(32767, x))
+    while x > -32768 and a(x) >= -c.A_DRAG:
+        x -= 1
+    while x < 32767 and a(x) < -c.A_DRAG:
+        x += 1                                        # x: the first word with a >= -A_DRAG
+    return max(-32768, min(32767, x + step))
 
 
 @settings(max_examples=examples(150, ci=40), deadline=None)
@@ -496,8 +522,14 @@ def test_kalman_one_step_boundaries(program: str, k: int, rounding: str, data: s
     acc = data.draw(st.one_of(st.just(acc0), st.integers(-32768, 32767)), label="acc")
     events = data.draw(st.sampled_from((0, LIFTOFF, LIFTOFF | APOGEE, LIFTOFF | PRED, LIFTOFF | MACH | INVALID,
                                         LIFTOFF | REJECT, LIFTOFF | GATE_HIGH, LIFTOFF | CLIP, LIFTOFF | CLIP,
-                                        LIFTOFF | CLIP | CLEAR, LIFTOFF | CLIP | MACH)),
+                                        LIFTOFF | CLIP | CLEAR, LIFTOFF | CLEAR)),
                        label="EVENTS")
+    # the clipped accelerometer: the rail, and a = mulg(acc - ACC0, ACC_G) at/next to -A_DRAG
+    clip_acc = data.draw(st.sampled_from(("any", "rail", "drag")), label="clip_acc")
+    if clip_acc == "rail":
+        acc = 32767
+    elif clip_acc == "drag" and program == "kalman_accel":
+        acc = _acc_near_drag(c, acc0, data.draw(st.integers(-2, 2), label="drag_step"))
     x3 = data.draw(st.one_of(st.just(0), _near(0, -(1 << (15 + k)), -(1 << 30), INT32_MIN, INT32_MAX)), label="X3")
     mode = data.draw(st.sampled_from(("window", "predict", "free")), label="mode")
     if mode == "predict":
@@ -528,20 +560,11 @@ def test_kalman_one_step_boundaries(program: str, k: int, rounding: str, data: s
     vb = data.draw(st.one_of(_near(x2_new + c.DV, x2_new - c.DU, 0, INT32_MIN, INT32_MAX),
                              st.integers(INT32_MIN, INT32_MAX)), label="VB")
     lock = data.draw(st.sampled_from((0, 0, 1, 2, c.MACH_N)), label="LOCK")
+    # the clip counter at/next to CLIP_N (rail) and to the window's half and end; its sum anywhere
+    clp = data.draw(st.sampled_from(_clp_values(c)), label="CLP")
+    e0 = data.draw(st.one_of(st.just(0), _near(0, INT32_MAX, INT32_MIN)), label="E0")
     if mode == "free":
         x3 = data.draw(st.one_of(st.just(x3), _near(-c.A_COAST)), label="X3_coast")
-    # the clip logic: the rail (32767), the drag reading at/next to -A_DRAG, the counter at the window's half, end
-    # and CLIP_N, E0 near 0 and the int32 ends
-    if program == "kalman_accel":
-        edge = data.draw(st.sampled_from(("none", "rail", "drag")), label="clip_edge")
-        if edge == "rail":
-            acc = 32767
-        elif edge == "drag":
-            per = c.gains["ACC_G"].m / 2.0 ** c.gains["ACC_G"].s       # Q24.8 m/s^2 per count
-            acc = max(-32768, min(32767, acc0 + round(-c.A_DRAG / per) + data.draw(st.integers(-1, 1), label="da")))
-    clp = data.draw(st.sampled_from((0, 1, (1 << k) - 1, 1 << k, (1 << k) + 1, (2 << k) - 1,
-                                     max(0, c.CLIP_N - 1))), label="CLP")
-    e0 = data.draw(st.one_of(_near(0, INT32_MIN, INT32_MAX), st.integers(INT32_MIN, INT32_MAX)), label="E0")
     state = _kalman_state(board, X1=x1, X2=x2, X3=x3, ACC0=acc0, EVENTS=events, CAL=cal, REJ=rej, NEG=neg,
                           SUMZ=sumz, SUMA=suma, GND=12345, PHASE=phase, CST=cstv, DLY=dly, VB=vb, LOCK=lock,
                           CLP=clp, E0=e0)
@@ -578,6 +601,7 @@ def test_recursive_one_step_boundaries(k: int, rounding: str, data: st.DataObjec
     events = data.draw(st.one_of(
         st.sampled_from((0, LIFTOFF, LIFTOFF | GATE_HIGH, LIFTOFF | GATE_HIGH | ARMED,
                          LIFTOFF | GATE_HIGH | ARMED | APOGEE, LIFTOFF | CLIP | GATE_HIGH | ARMED,
+                         LIFTOFF | CLIP, LIFTOFF | CLIP | GATE_HIGH, LIFTOFF | CLIP | CLEAR | GATE_HIGH | ARMED,
                          LIFTOFF | GATE_HIGH | REJECT)),
         st.sets(st.sampled_from((LIFTOFF, GATE_HIGH, ARMED, APOGEE, CLIP, CLEAR, REJECT))).map(sum)), label="EVENTS")
     ncal = 1 << c.CAL_P
@@ -590,13 +614,10 @@ def test_recursive_one_step_boundaries(k: int, rounding: str, data: st.DataObjec
     phase = data.draw(st.sampled_from((0, 1, 1, 2, 3, 3, 4)), label="PHASE")
     cstv = data.draw(st.sampled_from((0, max(0, c.COAST_N - 1), c.COAST_N - 2 if c.COAST_N >= 2 else 0)), label="CST")
     if data.draw(st.booleans(), label="coast_edge"):
-        acc = max(-32768, min(32767, acc0 - c.A_COAST + data.draw(st.integers(-1, 1), label="da")))
+        bound = data.draw(st.sampled_from((c.A_COAST, c.A_DRAG)), label="bound")   # coast / drag-low after a clip
+        acc = max(-32768, min(32767, acc0 - bound + data.draw(st.integers(-1, 1), label="da")))
         vel = wrap32(-c.V_DESC + data.draw(st.integers(-1, 1), label="dv") - (acc - acc0))
-    # the clip logic: the drag reading at/next to -A_DRAG (the rail comes from the acc draw), CLP at/next to 2^K
-    # and CLIP_N
-    if data.draw(st.booleans(), label="drag_edge"):
-        acc = max(-32768, min(32767, acc0 - c.A_DRAG + data.draw(st.integers(-1, 1), label="dd")))
-    clp = data.draw(st.sampled_from((0, 1, (1 << k) - 1, 1 << k, max(0, c.CLIP_N - 1), c.CLIP_N)), label="CLP")
+    clp = data.draw(st.sampled_from(_clp_values(c)), label="CLP")
     state = {"EST": est, "EXT": ext, "VEL": vel, "ACC0": acc0, "EVENTS": events, "ZL": zl, "SUMA": suma,
              "CAL": cal, "REJ": rej, "NEG": neg, "PHASE": phase, "CST": cstv, "CLP": clp}
     got = board.step(dict(state), adc, acc)
@@ -660,3 +681,65 @@ def test_kalman_apogee_prediction_exact_boundaries(k: int, rounding: str) -> Non
                 assert got == want, f"k={k} {rounding} d={dd} v={v} state={state}"
                 seen_overflow |= want["APFRAC"] == 65535 and not events & PRED
     assert seen_overflow, "no case reached the DIVU overflow"
+
+
+@pytest.mark.parametrize("rounding", ["floor", "half_up"])
+@pytest.mark.parametrize("k", [4, 7])
+@pytest.mark.parametrize("program", ["recursive", "kalman_baro", "kalman_accel"])
+def test_clip_counter_and_window_exact_boundaries(program: str, k: int, rounding: str) -> None:
+    """The clipped accelerometer (spec §5 steps 2, 3, 6; §6 steps 4, 7, 9b), every combination of: EVENTS with
+    ACC_CLIP / CLIP_CLEAR (and without), PHASE BOOST or COAST, CLP at/next to CLIP_N, 2^K and 2^(K+1), the
+    accelerometer at the rail / next to it / at-next to the drag bound -A_DRAG, the barometer valid or not
+    (Kalman), E0 at 0 and the int32 ends (the re-base's wraps). CPU == spec after one step, and the branches are
+    reached: ACC_CLIP set by the rail count, CLIP_CLEAR set (kalman_accel: with X2 re-based), a window reset."""
+    board = _board(program, k, rounding)
+    c = board.build.consts
+    seen = {"clip": 0, "clear": 0, "reset": 0, "rebase": 0}
+    if program == "recursive":
+        acc0 = 2048
+        accs = (32767, 32766, acc0 - c.A_DRAG - 1, acc0 - c.A_DRAG, acc0 - c.A_DRAG + 1)
+        for events in (LIFTOFF | GATE_HIGH, LIFTOFF | CLIP | GATE_HIGH | ARMED, LIFTOFF | CLIP | CLEAR | ARMED):
+            for phase in (1, 2):
+                for clp in _clp_values(c):
+                    for acc in accs:
+                        for ext_minus in (0, c.THR):        # apogee evidence (ARMED) or not
+                            state = {"EST": 1 << 20, "EXT": (1 << 20) + ext_minus, "VEL": 0, "ACC0": acc0,
+                                     "EVENTS": events, "ZL": 0, "SUMA": 0, "CAL": 1 << c.CAL_P, "REJ": 0,
+                                     "NEG": 0, "PHASE": phase, "CST": 0, "CLP": clp}
+                            got = board.step(dict(state), 0, acc)
+                            want = spec_recursive_step(c, dict(state), 0, acc)
+                            assert got == want, f"k={k} {rounding} state={state} acc={acc}"
+                            seen["clip"] += bool(got["EVENTS"] & CLIP and not events & CLIP)
+                            seen["clear"] += bool(got["EVENTS"] & CLEAR and not events & CLEAR)
+                            seen["reset"] += clp > 0 and got["CLP"] == 0
+        assert seen["clip"] and seen["clear"] and seen["reset"], seen
+        return
+    h = bool(c.ROUND)
+    adc = 30000
+    hh = spec_alt(c, adc)
+    accel = program == "kalman_accel"
+    acc0 = 100
+    accs = (32767, 32766) + ((tuple(_acc_near_drag(c, acc0, d) for d in (-1, 0, 1))) if accel else (acc0,))
+    for events in (LIFTOFF, LIFTOFF | CLIP, LIFTOFF | CLIP | CLEAR):
+        for phase in (1, 2):
+            for clp in _clp_values(c):
+                for acc in accs:
+                    for e0 in (0, INT32_MAX, INT32_MIN, -12345):
+                        for baro in (adc, 0):                      # valid, invalid (below BARO_MIN)
+                            x2, x3 = -256, 0                       # X2 < 0: VB < 0, so 9b's evidence is tested
+                            x1 = wrap32(hh - 1000 - rs_exact(x2, k, h))
+                            state = _kalman_state(board, X1=x1, X2=x2, X3=x3, ACC0=acc0, EVENTS=events,
+                                                  PHASE=phase, CLP=clp, E0=e0, VB=-256, NEG=max(0, c.APO_N - 1))
+                            got = board.step(dict(state), baro, acc)
+                            want = spec_kalman_step(c, dict(state), baro, acc)
+                            want = {name: want[name] for name in board.build.variables}
+                            assert got == want, f"{program} k={k} {rounding} state={state} adc={baro} acc={acc}"
+                            seen["clip"] += bool(got["EVENTS"] & CLIP and not events & CLIP)
+                            seen["clear"] += bool(got["EVENTS"] & CLEAR and not events & CLEAR)
+                            seen["reset"] += accel and clp > 0 and got["CLP"] == 0
+                            seen["rebase"] += bool(got["EVENTS"] & CLEAR and not events & CLEAR
+                                                   and got["X1"] != wrap32(x1 + rs_exact(x2, k, h)))
+    if accel:
+        assert all(seen.values()), seen
+    else:
+        assert not seen["clip"] and not seen["clear"], seen        # kalman_baro never sets either bit

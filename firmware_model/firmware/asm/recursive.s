@@ -11,12 +11,13 @@
 *
 * Field-ready logic (spec section 5): ACC0 averaged over 2^CAL_P pad samples; a barometer rate gate (a sample
 * more than E_GATE counts from the last used one is not used, for up to GATE_N samples: BARO_REJECT; then EST
-* and EXT are re-based by the shift and it is used); ACC_CLIP latched when the accelerometer reads its rail (32767)
-* for CLIP_N samples in a row in BOOST, after which APOGEE needs APO_N samples of evidence, none counting until
-* CLIP_CLEAR: the drag reading acc - ACC0 >= -A_DRAG for 2^K samples in a row in COAST (issue 20).
+* and EXT are re-based by the shift and it is used); ACC_CLIP
+* latched when the accelerometer reads its rail (32767) for CLIP_N consecutive samples in BOOST (CLP counts them),
+* after which no apogee evidence counts until CLIP_CLEAR (the drag reading acc - ACC0 >= -A_DRAG for 2^K
+* consecutive samples in COAST, CLP again) and APOGEE then needs APO_N samples.
 *
 * Contract: docs/firmware-spec.md section 5.  Constants (S, THR, V_LIFT, V_GATE, ROUND, BARO_SIGN, CAL_P, E_GATE,
-* GATE_N, APO_N, A_COAST, COAST_N, V_DESC, A_DRAG, CLIP_N, K) come from the build.  Entry points: init, step (JSR/RTS).  Uses D0-D7; no stack beyond the
+* GATE_N, APO_N, K, A_COAST, COAST_N, V_DESC, A_DRAG, CLIP_N) come from the build.  Entry points: init, step (JSR/RTS).  Uses D0-D7; no stack beyond the
 * return address.
 *****************************************************************************************************************
         include "fwemu.inc"
@@ -32,7 +33,8 @@ reset   lea     STACK_TOP,sp
         bra.s   .loop
 
 *****************************************************************************************************************
-* init -- EST = EXT = z << 8; VEL = 0; ACC0 = acc; EVENTS = 0; ZL = z; SUMA = 0; CAL = REJ = NEG = 0.
+* init -- EST = EXT = z << 8; VEL = 0; ACC0 = acc; EVENTS = 0; ZL = z; SUMA = 0; CAL = REJ = NEG = 0;
+* PHASE = PAD; CST = CLP = 0.
 *****************************************************************************************************************
 init    READZS  d0,0                    ; z
         move.l  d0,(ZL).w
@@ -90,11 +92,12 @@ step    move.w  (EVENTS).w,d7
         ble.s   .phase
         ori.w   #EV_LIFTOFF,d7
         move.w  #PH_BOOST,(PHASE).w
-*---- phases: BOOST: CST counts acc - ACC0 < -A_COAST, COAST_N -> COAST; COAST after a clip: CLP counts drag-low
-*     samples (acc - ACC0 >= -A_DRAG), 2^K -> CLIP_CLEAR; APOGEE and VEL < -V_DESC: DESCENT ----------------------------
+*---- phases: BOOST: CST counts acc - ACC0 < -A_COAST, COAST_N -> COAST; COAST after ACC_CLIP, not CLIP_CLEAR: CLP
+*     counts acc - ACC0 >= -A_DRAG, 2^K -> CLIP_CLEAR; APOGEE and VEL < -V_DESC: DESCENT ------------------------------
+*     (step 3 runs only with PHASE == BOOST after this, so only the BOOST branch that stays in BOOST falls into it)
 .phase  move.w  (PHASE).w,d0
         cmpi.w  #PH_BOOST,d0
-        bne.s   .coastc
+        bne.s   .coast
         move.l  d6,d3
         sub.l   (ACC0).w,d3             ; acc - ACC0 (exact)
         cmpi.l  #-A_COAST,d3
@@ -105,51 +108,48 @@ step    move.w  (EVENTS).w,d7
         cmpi.w  #COAST_N,d3
         bcs.s   .clip
         move.w  #PH_COAST,(PHASE).w
-        bra.s   .clip
+        bra.s   .gate                   ; PHASE is COAST now: no step 3
 .cst0   clr.w   (CST).w
-        bra.s   .clip
-.coastc cmpi.w  #PH_COAST,d0
+*---- 3. PHASE == BOOST and not ACC_CLIP: CLP counts acc == 32767 (the rail); CLIP_N of them set ACC_CLIP, CLP = 0 ---
+.clip   move.w  d7,d0
+        andi.w  #EV_ACC_CLIP,d0
+        bne.s   .gate
+        cmpi.w  #32767,d6
+        bne.s   .clpr0                  ; off the rail: the count starts again
+        move.w  (CLP).w,d0
+        addq.w  #1,d0
+        cmpi.w  #CLIP_N,d0
+        bcc.s   .clpset
+        move.w  d0,(CLP).w
+        bra.s   .gate
+.clpset ori.w   #EV_ACC_CLIP,d7         ; CLIP_N samples at the rail: set ACC_CLIP, CLP = 0
+.clpr0  clr.w   (CLP).w
+        bra.s   .gate
+*---- (phases, continued: not BOOST)
+.coast  cmpi.w  #PH_COAST,d0
         bne.s   .desc
         move.w  d7,d3
         andi.w  #EV_ACC_CLIP|EV_CLIP_CLEAR,d3
         cmpi.w  #EV_ACC_CLIP,d3         ; equal only for "ACC_CLIP and not CLIP_CLEAR"
-        bne.s   .clip
+        bne.s   .gate                   ; (PHASE is COAST: the DESCENT test below cannot fire)
         move.l  d6,d3
         sub.l   (ACC0).w,d3             ; acc - ACC0 (exact)
         cmpi.l  #-A_DRAG,d3
-        blt.s   .clp0                   ; drag high
+        blt.s   .clp0                   ; drag high: the count starts again
         move.w  (CLP).w,d3
-        addq.w  #1,d3                   ; CLP < 2^K <= 1024 here
+        addq.w  #1,d3
         move.w  d3,(CLP).w
         cmpi.w  #1<<K,d3
-        bcs.s   .clip
-        ori.w   #EV_CLIP_CLEAR,d7
-        bra.s   .clip
-.clp0   clr.w   (CLP).w
-        bra.s   .clip
-.desc   cmpi.w  #PH_APOGEE,d0
-        bne.s   .clip
-        cmpi.l  #-V_DESC,d1
-        bge.s   .clip
-        move.w  #PH_DESCENT,(PHASE).w
-*---- 3. BOOST and not ACC_CLIP: CLP counts acc == 32767 (the rail); CLIP_N in a row set ACC_CLIP, CLP = 0 -------
-.clip   move.w  (PHASE).w,d0
-        cmpi.w  #PH_BOOST,d0
-        bne.s   .gate
-        move.w  d7,d0
-        andi.w  #EV_ACC_CLIP,d0
-        bne.s   .gate
-        cmpi.w  #32767,d6
-        bne.s   .clpz
-        move.w  (CLP).w,d0
-        addq.w  #1,d0                   ; CLP < CLIP_N <= 32767 here
-        cmpi.w  #CLIP_N,d0
-        bcs.s   .clps
-        ori.w   #EV_ACC_CLIP,d7
-        moveq   #0,d0
-.clps   move.w  d0,(CLP).w
+        bcs.s   .gate
+        ori.w   #EV_CLIP_CLEAR,d7       ; 2^K drag-low samples in coast: the speed is known again
         bra.s   .gate
-.clpz   clr.w   (CLP).w
+.clp0   clr.w   (CLP).w
+        bra.s   .gate
+.desc   cmpi.w  #PH_APOGEE,d0
+        bne.s   .gate
+        cmpi.l  #-V_DESC,d1
+        bge.s   .gate
+        move.w  #PH_DESCENT,(PHASE).w
 *---- 4a. GATE_HIGH and not ARMED and VEL < V_GATE: set ARMED -------------------------------------------------------
 *     (GATE_HIGH as it was before 4b of this sample: the sample that sets GATE_HIGH cannot also set ARMED)
 .gate   moveq   #EV_GATE_HIGH|EV_ARMED,d0
@@ -201,7 +201,7 @@ step    move.w  (EVENTS).w,d7
         add.l   d0,d2                   ;   + ADC/2^S   (the Schultz 2002 listing has it backwards)
         move.l  d2,(EST).w
 
-*---- 6. extreme and apogee (N = APO_N after ACC_CLIP, else 1) -----------------------------------------------------
+*---- 6. extreme and apogee (no evidence while ACC_CLIP and not CLIP_CLEAR; N = APO_N after ACC_CLIP, else 1) -----
 .ext    move.l  (EXT).w,d0
         cmp.l   d0,d2
         ble.s   .notnew
@@ -217,15 +217,14 @@ step    move.w  (EVENTS).w,d7
         sub.l   d2,d0                   ; EXT - EST: exact as an UNSIGNED long, since 0 <= EXT - EST < 2^32 here
         cmpi.l  #THR,d0
         bcs.s   .reset                  ; unsigned below the threshold: no evidence
-        move.w  d7,d1
-        andi.w  #EV_ACC_CLIP|EV_CLIP_CLEAR,d1
-        cmpi.w  #EV_ACC_CLIP,d1
-        beq.s   .reset                  ; clipped and not yet cleared: no evidence
+        move.w  d7,d3
+        andi.w  #EV_ACC_CLIP|EV_CLIP_CLEAR,d3
+        cmpi.w  #EV_ACC_CLIP,d3
+        beq.s   .reset                  ; clipped, the speed not known again yet: no evidence
         move.w  (NEG).w,d1
         addq.w  #1,d1                   ; NEG < APO_N <= 32767 here: no overflow
         move.w  d1,(NEG).w
         moveq   #1,d0                   ; N = 1 ...
-        move.w  d7,d3
         andi.w  #EV_ACC_CLIP,d3
         beq.s   .cmpn
         move.w  #APO_N,d0               ; ... or APO_N after a clip
@@ -255,4 +254,5 @@ REJ:    ds.w    1                       ; consecutive rejected barometer samples
 NEG:    ds.w    1                       ; consecutive armed samples with EXT - EST >= THR
 PHASE:  ds.w    1                       ; flight phase PH_* (fwemu.inc; reported, not used by the apogee logic)
 CST:    ds.w    1                       ; consecutive BOOST samples with acc - ACC0 < -A_COAST
-CLP:    ds.w    1                       ; BOOST: consecutive rail samples; COAST after ACC_CLIP: drag-low samples
+CLP:    ds.w    1                       ; clip counter: rail samples in BOOST (0..CLIP_N), then after ACC_CLIP
+*                                         drag-low samples in COAST (0..2^K)
