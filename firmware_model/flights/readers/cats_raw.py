@@ -5,12 +5,22 @@ What the reader relies on (docs/flights.md, "CATS raw"):
 
 * ``*baro_raw.csv``: ``,ts,id,T,P``: ``ts`` **ms** since power-on, ``id`` ``BARO0``..``BARO2`` (three MS5607
   barometers, one row each per 10 ms, interleaved), ``T`` 0.01 degC, ``P`` Pa (integer).
-* ``*imu_raw.csv``: ``,ts,id,Gx,Gy,Gz,Ax,Ay,Az``: ``id`` ``IMU0``..``IMU2`` (three ICM-20601), raw counts.
-  Accelerometer: the ICM-20601's **nominal** calibration, +-32 g, 1024 counts/g, zero offset. It is not re-based
-  on the pad: the shared log starts 0.33 s before CATS's liftoff event with the motor already burning (1.3 g in
-  the first 0.1 s, 3.3 g by 0.1 s before EV_LIFTOFF); with the nominal calibration the coast reads -1.3 m/s^2
-  and the boost ~105 m/s^2, as the TeleMega on the same flight (-2.1 and ~108). The axial axis is decided from
-  the first samples as for the CATS pair (:func:`.cats.axial_axis`).
+* ``*imu_raw.csv``: ``,ts,id,Gx,Gy,Gz,Ax,Ay,Az``: ``id`` ``IMU0``..``IMU2`` (three ICM-20601), raw counts, the
+  registers as read (no offset removed). **Scales** (docs/reconstruction.md, "Piccard (CATS)"):
+  accelerometer :data:`IMU_COUNTS_PER_G` = 1024 counts/g (+-32 g), gyroscope :data:`IMU_COUNTS_PER_DPS` = 16.4
+  counts/(deg/s) (+-2000 deg/s). Source: the CATS firmware of 2020-11 to 2021-12 (catsystems/cats-embedded,
+  ``boards/cats_rev1/Core/Src/config/globals.c``: ``ICM20601_ACCEL_RANGE_32G``, ``ICM20601_GYRO_RANGE_2000_DPS`` on
+  all three chips in every commit of that span; ``task_imu_read.c`` records ``icm20601_read_accel_raw`` /
+  ``_gyro_raw``; ``get_accel_sensitivity`` 1024, ``get_gyro_sensitivity`` 16.4). Checked on the EuRoC 2021 Piccard
+  log: the boost and coast (-0.2..30 s) against the TeleMega's pad-calibrated axial accelerometer give 997-999
+  counts/g for each IMU; the vertical velocity closing to zero at the apogee (36.3-37.1 s) gives 1001-1026 counts/g;
+  the roll rate against the TeleMega's gyro_roll gives 16.55 counts/(deg/s) over 0-30 s (max 562 deg/s). The first
+  0.07 s read 1,186-1,197 counts (|a|) on each IMU: not a pad (the log starts 0.32 s before EV_LIFTOFF, the CATS
+  recorder keeping only its last queue entries before liftoff, with the motor already pushing: 1.16 g at 1024/g; the
+  TeleMega's first row, 0.3 s before its own liftoff, reads 1.41 g), so no scale is derived from it, and the
+  accelerometer is not re-based on it. The axial axis is decided from the first samples as for the CATS pair
+  (:func:`.cats.axial_axis`): ``-Ax`` on Piccard. The ``sensor_info`` file flags ``imu_0`` and ``imu_2`` on every
+  row; their data agree with ``IMU1`` (scales above), so the flags are not used.
 * ``*event_info_raw.csv``: ``,ts,event,out_idx``: ``EV_LIFTOFF``, ``EV_APOGEE`` (**CATS's own apogee**), ...
 * ``*flight_states_raw.csv`` (``,ts,state``) and ``*sensor_info_raw.csv`` (sensor fault flags): companions, not
   logs; reading one of them names the barometer file to read instead.
@@ -23,6 +33,7 @@ What the reader relies on (docs/flights.md, "CATS raw"):
 from __future__ import annotations
 
 import re
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -38,8 +49,11 @@ HEADERS: dict[str, tuple[str, ...]] = {
     "event_info": ("", "ts", "event", "out_idx"),
     "flight_states": ("", "ts", "state"),
 }
-#: ICM-20601 at +-32 g.
+#: ICM-20601 at +-32 g (the CATS firmware's ``ICM20601_ACCEL_RANGE_32G``; module docstring for the evidence).
 IMU_COUNTS_PER_G: float = 1024.0
+#: ICM-20601 at +-2000 deg/s (the CATS firmware's ``ICM20601_GYRO_RANGE_2000_DPS``).
+IMU_COUNTS_PER_DPS: float = 16.4
+IMU_AXES: tuple[str, ...] = ("Ax", "Ay", "Az", "Gx", "Gy", "Gz")
 
 
 def kind_of(text: str) -> str | None:
@@ -127,6 +141,40 @@ def _events(path: Path) -> tuple[dict[str, float], list[str]]:
     return events, []
 
 
+@dataclass
+class ImuData:
+    """A CATS raw IMU file in physical units: ``time_s`` (s on the record's axis), ``accel_mps2`` (n, 3) log axes
+    x, y, z (specific force), ``gyro_dps`` (n, 3) deg/s, ``sensor`` (``median`` or ``IMUn``), ``notes``."""
+
+    time_s: np.ndarray
+    accel_mps2: np.ndarray
+    gyro_dps: np.ndarray
+    sensor: str
+    notes: list[str]
+
+
+def read_imu(imu_path: Path, origin_s: float, sensor: str = "median") -> ImuData:
+    """The IMU file of a CATS raw flight, scaled by :data:`IMU_COUNTS_PER_G` and :data:`IMU_COUNTS_PER_DPS`, on the
+    time axis of :func:`read` (``origin_s``: the EV_LIFTOFF time, s since power-on). ``sensor``: ``median`` (of the
+    IMUs at each timestamp) or a barometer or IMU name whose digit picks the IMU."""
+    it = Table(imu_path, read_text(imu_path), ",", min_rows=2)
+    ti_ms, imus, ilines = _by_sensor(imu_path, it, IMU_AXES, "IMU")
+    check_time(imu_path, ilines, ti_ms, drop_repeats=False)
+    inames = sorted(imus)
+    if sensor == "median":
+        raw = {c: np.median(np.stack([imus[n][c] for n in inames]), axis=0) for c in IMU_AXES}
+        notes = [f"accelerometer and gyroscope: median of {', '.join(inames)}"]
+    else:
+        iname = "IMU" + sensor.removeprefix("BARO").removeprefix("IMU")
+        if iname not in imus:
+            raise fail(imu_path, it.header_line, f"no {iname} for --sensor {sensor}")
+        raw = dict(imus[iname])
+        notes = [f"accelerometer and gyroscope: {iname}"]
+    acc = np.stack([raw[c] for c in ("Ax", "Ay", "Az")], axis=1) / IMU_COUNTS_PER_G * G0
+    gyr = np.stack([raw[c] for c in ("Gx", "Gy", "Gz")], axis=1) / IMU_COUNTS_PER_DPS
+    return ImuData(time_s=ti_ms / 1000.0 - origin_s, accel_mps2=acc, gyro_dps=gyr, sensor=sensor, notes=notes)
+
+
 def read(path: Path, sensor: str | None = None) -> FlightRecord:
     """Read a CATS raw flight from its barometer file (or its IMU file: the barometer file is found beside it)."""
     text = read_text(path)
@@ -169,28 +217,19 @@ def read(path: Path, sensor: str | None = None) -> FlightRecord:
     axis_info: dict[str, object] = {}
     imu_path = sibling(baro_path, "imu")
     if imu_path.exists():
-        it = Table(imu_path, read_text(imu_path), ",", min_rows=2)
-        ti_ms, imus, ilines = _by_sensor(imu_path, it, ("Ax", "Ay", "Az"), "IMU")
-        check_time(imu_path, ilines, ti_ms, drop_repeats=False)
-        inames = sorted(imus)
-        if chosen == "median":
-            acc = {c: np.median(np.stack([imus[n][c] for n in inames]), axis=0) for c in ("Ax", "Ay", "Az")}
-            notes.append(f"accelerometer: median of {', '.join(inames)}")
-        else:
-            iname = "IMU" + chosen.removeprefix("BARO")
-            if iname not in imus:
-                raise fail(imu_path, it.header_line, f"no {iname} for --sensor {chosen}")
-            acc = dict(imus[iname])
-            notes.append(f"accelerometer: {iname}")
-        ti = ti_ms / 1000.0 - origin_s
-        axis, sign, means = axial_axis(ti, {c: v / IMU_COUNTS_PER_G * G0 for c, v in acc.items()})
-        a = sign * acc[axis] / IMU_COUNTS_PER_G * G0
+        imu = read_imu(imu_path, origin_s, chosen)
+        notes += imu.notes
+        ti = imu.time_s
+        acc = {c: imu.accel_mps2[:, i] for i, c in enumerate(("Ax", "Ay", "Az"))}
+        axis, sign, means = axial_axis(ti, acc)
+        a = sign * acc[axis]
         accel = np.interp(t, ti, a, left=np.nan, right=np.nan)
         first = ti < ti[0] + 0.1
         pad_g = float(np.mean(a[first])) / G0
         axis_info = {"axis": ("-" if sign < 0 else "+") + axis, "pad_means_mps2": means}
-        notes.append(f"axial axis {axis_info['axis']}, nominal calibration: {IMU_COUNTS_PER_G:g} counts/g "
-                     f"(ICM-20601 +-32 g), zero offset; the first 0.1 s reads {pad_g:.2f} g"
+        notes.append(f"axial axis {axis_info['axis']}, nominal calibration (the CATS firmware's ICM-20601 "
+                     f"ranges): {IMU_COUNTS_PER_G:g} counts/g (+-32 g), {IMU_COUNTS_PER_DPS:g} counts/(deg/s) "
+                     f"(+-2000 deg/s), zero offset; the first 0.1 s reads {pad_g:.2f} g"
                      + (" (the log starts with the motor already burning)" if pad_g > 1.2 else ""))
     else:
         notes.append(f"no IMU file {imu_path.name}: record without accelerometer")
@@ -198,7 +237,8 @@ def read(path: Path, sensor: str | None = None) -> FlightRecord:
         notes.append("no EV_APOGEE: CATS's own apogee unknown")
     notes += gaps_note(t, lines)
     licence, origin = licence_of(baro_path)
-    provenance = {"source": str(baro_path), "format": "cats_raw", "licence": licence, "origin": origin,
+    provenance = {"source": str(baro_path), "format": "cats_raw",
+                  "imu_source": str(imu_path) if imu_path.exists() else None, "time_origin_s": origin_s, "licence": licence, "origin": origin,
                   "rows": len(bt.rows), "sensor": chosen, "sensors": names, "axial": axis_info,
                   "own_computer": "CATS", "baro_sensor_hint": "pascal", "notes": notes}
     name = re.sub(r"[-_]?baro_raw$", "", baro_path.stem) or baro_path.stem

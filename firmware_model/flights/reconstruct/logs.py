@@ -13,6 +13,9 @@ readers, plus the 3-axis IMU where the log has one.
 * CATS (``*-imu.csv``): ``Ax, Ay, Az`` m/s^2, ``Gx, Gy, Gz`` deg/s on the barometer's clock; the rocket's axis is the
   axis that reads about +-1 g on the pad (:func:`firmware_model.flights.readers.cats.axial_axis`); body z = that
   axis with its sign, x and y completing a right-handed frame.
+* CATS raw (``*-imu_raw.csv``): the same frame, from the counts scaled as :mod:`~firmware_model.flights.readers.
+  cats_raw` says (1024 counts/g, 16.4 counts/(deg/s): the CATS firmware's ICM-20601 ranges, checked against the
+  TeleMega of the same flight), the median of the IMUs (or the one ``--sensor`` names) on the barometer's clock.
 
 GPS columns are not used: the logs at hand update them about once a second with repeated (stale) fixes in flight;
 without GPS the reconstruction is the vertical channel only (docs/reconstruction.md).
@@ -31,6 +34,7 @@ from firmware_model.spec.atmosphere import G0
 from firmware_model.runtime.errors import UserError
 from firmware_model.flights.readers import detect_format, read_flight
 from firmware_model.flights.readers import cats as cats_reader
+from firmware_model.flights.readers import cats_raw as cats_raw_reader
 from firmware_model.flights.readers._common import read_text
 from firmware_model.flights.readers.altosui import header_names
 from firmware_model.flights.record import FlightRecord
@@ -124,6 +128,35 @@ def _cats_imu(path: Path, rec: FlightRecord, notes: list[str]) -> tuple[Any, Any
     return out_a, out_g
 
 
+def _to_body(t: np.ndarray, ti: np.ndarray, A: np.ndarray, Gd: np.ndarray, axis: str, sign: float
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """Log axes (n, 3) to the body frame of :func:`_cats_imu`, interpolated onto ``t``; ``Gd`` deg/s -> rad/s."""
+    a = ["x", "y", "z"].index(axis[1].lower())
+    b, c = (a + 1) % 3, (a + 2) % 3
+    body_a = np.stack([A[:, b], sign * A[:, c], sign * A[:, a]], axis=1)
+    body_g = np.radians(np.stack([Gd[:, b], sign * Gd[:, c], sign * Gd[:, a]], axis=1))
+    out_a = np.stack([np.interp(t, ti, body_a[:, i]) for i in range(3)], axis=1)
+    out_g = np.stack([np.interp(t, ti, body_g[:, i]) for i in range(3)], axis=1)
+    return out_a, out_g
+
+
+def _cats_raw_imu(rec: FlightRecord, notes: list[str]) -> tuple[Any, Any]:
+    imu_path = Path(rec.provenance.get("imu_source") or "")
+    if not imu_path.is_file():
+        notes.append("no CATS raw IMU file")
+        return None, None
+    origin_s = float(rec.provenance["time_origin_s"])     # the IMU file's times onto the record's axis
+    sensor = rec.provenance.get("sensor") or "median"
+    imu = cats_raw_reader.read_imu(imu_path, origin_s, sensor)
+    ti = imu.time_s
+    axis, sign, _ = cats_reader.axial_axis(ti, {c: imu.accel_mps2[:, i] for i, c in enumerate(("Ax", "Ay", "Az"))})
+    out_a, out_g = _to_body(rec.time_s, ti, imu.accel_mps2, imu.gyro_dps, axis, sign)
+    notes.append(f"CATS raw IMU: rocket axis {'+' if sign > 0 else '-'}{axis}; {imu.notes[0]}; "
+                 f"{cats_raw_reader.IMU_COUNTS_PER_G:g} counts/g, {cats_raw_reader.IMU_COUNTS_PER_DPS:g} "
+                 "counts/(deg/s)")
+    return out_a, out_g
+
+
 def read_imu_log(path: str | Path, format: str | None = None) -> ImuLog:  # noqa: A002
     path = Path(path)
     if not path.is_file():
@@ -136,6 +169,8 @@ def read_imu_log(path: str | Path, format: str | None = None) -> ImuLog:  # noqa
         acc, gyr, tilt = _altosui_imu(path, rec, notes)
     elif fmt == "cats":
         acc, gyr = _cats_imu(path, rec, notes)
+    elif fmt == "cats_raw":
+        acc, gyr = _cats_raw_imu(rec, notes)
     else:
         notes.append(f"{fmt} logs carry no 3-axis IMU here")
     return ImuLog(record=rec, accel=acc, gyro=gyr, tilt_log=tilt, notes=notes)
