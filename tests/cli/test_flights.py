@@ -68,6 +68,22 @@ def test_simulate_list_1dof_and_errors(tmp_path, capsys):
 
 
 # ---------------------------------------------------------------------------------------------------- run / plot
+def test_run_reports_the_accelerometer_clip_and_when_the_speed_is_known_again(capsys):
+    """A 51 g boost on the +-16 g accelerometer: `fwemu run` says when ACC_CLIP latched (CLIP_N rail samples after
+    liftoff) and when CLIP_CLEAR came (before apogee); a flight that does not clip says nothing of it."""
+    assert main(["run", "--firmware", "kalman_accel", "--input", "sim:rb-m6400-m167", "--k", "5", "--model"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    clip = next(line for line in lines if line.startswith("accelerometer clip:"))
+    latched = float(clip.split("latched at ")[1].split()[0])
+    clear = float(clip.split("speed known again at ")[1].split()[0])
+    apogee = float(next(line for line in lines if line.startswith("apogee:")).split()[1])
+    liftoff = float(next(line for line in lines if line.startswith("liftoff:")).split()[1])
+    assert liftoff < latched < 1.0 < clear < apogee, (liftoff, latched, clear, apogee)
+    assert main(["run", "--firmware", "kalman_accel", "--input", SHORT_SIM, "--k", "5", "--model"]) == 0
+    out = capsys.readouterr().out
+    assert "apogee:" in out and "accelerometer clip" not in out
+
+
 def test_run_cpu_and_model_agree_on_a_simulated_flight(tmp_path, capsys):
     cpu, model = tmp_path / "cpu.csv", tmp_path / "model.csv"
     argv = ["run", "--firmware", "kalman_baro", "--input", SHORT_SIM, "--k", "5", "--quiet"]
