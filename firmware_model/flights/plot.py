@@ -87,7 +87,8 @@ def plot_run(run: Any, *, zoom: bool = False, title: str = "", reference_s: floa
     for name, colour in (("MACH_LOCKOUT", "C1"), ("BARO_INVALID", "C4")):
         for i, (a, b) in enumerate(_spans(t[sel], (ev[sel] & EVENT_BITS[name]) != 0)):
             ax.axvspan(a, b, color=colour, alpha=0.15, lw=0, label=name.lower().replace("_", " ") if i == 0 else None)
-    styles = {"LIFTOFF": ("C2", "--"), "ARMED": ("C8", ":"), "APOGEE": ("k", "-"), "APOGEE_PREDICTED": ("k", ":")}
+    styles = {"LIFTOFF": ("C2", "--"), "ARMED": ("C8", ":"), "APOGEE": ("k", "-"), "APOGEE_PREDICTED": ("k", ":"),
+              "ACC_CLIP": ("C6", "--"), "CLIP_CLEAR": ("C6", ":")}     # the clip latched / the speed known again
     lo_t, hi_t = float(t[sel][0]), float(t[sel][-1])
     for name, when in marks.items():
         if name in styles and when is not None and lo_t <= when <= hi_t:
