@@ -381,7 +381,8 @@ def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: 
                 phase = 4
             # 10. low-rate prediction (in coast)
             d = -x3 * dt
-            if phase == 2 and (ev & _PREDICTED) == 0 and x2 > 0 and x2 < d:
+            if (phase == 2 and (ev & _PREDICTED) == 0 and x2 > 0 and x2 < d
+                    and ((ev & _ACC_CLIP) == 0 or (ev & _CLIP_CLEAR) != 0)):
                 apfrac = min(65536.0 * x2 / d, 65535.0)
                 ev = ev | _PREDICTED
         if accel:

@@ -679,7 +679,8 @@ def kalman_step(st, adc, acc, c, accel):  # type: ignore[no-untyped-def]
     elif st[PHASE] == PH_APOGEE and x2 < -c[C_V_DESC]:
         st[PHASE] = PH_DESCENT
     # 10. low-rate apogee prediction (in coast)
-    if st[PHASE] == PH_COAST and (ev & APOGEE_PREDICTED) == 0 and x2 > 0:
+    if (st[PHASE] == PH_COAST and (ev & APOGEE_PREDICTED) == 0 and x2 > 0
+            and ((ev & ACC_CLIP) == 0 or (ev & CLIP_CLEAR) != 0)):
         d = -rs(x3, K, rnd)
         if x2 < d:
             v = x2

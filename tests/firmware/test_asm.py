@@ -348,7 +348,7 @@ def spec_kalman_step(c: object, st: dict[str, int], adc: int, acc: int) -> dict[
             st["NEG"] = 0
     elif st["PHASE"] == 3 and x2 < -c.V_DESC:
         st["PHASE"] = 4
-    if st["PHASE"] == 2 and not ev & PRED and x2 > 0:                 # 10. prediction
+    if st["PHASE"] == 2 and not ev & PRED and x2 > 0 and (not ev & CLIP or ev & CLEAR):   # 10. prediction
         d = -rs_exact(x3, K, h)
         if x2 < d:
             ev |= PRED

@@ -372,7 +372,7 @@ def _run_kalman(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np
         phase = np.where(run & ~coast & (phase == _PH_APOGEE) & (x2 < -v_desc), _PH_DESCENT, phase)
         fl = run & (phase == _PH_COAST)
         # 10. low-rate apogee prediction
-        cand = fl & ((ev & _PREDICTED) == 0) & (x2 > 0)
+        cand = fl & ((ev & _PREDICTED) == 0) & (x2 > 0) & (((ev & _ACC_CLIP) == 0) | ((ev & _CLIP_CLEAR) != 0))
         if cand.any():
             d = -rs(x3, K, mode)
             hit = cand & (x2 < d)

@@ -404,7 +404,8 @@ static void step_kalman(const fw_consts *c, fw_state *st, int32_t adc, int16_t a
         st->PHASE = FW_PH_DESCENT;
     }
     /* 10. low-rate apogee prediction (in coast) */
-    if (st->PHASE == FW_PH_COAST && !(st->EVENTS & FW_EV_APOGEE_PREDICTED) && st->X2 > 0) {
+    if (st->PHASE == FW_PH_COAST && !(st->EVENTS & FW_EV_APOGEE_PREDICTED) && st->X2 > 0
+        && (!(st->EVENTS & FW_EV_ACC_CLIP) || (st->EVENTS & FW_EV_CLIP_CLEAR))) {
         int64_t d = -fw_rs(st->X3, K, mode);
         if ((int64_t)st->X2 < d) {
             int64_t v = st->X2; /* 0 < v < d */
