@@ -162,11 +162,10 @@ def summary(table: Any, record: Any, inputs: Any, cfg: Any, engine: str, elapsed
         lines.append(f"apogee predicted at sample {marks['APOGEE_PREDICTED']:.3f} s (APFRAC)")
     if marks.get("ACC_CLIP") is not None:      # docs/firmware-spec.md §5 step 3, §6 steps 4 and 7
         clear = marks.get("CLIP_CLEAR")
+        after = (f"speed known again at {clear:.3f} s (CLIP_CLEAR), no apogee evidence before it" if clear is not None
+                 else "the speed was never known again (no CLIP_CLEAR): no apogee evidence counted after the clip")
         lines.append(f"accelerometer clip: latched at {marks['ACC_CLIP']:.3f} s (ACC_CLIP, CLIP_N samples at its "
-                     "rail: the integrated speed is a lower bound); " + ("speed known again at " + f"{clear:.3f} s (CLIP_CLEAR), no apogee "
-                                                    "evidence before it" if clear is not None else
-                                                    "the speed was never known again (no CLIP_CLEAR): no apogee "
-                                                    "evidence counted after the clip"))
+                     f"rail: the integrated speed is a lower bound); {after}")
     kind = "truth" if ref.source == "truth" else f"reference ({ref.source}, ±{ref.uncertainty_s:.3f} s)"
     alt = "" if ref.altitude_m is None else f", {ref.altitude_m:.1f} m"
     lines.append(f"{kind}: {ref.time_s:.3f} s{alt}")

@@ -43,6 +43,11 @@ _ACC_CLIP = EVENT_BITS["ACC_CLIP"]
 _CLIP_CLEAR = EVENT_BITS["CLIP_CLEAR"]
 
 
+def _clipped(ev: Any) -> Any:
+    """ACC_CLIP and not CLIP_CLEAR (docs/firmware-spec.md §5, §6): ints or arrays of EVENTS words."""
+    return (ev & (_ACC_CLIP | _CLIP_CLEAR)) == _ACC_CLIP
+
+
 @dataclass
 class FloatTrace:
     """Outputs of a float reference, shaped like :class:`firmware_model.model.trace.Trace`.
@@ -173,7 +178,7 @@ def _mirror_recursive(consts: "FirmwareConstants", adc: np.ndarray, acc: np.ndar
         low = (a - acc0) < -consts.A_COAST
         cst = np.where(boost, np.where(low, cst + 1, 0), cst)
         phase = np.where(boost & low & (cst >= consts.COAST_N), 2, phase)
-        dragc = run & ~boost & (phase == 2) & ((ev & _ACC_CLIP) != 0) & ((ev & _CLIP_CLEAR) == 0)
+        dragc = run & ~boost & (phase == 2) & _clipped(ev)
         dlow = (a - acc0) >= -consts.A_DRAG
         clp = np.where(dragc, np.where(dlow, clp + 1, 0), clp)
         ev = np.where(dragc & dlow & (clp >= clear_n), ev | _CLIP_CLEAR, ev)
@@ -201,7 +206,7 @@ def _mirror_recursive(consts: "FirmwareConstants", adc: np.ndarray, acc: np.ndar
         up = est > ext
         ext = np.where(up, est, ext)
         live = ~up & ((ev & _ARMED) != 0) & ((ev & _APOGEE) == 0)
-        below = (ext - est >= consts.THR) & (((ev & _ACC_CLIP) == 0) | ((ev & _CLIP_CLEAR) != 0))
+        below = (ext - est >= consts.THR) & ~_clipped(ev)
         neg = np.where(up, 0, np.where(live, np.where(below, neg + 1, 0), neg))
         need = np.where((ev & _ACC_CLIP) != 0, int(consts.APO_N), 1)
         fire = live & below & (neg >= need)
@@ -293,7 +298,7 @@ def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: 
             # 4. Mach lockout (kalman_accel)
             locked = rebase = False
             if accel:
-                if (ev & _ACC_CLIP) != 0 and (ev & _CLIP_CLEAR) == 0:
+                if _clipped(ev):
                     # after a clip: locked until a drag-low window of 2^(K+1) samples re-bases the velocity
                     lock, locked = mach_n, True
                     if phase == 2 and (a - acc0) * acc_g >= -a_drag and baro_ok:
@@ -370,7 +375,7 @@ def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: 
                 else:
                     cst = 0
             if phase == 2:
-                if dly == 0 and vb < 0 and ((ev & _ACC_CLIP) == 0 or (ev & _CLIP_CLEAR) != 0):
+                if dly == 0 and vb < 0 and not _clipped(ev):
                     neg = neg + 1
                     if neg >= apo_n:
                         ev = ev | _APOGEE
@@ -381,8 +386,7 @@ def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: 
                 phase = 4
             # 10. low-rate prediction (in coast)
             d = -x3 * dt
-            if (phase == 2 and (ev & _PREDICTED) == 0 and x2 > 0 and x2 < d
-                    and ((ev & _ACC_CLIP) == 0 or (ev & _CLIP_CLEAR) != 0)):
+            if phase == 2 and (ev & _PREDICTED) == 0 and x2 > 0 and x2 < d and not _clipped(ev):
                 apfrac = min(65536.0 * x2 / d, 65535.0)
                 ev = ev | _PREDICTED
         if accel:

@@ -308,6 +308,13 @@ def recursive_init(st, adc, acc, c):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True, inline="always")
+def _clipped(ev):  # type: ignore[no-untyped-def]
+    """ACC_CLIP and not CLIP_CLEAR: after an accelerometer clip, before the speed is known again (docs/firmware-spec.md
+    §5, §6: no apogee evidence, no prediction; kalman_accel keeps the barometer out)."""
+    return (ev & (ACC_CLIP | CLIP_CLEAR)) == ACC_CLIP
+
+
+@njit(cache=True, inline="always")
 def _rail_count(st, i_clp, phase, ev, acc, clip_n):  # type: ignore[no-untyped-def]
     """docs/firmware-spec.md §5 step 3 and §6 step 7 (the accelerometer programs): in BOOST and before ACC_CLIP,
     st[i_clp] counts consecutive samples at the accelerometer's rail (32767); the CLIP_N-th sets ACC_CLIP and
@@ -356,7 +363,7 @@ def recursive_step(st, adc, acc, c):  # type: ignore[no-untyped-def]
                     st[PHASE_R] = PH_COAST
             else:
                 st[CST_R] = 0
-        elif st[PHASE_R] == PH_COAST and (ev & ACC_CLIP) != 0 and (ev & CLIP_CLEAR) == 0:
+        elif st[PHASE_R] == PH_COAST and _clipped(ev):
             if acc - st[ACC0_R] >= -c[C_A_DRAG]:
                 st[CLP_R] = st[CLP_R] + 1
                 if st[CLP_R] >= (1 << c[C_K]):
@@ -403,7 +410,7 @@ def recursive_step(st, adc, acc, c):  # type: ignore[no-untyped-def]
         ext = est
         st[NEG_R] = 0
     elif (ev & ARMED) != 0 and (ev & APOGEE) == 0:
-        if ext - est >= c[C_THR] and ((ev & ACC_CLIP) == 0 or (ev & CLIP_CLEAR) != 0):
+        if ext - est >= c[C_THR] and not _clipped(ev):
             st[NEG_R] = st[NEG_R] + 1
             need = c[C_APO_N] if (ev & ACC_CLIP) != 0 else 1
             if st[NEG_R] >= need:
@@ -539,7 +546,7 @@ def kalman_step(st, adc, acc, c, accel):  # type: ignore[no-untyped-def]
     locked = False
     rebase = False
     if accel:
-        if (ev & ACC_CLIP) != 0 and (ev & CLIP_CLEAR) == 0:
+        if _clipped(ev):
             # after an accelerometer clip: the barometer stays out until the drag reading has been low for a
             # 2^(k+1)-sample window in coast, which then re-bases the velocity (§6 step 4, "clip")
             locked = True
@@ -669,7 +676,7 @@ def kalman_step(st, adc, acc, c, accel):  # type: ignore[no-untyped-def]
         else:
             st[CST] = 0
     if st[PHASE] == PH_COAST:
-        if st[DLY] == 0 and vb < 0 and ((ev & ACC_CLIP) == 0 or (ev & CLIP_CLEAR) != 0):
+        if st[DLY] == 0 and vb < 0 and not _clipped(ev):
             st[NEG] = st[NEG] + 1
             if st[NEG] >= c[C_APO_N]:
                 ev |= APOGEE
@@ -679,8 +686,7 @@ def kalman_step(st, adc, acc, c, accel):  # type: ignore[no-untyped-def]
     elif st[PHASE] == PH_APOGEE and x2 < -c[C_V_DESC]:
         st[PHASE] = PH_DESCENT
     # 10. low-rate apogee prediction (in coast)
-    if (st[PHASE] == PH_COAST and (ev & APOGEE_PREDICTED) == 0 and x2 > 0
-            and ((ev & ACC_CLIP) == 0 or (ev & CLIP_CLEAR) != 0)):
+    if st[PHASE] == PH_COAST and (ev & APOGEE_PREDICTED) == 0 and x2 > 0 and not _clipped(ev):
         d = -rs(x3, K, rnd)
         if x2 < d:
             v = x2

@@ -38,6 +38,21 @@ _CLIP_CLEAR = EVENT_BITS["CLIP_CLEAR"]
 _PH_PAD, _PH_BOOST, _PH_COAST, _PH_APOGEE, _PH_DESCENT = (np.int64(v) for v in range(5))
 
 
+def _clipped(ev: np.ndarray) -> np.ndarray:
+    """ACC_CLIP and not CLIP_CLEAR, per stream (docs/firmware-spec.md §5, §6)."""
+    return (ev & (_ACC_CLIP | _CLIP_CLEAR)) == _ACC_CLIP
+
+
+def _rail_count(railc: np.ndarray, a: np.ndarray, ev: np.ndarray, clp: np.ndarray,
+                clip_n: np.int64) -> tuple[np.ndarray, np.ndarray]:
+    """Spec §5 step 3 / §6 step 7 where ``railc`` (in BOOST, before ACC_CLIP): CLP counts samples at the rail
+    (32767), the CLIP_N-th sets ACC_CLIP and CLP = 0. Returns (EVENTS, CLP)."""
+    rail = a == 32767
+    clp = np.where(railc, np.where(rail, clp + 1, 0), clp)
+    clipped = railc & rail & (clp >= clip_n)
+    return np.where(clipped, ev | _ACC_CLIP, ev), np.where(clipped, 0, clp)
+
+
 class _WrapTracker:
     """Records, per stream, the first sample and quantity at which an exact value left the int32 range."""
 
@@ -148,18 +163,13 @@ def _run_recursive(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc:
         cst = np.where(boost, np.where(low, cst + 1, 0), cst)
         phase = np.where(boost & low & (cst >= coast_n), _PH_COAST, phase)
         # after a clip, in coast: 2^K consecutive samples with a drag reading at or below A_DRAG clear it
-        dragc = run & ~boost & (phase == _PH_COAST) & ((ev & _ACC_CLIP) != 0) & ((ev & _CLIP_CLEAR) == 0)
+        dragc = run & ~boost & (phase == _PH_COAST) & _clipped(ev)
         dlow = (a - acc0) >= -a_drag
         clp = np.where(dragc, np.where(dlow, clp + 1, 0), clp)
         ev = np.where(dragc & dlow & (clp >= clear_n), ev | _CLIP_CLEAR, ev)
         phase = np.where(run & ~boost & (phase == _PH_APOGEE) & (vel < -v_desc), _PH_DESCENT, phase)
         # 3. accelerometer at its rail for CLIP_N samples in a row, in boost
-        railc = run & (phase == _PH_BOOST) & ((ev & _ACC_CLIP) == 0)
-        rail = a == 32767
-        clp = np.where(railc, np.where(rail, clp + 1, 0), clp)
-        clipped = railc & rail & (clp >= clip_n)
-        ev = np.where(clipped, ev | _ACC_CLIP, ev)
-        clp = np.where(clipped, 0, clp)
+        ev, clp = _rail_count(run & (phase == _PH_BOOST) & ((ev & _ACC_CLIP) == 0), a, ev, clp, clip_n)
         # 4a. armed once VEL is back below the gate, on a sample after the one that set GATE_HIGH (4b runs after)
         ev = np.where(run & ((ev & _GATE_HIGH) != 0) & ((ev & _ARMED) == 0) & (vel < v_gate), ev | _ARMED, ev)
         # 4b. the accelerometer velocity has exceeded the gate since liftoff
@@ -182,7 +192,7 @@ def _run_recursive(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc:
         up = est > ext
         ext = np.where(up, est, ext)
         live = ~up & ((ev & _ARMED) != 0) & ((ev & _APOGEE) == 0)
-        below = (ext - est >= thr) & (((ev & _ACC_CLIP) == 0) | ((ev & _CLIP_CLEAR) != 0))
+        below = (ext - est >= thr) & ~_clipped(ev)
         neg = np.where(up, 0, np.where(live, np.where(below, neg + 1, 0), neg))
         need = np.where((ev & _ACC_CLIP) != 0, apo_n, np.int64(1))
         fire = live & below & (neg >= need)
@@ -295,7 +305,7 @@ def _run_kalman(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np
         rebase = np.zeros(n_streams, dtype=bool)
         if accel:
             # after a clip: locked until a 2^(K+1)-sample window of drag-low coast samples re-bases the velocity
-            clipm = run & ((ev & _ACC_CLIP) != 0) & ((ev & _CLIP_CLEAR) == 0)
+            clipm = run & _clipped(ev)
             win = clipm & (phase == _PH_COAST) & (a >= -a_drag) & baro_ok
             if win.any():
                 e = tr.w32(np.where(win, h - x1, 0), i, "e1")
@@ -350,12 +360,7 @@ def _run_kalman(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np
         dly = np.where(lifting, dly_n, dly)
         # accelerometer at its rail for CLIP_N samples in a row, in boost (kalman_accel)
         if accel:
-            railc = run & (phase == _PH_BOOST) & ((ev & _ACC_CLIP) == 0)
-            rail = acc[:, i] == 32767
-            clp = np.where(railc, np.where(rail, clp + 1, 0), clp)
-            clipped = railc & rail & (clp >= clip_n)
-            ev = np.where(clipped, ev | _ACC_CLIP, ev)
-            clp = np.where(clipped, 0, clp)
+            ev, clp = _rail_count(run & (phase == _PH_BOOST) & ((ev & _ACC_CLIP) == 0), acc[:, i], ev, clp, clip_n)
         # 8. plausibility bound
         vb = np.where(run, np.minimum(np.maximum(x2, vb - dv), vb + du), vb)
         # 9. phases and apogee
@@ -364,7 +369,7 @@ def _run_kalman(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np
         cst = np.where(boost, np.where(low, cst + 1, 0), cst)
         phase = np.where(boost & low & (cst >= coast_n), _PH_COAST, phase)
         coast = run & (phase == _PH_COAST)
-        evid = coast & (dly == 0) & (vb < 0) & (((ev & _ACC_CLIP) == 0) | ((ev & _CLIP_CLEAR) != 0))
+        evid = coast & (dly == 0) & (vb < 0) & ~_clipped(ev)
         neg = np.where(coast, np.where(evid, neg + 1, 0), neg)
         fire = evid & (neg >= apo_n)
         ev = np.where(fire, ev | _APOGEE, ev)
@@ -372,7 +377,7 @@ def _run_kalman(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np
         phase = np.where(run & ~coast & (phase == _PH_APOGEE) & (x2 < -v_desc), _PH_DESCENT, phase)
         fl = run & (phase == _PH_COAST)
         # 10. low-rate apogee prediction
-        cand = fl & ((ev & _PREDICTED) == 0) & (x2 > 0) & (((ev & _ACC_CLIP) == 0) | ((ev & _CLIP_CLEAR) != 0))
+        cand = fl & ((ev & _PREDICTED) == 0) & (x2 > 0) & ~_clipped(ev)
         if cand.any():
             d = -rs(x3, K, mode)
             hit = cand & (x2 < d)

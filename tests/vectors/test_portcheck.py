@@ -70,8 +70,7 @@ MUTANTS: list[tuple[str, str, str, str, str, str]] = [
      "                st->EVENTS |= FW_EV_BARO_REJECT;\n            } else {"),
     ("clip_evidence", "apogee evidence during an accelerometer clip (the coast test without 'not ACC_CLIP or "
      "CLIP_CLEAR')", "kalman_accel", "floor",
-     "        if (st->DLY == 0u && st->VB < 0 && (!(st->EVENTS & FW_EV_ACC_CLIP) || "
-     "(st->EVENTS & FW_EV_CLIP_CLEAR))) {",
+     "        if (st->DLY == 0u && st->VB < 0 && !FW_CLIPPED(st->EVENTS)) {",
      "        if (st->DLY == 0u && st->VB < 0) {"),
 ]
 SHRUNK_MAX = 300

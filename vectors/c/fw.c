@@ -110,6 +110,10 @@ void fw_init(fw_program prog, const fw_consts *c, fw_state *st, int32_t adc, int
     }
 }
 
+/* ACC_CLIP and not CLIP_CLEAR: after an accelerometer clip, before the speed is known again (spec sections 5, 6:
+   no apogee evidence, no prediction; kalman_accel keeps the barometer out) */
+#define FW_CLIPPED(events) (((events) & (FW_EV_ACC_CLIP | FW_EV_CLIP_CLEAR)) == FW_EV_ACC_CLIP)
+
 /* spec sections 5 step 3 and 6 step 7 (the accelerometer programs): in boost and before ACC_CLIP, CLP counts
    consecutive samples at the accelerometer's rail (32767); the CLIP_N-th sets ACC_CLIP and CLP = 0. A macro on
    the state's fields (st->CLP, st->EVENTS), so a port that keeps other types for them still compiles it. */
@@ -159,7 +163,7 @@ static void step_recursive(const fw_consts *c, fw_state *st, int32_t adc, int16_
             } else {
                 st->CST = 0;
             }
-        } else if (st->PHASE == FW_PH_COAST && (st->EVENTS & FW_EV_ACC_CLIP) && !(st->EVENTS & FW_EV_CLIP_CLEAR)) {
+        } else if (st->PHASE == FW_PH_COAST && FW_CLIPPED(st->EVENTS)) {
             /* after a clip: CLIP_CLEAR once the drag reading acc - ACC0 >= -A_DRAG for 2^K coast samples in a row */
             if ((int64_t)acc - (int64_t)st->ACC0 >= -(int64_t)c->A_DRAG) {
                 st->CLP = (uint16_t)(st->CLP + 1u);
@@ -206,8 +210,7 @@ static void step_recursive(const fw_consts *c, fw_state *st, int32_t adc, int16_
         st->EXT = st->EST;
         st->NEG = 0;
     } else if ((st->EVENTS & FW_EV_ARMED) && !(st->EVENTS & FW_EV_APOGEE)) {
-        if ((int64_t)st->EXT - (int64_t)st->EST >= (int64_t)c->THR
-            && (!(st->EVENTS & FW_EV_ACC_CLIP) || (st->EVENTS & FW_EV_CLIP_CLEAR))) {
+        if ((int64_t)st->EXT - (int64_t)st->EST >= (int64_t)c->THR && !FW_CLIPPED(st->EVENTS)) {
             int32_t need = (st->EVENTS & FW_EV_ACC_CLIP) ? c->APO_N : 1;
             st->NEG = (uint16_t)(st->NEG + 1u);
             if ((int32_t)st->NEG >= need) {
@@ -280,7 +283,7 @@ static void step_kalman(const fw_consts *c, fw_state *st, int32_t adc, int16_t a
           re-bases X2 from the innovation drift (second half minus first half, over 1 s); else no barometer while
           X2 > MACH_VLO and MACH_N samples after; then re-base */
     if (with_accel) {
-        if ((st->EVENTS & FW_EV_ACC_CLIP) && !(st->EVENTS & FW_EV_CLIP_CLEAR)) {
+        if (FW_CLIPPED(st->EVENTS)) {
             locked = 1;
             st->LOCK = (uint16_t)c->MACH_N;
             if (st->PHASE == FW_PH_COAST && (int64_t)a >= -(int64_t)c->A_DRAG && baro_ok) {
@@ -391,7 +394,7 @@ static void step_kalman(const fw_consts *c, fw_state *st, int32_t adc, int16_t a
         }
     }
     if (st->PHASE == FW_PH_COAST) {
-        if (st->DLY == 0u && st->VB < 0 && (!(st->EVENTS & FW_EV_ACC_CLIP) || (st->EVENTS & FW_EV_CLIP_CLEAR))) {
+        if (st->DLY == 0u && st->VB < 0 && !FW_CLIPPED(st->EVENTS)) {
             st->NEG = (uint16_t)(st->NEG + 1u);
             if ((int32_t)st->NEG >= c->APO_N) {
                 st->EVENTS |= FW_EV_APOGEE;
@@ -405,7 +408,7 @@ static void step_kalman(const fw_consts *c, fw_state *st, int32_t adc, int16_t a
     }
     /* 10. low-rate apogee prediction (in coast) */
     if (st->PHASE == FW_PH_COAST && !(st->EVENTS & FW_EV_APOGEE_PREDICTED) && st->X2 > 0
-        && (!(st->EVENTS & FW_EV_ACC_CLIP) || (st->EVENTS & FW_EV_CLIP_CLEAR))) {
+        && !FW_CLIPPED(st->EVENTS)) {
         int64_t d = -fw_rs(st->X3, K, mode);
         if ((int64_t)st->X2 < d) {
             int64_t v = st->X2; /* 0 < v < d */
