@@ -238,7 +238,8 @@ def read(path: Path, sensor: str | None = None) -> FlightRecord:
     notes += gaps_note(t, lines)
     licence, origin = licence_of(baro_path)
     provenance = {"source": str(baro_path), "format": "cats_raw",
-                  "imu_source": str(imu_path) if imu_path.exists() else None, "time_origin_s": origin_s, "licence": licence, "origin": origin,
+                  "imu_source": str(imu_path) if imu_path.exists() else None, "time_origin_s": origin_s,
+                  "licence": licence, "origin": origin,
                   "rows": len(bt.rows), "sensor": chosen, "sensors": names, "axial": axis_info,
                   "own_computer": "CATS", "baro_sensor_hint": "pascal", "notes": notes}
     name = re.sub(r"[-_]?baro_raw$", "", baro_path.stem) or baro_path.stem

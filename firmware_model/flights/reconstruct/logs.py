@@ -106,6 +106,20 @@ def _altosui_imu(path: Path, rec: FlightRecord, notes: list[str]) -> tuple[Any, 
     return acc, gyr, tilt
 
 
+def _to_body(t: np.ndarray, ti: np.ndarray, A: np.ndarray, Gd: np.ndarray, axis: str, sign: float
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """CATS log axes (n, 3) to the body frame, interpolated onto ``t``; ``Gd`` deg/s -> rad/s. Body z = ``sign`` x the
+    log's rocket axis ``axis``; body x, y = the next two log axes in cyclic order (the sign on one keeps the frame
+    right-handed)."""
+    a = ["x", "y", "z"].index(axis[1].lower())
+    b, c = (a + 1) % 3, (a + 2) % 3
+    body_a = np.stack([A[:, b], sign * A[:, c], sign * A[:, a]], axis=1)
+    body_g = np.radians(np.stack([Gd[:, b], sign * Gd[:, c], sign * Gd[:, a]], axis=1))
+    out_a = np.stack([np.interp(t, ti, body_a[:, i]) for i in range(3)], axis=1)
+    out_g = np.stack([np.interp(t, ti, body_g[:, i]) for i in range(3)], axis=1)
+    return out_a, out_g
+
+
 def _cats_imu(path: Path, rec: FlightRecord, notes: list[str]) -> tuple[Any, Any]:
     imu_path = Path(rec.provenance.get("imu_source") or "")
     if not imu_path.is_file():
@@ -114,29 +128,10 @@ def _cats_imu(path: Path, rec: FlightRecord, notes: list[str]) -> tuple[Any, Any
     tab = cats_reader._table(imu_path, cats_reader.IMU_HEADER, ("ts", "Ax", "Ay", "Az", "Gx", "Gy", "Gz"))
     ti = tab["ts"]
     axis, sign, _ = cats_reader.axial_axis(ti, {c: tab[c] for c in ("Ax", "Ay", "Az")})
-    names = ["x", "y", "z"]
-    a = names.index(axis[1].lower())
-    # body z = sign * log axis a; body x, y = the next two log axes in cyclic order (sign on one keeps it right-handed)
-    b, c = (a + 1) % 3, (a + 2) % 3
-    A = np.stack([tab["A" + names[i]] for i in range(3)], axis=1)
-    Gd = np.stack([tab["G" + names[i]] for i in range(3)], axis=1)
-    body_a = np.stack([A[:, b], sign * A[:, c], sign * A[:, a]], axis=1)
-    body_g = np.radians(np.stack([Gd[:, b], sign * Gd[:, c], sign * Gd[:, a]], axis=1))
-    out_a = np.stack([np.interp(rec.time_s, ti, body_a[:, i]) for i in range(3)], axis=1)
-    out_g = np.stack([np.interp(rec.time_s, ti, body_g[:, i]) for i in range(3)], axis=1)
+    A = np.stack([tab["A" + n] for n in ("x", "y", "z")], axis=1)
+    Gd = np.stack([tab["G" + n] for n in ("x", "y", "z")], axis=1)
+    out_a, out_g = _to_body(rec.time_s, ti, A, Gd, axis, sign)
     notes.append(f"CATS IMU: rocket axis {'+' if sign > 0 else '-'}{axis}")
-    return out_a, out_g
-
-
-def _to_body(t: np.ndarray, ti: np.ndarray, A: np.ndarray, Gd: np.ndarray, axis: str, sign: float
-             ) -> tuple[np.ndarray, np.ndarray]:
-    """Log axes (n, 3) to the body frame of :func:`_cats_imu`, interpolated onto ``t``; ``Gd`` deg/s -> rad/s."""
-    a = ["x", "y", "z"].index(axis[1].lower())
-    b, c = (a + 1) % 3, (a + 2) % 3
-    body_a = np.stack([A[:, b], sign * A[:, c], sign * A[:, a]], axis=1)
-    body_g = np.radians(np.stack([Gd[:, b], sign * Gd[:, c], sign * Gd[:, a]], axis=1))
-    out_a = np.stack([np.interp(t, ti, body_a[:, i]) for i in range(3)], axis=1)
-    out_g = np.stack([np.interp(t, ti, body_g[:, i]) for i in range(3)], axis=1)
     return out_a, out_g
 
 
