@@ -201,12 +201,16 @@ def test_smoother_apogee_time(truth) -> None:
 
 
 def test_without_gps_the_vertical_channel_still_holds(truth) -> None:
-    s, run, E = _run(truth, 4, gps=None)
-    m = s.t >= 0
-    z = np.abs(E.s["pos"][m, 2]) <= 2 * E.s["sig_pos"][m, 2]
-    vz = np.abs(E.s["vel"][m, 2]) <= 2 * E.s["sig_vel"][m, 2]
-    assert z.mean() > 0.85 and vz.mean() > 0.85
-    assert E.s["sig_pos"][m, 0][-1] > 10 * E.s["sig_pos"][m, 2][-1]       # horizontal: not observable
+    # over six flights: one flight's altitude error is mostly its barometer reference's error (one draw, constant
+    # over the flight), so a single flight is inside 2 sigma all the time or hardly at all (docs/reconstruction.md)
+    z, vz = [], []
+    for seed in range(6):
+        s, run, E = _run(truth, seed, gps=None)
+        m = s.t >= 0
+        z.append(np.mean(np.abs(E.s["pos"][m, 2]) <= 2 * E.s["sig_pos"][m, 2]))
+        vz.append(np.mean(np.abs(E.s["vel"][m, 2]) <= 2 * E.s["sig_vel"][m, 2]))
+        assert E.s["sig_pos"][m, 0][-1] > 10 * E.s["sig_pos"][m, 2][-1]       # horizontal: not observable
+    assert np.mean(z) > 0.85 and np.mean(vz) > 0.85, (z, vz)
 
 
 def test_velocity_zero_crossing_of_a_parabola() -> None:

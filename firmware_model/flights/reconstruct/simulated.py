@@ -7,7 +7,7 @@ IMU's steps, the pad's heading with its error drawn from the filter's prior); :f
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from math import radians
 from typing import Any
 
@@ -78,7 +78,13 @@ def sensed_flight(truth: Truth6, imu: ImuModel, gps: GpsModel | None, baro: Baro
     baro_arr = sig = pres = None
     if baro is not None:
         tb, pb = baro_samples(truth, baro, baro_hz, rng)
-        p0 = float(np.median(pb[tb < truth.t[0] + pad_align_s]))
+        # the reference: the mean pad pressure, whose error (a Gaussian sigma/sqrt(n); the median of whole pascals
+        # was quantised: exact at sea level, +-0.5 or 1 Pa now and then) is an offset of every sample: the filter's
+        # barometer offset state has it as its prior
+        pad_b = pb[tb < truth.t[0] + pad_align_s]
+        p0 = float(np.mean(pad_b))
+        ref_sigma = float(baro_sigma_m(np.sqrt(baro.noise_pa ** 2 + 1 / 12) / np.sqrt(pad_b.size),
+                                       np.array([p0]))[0])
         hb = baro_altitude(pb, p0)
         sb = np.sqrt(baro_sigma_m(baro.noise_pa, pb) ** 2 + baro_sigma_m(1 / np.sqrt(12), pb) ** 2 + 0.05 ** 2)
         baro_arr = np.full(n, np.nan)
@@ -89,6 +95,8 @@ def sensed_flight(truth: Truth6, imu: ImuModel, gps: GpsModel | None, baro: Baro
             if k is not None:
                 baro_arr[k], sig[k], pres[k] = hb[j], sb[j], pb[j]
     noise = filter_noise_for(imu, gps, heading_sigma_deg)
+    if baro is not None:
+        noise = replace(noise, baro_offset_sigma=ref_sigma)
     axis = heading_axis_of(truth)
     heading = heading_of(truth, axis) + rng.normal(0.0, noise.heading_sigma)
     n_pad = int(np.sum(t < truth.t[0] + pad_align_s))

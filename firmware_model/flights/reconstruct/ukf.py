@@ -3,7 +3,9 @@ measurements, a multiplicative attitude error, and a fixed-interval unscented RT
 
 State (nominal): site-frame position ``r``, velocity ``v``, attitude quaternion ``q`` (body -> site), accelerometer
 and gyroscope biases ``ba``, ``bg`` and scale errors ``sa``, ``sg`` (body frame, per axis: a sensor reads
-``(1 + s) x + b``). Error state (21): ``dr, dv, dth, dba, dbg, dsa, dsg`` with the attitude
+``(1 + s) x + b``), and the barometer's offset ``bb`` (it reads altitude + bb: the error of the reference
+pressure its altitudes are computed from, common to every sample; prior ``FilterNoise.baro_offset_sigma``). Error
+state (22): ``dr, dv, dth, dba, dbg, dsa, dsg, dbb`` with the attitude
 error a site-frame rotation vector, ``q_true = exp(dth) (x) q`` (Chari's Future Work: a minimal attitude error
 instead of adding to a quaternion and renormalising; the quaternion itself is never added to).
 
@@ -15,17 +17,17 @@ instead of adding to a quaternion and renormalising; the quaternion itself is ne
   minus the Coriolis term ``2 W x v`` of the earth's rate W (RocketPy integrates in the rotating site frame),
   ``v' = v + a dt``, ``r' = r + v dt + a dt^2 / 2``; the nominal is propagated alongside and the sigma points'
   attitudes are read back as rotation vectors relative to it (``log(q_i (x) q_ref^*)``); mean and covariance of the
-  21 errors, plus the process noise of the IMU's white noise, quantisation and bias random walks; the predicted
-  mean is the propagated nominal moved by the mean error. A saturated accelerometer sample adds
-  ``saturated_sigma`` of acceleration noise for that step.
-* Update: GPS position and barometric altitude are linear in the error state, so the unscented transform of the
-  measurement is exact and equals the Kalman update (Joseph form); the error is folded into the nominal
+  21 errors (the barometer's offset is outside the sigma points: :func:`run_ukf`), plus the process noise of the
+  IMU's white noise, quantisation and bias random walks; the predicted mean is the propagated nominal moved by the
+  mean error. A saturated accelerometer sample adds ``saturated_sigma`` of acceleration noise for that step.
+* Update: GPS position and barometric altitude (+ offset) are linear in the error state, so the unscented transform
+  of the measurement is exact and equals the Kalman update (Joseph form); the error is folded into the nominal
   (multiplicatively for the attitude) and reset to zero. Innovations beyond the gate (NIS above ``gate_nis``) are
-  rejected and counted; after ``reacquire`` barometer rejections in a row the estimate, not the barometer, is
-  taken to be wrong: its altitude and vertical-velocity variances are widened by the innovation and the sample is
-  used (counted as ``reacquired``). The barometer is not used while the estimated speed exceeds ``baro_max_mach`` of the
-  local speed of sound (real static ports read shock and stagnation pressure there; without GPS the vertical
-  speed, the horizontal velocity being unobservable).
+  rejected and counted; after ``reacquire`` barometer rejections in a row the estimate, not the barometer, is taken
+  to be wrong: its altitude and vertical-velocity variances are widened by the innovation and the sample is used
+  (counted as ``reacquired``). The barometer is not used while the estimated speed exceeds ``baro_max_mach`` of the
+  local speed of sound (real static ports read shock and stagnation pressure there; without GPS the vertical speed,
+  the horizontal velocity being unobservable).
 * Smoother (Sarkka's unscented RTS): with the stored cross-covariance ``D_k`` of the errors at k and the predicted
   errors at k+1, ``G = D P_pred^-1``; the smoothed error at k is ``G (x_s(k+1) [-] x_pred(k+1))`` added to the
   filtered nominal, ``P_s(k) = P(k) + G (P_s(k+1) - P_pred(k+1)) G^T``.
@@ -46,10 +48,11 @@ from firmware_model.runtime.errors import UserError
 from firmware_model.flights.reconstruct.rotation import exp_rv, log_q, qconj, qmul, rotate, tilt_deg
 from firmware_model.flights.reconstruct.truth import gravity
 
-N_ERR = 21
-N_STATE = 22
+N_ERR = 22
+N_DYN = 21          # the errors the sigma points carry (all but the barometer's offset, which no dynamics touch)
+N_STATE = 23
 SL_R, SL_V, SL_TH, SL_BA, SL_BG = slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12), slice(12, 15)
-SL_SA, SL_SG = slice(15, 18), slice(18, 21)
+SL_SA, SL_SG, SL_BB = slice(15, 18), slice(18, 21), slice(21, 22)
 
 
 @dataclass(frozen=True)
@@ -70,20 +73,21 @@ class FilterNoise:
     saturated_sigma: float = 30.0
     heading_sigma: float = radians(5.0)
     gps_sigma: tuple[float, float, float] = (4.0, 4.0, 4.0)
+    baro_offset_sigma: float = 0.0     # m: the barometer's reference error (0: the reference taken as exact)
     gate_nis: float = 30.0
     baro_max_mach: float = 0.7
     reacquire: int = 50
 
 
-def flat(r, v, q, ba, bg, sa=(0.0, 0.0, 0.0), sg=(0.0, 0.0, 0.0)) -> np.ndarray:
-    """The flat 22-vector state ``r v q ba bg sa sg``."""
-    return np.concatenate([r, v, q, ba, bg, sa, sg]).astype(np.float64)
+def flat(r, v, q, ba, bg, sa=(0.0, 0.0, 0.0), sg=(0.0, 0.0, 0.0), bb=0.0) -> np.ndarray:
+    """The flat 23-vector state ``r v q ba bg sa sg bb``."""
+    return np.concatenate([r, v, q, ba, bg, sa, sg, [bb]]).astype(np.float64)
 
 
 def unflat(x: np.ndarray) -> dict[str, np.ndarray]:
-    """(..., 22) states -> dict of ``r, v, q, ba, bg, sa, sg`` arrays."""
+    """(..., 23) states -> dict of ``r, v, q, ba, bg, sa, sg, bb`` arrays."""
     return {"r": x[..., 0:3], "v": x[..., 3:6], "q": x[..., 6:10], "ba": x[..., 10:13], "bg": x[..., 13:16],
-            "sa": x[..., 16:19], "sg": x[..., 19:22]}
+            "sa": x[..., 16:19], "sg": x[..., 19:22], "bb": x[..., 22]}
 
 
 def _kernels() -> ModuleType:
@@ -95,14 +99,17 @@ def _kernels() -> ModuleType:
 
 
 def boxplus(x: np.ndarray, dx: np.ndarray) -> np.ndarray:
+    """x [+] dx; ``dx`` of the 21 dynamic errors or all 22 (the kernels see the first 22 / 21 entries)."""
     out = np.empty(N_STATE)
     _kernels().boxplus(x, np.ascontiguousarray(dx, dtype=np.float64), out)
+    out[22] = x[22] + (dx[21] if len(dx) > N_DYN else 0.0)
     return out
 
 
 def boxminus(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     out = np.empty(N_ERR)
     _kernels().boxminus(a, b, out)
+    out[21] = a[22] - b[22]
     return out
 
 
@@ -143,7 +150,8 @@ def align(accel: np.ndarray, gyro: np.ndarray, n_pad: int, noise: FilterNoise, h
     share of it in the prior. ``heading_axis``: the body axis whose azimuth ``heading_rad`` is: "z" (the
     rocket's axis: an inclined rail's azimuth) or "x" (the pad roll orientation; for a vertical rail, where the
     axis has no azimuth). The caller decides from what it knows of the rail, never from the measured tilt (an
-    accelerometer bias fakes several degrees of it)."""
+    accelerometer bias fakes several degrees of it). The barometer's offset starts at 0 with sigma
+    ``noise.baro_offset_sigma``."""
     if n_pad < 10:
         raise UserError(f"pad alignment needs at least 10 IMU samples on the pad, got {n_pad}")
     f = accel[:n_pad].mean(axis=0)
@@ -186,6 +194,7 @@ def align(accel: np.ndarray, gyro: np.ndarray, n_pad: int, noise: FilterNoise, h
     gb = noise.gyro_noise / np.sqrt(n_pad)
     P0[SL_BG, SL_BG] = np.eye(3) * (gb ** 2 + noise.gyro_bias_walk ** 2 * n_pad * 0.01 + 1e-10)
     P0[SL_SG, SL_SG] = np.eye(3) * (noise.gyro_scale_sigma ** 2 + 1e-10)
+    P0[SL_BB, SL_BB] = noise.baro_offset_sigma ** 2
     x0 = flat(np.zeros(3) if r0 is None else np.asarray(r0, float), np.zeros(3), q0, ba0, bg)
     return Alignment(x0=x0, P0=P0, pad_samples=n_pad,
                      notes={"tilt_deg": float(tilt_deg(q0)), "specific_force_mps2": fn, "g_mps2": g})
@@ -203,8 +212,8 @@ class Measurements:
 
 @dataclass
 class Run:
-    """Filter and smoother output on the IMU time axis ``t`` (n,): flat states ``xf``/``xs`` (n, 22) and
-    covariances ``Pf``/``Ps`` (n, 21, 21) of the filter and the smoother (None without smoothing); ``rejected``
+    """Filter and smoother output on the IMU time axis ``t`` (n,): flat states ``xf``/``xs`` (n, 23) and
+    covariances ``Pf``/``Ps`` (n, 22, 22) of the filter and the smoother (None without smoothing); ``rejected``
     measurement counts; ``nis``: (step, kind, NIS, used) per measurement."""
 
     t: np.ndarray
@@ -222,48 +231,55 @@ def _sigma_offsets(P: np.ndarray) -> np.ndarray:
     except np.linalg.LinAlgError:
         w, V = np.linalg.eigh(0.5 * (P + P.T))
         L = V * np.sqrt(np.clip(w, 1e-18, None))
-    L = L * np.sqrt(N_ERR)
-    return np.ascontiguousarray(np.concatenate([L.T, -L.T], axis=0))          # (2n, 15)
+    L = L * np.sqrt(N_DYN)
+    return np.ascontiguousarray(np.concatenate([L.T, -L.T], axis=0))          # (2n, n)
 
 
 def run_ukf(t: np.ndarray, accel: np.ndarray, gyro: np.ndarray, saturated: np.ndarray, meas: Measurements,
             al: Alignment, noise: FilterNoise, site_asl_m: float, smooth: bool = True,
             earth_rate: np.ndarray | None = None, accel_sigma_extra: np.ndarray | None = None) -> Run:
     """Filter (and smooth) one flight; ``earth_rate``: the earth's rotation in the site frame (rad/s; None: 0);
-    ``accel_sigma_extra``: per-step extra acceleration noise (m/s^2), e.g. after a recovery charge fired."""
+    ``accel_sigma_extra``: per-step extra acceleration noise (m/s^2), e.g. after a recovery charge fired.
+
+    The barometer's offset is a state only when ``noise.baro_offset_sigma`` > 0 (else it stays 0 and its row and
+    column of the covariances 0). It is outside the sigma points (no dynamics touch it): its cross-covariance with
+    the other errors is carried by the statistically linearised transition F = D^T P^-1 of the unscented predict."""
     n = t.size
+    m = N_ERR if noise.baro_offset_sigma > 0 else N_DYN       # the active errors
     kern = _kernels()
     wE = np.zeros(3) if earth_rate is None else np.asarray(earth_rate, dtype=np.float64)
     accel = np.ascontiguousarray(accel, dtype=np.float64)
     gyro = np.ascontiguousarray(gyro, dtype=np.float64)
     x = al.x0.copy()
-    P = al.P0.copy()
+    P = al.P0[:m, :m].copy()
     XF = np.empty((n, N_STATE))
     XP = np.empty((n, N_STATE))
     XF[0] = x
     XP[0] = x
-    Pf = np.empty((n, N_ERR, N_ERR))
-    Pf[0] = P
-    Pp = np.empty((n, N_ERR, N_ERR))
-    Pp[0] = P
+    Pf = np.zeros((n, N_ERR, N_ERR))
+    Pf[0, :m, :m] = P
+    Pp = np.zeros((n, N_ERR, N_ERR))
+    Pp[0, :m, :m] = P
     Dk = np.zeros((n, N_ERR, N_ERR))
-    w = 1.0 / (2 * N_ERR)
+    w = 1.0 / (2 * N_DYN)
     rejected = {"gps": 0, "baro": 0, "baro_mach": 0, "reacquired": 0}
     streak = 0
     nis_log: list[tuple[int, str, float, bool]] = []
     va = noise.accel_noise ** 2 + noise.accel_lsb ** 2 / 12
     vg = noise.gyro_noise ** 2 + noise.gyro_lsb ** 2 / 12
     gps_R = np.diag(np.square(noise.gps_sigma))
-    eye = np.eye(N_ERR)
+    eye = np.eye(m)
     ref = np.empty(N_STATE)
-    dev = np.empty((2 * N_ERR, N_ERR))
+    dev = np.empty((2 * N_DYN, N_DYN))
     gps = meas.gps
     baro = meas.baro
-    diag = np.diag_indices(N_ERR)
+    diag = np.diag_indices(N_DYN)
     for k in range(1, n):
         dt = float(t[k] - t[k - 1])
-        chi = _sigma_offsets(P)
+        Paa = P[:N_DYN, :N_DYN] if m > N_DYN else P
+        chi = _sigma_offsets(Paa)
         kern.predict_points(x, chi, accel[k], gyro[k], dt, site_asl_m, wE, ref, dev)
+        ref[22] = x[22]
         mean = dev.mean(axis=0)
         dev -= mean
         acc_var = va
@@ -271,23 +287,42 @@ def run_ukf(t: np.ndarray, accel: np.ndarray, gyro: np.ndarray, saturated: np.nd
             acc_var += noise.saturated_sigma ** 2
         if accel_sigma_extra is not None:
             acc_var += accel_sigma_extra[k] ** 2
-        q = np.empty(N_ERR)
+        q = np.empty(N_DYN)
         q[0:3] = acc_var * dt ** 4 / 4
         q[3:6] = acc_var * dt * dt
         q[6:9] = vg * dt * dt
         q[9:12] = noise.accel_bias_walk ** 2 * dt
         q[12:15] = noise.gyro_bias_walk ** 2 * dt
         q[15:21] = 1e-12 * dt
-        P = w * (dev.T @ dev)
-        P[diag] += q
+        Pa = w * (dev.T @ dev)
+        Pa[diag] += q
         c = acc_var * dt ** 3 / 2
         for i in range(3):
-            P[i, 3 + i] += c
-            P[3 + i, i] += c
-        Dk[k] = w * (chi.T @ dev)
+            Pa[i, 3 + i] += c
+            Pa[3 + i, i] += c
+        Daa = w * (chi.T @ dev)
+        if m > N_DYN:
+            # the offset b: P_ab' = F P_ab, D = cov(error k, predicted error k+1) = [[Daa, P_ab], [(F P_ab)^T, P_bb]]
+            Pab = P[:N_DYN, N_DYN]
+            FPab = Daa.T @ np.linalg.solve(Paa, Pab)
+            D = np.empty((m, m))
+            D[:N_DYN, :N_DYN] = Daa
+            D[:N_DYN, N_DYN] = Pab
+            D[N_DYN, :N_DYN] = FPab
+            D[N_DYN, N_DYN] = P[N_DYN, N_DYN]
+            Pn = np.empty((m, m))
+            Pn[:N_DYN, :N_DYN] = Pa
+            Pn[:N_DYN, N_DYN] = FPab
+            Pn[N_DYN, :N_DYN] = FPab
+            Pn[N_DYN, N_DYN] = P[N_DYN, N_DYN] + 1e-12 * dt
+            P = Pn
+            Dk[k] = D
+        else:
+            P = Pa
+            Dk[k, :m, :m] = Daa
         x = boxplus(ref, mean)
         XP[k] = x
-        Pp[k] = P.copy()
+        Pp[k, :m, :m] = P
         # ---- measurements (linear in the error state)
         if gps is not None and gps[k, 0] == gps[k, 0]:
             y = gps[k] - x[0:3]
@@ -296,7 +331,7 @@ def run_ukf(t: np.ndarray, accel: np.ndarray, gyro: np.ndarray, saturated: np.nd
             ok = nis <= noise.gate_nis
             nis_log.append((k, "gps", nis, ok))
             if ok:
-                K = np.linalg.solve(S, P[0:3, :]).T             # (21, 3)
+                K = np.linalg.solve(S, P[0:3, :]).T             # (m, 3)
                 IKH = eye.copy()
                 IKH[:, 0:3] -= K
                 P = IKH @ P @ IKH.T + K @ gps_R @ K.T
@@ -309,9 +344,12 @@ def run_ukf(t: np.ndarray, accel: np.ndarray, gyro: np.ndarray, saturated: np.nd
             if speed > noise.baro_max_mach * _sound(x[2] + site_asl_m):
                 rejected["baro_mach"] += 1
             else:
-                y = float(baro[k] - x[2])
+                # the barometer reads altitude + its offset: H = e_z + e_bb
+                y = float(baro[k] - x[2] - x[22])
                 r2 = float(meas.baro_sigma[k]) ** 2
                 S = P[2, 2] + r2
+                if m > N_DYN:
+                    S += 2.0 * P[2, N_DYN] + P[N_DYN, N_DYN]
                 nis = y * y / S
                 if nis > noise.gate_nis and streak >= noise.reacquire:
                     # the widening is process noise of this step: the stored prediction gets it too, so that
@@ -320,42 +358,46 @@ def run_ukf(t: np.ndarray, accel: np.ndarray, gyro: np.ndarray, saturated: np.nd
                     P[5, 5] += (y / 2.0) ** 2
                     Pp[k][2, 2] += y * y
                     Pp[k][5, 5] += (y / 2.0) ** 2
-                    S = P[2, 2] + r2
+                    S += y * y
                     rejected["reacquired"] += 1
                     streak = 0
                 ok = y * y / S <= noise.gate_nis
                 streak = 0 if ok else streak + 1
                 nis_log.append((k, "baro", nis, ok))
                 if ok:
-                    K = P[:, 2] / S
+                    K = (P[:, 2] + P[:, N_DYN]) / S if m > N_DYN else P[:, 2] / S
                     IKH = eye.copy()
                     IKH[:, 2] -= K
+                    if m > N_DYN:
+                        IKH[:, N_DYN] -= K
                     P = IKH @ P @ IKH.T + np.outer(K, K) * r2
                     x = boxplus(x, K * y)
                 else:
                     rejected["baro"] += 1
         P = 0.5 * (P + P.T)
         XF[k] = x
-        Pf[k] = P
+        Pf[k, :m, :m] = P
     run = Run(t=t, xf=XF, Pf=Pf, xs=None, Ps=None, rejected=rejected, nis=nis_log)
     if smooth:
-        run.xs, run.Ps = smooth_urts(XF, Pf, XP, Pp, Dk)
+        run.xs, run.Ps = smooth_urts(XF, Pf, XP, Pp, Dk, m)
     return run
 
 
-def smooth_urts(XF: np.ndarray, Pf: np.ndarray, XP: np.ndarray, Pp: np.ndarray, Dk: np.ndarray
+def smooth_urts(XF: np.ndarray, Pf: np.ndarray, XP: np.ndarray, Pp: np.ndarray, Dk: np.ndarray, m: int = N_ERR
                 ) -> tuple[np.ndarray, np.ndarray]:
-    """The unscented RTS pass (module docstring) over the filter's stored states."""
+    """The unscented RTS pass (module docstring) over the filter's stored states; ``m`` the active errors (21:
+    the barometer's offset not a state)."""
     n = XF.shape[0]
     XS = np.empty_like(XF)
-    Ps = np.empty_like(Pf)
+    Ps = np.zeros_like(Pf)
     XS[-1] = XF[-1]
     Ps[-1] = Pf[-1]
     for k in range(n - 2, -1, -1):
-        G = np.linalg.solve(Pp[k + 1].T, Dk[k + 1].T).T
-        XS[k] = boxplus(XF[k], G @ boxminus(XS[k + 1], XP[k + 1]))
-        Pk = Pf[k] + G @ (Ps[k + 1] - Pp[k + 1]) @ G.T
-        Ps[k] = 0.5 * (Pk + Pk.T)
+        Pp1 = Pp[k + 1, :m, :m]
+        G = np.linalg.solve(Pp1.T, Dk[k + 1, :m, :m].T).T
+        XS[k] = boxplus(XF[k], G @ boxminus(XS[k + 1], XP[k + 1])[:m])
+        Pk = Pf[k, :m, :m] + G @ (Ps[k + 1, :m, :m] - Pp1) @ G.T
+        Ps[k, :m, :m] = 0.5 * (Pk + Pk.T)
     return XS, Ps
 
 
