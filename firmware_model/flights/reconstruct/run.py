@@ -34,12 +34,16 @@ from firmware_model.flights.reconstruct.truth import gravity, truth_run
 from firmware_model.flights.reconstruct.flightset import case_named, flight_set
 from firmware_model.flights.reconstruct.ukf import FilterNoise, Measurements, align, run_ukf, unflat
 from firmware_model.flights.reconstruct.vertical import run_vertical
+from firmware_model.flights.pressure_errors import BARO_ERROR_RANGES
 from firmware_model.flights.apogee_reference import deployment_time, ground_pressure, liftoff_time, noise_scale
 from firmware_model.spec import atmosphere as atm
 
 G = 9.80665
 #: Acceleration noise (m/s^2) added after the log's own recovery-charge event.
 AFTER_DEPLOY_SIGMA: float = 20.0
+#: A real barometer's static-port error, 1 sigma, as a fraction of the dynamic pressure: the top of the range the
+#: project's barometer model draws from (measured on the shared logs: docs/flights.md).
+BARO_PORT_CP: float = BARO_ERROR_RANGES["cp_port"][1]
 
 
 @dataclass
@@ -140,6 +144,15 @@ def _refit_sigma(t: np.ndarray, baro: np.ndarray, z: np.ndarray, vz: np.ndarray,
     return out
 
 
+def _first_apogee(t: np.ndarray, z: np.ndarray, vz: np.ndarray, where: str) -> float:
+    """The first pass's apogee time (its sigma is not needed); the end of the log if it has none."""
+    zeros = np.zeros(t.size)
+    try:
+        return velocity_zero_crossing(t, z, vz, zeros, zeros, where=where).time_s
+    except UserError:
+        return float(t[-1])
+
+
 def _scaled(ap: ApogeeEstimate, k: float) -> ApogeeEstimate:
     return ApogeeEstimate(time_s=ap.time_s, sigma_s=ap.sigma_s * k, altitude_m=ap.altitude_m,
                           sigma_altitude_m=ap.sigma_altitude_m * k, vz_slope_mps2=ap.vz_slope_mps2,
@@ -189,12 +202,26 @@ def reconstruct_log(path: str | Path, format: str | None = None,  # noqa: A002
         whence = "given" if deploy_s is not None else "the log's own event"
         notes.append(f"recovery charge at {deploy:.2f} s ({whence}): accelerometer trusted to "
                      f"+-{AFTER_DEPLOY_SIGMA:g} m/s^2 only after it (ejection, parachute, tumbling)")
+    else:
+        notes.append(f"no recovery charge in the log: accelerometer trusted to +-{AFTER_DEPLOY_SIGMA:g} m/s^2 only "
+                     "after each channel's first-pass apogee (another computer's recovery, or tumbling)")
+
+    def after(first_apogee_s: float) -> np.ndarray:
+        """The second pass's extra acceleration noise: the charge's, or without one (this computer fired none; the
+        rocket's recovery was another's, or it tumbled) from the first pass's apogee on."""
+        if deploy is not None:
+            return extra
+        out = np.zeros(t.size)
+        out[t > first_apogee_s] = AFTER_DEPLOY_SIGMA
+        return out
     t0 = time.process_time()
     vert = None
     if f_ax is not None:
-        vert = run_vertical(t, f_ax, hb, sig, site, n_pad, accel_sigma_extra=extra)
+        vert = run_vertical(t, f_ax, hb, sig, site, n_pad, accel_sigma_extra=extra, baro_port_cp=BARO_PORT_CP)
         sig_v = _refit_sigma(t, hb, vert.xs[:, 0], vert.xs[:, 1], sig)
-        vert = run_vertical(t, f_ax, hb, sig_v, site, n_pad, accel_sigma_extra=extra)
+        first = _first_apogee(t, vert.xs[:, 0], vert.xs[:, 1], where)
+        vert = run_vertical(t, f_ax, hb, sig_v, site, n_pad, accel_sigma_extra=after(first),
+                            baro_port_cp=BARO_PORT_CP)
     cols: dict[str, np.ndarray] = {"baro_altitude_m": hb}
     ap_axial = None
     if vert is not None:
@@ -213,7 +240,8 @@ def reconstruct_log(path: str | Path, format: str | None = None,  # noqa: A002
         pad_acc = acc[pad]
         fn = FilterNoise(accel_noise=max(float(np.median(np.std(pad_acc, axis=0))) if n_pad >= 10 else 0.3, 0.1),
                          accel_bias_sigma=0.3, accel_scale_sigma=0.01, gyro_noise=radians(0.3),
-                         gyro_bias_sigma=radians(0.5), gyro_scale_sigma=0.01, heading_sigma=radians(60.0))
+                         gyro_bias_sigma=radians(0.5), gyro_scale_sigma=0.01, heading_sigma=radians(60.0),
+                         baro_port_cp=BARO_PORT_CP)
         if n_pad >= 10:
             al = align(acc, gyr, n_pad, fn, 0.0, site)
         else:
@@ -229,8 +257,9 @@ def reconstruct_log(path: str | Path, format: str | None = None,  # noqa: A002
                       accel_sigma_extra=extra)
         X1 = unflat(run.xs)
         sig_u = _refit_sigma(t, hb, X1["r"][:, 2], X1["v"][:, 2], sig)
+        first = _first_apogee(t, X1["r"][:, 2], X1["v"][:, 2], where)
         run = run_ukf(t, acc, gyr, sat, Measurements(gps=None, baro=hb, baro_sigma=sig_u), al, fn, site,
-                      accel_sigma_extra=extra)
+                      accel_sigma_extra=after(first))
         cols.update(_vertical_only({**_ukf_columns(run, "f"), **_ukf_columns(run, "s")}))
         X = unflat(run.xs)
         sd = _sd(run.Ps)

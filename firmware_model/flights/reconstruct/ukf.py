@@ -73,6 +73,26 @@ class FilterNoise:
     gate_nis: float = 30.0
     baro_max_mach: float = 0.7
     reacquire: int = 50
+    baro_port_cp: float = 0.0           # static-port error, 1 sigma, as a fraction of the dynamic pressure
+    baro_port_tau_s: float = 1.0        # its correlation time
+
+
+def baro_port_sigma_m(speed_mps: float, cp: float) -> float:
+    """The barometric-altitude error (1 sigma, m) of a static port reading ``cp`` of the dynamic pressure: a
+    pressure error ``cp * rho v^2 / 2`` is an altitude error of that over ``rho g``, i.e. ``cp v^2 / (2 g)``."""
+    return cp * speed_mps * speed_mps / (2.0 * 9.80665)
+
+
+def baro_variances(sigma_m: float, speed_mps: float, dt: float, noise: FilterNoise) -> tuple[float, float, bool]:
+    """(gate variance, update variance, quiet) of one barometer sample: the sensor's ``sigma_m`` and the port
+    error :func:`baro_port_sigma_m`. The gate judges one sample by both. The port error follows the dynamic pressure,
+    so it is the same error for ``baro_port_tau_s``: the update counts it ``tau / dt`` times over, so that the
+    samples of one correlation time carry one sample's worth of it (averaging them cannot remove a bias). ``quiet``:
+    the port error is below the sensor's own sigma, so a barometer that keeps disagreeing with the estimate there
+    says the estimate is wrong (re-acquisition); while it is not, a long disagreement is the port's."""
+    sq = baro_port_sigma_m(speed_mps, noise.baro_port_cp)
+    r2 = sigma_m * sigma_m
+    return r2 + sq * sq, r2 + sq * sq * max(1.0, noise.baro_port_tau_s / dt), sq <= sigma_m
 
 
 def flat(r, v, q, ba, bg, sa=(0.0, 0.0, 0.0), sg=(0.0, 0.0, 0.0)) -> np.ndarray:
@@ -310,23 +330,24 @@ def run_ukf(t: np.ndarray, accel: np.ndarray, gyro: np.ndarray, saturated: np.nd
                 rejected["baro_mach"] += 1
             else:
                 y = float(baro[k] - x[2])
-                r2 = float(meas.baro_sigma[k]) ** 2
-                S = P[2, 2] + r2
+                g2, r2, quiet = baro_variances(float(meas.baro_sigma[k]), speed, dt, noise)
+                S = P[2, 2] + g2
                 nis = y * y / S
-                if nis > noise.gate_nis and streak >= noise.reacquire:
+                if nis > noise.gate_nis and streak >= noise.reacquire and quiet:
                     # the widening is process noise of this step: the stored prediction gets it too, so that
                     # the smoother's gain does not carry the jump back through the flight
                     P[2, 2] += y * y
                     P[5, 5] += (y / 2.0) ** 2
                     Pp[k][2, 2] += y * y
                     Pp[k][5, 5] += (y / 2.0) ** 2
-                    S = P[2, 2] + r2
+                    S = P[2, 2] + g2
                     rejected["reacquired"] += 1
                     streak = 0
                 ok = y * y / S <= noise.gate_nis
-                streak = 0 if ok else streak + 1
+                streak = 0 if ok else (streak + 1 if quiet else streak)
                 nis_log.append((k, "baro", nis, ok))
                 if ok:
+                    S = P[2, 2] + r2
                     K = P[:, 2] / S
                     IKH = eye.copy()
                     IKH[:, 2] -= K
