@@ -17,7 +17,7 @@ it has a gyroscope, so their difference (what the axial-as-vertical assumption d
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from math import radians
 from pathlib import Path
 from typing import Any
@@ -44,6 +44,9 @@ AFTER_DEPLOY_SIGMA: float = 20.0
 #: A real barometer's static-port error, 1 sigma, as a fraction of the dynamic pressure: the top of the range the
 #: project's barometer model draws from (measured on the shared logs: docs/flights.md).
 BARO_PORT_CP: float = BARO_ERROR_RANGES["cp_port"][1]
+#: An accelerometer shock (:func:`first_shock`): above 8 g and 4 times its neighbourhood's median.
+SHOCK_G: float = 8.0
+SHOCK_RATIO: float = 4.0
 
 
 @dataclass
@@ -144,6 +147,31 @@ def _refit_sigma(t: np.ndarray, baro: np.ndarray, z: np.ndarray, vz: np.ndarray,
     return out
 
 
+#: A pause in a log longer than this (s) after liftoff ends the reconstruction there.
+MAX_GAP_S: float = 1.0
+
+
+def _end_at_gap(t: np.ndarray, lift_s: float) -> int:
+    """The number of rows before the first pause longer than :data:`MAX_GAP_S` after liftoff (all rows without)."""
+    gaps = np.nonzero((np.diff(t) > MAX_GAP_S) & (t[:-1] > lift_s))[0]
+    return int(gaps[0]) + 1 if gaps.size else int(t.size)
+
+
+def first_shock(t: np.ndarray, f: np.ndarray | None, after_s: float, half_s: float = 0.1) -> float | None:
+    """The first accelerometer shock after ``after_s``: a sample above ``SHOCK_G`` g and ``SHOCK_RATIO`` times the
+    median |f| within ``half_s`` of it (an ejection charge, a separation or a break-up, seen as a spike; a burn's
+    peak is as high as its neighbours). None without one, or without an accelerometer."""
+    if f is None:
+        return None
+    a = np.abs(np.where(np.isfinite(f), f, 0.0))
+    cand = np.nonzero((a > SHOCK_G * G) & (t > after_s))[0]
+    for i in cand:
+        near = np.abs(t - t[i]) <= half_s
+        if a[i] > SHOCK_RATIO * float(np.median(a[near])):
+            return float(t[i])
+    return None
+
+
 def _first_apogee(t: np.ndarray, z: np.ndarray, vz: np.ndarray, where: str) -> float:
     """The first pass's apogee time (its sigma is not needed); the end of the log if it has none."""
     zeros = np.zeros(t.size)
@@ -185,16 +213,25 @@ def reconstruct_log(path: str | Path, format: str | None = None,  # noqa: A002
     where = rec.provenance.get("source", str(path))
     t = np.asarray(rec.time_s, dtype=np.float64)
     p = np.asarray(rec.pressure_pa, dtype=np.float64)
+    lift = liftoff_time(rec)
+    f_ax = rec.specific_force_mps2()
+    acc_log, gyr_log, tilt_log = log.accel, log.gyro, log.tilt_log
+    end = _end_at_gap(t, lift)
+    gap_note = []
+    if end < t.size:
+        gap_note = [f"the log pauses for {t[end] - t[end - 1]:.1f} s at {t[end - 1]:.2f} s: reconstructed up to there "
+                    f"(no filter can propagate across a gap; {t.size - end} later rows left out)"]
+        t, p = t[:end], p[:end]
+        f_ax, acc_log, gyr_log, tilt_log = (None if x is None else x[:end] for x in (f_ax, acc_log, gyr_log, tilt_log))
     p0 = ground_pressure(rec)
     site = float(geopotential_to_geometric(float(atm.altitude_m(p0))))
     hb = baro_altitude(np.where(p > 0, p, np.nan), p0)
-    lift = liftoff_time(rec)
     pad = t < lift - 0.2
     noise_m = max(noise_scale(np.where(np.isfinite(hb), hb, 0.0), pad), 0.3) if pad.sum() >= 10 else 1.0
     sig = np.full(t.size, noise_m)
-    notes = list(log.notes) + [f"barometer sigma {noise_m:.2f} m (pad noise, at least 0.3 m); liftoff {lift:.2f} s"]
+    notes = list(log.notes) + gap_note + [f"barometer sigma {noise_m:.2f} m (pad noise, at least 0.3 m); liftoff "
+                                          f"{lift:.2f} s"]
     n_pad = int(pad.sum())
-    f_ax = rec.specific_force_mps2()
     deploy = deploy_s if deploy_s is not None else deployment_time(rec)
     extra = np.zeros(t.size)
     if deploy is not None:
@@ -205,23 +242,34 @@ def reconstruct_log(path: str | Path, format: str | None = None,  # noqa: A002
     else:
         notes.append(f"no recovery charge in the log: accelerometer trusted to +-{AFTER_DEPLOY_SIGMA:g} m/s^2 only "
                      "after each channel's first-pass apogee (another computer's recovery, or tumbling)")
-
-    def after(first_apogee_s: float) -> np.ndarray:
-        """The second pass's extra acceleration noise: the charge's, or without one (this computer fired none; the
-        rocket's recovery was another's, or it tumbled) from the first pass's apogee on."""
+    shock = first_shock(t, f_ax, lift + 0.2)
+    port_end = min(x for x in (deploy, shock, np.inf) if x is not None)
+    port = f"barometer: static-port error {BARO_PORT_CP:g} of the dynamic pressure (1 sigma, correlated over 1 s)"
+    if np.isfinite(port_end):
+        why = "an accelerometer shock" if port_end == shock else "the recovery charge"
+        port += (f" until {port_end:.2f} s ({why}: the speed estimate is suspect after it; neither the port error "
+                 "nor the Mach gate applies)")
+    notes.append(port)
+    def after(first_apogee_s: float) -> tuple[np.ndarray, float]:
+        """The second pass's extra acceleration noise and end of trust in the estimate's speed: the charge's, or
+        without one (this computer fired none; the rocket's recovery was another's, or it tumbled) from the first
+        pass's apogee on."""
         if deploy is not None:
-            return extra
+            return extra, port_end
         out = np.zeros(t.size)
         out[t > first_apogee_s] = AFTER_DEPLOY_SIGMA
-        return out
+        return out, min(port_end, first_apogee_s)
+
     t0 = time.process_time()
     vert = None
     if f_ax is not None:
-        vert = run_vertical(t, f_ax, hb, sig, site, n_pad, accel_sigma_extra=extra, baro_port_cp=BARO_PORT_CP)
+        vert = run_vertical(t, f_ax, hb, sig, site, n_pad, accel_sigma_extra=extra, baro_port_cp=BARO_PORT_CP,
+                            speed_trusted_until_s=port_end)
         sig_v = _refit_sigma(t, hb, vert.xs[:, 0], vert.xs[:, 1], sig)
         first = _first_apogee(t, vert.xs[:, 0], vert.xs[:, 1], where)
-        vert = run_vertical(t, f_ax, hb, sig_v, site, n_pad, accel_sigma_extra=after(first),
-                            baro_port_cp=BARO_PORT_CP)
+        extra2, trust2 = after(first)
+        vert = run_vertical(t, f_ax, hb, sig_v, site, n_pad, accel_sigma_extra=extra2,
+                            baro_port_cp=BARO_PORT_CP, speed_trusted_until_s=trust2)
     cols: dict[str, np.ndarray] = {"baro_altitude_m": hb}
     ap_axial = None
     if vert is not None:
@@ -234,14 +282,14 @@ def reconstruct_log(path: str | Path, format: str | None = None,  # noqa: A002
         ap_axial = _scaled(ap_axial, k_ax)
         notes.append(f"axial-as-vertical channel: barometer sigma in flight {sig_v[-1]:.2f} m (from the first pass's "
                      f"residuals), misfit near apogee x{k_ax:.2f}; rejected {vert.rejected}")
-    if log.accel is not None and log.gyro is not None:
-        acc = _fill(log.accel)
-        gyr = _fill(log.gyro)
+    if acc_log is not None and gyr_log is not None:
+        acc = _fill(acc_log)
+        gyr = _fill(gyr_log)
         pad_acc = acc[pad]
         fn = FilterNoise(accel_noise=max(float(np.median(np.std(pad_acc, axis=0))) if n_pad >= 10 else 0.3, 0.1),
                          accel_bias_sigma=0.3, accel_scale_sigma=0.01, gyro_noise=radians(0.3),
                          gyro_bias_sigma=radians(0.5), gyro_scale_sigma=0.01, heading_sigma=radians(60.0),
-                         baro_port_cp=BARO_PORT_CP)
+                         baro_port_cp=BARO_PORT_CP, speed_trusted_until_s=port_end)
         if n_pad >= 10:
             al = align(acc, gyr, n_pad, fn, 0.0, site)
         else:
@@ -258,8 +306,9 @@ def reconstruct_log(path: str | Path, format: str | None = None,  # noqa: A002
         X1 = unflat(run.xs)
         sig_u = _refit_sigma(t, hb, X1["r"][:, 2], X1["v"][:, 2], sig)
         first = _first_apogee(t, X1["r"][:, 2], X1["v"][:, 2], where)
-        run = run_ukf(t, acc, gyr, sat, Measurements(gps=None, baro=hb, baro_sigma=sig_u), al, fn, site,
-                      accel_sigma_extra=after(first))
+        extra2, trust2 = after(first)
+        run = run_ukf(t, acc, gyr, sat, Measurements(gps=None, baro=hb, baro_sigma=sig_u), al,
+                      replace(fn, speed_trusted_until_s=trust2), site, accel_sigma_extra=extra2)
         cols.update(_vertical_only({**_ukf_columns(run, "f"), **_ukf_columns(run, "s")}))
         X = unflat(run.xs)
         sd = _sd(run.Ps)
@@ -271,8 +320,8 @@ def reconstruct_log(path: str | Path, format: str | None = None,  # noqa: A002
         mode = "vertical-imu"
         notes.append("no GPS used: vertical channel only (horizontal position and heading are not observable)")
         notes.append(f"measurements rejected: {run.rejected}")
-        if log.tilt_log is not None:
-            cols["log_tilt_deg"] = log.tilt_log
+        if tilt_log is not None:
+            cols["log_tilt_deg"] = tilt_log
     elif ap_axial is not None:
         ap = ap_axial
         mode = "vertical-axial"

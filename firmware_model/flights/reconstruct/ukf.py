@@ -75,6 +75,7 @@ class FilterNoise:
     reacquire: int = 50
     baro_port_cp: float = 0.0           # static-port error, 1 sigma, as a fraction of the dynamic pressure
     baro_port_tau_s: float = 1.0        # its correlation time
+    speed_trusted_until_s: float = math.inf   # after it (a recovery event), no Mach gate and no port error
 
 
 def baro_port_sigma_m(speed_mps: float, cp: float) -> float:
@@ -83,16 +84,14 @@ def baro_port_sigma_m(speed_mps: float, cp: float) -> float:
     return cp * speed_mps * speed_mps / (2.0 * 9.80665)
 
 
-def baro_variances(sigma_m: float, speed_mps: float, dt: float, noise: FilterNoise) -> tuple[float, float, bool]:
-    """(gate variance, update variance, quiet) of one barometer sample: the sensor's ``sigma_m`` and the port
-    error :func:`baro_port_sigma_m`. The gate judges one sample by both. The port error follows the dynamic pressure,
-    so it is the same error for ``baro_port_tau_s``: the update counts it ``tau / dt`` times over, so that the
-    samples of one correlation time carry one sample's worth of it (averaging them cannot remove a bias). ``quiet``:
-    the port error is below the sensor's own sigma, so a barometer that keeps disagreeing with the estimate there
-    says the estimate is wrong (re-acquisition); while it is not, a long disagreement is the port's."""
+def baro_variances(sigma_m: float, speed_mps: float, dt: float, noise: FilterNoise) -> tuple[float, float]:
+    """(gate variance, update variance) of one barometer sample: the sensor's ``sigma_m`` and the port error
+    :func:`baro_port_sigma_m`. The gate judges one sample by both. The port error follows the dynamic pressure, so
+    it is the same error for ``baro_port_tau_s``: the update counts it ``tau / dt`` times over, so that the samples
+    of one correlation time carry one sample's worth of it (averaging them cannot remove a bias)."""
     sq = baro_port_sigma_m(speed_mps, noise.baro_port_cp)
     r2 = sigma_m * sigma_m
-    return r2 + sq * sq, r2 + sq * sq * max(1.0, noise.baro_port_tau_s / dt), sq <= sigma_m
+    return r2 + sq * sq, r2 + sq * sq * max(1.0, noise.baro_port_tau_s / dt)
 
 
 def flat(r, v, q, ba, bg, sa=(0.0, 0.0, 0.0), sg=(0.0, 0.0, 0.0)) -> np.ndarray:
@@ -326,14 +325,16 @@ def run_ukf(t: np.ndarray, accel: np.ndarray, gyro: np.ndarray, saturated: np.nd
         if baro is not None and baro[k] == baro[k]:
             # without GPS the horizontal velocity is not observable (its estimate may wander): gate on |vz|
             speed = math.sqrt(x[3] * x[3] + x[4] * x[4] + x[5] * x[5]) if gps is not None else abs(x[5])
+            if t[k] >= noise.speed_trusted_until_s:
+                speed = 0.0                 # the estimate's speed is suspect: neither gate nor port error
             if speed > noise.baro_max_mach * _sound(x[2] + site_asl_m):
                 rejected["baro_mach"] += 1
             else:
                 y = float(baro[k] - x[2])
-                g2, r2, quiet = baro_variances(float(meas.baro_sigma[k]), speed, dt, noise)
+                g2, r2 = baro_variances(float(meas.baro_sigma[k]), speed, dt, noise)
                 S = P[2, 2] + g2
                 nis = y * y / S
-                if nis > noise.gate_nis and streak >= noise.reacquire and quiet:
+                if nis > noise.gate_nis and streak >= noise.reacquire:
                     # the widening is process noise of this step: the stored prediction gets it too, so that
                     # the smoother's gain does not carry the jump back through the flight
                     P[2, 2] += y * y
@@ -344,7 +345,7 @@ def run_ukf(t: np.ndarray, accel: np.ndarray, gyro: np.ndarray, saturated: np.nd
                     rejected["reacquired"] += 1
                     streak = 0
                 ok = y * y / S <= noise.gate_nis
-                streak = 0 if ok else (streak + 1 if quiet else streak)
+                streak = 0 if ok else streak + 1
                 nis_log.append((k, "baro", nis, ok))
                 if ok:
                     S = P[2, 2] + r2

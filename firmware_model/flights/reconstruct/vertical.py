@@ -4,7 +4,7 @@ taken as vertical (the assumption kalman_accel makes) as the control input and t
 measurement. Linear, so the smoother is the exact RTS. The acceleration noise includes an allowance for the
 assumption: ``tilt_allowance`` x |f| (1 - cos 10 deg = 1.5 % of the specific force, by default) on top of the
 sensor noise. Barometer rules as in :mod:`.ukf` (speed gate, the static port's error, innovation gate, re-acquisition after
-``reacquire`` rejections in a row where the port error is small)."""
+``reacquire`` rejections in a row)."""
 
 from __future__ import annotations
 
@@ -30,7 +30,7 @@ def run_vertical(t: np.ndarray, f_axial: np.ndarray, baro: np.ndarray, baro_sigm
                  n_pad: int, accel_noise: float = 0.3, tilt_allowance: float = 0.015, bias_sigma: float = 0.5,
                  bias_walk: float = 0.01, gate_nis: float = 30.0, baro_max_mach: float = 0.7, reacquire: int = 50,
                  accel_sigma_extra: np.ndarray | None = None, baro_port_cp: float = 0.0,
-                 baro_port_tau_s: float = 1.0) -> VerticalRun:
+                 baro_port_tau_s: float = 1.0, speed_trusted_until_s: float = np.inf) -> VerticalRun:
     n = t.size
     port = FilterNoise(baro_port_cp=baro_port_cp, baro_port_tau_s=baro_port_tau_s)
     g0 = float(gravity(site_asl_m))
@@ -60,13 +60,14 @@ def run_vertical(t: np.ndarray, f_axial: np.ndarray, baro: np.ndarray, baro_sigm
         P = F @ P @ F.T + Q
         XP[k], PP[k], FK[k] = x, P.copy(), F
         if np.isfinite(baro[k]):
-            if abs(x[1]) > baro_max_mach * _sound(x[0] + site_asl_m):
+            speed = abs(float(x[1])) if t[k] < speed_trusted_until_s else 0.0
+            if speed > baro_max_mach * _sound(x[0] + site_asl_m):
                 rej["baro_mach"] += 1
             else:
-                g2, r2, quiet = baro_variances(float(baro_sigma[k]), abs(float(x[1])), dt, port)
+                g2, r2 = baro_variances(float(baro_sigma[k]), speed, dt, port)
                 S = P[0, 0] + g2
                 y = float(baro[k] - x[0])
-                if y * y / S > gate_nis and streak >= reacquire and quiet:
+                if y * y / S > gate_nis and streak >= reacquire:
                     # a barometer that disagrees for `reacquire` samples in a row is not a spike: the estimate
                     # has drifted (accelerometer beyond its range, a wrong bias): widen it and take the sample
                     P[0, 0] += y * y
@@ -86,7 +87,7 @@ def run_vertical(t: np.ndarray, f_axial: np.ndarray, baro: np.ndarray, baro_sigm
                     P = IKH @ P @ IKH.T + np.outer(K, K) * r2
                 else:
                     rej["baro"] += 1
-                    streak += 1 if quiet else 0
+                    streak += 1
         XF[k], PF[k] = x, P
     XS = XF.copy()
     PS = PF.copy()
