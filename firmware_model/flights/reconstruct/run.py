@@ -172,11 +172,11 @@ def first_shock(t: np.ndarray, f: np.ndarray | None, after_s: float, half_s: flo
     return None
 
 
-def _first_apogee(t: np.ndarray, z: np.ndarray, vz: np.ndarray, where: str) -> float:
+def _first_apogee(t: np.ndarray, z: np.ndarray, vz: np.ndarray, where: str, before_s: float | None) -> float:
     """The first pass's apogee time (its sigma is not needed); the end of the log if it has none."""
     zeros = np.zeros(t.size)
     try:
-        return velocity_zero_crossing(t, z, vz, zeros, zeros, where=where).time_s
+        return velocity_zero_crossing(t, z, vz, zeros, zeros, where=where, before_s=before_s).time_s
     except UserError:
         return float(t[-1])
 
@@ -244,6 +244,7 @@ def reconstruct_log(path: str | Path, format: str | None = None,  # noqa: A002
                      "after each channel's first-pass apogee (another computer's recovery, or tumbling)")
     shock = first_shock(t, f_ax, lift + 0.2)
     port_end = min(x for x in (deploy, shock, np.inf) if x is not None)
+    event = float(port_end) if np.isfinite(port_end) else None     # the first recovery event, if the log shows one
     port = f"barometer: static-port error {BARO_PORT_CP:g} of the dynamic pressure (1 sigma, correlated over 1 s)"
     if np.isfinite(port_end):
         why = "an accelerometer shock" if port_end == shock else "the recovery charge"
@@ -266,7 +267,7 @@ def reconstruct_log(path: str | Path, format: str | None = None,  # noqa: A002
         vert = run_vertical(t, f_ax, hb, sig, site, n_pad, accel_sigma_extra=extra, baro_port_cp=BARO_PORT_CP,
                             speed_trusted_until_s=port_end)
         sig_v = _refit_sigma(t, hb, vert.xs[:, 0], vert.xs[:, 1], sig)
-        first = _first_apogee(t, vert.xs[:, 0], vert.xs[:, 1], where)
+        first = _first_apogee(t, vert.xs[:, 0], vert.xs[:, 1], where, event)
         extra2, trust2 = after(first)
         vert = run_vertical(t, f_ax, hb, sig_v, site, n_pad, accel_sigma_extra=extra2,
                             baro_port_cp=BARO_PORT_CP, speed_trusted_until_s=trust2)
@@ -277,7 +278,7 @@ def reconstruct_log(path: str | Path, format: str | None = None,  # noqa: A002
         cols.update({"axial_z_m": vert.xs[:, 0], "axial_vz_mps": vert.xs[:, 1], "axial_sigma_z_m": sdv[:, 0],
                      "axial_sigma_vz_mps": sdv[:, 1]})
         ap_axial = velocity_zero_crossing(t, vert.xs[:, 0], vert.xs[:, 1], sdv[:, 0], sdv[:, 1],
-                                          source="smoother (axial as vertical)", where=where)
+                                          source="smoother (axial as vertical)", where=where, before_s=event)
         k_ax = residual_scale(t, hb, vert.xs[:, 0], sdv[:, 0], sig_v, ap_axial.time_s)
         ap_axial = _scaled(ap_axial, k_ax)
         notes.append(f"axial-as-vertical channel: barometer sigma in flight {sig_v[-1]:.2f} m (from the first pass's "
@@ -305,14 +306,14 @@ def reconstruct_log(path: str | Path, format: str | None = None,  # noqa: A002
                       accel_sigma_extra=extra)
         X1 = unflat(run.xs)
         sig_u = _refit_sigma(t, hb, X1["r"][:, 2], X1["v"][:, 2], sig)
-        first = _first_apogee(t, X1["r"][:, 2], X1["v"][:, 2], where)
+        first = _first_apogee(t, X1["r"][:, 2], X1["v"][:, 2], where, event)
         extra2, trust2 = after(first)
         run = run_ukf(t, acc, gyr, sat, Measurements(gps=None, baro=hb, baro_sigma=sig_u), al,
                       replace(fn, speed_trusted_until_s=trust2), site, accel_sigma_extra=extra2)
         cols.update(_vertical_only({**_ukf_columns(run, "f"), **_ukf_columns(run, "s")}))
         X = unflat(run.xs)
         sd = _sd(run.Ps)
-        ap = velocity_zero_crossing(t, X["r"][:, 2], X["v"][:, 2], sd[:, 2], sd[:, 5], where=where)
+        ap = velocity_zero_crossing(t, X["r"][:, 2], X["v"][:, 2], sd[:, 2], sd[:, 5], where=where, before_s=event)
         k_imu = residual_scale(t, hb, X["r"][:, 2], sd[:, 2], sig_u, ap.time_s)
         ap = _scaled(ap, k_imu)
         notes.append(f"3-axis IMU channel: barometer sigma in flight {sig_u[-1]:.2f} m (from the first pass's "
