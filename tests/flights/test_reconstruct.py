@@ -394,8 +394,8 @@ def test_piccard_computers_agree_on_the_apogee() -> None:
     """Four computers in one rocket (EuRoC 2021 Piccard): the CATS (3-axis IMU, three barometers in the avionics
     bay), the TeleMega (3-axis, from its CSV), the same TeleMega's flash log (axial) and a TeleMetrum in the nose
     cone (axial). The bay barometers read hundreds of metres low through the boost; the nose cone's does not. Their
-    smoothed apogees agree within 0.1 s (measured 0.04 s; the CATS clock runs 0.03-0.06 s behind the TeleMega's,
-    docs/reconstruction.md); with the barometer taken as white noise they were 1.9 s apart (CATS 38.47 s)."""
+    smoothed apogees agree within 0.1 s (measured 0.052 s; the CATS clock runs 0.03-0.06 s behind the TeleMega's,
+    docs/reconstruction.md); with the barometer taken as white noise they were 1.7 s apart (CATS 38.47 s)."""
     modes = {}
     times = []
     for n in PICCARD_LOGS:
@@ -408,13 +408,14 @@ def test_piccard_computers_agree_on_the_apogee() -> None:
 
 @pytest.mark.skipif(not (PROMETHEUS_TM.exists() and PROMETHEUS_TMEGA.exists()), reason="shared flights not present")
 def test_prometheus_computers_agree_on_the_apogee() -> None:
-    """Prometheus 2022: TeleMega and TeleMetrum in one airframe, both axial (the TeleMega's IMU block is not data).
-    They agree within their combined 2 sigma (each 0.2-0.3 s: the TeleMega fired its drogue 0.5 s before apogee, the
-    TeleMetrum's barometer misfits its track near apogee). The issue asks 0.05 s; measured 0.107 s
-    (docs/reconstruction.md): this holds the measured state, not the target."""
+    """Prometheus 2022: TeleMega and TeleMetrum in one airframe, both axial (the TeleMega's IMU block is not data):
+    the issue's 0.05 s (measured 0.005 s). Each apogee's own sigma is 0.2-0.3 s (the TeleMega fired its drogue 0.5 s
+    before apogee; the TeleMetrum's barometer misfits its track near apogee), and variants of the real-log rules tried
+    on the way put the two 0.002-0.107 s apart (docs/reconstruction.md): the agreement is within the sigmas, not
+    finer than them."""
     a = reconstruct_log(PROMETHEUS_TM).apogee
     b = reconstruct_log(PROMETHEUS_TMEGA).apogee
-    assert abs(a.time_s - b.time_s) < min(0.2, 2 * np.hypot(a.sigma_s, b.sigma_s)), (a, b)
+    assert abs(a.time_s - b.time_s) < 0.05, (a, b)
 
 
 S068 = SHARED / "altosui" / "2012-10-20-serial-068-flight-004.csv"

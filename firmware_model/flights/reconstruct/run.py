@@ -44,6 +44,17 @@ AFTER_DEPLOY_SIGMA: float = 20.0
 #: A real barometer's static-port error, 1 sigma, as a fraction of the dynamic pressure: the top of the range the
 #: project's barometer model draws from (measured on the shared logs: docs/flights.md).
 BARO_PORT_CP: float = BARO_ERROR_RANGES["cp_port"][1]
+#: A real log's second pass ends this long (s) after the first pass's apogee. After the recovery the log's section
+#: hangs on its harness or tumbles; an IMU model of free flight does not describe it, and through the gyroscope
+#: (a chain tight enough to carry an attitude across minutes) the smoother moved the ascent by what the descent
+#: misread: on hedy, 210 s of descent put the smoothed pad tilt at 50 deg (the pad says 5) and the apogee 0.18 s
+#: later than with the log cut anywhere from 36 to 130 s after liftoff (33.45-33.56 s).
+TAIL_S: float = 10.0
+#: The heading prior of a real log (deg). Without GPS the heading is not observable and does not enter the vertical
+#: channel (a rotation about the vertical leaves vertical components alone); the prior only has to keep the sigma
+#: points (+-sqrt(21) sigma) well inside +-180 deg, where the rotation-vector error wraps: 60 deg put them at +-275,
+#: their read-back angles were the wrapped ones, and the smoother's cross-covariances carried that back as tilt.
+HEADING_SIGMA_DEG: float = 10.0
 #: An accelerometer shock (:func:`first_shock`): above 8 g and 4 times its neighbourhood's median.
 SHOCK_G: float = 8.0
 SHOCK_RATIO: float = 4.0
@@ -193,6 +204,28 @@ def _vertical_only(cols: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     return {k: v for k, v in cols.items() if not (k.endswith(horizontal) and not k.startswith("truth_"))}
 
 
+def _imu_setup(acc: np.ndarray, gyr: np.ndarray, pad: np.ndarray, n_pad: int, site: float, trust_s: float,
+               notes: list[str]) -> tuple[FilterNoise, Any, np.ndarray]:
+    """A real log's 3-axis filter: its noise (pad figures, priors for an unknown IMU), the alignment (from the pad,
+    or the rail taken as vertical without one) and the saturated samples."""
+    fn = FilterNoise(accel_noise=max(float(np.median(np.std(acc[pad], axis=0))) if n_pad >= 10 else 0.3, 0.1),
+                     accel_bias_sigma=0.3, accel_scale_sigma=0.01, gyro_noise=radians(0.3),
+                     gyro_bias_sigma=radians(0.5), gyro_scale_sigma=0.01, heading_sigma=radians(HEADING_SIGMA_DEG),
+                     baro_port_cp=BARO_PORT_CP, speed_trusted_until_s=trust_s)
+    if n_pad >= 10:
+        al = align(acc, gyr, n_pad, fn, 0.0, site)
+    else:
+        fake = np.tile([0.0, 0.0, float(gravity(site))], (10, 1))
+        al = align(fake, np.zeros((10, 3)), 10, fn, 0.0, site)
+        al.P0[6:8, 6:8] += np.eye(2) * radians(5.0) ** 2
+        al.P0[12:15, 12:15] = np.eye(3) * fn.gyro_bias_sigma ** 2
+        al.P0[3:6, 3:6] = np.eye(3) * 2.0 ** 2
+        notes.append(f"only {n_pad} pad samples: no pad alignment; the rail taken as vertical +-5 deg, "
+                     "gyro bias unknown (+-0.5 deg/s)")
+    sat = np.any(np.abs(acc) >= np.nanmax(np.abs(acc)) * 0.999, axis=1) & (np.abs(acc).max(axis=1) > 8 * G)
+    return fn, al, sat
+
+
 def _fill(x: np.ndarray) -> np.ndarray:
     x = np.array(x, dtype=np.float64)
     for j in range(x.shape[1]):
@@ -251,70 +284,68 @@ def reconstruct_log(path: str | Path, format: str | None = None,  # noqa: A002
         port += (f" until {port_end:.2f} s ({why}: the speed estimate is suspect after it; neither the port error "
                  "nor the Mach gate applies)")
     notes.append(port)
-    def after(first_apogee_s: float) -> tuple[np.ndarray, float]:
+    def after(tt: np.ndarray, first_apogee_s: float) -> tuple[np.ndarray, float]:
         """The second pass's extra acceleration noise and end of trust in the estimate's speed: the charge's, or
         without one (this computer fired none; the rocket's recovery was another's, or it tumbled) from the first
         pass's apogee on."""
-        if deploy is not None:
-            return extra, port_end
-        out = np.zeros(t.size)
-        out[t > first_apogee_s] = AFTER_DEPLOY_SIGMA
-        return out, min(port_end, first_apogee_s)
+        out = np.zeros(tt.size)
+        out[tt > (deploy if deploy is not None else first_apogee_s)] = AFTER_DEPLOY_SIGMA
+        return out, (port_end if deploy is not None else min(port_end, first_apogee_s))
 
     t0 = time.process_time()
-    vert = None
+    # ---- first passes, on the whole log: each channel's apogee, and the barometer's sigma from its residuals
+    firsts: list[float] = []
     if f_ax is not None:
         vert = run_vertical(t, f_ax, hb, sig, site, n_pad, accel_sigma_extra=extra, baro_port_cp=BARO_PORT_CP,
                             speed_trusted_until_s=port_end)
         sig_v = _refit_sigma(t, hb, vert.xs[:, 0], vert.xs[:, 1], sig)
-        first = _first_apogee(t, vert.xs[:, 0], vert.xs[:, 1], where, event)
-        extra2, trust2 = after(first)
-        vert = run_vertical(t, f_ax, hb, sig_v, site, n_pad, accel_sigma_extra=extra2,
-                            baro_port_cp=BARO_PORT_CP, speed_trusted_until_s=trust2)
+        first_v = _first_apogee(t, vert.xs[:, 0], vert.xs[:, 1], where, event)
+        firsts.append(first_v)
+    imu = acc_log is not None and gyr_log is not None
+    if imu:
+        acc, gyr = _fill(acc_log), _fill(gyr_log)
+        fn, al, sat = _imu_setup(acc, gyr, pad, n_pad, site, port_end, notes)
+        run = run_ukf(t, acc, gyr, sat, Measurements(gps=None, baro=hb, baro_sigma=sig), al, fn, site,
+                      accel_sigma_extra=extra)
+        X1 = unflat(run.xs)
+        sig_u = _refit_sigma(t, hb, X1["r"][:, 2], X1["v"][:, 2], sig)
+        first_u = _first_apogee(t, X1["r"][:, 2], X1["v"][:, 2], where, event)
+        firsts.append(first_u)
+    if not firsts:
+        raise UserError(f"{where}: no accelerometer: nothing to reconstruct (the barometric parabola is the only "
+                        "reference for this log)")
+    # ---- the second passes end TAIL_S after the first passes' apogee (module constant's comment)
+    cut = int(np.searchsorted(t, max(firsts) + TAIL_S, side="right"))
+    if cut < t.size:
+        notes.append(f"reconstructed to {t[cut - 1]:.2f} s, {TAIL_S:g} s after the first pass's apogee: the descent "
+                     f"({t.size - cut} rows) is the barometer's (an IMU on a harness or tumbling is not free flight, "
+                     "and the gyroscope would carry what it misreads back through the ascent)")
+        t, hb = t[:cut], hb[:cut]
+        f_ax, tilt_log = (None if x is None else x[:cut] for x in (f_ax, tilt_log))
     cols: dict[str, np.ndarray] = {"baro_altitude_m": hb}
     ap_axial = None
-    if vert is not None:
+    if f_ax is not None:
+        extra2, trust2 = after(t, first_v)
+        vert = run_vertical(t, f_ax, hb, sig_v[:cut], site, n_pad, accel_sigma_extra=extra2,
+                            baro_port_cp=BARO_PORT_CP, speed_trusted_until_s=trust2)
         sdv = _sd(vert.Ps)
         cols.update({"axial_z_m": vert.xs[:, 0], "axial_vz_mps": vert.xs[:, 1], "axial_sigma_z_m": sdv[:, 0],
                      "axial_sigma_vz_mps": sdv[:, 1]})
         ap_axial = velocity_zero_crossing(t, vert.xs[:, 0], vert.xs[:, 1], sdv[:, 0], sdv[:, 1],
                                           source="smoother (axial as vertical)", where=where, before_s=event)
-        k_ax = residual_scale(t, hb, vert.xs[:, 0], sdv[:, 0], sig_v, ap_axial.time_s)
+        k_ax = residual_scale(t, hb, vert.xs[:, 0], sdv[:, 0], sig_v[:cut], ap_axial.time_s)
         ap_axial = _scaled(ap_axial, k_ax)
         notes.append(f"axial-as-vertical channel: barometer sigma in flight {sig_v[-1]:.2f} m (from the first pass's "
                      f"residuals), misfit near apogee x{k_ax:.2f}; rejected {vert.rejected}")
-    if acc_log is not None and gyr_log is not None:
-        acc = _fill(acc_log)
-        gyr = _fill(gyr_log)
-        pad_acc = acc[pad]
-        fn = FilterNoise(accel_noise=max(float(np.median(np.std(pad_acc, axis=0))) if n_pad >= 10 else 0.3, 0.1),
-                         accel_bias_sigma=0.3, accel_scale_sigma=0.01, gyro_noise=radians(0.3),
-                         gyro_bias_sigma=radians(0.5), gyro_scale_sigma=0.01, heading_sigma=radians(60.0),
-                         baro_port_cp=BARO_PORT_CP, speed_trusted_until_s=port_end)
-        if n_pad >= 10:
-            al = align(acc, gyr, n_pad, fn, 0.0, site)
-        else:
-            fake = np.tile([0.0, 0.0, float(gravity(site))], (10, 1))
-            al = align(fake, np.zeros((10, 3)), 10, fn, 0.0, site)
-            al.P0[6:8, 6:8] += np.eye(2) * radians(5.0) ** 2
-            al.P0[12:15, 12:15] = np.eye(3) * fn.gyro_bias_sigma ** 2
-            al.P0[3:6, 3:6] = np.eye(3) * 2.0 ** 2
-            notes.append(f"only {n_pad} pad samples: no pad alignment; the rail taken as vertical +-5 deg, "
-                         "gyro bias unknown (+-0.5 deg/s)")
-        sat = np.any(np.abs(acc) >= np.nanmax(np.abs(acc)) * 0.999, axis=1) & (np.abs(acc).max(axis=1) > 8 * G)
-        run = run_ukf(t, acc, gyr, sat, Measurements(gps=None, baro=hb, baro_sigma=sig), al, fn, site,
-                      accel_sigma_extra=extra)
-        X1 = unflat(run.xs)
-        sig_u = _refit_sigma(t, hb, X1["r"][:, 2], X1["v"][:, 2], sig)
-        first = _first_apogee(t, X1["r"][:, 2], X1["v"][:, 2], where, event)
-        extra2, trust2 = after(first)
-        run = run_ukf(t, acc, gyr, sat, Measurements(gps=None, baro=hb, baro_sigma=sig_u), al,
-                      replace(fn, speed_trusted_until_s=trust2), site, accel_sigma_extra=extra2)
+    if imu:
+        extra2, trust2 = after(t, first_u)
+        run = run_ukf(t, acc[:cut], gyr[:cut], sat[:cut], Measurements(gps=None, baro=hb, baro_sigma=sig_u[:cut]),
+                      al, replace(fn, speed_trusted_until_s=trust2), site, accel_sigma_extra=extra2)
         cols.update(_vertical_only({**_ukf_columns(run, "f"), **_ukf_columns(run, "s")}))
         X = unflat(run.xs)
         sd = _sd(run.Ps)
         ap = velocity_zero_crossing(t, X["r"][:, 2], X["v"][:, 2], sd[:, 2], sd[:, 5], where=where, before_s=event)
-        k_imu = residual_scale(t, hb, X["r"][:, 2], sd[:, 2], sig_u, ap.time_s)
+        k_imu = residual_scale(t, hb, X["r"][:, 2], sd[:, 2], sig_u[:cut], ap.time_s)
         ap = _scaled(ap, k_imu)
         notes.append(f"3-axis IMU channel: barometer sigma in flight {sig_u[-1]:.2f} m (from the first pass's "
                      f"residuals), misfit near apogee x{k_imu:.2f}")
@@ -323,13 +354,11 @@ def reconstruct_log(path: str | Path, format: str | None = None,  # noqa: A002
         notes.append(f"measurements rejected: {run.rejected}")
         if tilt_log is not None:
             cols["log_tilt_deg"] = tilt_log
-    elif ap_axial is not None:
+    else:
+        assert ap_axial is not None
         ap = ap_axial
         mode = "vertical-axial"
         notes.append("no gyroscope: vertical channel only, axial specific force taken as vertical")
-    else:
-        raise UserError(f"{where}: no accelerometer: nothing to reconstruct (the barometric parabola is the only "
-                        "reference for this log)")
     cpu = time.process_time() - t0
     return Reconstruction(name=rec.name, mode=mode, t=t, columns=cols, apogee=ap, apogee_axial=ap_axial,
                           notes=notes, cpu_s=cpu, extra={"record": rec})
