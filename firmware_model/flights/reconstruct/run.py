@@ -52,8 +52,8 @@ BARO_PORT_CP: float = BARO_ERROR_RANGES["cp_port"][1]
 TAIL_S: float = 10.0
 #: The heading prior of a real log (deg). Without GPS the heading is not observable and does not enter the vertical
 #: channel (a rotation about the vertical leaves vertical components alone); the prior only has to keep the sigma
-#: points (+-sqrt(21) sigma) well inside +-180 deg, where the rotation-vector error wraps: 60 deg put them at +-275,
-#: their read-back angles were the wrapped ones, and the smoother's cross-covariances carried that back as tilt.
+#: points (+-sqrt(21) sigma) inside +-180 deg, where the rotation-vector error wraps: 60 deg put them at +-275 deg.
+#: On the logs here that moved the apogees by at most 7 ms (hedy, Piccard's TeleMega and CATS).
 HEADING_SIGMA_DEG: float = 10.0
 #: An accelerometer shock (:func:`first_shock`): above 8 g and 4 times its neighbourhood's median.
 SHOCK_G: float = 8.0
