@@ -183,6 +183,18 @@ def test_filter_and_smoother_are_consistent(truth) -> None:
     assert 4.0 < np.mean(nees_f) < 14.0 and 4.0 < np.mean(nees_s) < 14.0, (nees_f, nees_s)
 
 
+def test_smoother_is_consistent_with_a_biased_imu(truth) -> None:
+    """With the bno055's biases and scale errors the unscented RTS pass alone, linear about the filter's (after a
+    biased pad, tilted) trajectory, averaged a NEES of 55 over these 8 seeds (259 on seed 3); the posterior-
+    linearisation pass around it brings the mean to about 11 (9 expected)."""
+    nees = []
+    for seed in range(8):
+        s = sensed_flight(truth, imu_preset("bno055"), gps_preset("chari"), seed=seed)
+        E = errors(reconstruct_sensed(s, 0.0), s, truth)
+        nees.append(E.s["nees"][s.t >= 0].mean())
+    assert np.mean(nees) < 20.0, nees
+
+
 @pytest.mark.parametrize("rail_tilt_deg, heading_axis", [(0.0, "x"), (5.0, "z")])
 def test_pad_prior_is_consistent_with_a_biased_imu(rail_tilt_deg, heading_axis) -> None:
     """The pad alignment's prior (attitude, accelerometer bias and scale errors) against the truth over draws of the
