@@ -30,17 +30,28 @@ class ApogeeEstimate:
 
 
 def velocity_zero_crossing(t: np.ndarray, z: np.ndarray, vz: np.ndarray, sig_z: np.ndarray, sig_vz: np.ndarray,
-                           source: str = "smoother", where: str = "flight") -> ApogeeEstimate:
+                           source: str = "smoother", where: str = "flight",
+                           before_s: float | None = None) -> ApogeeEstimate:
+    """``before_s``: a recovery event (a charge, a shock); crossings before it are preferred, the highest point
+    among them, because after it the log's section is kicked and its barometer sees the ejection's pressure (a
+    section that climbs a few metres after the charge is not the rocket's apogee)."""
     t = np.asarray(t, float)
     vz = np.asarray(vz, float)
-    ip = int(np.argmax(z))
+    z = np.asarray(z, float)
     down = np.nonzero((vz[:-1] > 0) & (vz[1:] <= 0))[0]
     if down.size == 0:
         raise UserError(f"{where}: the reconstructed vertical velocity never crosses zero downwards (no apogee)")
+    if before_s is not None and np.any(t[down + 1] <= before_s):
+        down = down[t[down + 1] <= before_s]
+        ip = int(np.argmax(np.where(t <= before_s, z, -np.inf)))
+    else:
+        ip = int(np.argmax(z))
     k = int(down[np.argmin(np.abs(down - ip))])
     frac = vz[k] / (vz[k] - vz[k + 1])
     tc = float(t[k] + frac * (t[k + 1] - t[k]))
     near = np.abs(t - tc) <= 0.25
+    if before_s is not None and tc <= before_s:
+        near &= t <= before_s                       # the slope of the free flight, not of the kick after it
     if near.sum() >= 3:
         slope = float(np.polyfit(t[near] - tc, vz[near], 1)[0])
     else:

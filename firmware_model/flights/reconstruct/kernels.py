@@ -125,3 +125,15 @@ def predict_points(x, chi, acc, gyr, dt, site_asl, wE, ref, dev):
         boxplus(x, chi[i], xi)
         propagate(xi, acc, gyr, dt, site_asl, wE, yi)
         boxminus(yi, ref, dev[i])
+
+
+@njit(cache=True)
+def slr_points(x, chi, acc, gyr, dt, site_asl, wE, target, dev):
+    """Propagate each sigma point ``x [+] chi[i]``; ``dev[i]`` = its propagated state [-] ``target`` (the
+    posterior-linearisation pass of :mod:`.ukf`: the regression of the step's errors around two smoothed states)."""
+    xi = np.empty(22)
+    yi = np.empty(22)
+    for i in range(chi.shape[0]):
+        boxplus(x, chi[i], xi)
+        propagate(xi, acc, gyr, dt, site_asl, wE, yi)
+        boxminus(yi, target, dev[i])

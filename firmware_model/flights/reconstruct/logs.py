@@ -92,7 +92,8 @@ def _altosui_imu(path: Path, rec: FlightRecord, notes: list[str]) -> tuple[Any, 
     pad = rec.time_s < 0
     mag = np.linalg.norm(acc, axis=1)
     if not np.any(np.abs(mag - G0) < 3.0):
-        notes.append(f"IMU block unusable: |accel| never near 1 g (median {np.nanmedian(mag):.2f} m/s^2)")
+        what = f"median {np.nanmedian(mag):.2f} m/s^2" if np.isfinite(mag).any() else "no numbers in it"
+        notes.append(f"IMU block unusable: |accel| never near 1 g ({what})")
         return None, None, None
     gyr = None
     if "gyro_roll" in idx:

@@ -17,7 +17,7 @@ it has a gyroscope, so their difference (what the axial-as-vertical assumption d
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from math import radians
 from pathlib import Path
 from typing import Any
@@ -34,12 +34,30 @@ from firmware_model.flights.reconstruct.truth import gravity, truth_run
 from firmware_model.flights.reconstruct.flightset import case_named, flight_set
 from firmware_model.flights.reconstruct.ukf import FilterNoise, Measurements, align, run_ukf, unflat
 from firmware_model.flights.reconstruct.vertical import run_vertical
+from firmware_model.flights.pressure_errors import BARO_ERROR_RANGES
 from firmware_model.flights.apogee_reference import deployment_time, ground_pressure, liftoff_time, noise_scale
 from firmware_model.spec import atmosphere as atm
 
 G = 9.80665
 #: Acceleration noise (m/s^2) added after the log's own recovery-charge event.
 AFTER_DEPLOY_SIGMA: float = 20.0
+#: A real barometer's static-port error, 1 sigma, as a fraction of the dynamic pressure: the top of the range the
+#: project's barometer model draws from (measured on the shared logs: docs/flights.md).
+BARO_PORT_CP: float = BARO_ERROR_RANGES["cp_port"][1]
+#: A real log's second pass ends this long (s) after the first pass's apogee. After the recovery the log's section
+#: hangs on its harness or tumbles; an IMU model of free flight does not describe it, and through the gyroscope
+#: (a chain tight enough to carry an attitude across minutes) the smoother moved the ascent by what the descent
+#: misread: on hedy, 210 s of descent put the smoothed pad tilt at 50 deg (the pad says 5) and the apogee 0.18 s
+#: later than with the log cut anywhere from 36 to 130 s after liftoff (33.45-33.56 s).
+TAIL_S: float = 10.0
+#: The heading prior of a real log (deg). Without GPS the heading is not observable and does not enter the vertical
+#: channel (a rotation about the vertical leaves vertical components alone); the prior only has to keep the sigma
+#: points (+-sqrt(21) sigma) inside +-180 deg, where the rotation-vector error wraps: 60 deg put them at +-275 deg.
+#: On the logs here that moved the apogees by at most 7 ms (hedy, Piccard's TeleMega and CATS).
+HEADING_SIGMA_DEG: float = 10.0
+#: An accelerometer shock (:func:`first_shock`): above 8 g and 4 times its neighbourhood's median.
+SHOCK_G: float = 8.0
+SHOCK_RATIO: float = 4.0
 
 
 @dataclass
@@ -140,6 +158,40 @@ def _refit_sigma(t: np.ndarray, baro: np.ndarray, z: np.ndarray, vz: np.ndarray,
     return out
 
 
+#: A pause in a log longer than this (s) after liftoff ends the reconstruction there.
+MAX_GAP_S: float = 1.0
+
+
+def _end_at_gap(t: np.ndarray, lift_s: float) -> int:
+    """The number of rows before the first pause longer than :data:`MAX_GAP_S` after liftoff (all rows without)."""
+    gaps = np.nonzero((np.diff(t) > MAX_GAP_S) & (t[:-1] > lift_s))[0]
+    return int(gaps[0]) + 1 if gaps.size else int(t.size)
+
+
+def first_shock(t: np.ndarray, f: np.ndarray | None, after_s: float, half_s: float = 0.1) -> float | None:
+    """The first accelerometer shock after ``after_s``: a sample above ``SHOCK_G`` g and ``SHOCK_RATIO`` times the
+    median |f| within ``half_s`` of it (an ejection charge, a separation or a break-up, seen as a spike; a burn's
+    peak is as high as its neighbours). None without one, or without an accelerometer."""
+    if f is None:
+        return None
+    a = np.abs(np.where(np.isfinite(f), f, 0.0))
+    cand = np.nonzero((a > SHOCK_G * G) & (t > after_s))[0]
+    for i in cand:
+        near = np.abs(t - t[i]) <= half_s
+        if a[i] > SHOCK_RATIO * float(np.median(a[near])):
+            return float(t[i])
+    return None
+
+
+def _first_apogee(t: np.ndarray, z: np.ndarray, vz: np.ndarray, where: str, before_s: float | None) -> float:
+    """The first pass's apogee time (its sigma is not needed); the end of the log if it has none."""
+    zeros = np.zeros(t.size)
+    try:
+        return velocity_zero_crossing(t, z, vz, zeros, zeros, where=where, before_s=before_s).time_s
+    except UserError:
+        return float(t[-1])
+
+
 def _scaled(ap: ApogeeEstimate, k: float) -> ApogeeEstimate:
     return ApogeeEstimate(time_s=ap.time_s, sigma_s=ap.sigma_s * k, altitude_m=ap.altitude_m,
                           sigma_altitude_m=ap.sigma_altitude_m * k, vz_slope_mps2=ap.vz_slope_mps2,
@@ -150,6 +202,28 @@ def _vertical_only(cols: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     """The columns without the horizontal position and velocity (not observable without GPS)."""
     horizontal = ("_x_m", "_y_m", "_vx_mps", "_vy_mps")
     return {k: v for k, v in cols.items() if not (k.endswith(horizontal) and not k.startswith("truth_"))}
+
+
+def _imu_setup(acc: np.ndarray, gyr: np.ndarray, pad: np.ndarray, n_pad: int, site: float, trust_s: float,
+               notes: list[str]) -> tuple[FilterNoise, Any, np.ndarray]:
+    """A real log's 3-axis filter: its noise (pad figures, priors for an unknown IMU), the alignment (from the pad,
+    or the rail taken as vertical without one) and the saturated samples."""
+    fn = FilterNoise(accel_noise=max(float(np.median(np.std(acc[pad], axis=0))) if n_pad >= 10 else 0.3, 0.1),
+                     accel_bias_sigma=0.3, accel_scale_sigma=0.01, gyro_noise=radians(0.3),
+                     gyro_bias_sigma=radians(0.5), gyro_scale_sigma=0.01, heading_sigma=radians(HEADING_SIGMA_DEG),
+                     baro_port_cp=BARO_PORT_CP, speed_trusted_until_s=trust_s)
+    if n_pad >= 10:
+        al = align(acc, gyr, n_pad, fn, 0.0, site)
+    else:
+        fake = np.tile([0.0, 0.0, float(gravity(site))], (10, 1))
+        al = align(fake, np.zeros((10, 3)), 10, fn, 0.0, site)
+        al.P0[6:8, 6:8] += np.eye(2) * radians(5.0) ** 2
+        al.P0[12:15, 12:15] = np.eye(3) * fn.gyro_bias_sigma ** 2
+        al.P0[3:6, 3:6] = np.eye(3) * 2.0 ** 2
+        notes.append(f"only {n_pad} pad samples: no pad alignment; the rail taken as vertical +-5 deg, "
+                     "gyro bias unknown (+-0.5 deg/s)")
+    sat = np.any(np.abs(acc) >= np.nanmax(np.abs(acc)) * 0.999, axis=1) & (np.abs(acc).max(axis=1) > 8 * G)
+    return fn, al, sat
 
 
 def _fill(x: np.ndarray) -> np.ndarray:
@@ -172,16 +246,25 @@ def reconstruct_log(path: str | Path, format: str | None = None,  # noqa: A002
     where = rec.provenance.get("source", str(path))
     t = np.asarray(rec.time_s, dtype=np.float64)
     p = np.asarray(rec.pressure_pa, dtype=np.float64)
+    lift = liftoff_time(rec)
+    f_ax = rec.specific_force_mps2()
+    acc_log, gyr_log, tilt_log = log.accel, log.gyro, log.tilt_log
+    end = _end_at_gap(t, lift)
+    gap_note = []
+    if end < t.size:
+        gap_note = [f"the log pauses for {t[end] - t[end - 1]:.1f} s at {t[end - 1]:.2f} s: reconstructed up to there "
+                    f"(no filter can propagate across a gap; {t.size - end} later rows left out)"]
+        t, p = t[:end], p[:end]
+        f_ax, acc_log, gyr_log, tilt_log = (None if x is None else x[:end] for x in (f_ax, acc_log, gyr_log, tilt_log))
     p0 = ground_pressure(rec)
     site = float(geopotential_to_geometric(float(atm.altitude_m(p0))))
     hb = baro_altitude(np.where(p > 0, p, np.nan), p0)
-    lift = liftoff_time(rec)
     pad = t < lift - 0.2
     noise_m = max(noise_scale(np.where(np.isfinite(hb), hb, 0.0), pad), 0.3) if pad.sum() >= 10 else 1.0
     sig = np.full(t.size, noise_m)
-    notes = list(log.notes) + [f"barometer sigma {noise_m:.2f} m (pad noise, at least 0.3 m); liftoff {lift:.2f} s"]
+    notes = list(log.notes) + gap_note + [f"barometer sigma {noise_m:.2f} m (pad noise, at least 0.3 m); liftoff "
+                                          f"{lift:.2f} s"]
     n_pad = int(pad.sum())
-    f_ax = rec.specific_force_mps2()
     deploy = deploy_s if deploy_s is not None else deployment_time(rec)
     extra = np.zeros(t.size)
     if deploy is not None:
@@ -189,68 +272,93 @@ def reconstruct_log(path: str | Path, format: str | None = None,  # noqa: A002
         whence = "given" if deploy_s is not None else "the log's own event"
         notes.append(f"recovery charge at {deploy:.2f} s ({whence}): accelerometer trusted to "
                      f"+-{AFTER_DEPLOY_SIGMA:g} m/s^2 only after it (ejection, parachute, tumbling)")
+    else:
+        notes.append(f"no recovery charge in the log: accelerometer trusted to +-{AFTER_DEPLOY_SIGMA:g} m/s^2 only "
+                     "after each channel's first-pass apogee (another computer's recovery, or tumbling)")
+    shock = first_shock(t, f_ax, lift + 0.2)
+    port_end = min(x for x in (deploy, shock, np.inf) if x is not None)
+    event = float(port_end) if np.isfinite(port_end) else None     # the first recovery event, if the log shows one
+    port = f"barometer: static-port error {BARO_PORT_CP:g} of the dynamic pressure (1 sigma, correlated over 1 s)"
+    if np.isfinite(port_end):
+        why = "an accelerometer shock" if port_end == shock else "the recovery charge"
+        port += (f" until {port_end:.2f} s ({why}: the speed estimate is suspect after it; neither the port error "
+                 "nor the Mach gate applies)")
+    notes.append(port)
+    def after(tt: np.ndarray, first_apogee_s: float) -> tuple[np.ndarray, float]:
+        """The second pass's extra acceleration noise and end of trust in the estimate's speed: the charge's, or
+        without one (this computer fired none; the rocket's recovery was another's, or it tumbled) from the first
+        pass's apogee on."""
+        out = np.zeros(tt.size)
+        out[tt > (deploy if deploy is not None else first_apogee_s)] = AFTER_DEPLOY_SIGMA
+        return out, (port_end if deploy is not None else min(port_end, first_apogee_s))
+
     t0 = time.process_time()
-    vert = None
+    # ---- first passes, on the whole log: each channel's apogee, and the barometer's sigma from its residuals
+    firsts: list[float] = []
     if f_ax is not None:
-        vert = run_vertical(t, f_ax, hb, sig, site, n_pad, accel_sigma_extra=extra)
+        vert = run_vertical(t, f_ax, hb, sig, site, n_pad, accel_sigma_extra=extra, baro_port_cp=BARO_PORT_CP,
+                            speed_trusted_until_s=port_end)
         sig_v = _refit_sigma(t, hb, vert.xs[:, 0], vert.xs[:, 1], sig)
-        vert = run_vertical(t, f_ax, hb, sig_v, site, n_pad, accel_sigma_extra=extra)
-    cols: dict[str, np.ndarray] = {"baro_altitude_m": hb}
-    ap_axial = None
-    if vert is not None:
-        sdv = _sd(vert.Ps)
-        cols.update({"axial_z_m": vert.xs[:, 0], "axial_vz_mps": vert.xs[:, 1], "axial_sigma_z_m": sdv[:, 0],
-                     "axial_sigma_vz_mps": sdv[:, 1]})
-        ap_axial = velocity_zero_crossing(t, vert.xs[:, 0], vert.xs[:, 1], sdv[:, 0], sdv[:, 1],
-                                          source="smoother (axial as vertical)", where=where)
-        k_ax = residual_scale(t, hb, vert.xs[:, 0], sdv[:, 0], sig_v, ap_axial.time_s)
-        ap_axial = _scaled(ap_axial, k_ax)
-        notes.append(f"axial-as-vertical channel: barometer sigma in flight {sig_v[-1]:.2f} m (from the first pass's "
-                     f"residuals), misfit near apogee x{k_ax:.2f}; rejected {vert.rejected}")
-    if log.accel is not None and log.gyro is not None:
-        acc = _fill(log.accel)
-        gyr = _fill(log.gyro)
-        pad_acc = acc[pad]
-        fn = FilterNoise(accel_noise=max(float(np.median(np.std(pad_acc, axis=0))) if n_pad >= 10 else 0.3, 0.1),
-                         accel_bias_sigma=0.3, accel_scale_sigma=0.01, gyro_noise=radians(0.3),
-                         gyro_bias_sigma=radians(0.5), gyro_scale_sigma=0.01, heading_sigma=radians(60.0))
-        if n_pad >= 10:
-            al = align(acc, gyr, n_pad, fn, 0.0, site)
-        else:
-            fake = np.tile([0.0, 0.0, float(gravity(site))], (10, 1))
-            al = align(fake, np.zeros((10, 3)), 10, fn, 0.0, site)
-            al.P0[6:8, 6:8] += np.eye(2) * radians(5.0) ** 2
-            al.P0[12:15, 12:15] = np.eye(3) * fn.gyro_bias_sigma ** 2
-            al.P0[3:6, 3:6] = np.eye(3) * 2.0 ** 2
-            notes.append(f"only {n_pad} pad samples: no pad alignment; the rail taken as vertical +-5 deg, "
-                         "gyro bias unknown (+-0.5 deg/s)")
-        sat = np.any(np.abs(acc) >= np.nanmax(np.abs(acc)) * 0.999, axis=1) & (np.abs(acc).max(axis=1) > 8 * G)
+        first_v = _first_apogee(t, vert.xs[:, 0], vert.xs[:, 1], where, event)
+        firsts.append(first_v)
+    imu = acc_log is not None and gyr_log is not None
+    if imu:
+        acc, gyr = _fill(acc_log), _fill(gyr_log)
+        fn, al, sat = _imu_setup(acc, gyr, pad, n_pad, site, port_end, notes)
         run = run_ukf(t, acc, gyr, sat, Measurements(gps=None, baro=hb, baro_sigma=sig), al, fn, site,
                       accel_sigma_extra=extra)
         X1 = unflat(run.xs)
         sig_u = _refit_sigma(t, hb, X1["r"][:, 2], X1["v"][:, 2], sig)
-        run = run_ukf(t, acc, gyr, sat, Measurements(gps=None, baro=hb, baro_sigma=sig_u), al, fn, site,
-                      accel_sigma_extra=extra)
+        first_u = _first_apogee(t, X1["r"][:, 2], X1["v"][:, 2], where, event)
+        firsts.append(first_u)
+    if not firsts:
+        raise UserError(f"{where}: no accelerometer: nothing to reconstruct (the barometric parabola is the only "
+                        "reference for this log)")
+    # ---- the second passes end TAIL_S after the first passes' apogee (module constant's comment)
+    cut = int(np.searchsorted(t, max(firsts) + TAIL_S, side="right"))
+    if cut < t.size:
+        notes.append(f"reconstructed to {t[cut - 1]:.2f} s, {TAIL_S:g} s after the first pass's apogee: the descent "
+                     f"({t.size - cut} rows) is the barometer's (an IMU on a harness or tumbling is not free flight, "
+                     "and the gyroscope would carry what it misreads back through the ascent)")
+        t, hb = t[:cut], hb[:cut]
+        f_ax, tilt_log = (None if x is None else x[:cut] for x in (f_ax, tilt_log))
+    cols: dict[str, np.ndarray] = {"baro_altitude_m": hb}
+    ap_axial = None
+    if f_ax is not None:
+        extra2, trust2 = after(t, first_v)
+        vert = run_vertical(t, f_ax, hb, sig_v[:cut], site, n_pad, accel_sigma_extra=extra2,
+                            baro_port_cp=BARO_PORT_CP, speed_trusted_until_s=trust2)
+        sdv = _sd(vert.Ps)
+        cols.update({"axial_z_m": vert.xs[:, 0], "axial_vz_mps": vert.xs[:, 1], "axial_sigma_z_m": sdv[:, 0],
+                     "axial_sigma_vz_mps": sdv[:, 1]})
+        ap_axial = velocity_zero_crossing(t, vert.xs[:, 0], vert.xs[:, 1], sdv[:, 0], sdv[:, 1],
+                                          source="smoother (axial as vertical)", where=where, before_s=event)
+        k_ax = residual_scale(t, hb, vert.xs[:, 0], sdv[:, 0], sig_v[:cut], ap_axial.time_s)
+        ap_axial = _scaled(ap_axial, k_ax)
+        notes.append(f"axial-as-vertical channel: barometer sigma in flight {sig_v[-1]:.2f} m (from the first pass's "
+                     f"residuals), misfit near apogee x{k_ax:.2f}; rejected {vert.rejected}")
+    if imu:
+        extra2, trust2 = after(t, first_u)
+        run = run_ukf(t, acc[:cut], gyr[:cut], sat[:cut], Measurements(gps=None, baro=hb, baro_sigma=sig_u[:cut]),
+                      al, replace(fn, speed_trusted_until_s=trust2), site, accel_sigma_extra=extra2)
         cols.update(_vertical_only({**_ukf_columns(run, "f"), **_ukf_columns(run, "s")}))
         X = unflat(run.xs)
         sd = _sd(run.Ps)
-        ap = velocity_zero_crossing(t, X["r"][:, 2], X["v"][:, 2], sd[:, 2], sd[:, 5], where=where)
-        k_imu = residual_scale(t, hb, X["r"][:, 2], sd[:, 2], sig_u, ap.time_s)
+        ap = velocity_zero_crossing(t, X["r"][:, 2], X["v"][:, 2], sd[:, 2], sd[:, 5], where=where, before_s=event)
+        k_imu = residual_scale(t, hb, X["r"][:, 2], sd[:, 2], sig_u[:cut], ap.time_s)
         ap = _scaled(ap, k_imu)
         notes.append(f"3-axis IMU channel: barometer sigma in flight {sig_u[-1]:.2f} m (from the first pass's "
                      f"residuals), misfit near apogee x{k_imu:.2f}")
         mode = "vertical-imu"
         notes.append("no GPS used: vertical channel only (horizontal position and heading are not observable)")
         notes.append(f"measurements rejected: {run.rejected}")
-        if log.tilt_log is not None:
-            cols["log_tilt_deg"] = log.tilt_log
-    elif ap_axial is not None:
+        if tilt_log is not None:
+            cols["log_tilt_deg"] = tilt_log
+    else:
+        assert ap_axial is not None
         ap = ap_axial
         mode = "vertical-axial"
         notes.append("no gyroscope: vertical channel only, axial specific force taken as vertical")
-    else:
-        raise UserError(f"{where}: no accelerometer: nothing to reconstruct (the barometric parabola is the only "
-                        "reference for this log)")
     cpu = time.process_time() - t0
     return Reconstruction(name=rec.name, mode=mode, t=t, columns=cols, apogee=ap, apogee_axial=ap_axial,
                           notes=notes, cpu_s=cpu, extra={"record": rec})

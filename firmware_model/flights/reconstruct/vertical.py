@@ -3,8 +3,8 @@ Rauch-Tung-Striebel smoother on altitude, vertical velocity and accelerometer bi
 taken as vertical (the assumption kalman_accel makes) as the control input and the barometric altitude as the
 measurement. Linear, so the smoother is the exact RTS. The acceleration noise includes an allowance for the
 assumption: ``tilt_allowance`` x |f| (1 - cos 10 deg = 1.5 % of the specific force, by default) on top of the
-sensor noise. Barometer rules as in :mod:`.ukf` (speed gate, innovation gate, re-acquisition after ``reacquire``
-rejections in a row)."""
+sensor noise. Barometer rules as in :mod:`.ukf` (speed gate, the static port's error, innovation gate, re-acquisition after
+``reacquire`` rejections in a row)."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from firmware_model.flights.reconstruct.truth import gravity
-from firmware_model.flights.reconstruct.ukf import _sound
+from firmware_model.flights.reconstruct.ukf import FilterNoise, _sound, baro_variances
 
 
 @dataclass
@@ -29,8 +29,10 @@ class VerticalRun:
 def run_vertical(t: np.ndarray, f_axial: np.ndarray, baro: np.ndarray, baro_sigma: np.ndarray, site_asl_m: float,
                  n_pad: int, accel_noise: float = 0.3, tilt_allowance: float = 0.015, bias_sigma: float = 0.5,
                  bias_walk: float = 0.01, gate_nis: float = 30.0, baro_max_mach: float = 0.7, reacquire: int = 50,
-                 accel_sigma_extra: np.ndarray | None = None) -> VerticalRun:
+                 accel_sigma_extra: np.ndarray | None = None, baro_port_cp: float = 0.0,
+                 baro_port_tau_s: float = 1.0, speed_trusted_until_s: float = np.inf) -> VerticalRun:
     n = t.size
+    port = FilterNoise(baro_port_cp=baro_port_cp, baro_port_tau_s=baro_port_tau_s)
     g0 = float(gravity(site_asl_m))
     fa = np.where(np.isfinite(f_axial), f_axial, 0.0)
     pad_f = float(np.median(fa[:max(n_pad, 1)])) if n_pad > 0 else g0
@@ -58,11 +60,12 @@ def run_vertical(t: np.ndarray, f_axial: np.ndarray, baro: np.ndarray, baro_sigm
         P = F @ P @ F.T + Q
         XP[k], PP[k], FK[k] = x, P.copy(), F
         if np.isfinite(baro[k]):
-            if abs(x[1]) > baro_max_mach * _sound(x[0] + site_asl_m):
+            speed = abs(float(x[1])) if t[k] < speed_trusted_until_s else 0.0
+            if speed > baro_max_mach * _sound(x[0] + site_asl_m):
                 rej["baro_mach"] += 1
             else:
-                r2 = float(baro_sigma[k]) ** 2
-                S = P[0, 0] + r2
+                g2, r2 = baro_variances(float(baro_sigma[k]), speed, dt, port)
+                S = P[0, 0] + g2
                 y = float(baro[k] - x[0])
                 if y * y / S > gate_nis and streak >= reacquire:
                     # a barometer that disagrees for `reacquire` samples in a row is not a spike: the estimate
@@ -71,11 +74,12 @@ def run_vertical(t: np.ndarray, f_axial: np.ndarray, baro: np.ndarray, baro_sigm
                     P[1, 1] += (y / 2.0) ** 2
                     PP[k][0, 0] += y * y          # process noise of this step (the smoother sees it)
                     PP[k][1, 1] += (y / 2.0) ** 2
-                    S = P[0, 0] + r2
+                    S = P[0, 0] + g2
                     rej["reacquired"] += 1
                     streak = 0
                 if y * y / S <= gate_nis:
                     streak = 0
+                    S = P[0, 0] + r2
                     K = P[:, 0] / S
                     x = x + K * y
                     IKH = np.eye(3)
