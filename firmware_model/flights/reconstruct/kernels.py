@@ -115,25 +115,21 @@ def propagate(x, acc, gyr, dt, site_asl, wE, out):
 
 
 @njit(cache=True)
-def predict_points(x, chi, acc, gyr, dt, site_asl, wE, ref, dev):
-    """Propagate the nominal ``x`` into ``ref`` and each sigma point ``x [+] chi[i]``; ``dev[i]`` = its propagated
-    state [-] ``ref``."""
-    propagate(x, acc, gyr, dt, site_asl, wE, ref)
-    xi = np.empty(22)
-    yi = np.empty(22)
-    for i in range(chi.shape[0]):
-        boxplus(x, chi[i], xi)
-        propagate(xi, acc, gyr, dt, site_asl, wE, yi)
-        boxminus(yi, ref, dev[i])
-
-
-@njit(cache=True)
 def slr_points(x, chi, acc, gyr, dt, site_asl, wE, target, dev):
-    """Propagate each sigma point ``x [+] chi[i]``; ``dev[i]`` = its propagated state [-] ``target`` (the
-    posterior-linearisation pass of :mod:`.ukf`: the regression of the step's errors around two smoothed states)."""
+    """Propagate each sigma point ``x [+] chi[i]``; ``dev[i]`` = its propagated state [-] ``target`` (the filter's
+    predict, and the posterior-linearisation pass of :mod:`.ukf`: the regression of the step's errors around two
+    smoothed states)."""
     xi = np.empty(22)
     yi = np.empty(22)
     for i in range(chi.shape[0]):
         boxplus(x, chi[i], xi)
         propagate(xi, acc, gyr, dt, site_asl, wE, yi)
         boxminus(yi, target, dev[i])
+
+
+@njit(cache=True)
+def predict_points(x, chi, acc, gyr, dt, site_asl, wE, ref, dev):
+    """Propagate the nominal ``x`` into ``ref`` and each sigma point ``x [+] chi[i]``; ``dev[i]`` = its propagated
+    state [-] ``ref``."""
+    propagate(x, acc, gyr, dt, site_asl, wE, ref)
+    slr_points(x, chi, acc, gyr, dt, site_asl, wE, ref, dev)
