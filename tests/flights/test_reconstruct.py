@@ -295,14 +295,14 @@ def test_vertical_channel_filter(truth) -> None:
 
 def test_static_port_error_variances() -> None:
     # a port reading cp of the dynamic pressure rho v^2 / 2 is an altitude error of that over rho g
-    noise = FilterNoise(baro_port_cp=0.06, baro_port_tau_s=1.0)
     v, sig, dt = 100.0, 2.0, 0.01
     sq = 0.06 * 0.5 * 1.2 * v * v / (1.2 * 9.80665)                # 30.59 m, whatever the density
-    gate, upd = baro_variances(sig, v, dt, noise)
+    gate, upd = baro_variances(sig, v, dt, 0.06, 1.0)
     assert gate == pytest.approx(sig ** 2 + sq ** 2, rel=1e-12)
     assert upd == pytest.approx(sig ** 2 + 100 * sq ** 2, rel=1e-12)   # one correlation time = 100 samples
-    assert baro_variances(sig, v, 2.0, noise)[1] == pytest.approx(gate, rel=1e-12)   # samples 2 s apart: independent
-    assert baro_variances(sig, v, dt, FilterNoise()) == (sig ** 2, sig ** 2)      # default: white noise only
+    assert baro_variances(sig, v, 2.0, 0.06, 1.0)[1] == pytest.approx(gate, rel=1e-12)   # 2 s apart: independent
+    noise = FilterNoise()                                            # default: white noise only
+    assert baro_variances(sig, v, dt, noise.baro_port_cp, noise.baro_port_tau_s) == (sig ** 2, sig ** 2)
 
 
 def test_shock_and_gap_detection() -> None:

@@ -176,9 +176,10 @@ def first_shock(t: np.ndarray, f: np.ndarray | None, after_s: float, half_s: flo
         return None
     a = np.abs(np.where(np.isfinite(f), f, 0.0))
     cand = np.nonzero((a > SHOCK_G * G) & (t > after_s))[0]
-    for i in cand:
-        near = np.abs(t - t[i]) <= half_s
-        if a[i] > SHOCK_RATIO * float(np.median(a[near])):
+    lo = np.searchsorted(t, t[cand] - half_s, side="left")
+    hi = np.searchsorted(t, t[cand] + half_s, side="right")
+    for i, j0, j1 in zip(cand, lo, hi):
+        if a[i] > SHOCK_RATIO * float(np.median(a[j0:j1])):
             return float(t[i])
     return None
 
@@ -276,12 +277,13 @@ def reconstruct_log(path: str | Path, format: str | None = None,  # noqa: A002
         notes.append(f"no recovery charge in the log: accelerometer trusted to +-{AFTER_DEPLOY_SIGMA:g} m/s^2 only "
                      "after each channel's first-pass apogee (another computer's recovery, or tumbling)")
     shock = first_shock(t, f_ax, lift + 0.2)
-    port_end = min(x for x in (deploy, shock, np.inf) if x is not None)
-    event = float(port_end) if np.isfinite(port_end) else None     # the first recovery event, if the log shows one
+    # the first recovery event the log shows, if any; the estimate's speed is trusted until then
+    event = min((x for x in (deploy, shock) if x is not None), default=None)
+    trust_s = np.inf if event is None else float(event)
     port = f"barometer: static-port error {BARO_PORT_CP:g} of the dynamic pressure (1 sigma, correlated over 1 s)"
-    if np.isfinite(port_end):
-        why = "an accelerometer shock" if port_end == shock else "the recovery charge"
-        port += (f" until {port_end:.2f} s ({why}: the speed estimate is suspect after it; neither the port error "
+    if event is not None:
+        why = "an accelerometer shock" if event == shock else "the recovery charge"
+        port += (f" until {event:.2f} s ({why}: the speed estimate is suspect after it; neither the port error "
                  "nor the Mach gate applies)")
     notes.append(port)
     def after(tt: np.ndarray, first_apogee_s: float) -> tuple[np.ndarray, float]:
@@ -290,21 +292,21 @@ def reconstruct_log(path: str | Path, format: str | None = None,  # noqa: A002
         pass's apogee on."""
         out = np.zeros(tt.size)
         out[tt > (deploy if deploy is not None else first_apogee_s)] = AFTER_DEPLOY_SIGMA
-        return out, (port_end if deploy is not None else min(port_end, first_apogee_s))
+        return out, (trust_s if deploy is not None else min(trust_s, first_apogee_s))
 
     t0 = time.process_time()
     # ---- first passes, on the whole log: each channel's apogee, and the barometer's sigma from its residuals
     firsts: list[float] = []
     if f_ax is not None:
         vert = run_vertical(t, f_ax, hb, sig, site, n_pad, accel_sigma_extra=extra, baro_port_cp=BARO_PORT_CP,
-                            speed_trusted_until_s=port_end)
+                            speed_trusted_until_s=trust_s)
         sig_v = _refit_sigma(t, hb, vert.xs[:, 0], vert.xs[:, 1], sig)
         first_v = _first_apogee(t, vert.xs[:, 0], vert.xs[:, 1], where, event)
         firsts.append(first_v)
     imu = acc_log is not None and gyr_log is not None
     if imu:
         acc, gyr = _fill(acc_log), _fill(gyr_log)
-        fn, al, sat = _imu_setup(acc, gyr, pad, n_pad, site, port_end, notes)
+        fn, al, sat = _imu_setup(acc, gyr, pad, n_pad, site, trust_s, notes)
         run = run_ukf(t, acc, gyr, sat, Measurements(gps=None, baro=hb, baro_sigma=sig), al, fn, site,
                       accel_sigma_extra=extra)
         X1 = unflat(run.xs)

@@ -88,14 +88,41 @@ def baro_port_sigma_m(speed_mps: float, cp: float) -> float:
     return cp * speed_mps * speed_mps / (2.0 * 9.80665)
 
 
-def baro_variances(sigma_m: float, speed_mps: float, dt: float, noise: FilterNoise) -> tuple[float, float]:
+def baro_variances(sigma_m: float, speed_mps: float, dt: float, cp: float, tau_s: float) -> tuple[float, float]:
     """(gate variance, update variance) of one barometer sample: the sensor's ``sigma_m`` and the port error
-    :func:`baro_port_sigma_m`. The gate judges one sample by both. The port error follows the dynamic pressure, so
-    it is the same error for ``baro_port_tau_s``: the update counts it ``tau / dt`` times over, so that the samples
-    of one correlation time carry one sample's worth of it (averaging them cannot remove a bias)."""
-    sq = baro_port_sigma_m(speed_mps, noise.baro_port_cp)
+    :func:`baro_port_sigma_m` (``cp``: ``FilterNoise.baro_port_cp``). The gate judges one sample by both. The port
+    error follows the dynamic pressure, so it is the same error for ``tau_s``: the update counts it ``tau / dt``
+    times over, so that the samples of one correlation time carry one sample's worth of it (averaging them cannot
+    remove a bias)."""
+    sq = baro_port_sigma_m(speed_mps, cp)
     r2 = sigma_m * sigma_m
-    return r2 + sq * sq, r2 + sq * sq * max(1.0, noise.baro_port_tau_s / dt)
+    return r2 + sq * sq, r2 + sq * sq * max(1.0, tau_s / dt)
+
+
+def _baro_row(m: int) -> np.ndarray:
+    """H of a barometer sample over ``m`` active errors: altitude, plus the offset when it is a state."""
+    h = np.zeros(m)
+    h[2] = 1.0
+    if m > N_DYN:
+        h[N_DYN] = 1.0
+    return h
+
+
+def _scalar_update(P: np.ndarray, h: np.ndarray, y: float, r2: float) -> tuple[np.ndarray, np.ndarray]:
+    """(posterior covariance, error) of a scalar measurement ``y = h . e + noise(r2)``: Kalman gain, Joseph form."""
+    ph = P @ h
+    K = ph / (h @ ph + r2)
+    IKH = np.eye(P.shape[0]) - np.outer(K, h)
+    return IKH @ P @ IKH.T + np.outer(K, K) * r2, K * y
+
+
+def _gps_update(P: np.ndarray, y: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(posterior covariance, error) of a GPS position ``y`` (3,) on the first three errors, noise ``R``: Joseph
+    form."""
+    K = np.linalg.solve(P[0:3, 0:3] + R, P[0:3, :]).T              # (m, 3)
+    IKH = np.eye(P.shape[0])
+    IKH[:, 0:3] -= K
+    return IKH @ P @ IKH.T + K @ R @ K.T, K @ y
 
 
 def flat(r, v, q, ba, bg, sa=(0.0, 0.0, 0.0), sg=(0.0, 0.0, 0.0), bb=0.0) -> np.ndarray:
@@ -334,7 +361,7 @@ def run_ukf(t: np.ndarray, accel: np.ndarray, gyro: np.ndarray, saturated: np.nd
     va = noise.accel_noise ** 2 + noise.accel_lsb ** 2 / 12
     vg = noise.gyro_noise ** 2 + noise.gyro_lsb ** 2 / 12
     gps_R = np.diag(np.square(noise.gps_sigma))
-    eye = np.eye(m)
+    h_baro = _baro_row(m)
     ref = np.empty(N_STATE)
     dev = np.empty((2 * N_DYN, N_DYN))
     gps = meas.gps
@@ -380,11 +407,8 @@ def run_ukf(t: np.ndarray, accel: np.ndarray, gyro: np.ndarray, saturated: np.nd
             ok = nis <= noise.gate_nis
             nis_log.append((k, "gps", nis, ok))
             if ok:
-                K = np.linalg.solve(S, P[0:3, :]).T             # (m, 3)
-                IKH = eye.copy()
-                IKH[:, 0:3] -= K
-                P = IKH @ P @ IKH.T + K @ gps_R @ K.T
-                x = boxplus(x, K @ y)
+                P, dx = _gps_update(P, y, gps_R)
+                x = boxplus(x, dx)
             else:
                 rejected["gps"] += 1
         if baro is not None and baro[k] == baro[k]:
@@ -395,12 +419,11 @@ def run_ukf(t: np.ndarray, accel: np.ndarray, gyro: np.ndarray, saturated: np.nd
             if speed > noise.baro_max_mach * _sound(x[2] + site_asl_m):
                 rejected["baro_mach"] += 1
             else:
-                # the barometer reads altitude + its offset: H = e_z + e_bb (HPH^T = P_zz + 2 P_zb + P_bb)
+                # the barometer reads altitude + its offset (h: e_z + e_bb when the offset is a state)
                 y = float(baro[k] - x[2] - x[22])
-                g2, r2 = baro_variances(float(meas.baro_sigma[k]), speed, dt, noise)
-                S = P[2, 2] + g2
-                if m > N_DYN:
-                    S += 2.0 * P[2, N_DYN] + P[N_DYN, N_DYN]
+                g2, r2 = baro_variances(float(meas.baro_sigma[k]), speed, dt, noise.baro_port_cp,
+                                        noise.baro_port_tau_s)
+                S = h_baro @ P @ h_baro + g2
                 nis = y * y / S
                 if nis > noise.gate_nis and streak >= noise.reacquire:
                     # the widening is process noise of this step: the stored prediction gets it too, so that
@@ -410,9 +433,7 @@ def run_ukf(t: np.ndarray, accel: np.ndarray, gyro: np.ndarray, saturated: np.nd
                     Pp[k][2, 2] += y * y
                     Pp[k][5, 5] += (y / 2.0) ** 2
                     widened.append((k, y * y, (y / 2.0) ** 2))
-                    S = P[2, 2] + g2
-                    if m > N_DYN:
-                        S += 2.0 * P[2, N_DYN] + P[N_DYN, N_DYN]
+                    S = h_baro @ P @ h_baro + g2
                     rejected["reacquired"] += 1
                     streak = 0
                 ok = y * y / S <= noise.gate_nis
@@ -420,18 +441,8 @@ def run_ukf(t: np.ndarray, accel: np.ndarray, gyro: np.ndarray, saturated: np.nd
                 nis_log.append((k, "baro", nis, ok))
                 if ok:
                     baro_r2[k] = r2
-                    S = P[2, 2] + r2
-                    if m > N_DYN:
-                        S += 2.0 * P[2, N_DYN] + P[N_DYN, N_DYN]
-                        K = (P[:, 2] + P[:, N_DYN]) / S
-                    else:
-                        K = P[:, 2] / S
-                    IKH = eye.copy()
-                    IKH[:, 2] -= K
-                    if m > N_DYN:
-                        IKH[:, N_DYN] -= K
-                    P = IKH @ P @ IKH.T + np.outer(K, K) * r2
-                    x = boxplus(x, K * y)
+                    P, dx = _scalar_update(P, h_baro, y, r2)
+                    x = boxplus(x, dx)
                 else:
                     rejected["baro"] += 1
         P = 0.5 * (P + P.T)
@@ -491,7 +502,7 @@ def smooth_posterior_linearised(t: np.ndarray, accel: np.ndarray, gyro: np.ndarr
     vg = noise.gyro_noise ** 2 + noise.gyro_lsb ** 2 / 12
     gps_R = np.diag(np.square(noise.gps_sigma))
     widen = {k: (a, b) for k, a, b in widened}
-    eye = np.eye(m)
+    h_baro = _baro_row(m)
     off = m > N_DYN
     # the scratch buffers as contiguous (n, m, m) arrays
     Pp = Pp.reshape(-1)[:n * m * m].reshape(n, m, m)
@@ -542,28 +553,13 @@ def smooth_posterior_linearised(t: np.ndarray, accel: np.ndarray, gyro: np.ndarr
         Mp[k] = mu
         Pp[k] = P
         if (k, "gps") in used:
-            y = meas.gps[k] - (XB[k, 0:3] + mu[0:3])
-            Sg = P[0:3, 0:3] + gps_R
-            K = np.linalg.solve(Sg, P[0:3, :]).T
-            IKH = eye.copy()
-            IKH[:, 0:3] -= K
-            P = IKH @ P @ IKH.T + K @ gps_R @ K.T
-            mu = mu + K @ y
+            P, dm = _gps_update(P, meas.gps[k] - (XB[k, 0:3] + mu[0:3]), gps_R)
+            mu = mu + dm
         if (k, "baro") in used:
-            r2 = baro_r2[k]
-            IKH = eye.copy()
-            if off:
-                # H = e_z + e_bb
-                yb = float(meas.baro[k] - (XB[k, 2] + mu[2] + XB[k, 22] + mu[N_DYN]))
-                hp = P[:, 2] + P[:, N_DYN]
-                Kb = hp / (hp[2] + hp[N_DYN] + r2)
-                IKH[:, N_DYN] -= Kb
-            else:
-                yb = float(meas.baro[k] - (XB[k, 2] + mu[2]))
-                Kb = P[:, 2] / (P[2, 2] + r2)
-            IKH[:, 2] -= Kb
-            P = IKH @ P @ IKH.T + np.outer(Kb, Kb) * r2
-            mu = mu + Kb * yb
+            # the barometer reads z + offset (the smoothed state's plus its error here)
+            yb = float(meas.baro[k] - (XB[k, 2] + XB[k, 22] + h_baro @ mu))
+            P, dm = _scalar_update(P, h_baro, yb, baro_r2[k])
+            mu = mu + dm
         P = 0.5 * (P + P.T)
         M[k] = mu
         Pf[k] = P

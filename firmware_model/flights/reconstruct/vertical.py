@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from firmware_model.flights.reconstruct.truth import gravity
-from firmware_model.flights.reconstruct.ukf import FilterNoise, _sound, baro_variances
+from firmware_model.flights.reconstruct.ukf import _sound, baro_variances
 
 
 @dataclass
@@ -32,7 +32,6 @@ def run_vertical(t: np.ndarray, f_axial: np.ndarray, baro: np.ndarray, baro_sigm
                  accel_sigma_extra: np.ndarray | None = None, baro_port_cp: float = 0.0,
                  baro_port_tau_s: float = 1.0, speed_trusted_until_s: float = np.inf) -> VerticalRun:
     n = t.size
-    port = FilterNoise(baro_port_cp=baro_port_cp, baro_port_tau_s=baro_port_tau_s)
     g0 = float(gravity(site_asl_m))
     fa = np.where(np.isfinite(f_axial), f_axial, 0.0)
     pad_f = float(np.median(fa[:max(n_pad, 1)])) if n_pad > 0 else g0
@@ -64,7 +63,7 @@ def run_vertical(t: np.ndarray, f_axial: np.ndarray, baro: np.ndarray, baro_sigm
             if speed > baro_max_mach * _sound(x[0] + site_asl_m):
                 rej["baro_mach"] += 1
             else:
-                g2, r2 = baro_variances(float(baro_sigma[k]), speed, dt, port)
+                g2, r2 = baro_variances(float(baro_sigma[k]), speed, dt, baro_port_cp, baro_port_tau_s)
                 S = P[0, 0] + g2
                 y = float(baro[k] - x[0])
                 if y * y / S > gate_nis and streak >= reacquire:
