@@ -3,8 +3,8 @@ Rauch-Tung-Striebel smoother on altitude, vertical velocity and accelerometer bi
 taken as vertical (the assumption kalman_accel makes) as the control input and the barometric altitude as the
 measurement. Linear, so the smoother is the exact RTS. The acceleration noise includes an allowance for the
 assumption: ``tilt_allowance`` x |f| (1 - cos 10 deg = 1.5 % of the specific force, by default) on top of the
-sensor noise. Barometer rules as in :mod:`.ukf` (speed gate, the static port's error, innovation gate, re-acquisition after
-``reacquire`` rejections in a row)."""
+sensor noise. Barometer rules as in :mod:`.ukf` (speed gate, the static port's error, innovation gate,
+re-acquisition after ``reacquire`` rejections in a row)."""
 
 from __future__ import annotations
 
