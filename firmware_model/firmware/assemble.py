@@ -1,4 +1,4 @@
-"""Assemble a firmware program (``firmware_model/asm/*.s``) with the integer constants of one build.
+"""Assemble a firmware program (``firmware_model/firmware/asm/*.s``) with the integer constants of one build.
 
 The constants reach the assembly ONLY as assembler symbols: :meth:`FirmwareConstants.equates` is passed as the
 assembler's ``defines`` (``K``, ``ROUND``, ``S``, ``G11_M``, ``G11_S``, ...), and the sources select code with
@@ -35,6 +35,13 @@ from firmware_model.spec.config import PROGRAMS, BuildConfig
 ASM_DIR: Path = Path(__file__).resolve().parent / "asm"
 #: Program name -> its top-level source file in :data:`ASM_DIR`.
 SOURCES: Mapping[str, str] = MappingProxyType({name: f"{name}.s" for name in PROGRAMS})
+
+
+def source_path_text(program: str) -> str:
+    """The top-level source of ``program`` as a path from the checkout's root, with ``/`` (what a case JSON's
+    ``firmware.source`` records): derived from :data:`ASM_DIR`, so it follows the package when it moves."""
+    package = Path(__file__).resolve().parents[1]           # firmware_model/, wherever it is installed
+    return f"{package.name}/{(ASM_DIR / SOURCES[program]).relative_to(package).as_posix()}"
 
 #: Memory map of docs/firmware-spec.md §2 (byte addresses on the 68000's 24-bit bus).
 ROM_START, ROM_SIZE = 0x000000, 0x4000
@@ -259,7 +266,7 @@ def clear_cache() -> None:
     _assemble_cached.cache_clear()
 
 
-__all__ = ["ASM_DIR", "SOURCES", "FirmwareBuild", "build_firmware", "source_files", "clear_cache", "cache_dir",
+__all__ = ["ASM_DIR", "SOURCES", "source_path_text", "FirmwareBuild", "build_firmware", "source_files", "clear_cache", "cache_dir",
            "build_key",
            "ROM_START", "ROM_SIZE", "RAM_START", "RAM_SIZE", "STACK_TOP", "IO_START", "IO_SIZE", "BARO_ADC",
            "ACCEL_ADC", "BARO_PA", "write_inputs"]

@@ -120,19 +120,41 @@ def fit_table(pressure_of_counts: Callable[[np.ndarray], np.ndarray], bits: int,
     i = counts >> shift
     w = (counts & ((1 << shift) - 1)) / float(1 << shift)     # weight of node i+1
     w0 = 1.0 - w
-    # normal equations of the hat basis: tridiagonal
+    # normal equations of the hat basis: tridiagonal (bincount adds its weights one by one, in index order)
     diag = np.bincount(i, w0 * w0, n_nodes) + np.bincount(i + 1, w * w, n_nodes)
     off = np.bincount(i, w0 * w, n_nodes)[:-1]
     rhs = np.bincount(i, w0 * y, n_nodes) + np.bincount(i + 1, w * y, n_nodes)
-    N = np.diag(diag) + np.diag(off, 1) + np.diag(off, -1)
-    if diag[-1] == 0.0:           # no count reaches the last node with weight: pin it by extrapolation
-        N[-1, -1], N[-1, -2], N[-1, -3] = 1.0, -2.0, 1.0
-        rhs[-1] = 0.0
-    nodes = np.linalg.solve(N, rhs)
+    nodes = np.array(_solve_tridiagonal([float(v) for v in diag], [float(v) for v in off],
+                                        [float(v) for v in rhs]))
     q = np.rint(nodes)
     if np.any(np.abs(q) > (1 << 30)):
         raise UserError("altitude table: a node does not fit Q24.8 comfortably (|alt| >= 4,194 km)")
     return AltTable(tuple(int(v) for v in q), shift, bits)
+
+
+def _solve_tridiagonal(diag: list[float], off: list[float], rhs: list[float]) -> list[float]:
+    """The symmetric tridiagonal system (``diag`` on the diagonal, ``off`` beside it) solved by the Thomas algorithm
+    in Python floats: the same bits on every machine (no LAPACK; docs/numerics.md, "Reproducible bytes"). The hat
+    basis's Gram matrix is strictly diagonally dominant (each row: 2/3 of a segment on the diagonal against 1/6 on
+    each side), so elimination without pivoting is stable. A last node that no count weighs (not reached by the
+    segments the config allows, kept for safety) is extrapolated linearly from the two before it."""
+    n = len(diag)
+    last_free = diag[-1] == 0.0
+    m = n - 1 if last_free else n
+    c = [0.0] * m
+    d = [0.0] * m
+    for j in range(m):
+        denom = diag[j] - (off[j - 1] * c[j - 1] if j else 0.0)
+        if denom == 0.0:
+            raise UserError("altitude table: singular normal equations (a segment holds no count)")
+        c[j] = off[j] / denom if j < m - 1 else 0.0
+        d[j] = (rhs[j] - (off[j - 1] * d[j - 1] if j else 0.0)) / denom
+    x = [0.0] * n
+    for j in range(m - 1, -1, -1):
+        x[j] = d[j] - (c[j] * x[j + 1] if j < m - 1 else 0.0)
+    if last_free:
+        x[-1] = 2.0 * x[-2] - x[-3]
+    return x
 
 
 def table_error_m(table: AltTable, pressure_of_counts: Callable[[np.ndarray], np.ndarray], mode: str,

@@ -9,11 +9,17 @@ Layers (geopotential altitude h, m; base temperature K; lapse rate K/m):
 Below 0 m the troposphere law is extended (a launch site below sea level, or a high-pressure day); above 32 km the
 last layer is extended. Altitudes here are geopotential; the difference to geometric altitude is 0.16 % at 10 km,
 below every sensor error that matters here, and the firmware is judged against the same function it was built with.
+
+Exponentials, logarithms and powers come from :mod:`~firmware_model.spec.detmath` (basic IEEE operations only), not
+from numpy's SIMD or the C library's: the altitude table, the design's quantization floor and the synthetic and
+simulated flights of the golden vectors get the same bits on every machine (issue 29).
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+from firmware_model.spec import detmath
 
 #: Standard gravity (m/s^2), sea-level pressure (Pa) and temperature (K), gas constant of dry air (J/(kg K)),
 #: ratio of specific heats.
@@ -40,8 +46,8 @@ def _base_pressures() -> tuple[float, ...]:
 
 def _layer_pressure(dh, pb, tb, lapse):
     if lapse == 0.0:
-        return pb * np.exp(-G0 * dh / (R_AIR * tb))
-    return pb * (1.0 + lapse * dh / tb) ** (-G0 / (R_AIR * lapse))
+        return pb * detmath.exp(-G0 * dh / (R_AIR * tb))
+    return pb * detmath.pow_pos(1.0 + lapse * dh / tb, -G0 / (R_AIR * lapse))
 
 
 _P_BASE: tuple[float, ...] = _base_pressures()
@@ -88,9 +94,9 @@ def altitude_m(pressure):
             continue
         ratio = p[sel] / _P_BASE[i]
         if lapse == 0.0:
-            out[sel] = h0 - R_AIR * t0 / G0 * np.log(ratio)
+            out[sel] = h0 - R_AIR * t0 / G0 * detmath.log(ratio)
         else:
-            out[sel] = h0 + t0 / lapse * (ratio ** (-R_AIR * lapse / G0) - 1.0)
+            out[sel] = h0 + t0 / lapse * (detmath.pow_pos(ratio, -R_AIR * lapse / G0) - 1.0)
     return out if out.ndim else float(out)
 
 
@@ -114,4 +120,4 @@ def rounded_troposphere_pressure_pa(altitude_m):
     :func:`pressure_pa` up to 12 km). Not a second standard atmosphere: it is the fixed pressure law of the
     synthetic flights in :mod:`firmware_model.model.streams`, kept because the committed golden vectors were made
     with it (the standard law moves 4 ADC samples of those flights by one count)."""
-    return P0_PA * (1.0 - _ROUNDED_A * np.asarray(altitude_m, dtype=np.float64)) ** _ROUNDED_N
+    return P0_PA * detmath.pow_pos(1.0 - _ROUNDED_A * np.asarray(altitude_m, dtype=np.float64), _ROUNDED_N)

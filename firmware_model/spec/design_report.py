@@ -18,7 +18,8 @@ from firmware_model.spec.gain_design import GAIN_NAMES_ACCEL, GAIN_NAMES_BARO, c
 
 
 def _poles_json(poles: np.ndarray) -> list[dict[str, float]]:
-    return [{"re": float(p.real), "im": float(p.imag), "abs": float(abs(p))} for p in poles]
+    return [{"re": float(p.real), "im": float(p.imag), "abs": math.sqrt(float(p.real) * float(p.real) + float(p.imag) * float(p.imag))}
+            for p in poles]
 
 
 def design_report(cfg: BuildConfig) -> dict[str, Any]:

@@ -26,6 +26,11 @@ The DARE is solved with the structure-preserving doubling algorithm in time-scal
 ``x' = diag(1, dt, dt^2) x`` (where ``F`` no longer depends on dt, which keeps dt = 2^-10 well conditioned), then
 polished with Riccati steps and checked: residual, symmetry, positive (semi)definiteness, and every closed-loop
 pole strictly inside the unit circle. A design that fails any check raises :class:`UserError` naming the config.
+
+Every step runs in :mod:`~firmware_model.spec.detmath` (Python floats, no BLAS/LAPACK, no ``np.linalg``), so the
+gains, the gate constant derived from ``P`` and every digit written into a case JSON are the same on every machine
+(issue 29; docs/numerics.md, "Reproducible bytes"). scipy's ``solve_discrete_are`` stays in the tests as an
+independent oracle with a tolerance.
 """
 
 from __future__ import annotations
@@ -37,6 +42,7 @@ import numpy as np
 
 from firmware_model.runtime.errors import UserError
 from firmware_model.spec.atmosphere import G0, density_kg_m3
+from firmware_model.spec import detmath as dm
 from firmware_model.spec.config import NOISE_MODELS, BuildConfig
 
 #: Gain names by (measurement, state): Gi1 for the barometer innovation, Gi2 for the accelerometer's.
@@ -68,8 +74,8 @@ def process_noise(model: str, dt: float, q: float) -> np.ndarray:
                              [dt**4 / 8, dt**3 / 3, dt**2 / 2],
                              [dt**3 / 6, dt**2 / 2, dt]])
     if model == "dwna":
-        g = np.array([[dt * dt / 2.0], [dt], [1.0]])
-        return q * (g @ g.T)
+        g = np.array([dt * dt / 2.0, dt, 1.0])
+        return q * np.outer(g, g)          # element-wise products: no BLAS
     raise UserError(f"noise_model={model!r}: must be one of {', '.join(NOISE_MODELS)}")
 
 
@@ -103,47 +109,55 @@ class SteadyState:
     R: np.ndarray = field(repr=False)
 
 
-def _riccati_step(F: np.ndarray, H: np.ndarray, Q: np.ndarray, R: np.ndarray, P: np.ndarray) -> np.ndarray:
-    """One a-priori Riccati step P -> F (I - K H) P F^T + Q in Joseph-free symmetric form."""
-    S = H @ P @ H.T + R
-    K = np.linalg.solve(S, H @ P).T  # P H^T S^-1 (S symmetric)
-    Pp = P - K @ S @ K.T
-    Pn = F @ Pp @ F.T + Q
-    return (Pn + Pn.T) / 2.0
+def _riccati_step(F: dm.Matrix, H: dm.Matrix, Q: dm.Matrix, R: dm.Matrix, P: dm.Matrix) -> dm.Matrix:
+    """One a-priori Riccati step P -> F (P - K S K^T) F^T + Q, K = P H^T S^-1, S = H P H^T + R, symmetrised."""
+    S = dm.add(dm.matmul(dm.matmul(H, P), dm.transpose(H)), R)
+    K = dm.transpose(dm.solve(S, dm.matmul(H, P)))  # P H^T S^-1 (S symmetric)
+    Pp = dm.sub(P, dm.matmul(dm.matmul(K, S), dm.transpose(K)))
+    Pn = dm.add(dm.matmul(dm.matmul(F, Pp), dm.transpose(F)), Q)
+    return dm.symmetrize(Pn)
 
 
-def _dare_residual(F: np.ndarray, H: np.ndarray, Q: np.ndarray, R: np.ndarray, P: np.ndarray) -> float:
-    diff = _riccati_step(F, H, Q, R, P) - P
-    return float(np.max(np.abs(diff)) / max(np.max(np.abs(P)), np.max(np.abs(Q)), 1e-300))
+def _dare_residual(F: dm.Matrix, H: dm.Matrix, Q: dm.Matrix, R: dm.Matrix, P: dm.Matrix) -> float:
+    diff = dm.sub(_riccati_step(F, H, Q, R, P), P)
+    return dm.max_abs(diff) / max(dm.max_abs(P), dm.max_abs(Q), 1e-300)
 
 
 def solve_dare(F: np.ndarray, H: np.ndarray, Q: np.ndarray, R: np.ndarray, where: str = "design") -> tuple[np.ndarray, int]:
     """A priori steady-state covariance P of the filter DARE ``P = F (P - P H^T (H P H^T + R)^-1 H P) F^T + Q``
     by the structure-preserving doubling algorithm (SDA; quadratic convergence, so poles near 1 cost ~log2 of
-    the time constant). Returns (P, doublings). Raises :class:`UserError` naming ``where`` when it does not
-    converge or produces non-finite values."""
-    n = F.shape[0]
-    eye = np.eye(n)
-    A = F.T.copy()                       # control-form DARE X = A^T X (I + G X)^-1 A + Hq with A = F^T
-    G = H.T @ np.linalg.solve(R, H)
-    Hq = (Q + Q.T) / 2.0
+    the time constant), in the machine-independent arithmetic of :mod:`~firmware_model.spec.detmath`. Returns
+    (P, doublings). Raises :class:`UserError` naming ``where`` when it does not converge or produces non-finite
+    values."""
+    P, it = _solve_dare(dm.as_matrix(F), dm.as_matrix(H), dm.as_matrix(Q), dm.as_matrix(R), where)
+    return np.array(P, dtype=np.float64), it
+
+
+def _solve_dare(F: dm.Matrix, H: dm.Matrix, Q: dm.Matrix, R: dm.Matrix, where: str) -> tuple[dm.Matrix, int]:
+    n = len(F)
+    eye = dm.eye(n)
+    A = dm.transpose(F)                  # control-form DARE X = A^T X (I + G X)^-1 A + Hq with A = F^T
+    try:
+        G = dm.matmul(dm.transpose(H), dm.solve(R, H))
+    except dm.SingularMatrixError:
+        raise UserError(f"{where}: measurement noise R is singular") from None
+    Hq = dm.symmetrize(Q)
+    f_scale = max(1.0, dm.max_abs(F))
     for it in range(1, _MAX_DOUBLINGS + 1):
-        W = eye + G @ Hq
+        W = dm.add(eye, dm.matmul(G, Hq))
         try:
-            WinvA = np.linalg.solve(W, A)
-            WinvG = np.linalg.solve(W, G)
-        except np.linalg.LinAlgError:
+            WinvA = dm.solve(W, A)
+            WinvG = dm.solve(W, G)
+        except dm.SingularMatrixError:
             raise UserError(f"{where}: Riccati doubling hit a singular matrix (degenerate design)") from None
-        A_new = A @ WinvA
-        G_new = G + A @ WinvG @ A.T
-        H_new = Hq + A.T @ Hq @ WinvA
-        H_new = (H_new + H_new.T) / 2.0
-        G_new = (G_new + G_new.T) / 2.0
-        if not (np.all(np.isfinite(H_new)) and np.all(np.isfinite(G_new)) and np.all(np.isfinite(A_new))):
+        A_new = dm.matmul(A, WinvA)
+        G_new = dm.symmetrize(dm.add(G, dm.matmul(dm.matmul(A, WinvG), dm.transpose(A))))
+        H_new = dm.symmetrize(dm.add(Hq, dm.matmul(dm.matmul(dm.transpose(A), Hq), WinvA)))
+        if not (dm.all_finite(H_new) and dm.all_finite(G_new) and dm.all_finite(A_new)):
             raise UserError(f"{where}: Riccati doubling diverged (non-finite covariance; degenerate design)")
-        change = np.max(np.abs(H_new - Hq)) / max(np.max(np.abs(H_new)), 1e-300)
+        change = dm.max_abs(dm.sub(H_new, Hq)) / max(dm.max_abs(H_new), 1e-300)
         A, G, Hq = A_new, G_new, H_new
-        if change < 1e-15 and np.max(np.abs(A)) < 1e-12 * max(1.0, np.max(np.abs(F))):
+        if change < 1e-15 and dm.max_abs(A) < 1e-12 * f_scale:
             break
     else:
         raise UserError(f"{where}: Riccati doubling did not converge in {_MAX_DOUBLINGS} doublings "
@@ -156,36 +170,45 @@ def solve_dare(F: np.ndarray, H: np.ndarray, Q: np.ndarray, R: np.ndarray, where
 
 def steady_state(F: np.ndarray, H: np.ndarray, Q: np.ndarray, R: np.ndarray, where: str = "design") -> SteadyState:
     """Steady-state filter-form Kalman design for (F, H, Q, R) (any consistent units), with the checks of the
-    module docstring. ``where`` names the configuration in error messages."""
+    module docstring, in machine-independent arithmetic (:mod:`~firmware_model.spec.detmath`: the same bits on
+    every IEEE-754 machine). ``where`` names the configuration in error messages."""
     F, H, Q, R = (np.atleast_2d(np.asarray(a, dtype=np.float64)) for a in (F, H, Q, R))
     for name, a in (("F", F), ("H", H), ("Q", Q), ("R", R)):
         if not np.all(np.isfinite(a)):
             raise UserError(f"{where}: {name} has non-finite entries")
-    if np.any(np.linalg.eigvalsh((R + R.T) / 2) <= 0):
+    Fm, Hm, Qm, Rm = (dm.as_matrix(a) for a in (F, H, Q, R))
+    if dm.eigvalsh(Rm)[0] <= 0:
         raise UserError(f"{where}: measurement noise R must be positive definite")
-    if np.min(np.linalg.eigvalsh((Q + Q.T) / 2)) < -1e-12 * max(np.max(np.abs(Q)), 1e-300):
+    if dm.eigvalsh(Qm)[0] < -1e-12 * max(dm.max_abs(Qm), 1e-300):
         raise UserError(f"{where}: process noise Q must be positive semidefinite")
-    if not np.any(Q):
+    if dm.max_abs(Qm) == 0.0:
         raise UserError(f"{where}: process noise Q is zero (ratio too large?): the gains would decay to zero")
-    P, its = solve_dare(F, H, Q, R, where)
-    S = H @ P @ H.T + R
-    K = np.linalg.solve(S, H @ P).T
-    P_post = (np.eye(F.shape[0]) - K @ H) @ P
-    P_post = (P_post + P_post.T) / 2.0
-    poles = np.linalg.eigvals((np.eye(F.shape[0]) - K @ H) @ F)
-    poles = poles[np.argsort(-np.abs(poles), kind="stable")]
-    residual = _dare_residual(F, H, Q, R, P)
-    if not np.all(np.isfinite(K)) or residual > RESIDUAL_TOL:
+    P, its = _solve_dare(Fm, Hm, Qm, Rm, where)
+    S = dm.add(dm.matmul(dm.matmul(Hm, P), dm.transpose(Hm)), Rm)
+    K = dm.transpose(dm.solve(S, dm.matmul(Hm, P)))
+    n = len(Fm)
+    IKH = dm.sub(dm.eye(n), dm.matmul(K, Hm))
+    P_post = dm.symmetrize(dm.matmul(IKH, P))
+    poles = dm.eigvals3(dm.matmul(IKH, Fm)) if n == 3 else None
+    residual = _dare_residual(Fm, Hm, Qm, Rm, P)
+    if not dm.all_finite(K) or residual > RESIDUAL_TOL:
         raise UserError(f"{where}: steady-state Riccati solution not found (relative residual {residual:.3g})")
-    scale = max(np.max(np.abs(P)), 1e-300)
-    if np.min(np.linalg.eigvalsh(P)) < -1e-9 * scale:
+    scale = max(dm.max_abs(P), 1e-300)
+    if dm.eigvalsh(P)[0] < -1e-9 * scale:
         raise UserError(f"{where}: Riccati solution is not positive semidefinite (degenerate design)")
-    rho = float(np.max(np.abs(poles)))
+    if poles is None:
+        raise UserError(f"{where}: the design handles 3 states, got {n}")
+    rho = max(_modulus(p) for p in poles)
     if not rho < 1.0 - POLE_MARGIN:
         raise UserError(f"{where}: closed-loop pole |lambda| = {rho:.12f} is not inside the unit circle "
                         f"(degenerate design: a state gets no process noise and its gain decays to zero)")
-    return SteadyState(K=K, P_prior=P, P_post=P_post, poles=poles, iterations=its, residual=residual,
-                       F=F, H=H, Q=Q, R=R)
+    return SteadyState(K=np.array(K), P_prior=np.array(P), P_post=np.array(P_post), poles=np.array(poles),
+                       iterations=its, residual=residual, F=F, H=H, Q=Q, R=R)
+
+
+def _modulus(z: complex) -> float:
+    """|z| with basic operations only (``abs(complex)`` calls the C library's hypot)."""
+    return math.sqrt(z.real * z.real + z.imag * z.imag)
 
 
 # ---------------------------------------------------------------------------------------------------- from a config
@@ -328,7 +351,8 @@ def float_gains(cfg: BuildConfig) -> dict[str, float]:
 
 def closed_loop_poles(ss: SteadyState, K: np.ndarray | None = None) -> np.ndarray:
     """Eigenvalues of (I - K H) F for the design (or for another gain ``K``, e.g. the quantized one), sorted by
-    decreasing modulus."""
+    decreasing modulus (machine-independent: :func:`~firmware_model.spec.detmath.eigvals3`)."""
     K = ss.K if K is None else np.asarray(K, dtype=np.float64)
-    poles = np.linalg.eigvals((np.eye(3) - K @ ss.H) @ ss.F)
-    return poles[np.argsort(-np.abs(poles), kind="stable")]
+    Km, Hm = dm.as_matrix(K), dm.as_matrix(ss.H)
+    A = dm.matmul(dm.sub(dm.eye(3), dm.matmul(Km, Hm)), dm.as_matrix(ss.F))
+    return np.array(dm.eigvals3(A))

@@ -5,6 +5,7 @@ from __future__ import annotations
 import functools
 import json
 import math
+from fractions import Fraction
 from collections.abc import Iterable, Iterator
 from typing import Any
 
@@ -18,10 +19,32 @@ from firmware_model.vectors.compute import CaseResult
 
 # ------------------------------------------------------------------------------------------- formatting
 def _fmt_float(x: float) -> float | None:
-    """A float rounded to 12 significant digits (stable across platforms/BLAS); None for non-finite."""
+    """A float rounded to 12 significant digits; None for non-finite. (What makes the digits the same on every
+    machine is the arithmetic that computed them, :mod:`firmware_model.spec.detmath`; the rounding only keeps the
+    files short.)"""
     if not math.isfinite(x):
         return None
     return float(f"{x:.12g}")
+
+
+class _Exact(float):
+    """A float written as it is (its shortest round-trip text), not rounded by :func:`_fmt_float`: ``m / 2^s``."""
+
+
+#: Significant digits of a gain's float ``target`` in the case JSON: the design determines about 7-12 of them
+#: (docs/vectors.md, "Exact fields and diagnostics"); 10 are written.
+TARGET_DIGITS: int = 10
+
+
+def gain_fields(m: int, s: int, target: float) -> dict[str, Any]:
+    """A quantized gain's JSON fields: ``m`` and ``s`` (exact: what the firmware uses), ``value`` = m / 2^s written
+    exactly, ``target`` (the float design's gain to :data:`TARGET_DIGITS` digits) and ``rel_error`` = (value -
+    target) / target computed exactly from the three written fields and rounded to 6 digits, so that anyone can
+    re-derive it from the file."""
+    value = math.ldexp(float(m), -s)
+    t = float(f"{target:.{TARGET_DIGITS}g}")
+    rel = 0.0 if t == 0.0 else float((Fraction(value) - Fraction(t)) / Fraction(t))
+    return {"m": int(m), "s": int(s), "value": _Exact(value), "target": t, "rel_error": float(f"{rel:.6g}")}
 
 
 def _clean(obj: Any) -> Any:
@@ -29,6 +52,8 @@ def _clean(obj: Any) -> Any:
     t = type(obj)  # the common exact types first (a case document has ~170 values); the rest as below
     if t is str or t is int or obj is None:
         return obj
+    if t is _Exact:
+        return float(obj)
     if t is float:
         return _fmt_float(obj)
     if isinstance(obj, dict):
@@ -67,8 +92,7 @@ def case_document(res: CaseResult) -> dict[str, Any]:
     names = word_names(program)
     gains = {}
     for gname, g in sorted(consts.gains.items()):
-        gains[gname] = {"m": int(g.m), "s": int(g.s), "value": g.value, "target": g.target,
-                        "rel_error": g.rel_error}
+        gains[gname] = gain_fields(g.m, g.s, g.target)
     words_first: dict[str, int] = {}
     if res.events_first is not None:
         words_first = dict(res.events_first)

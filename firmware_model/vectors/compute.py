@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from firmware_model.firmware.assemble import build_firmware, source_sha256
+from firmware_model.firmware.assemble import build_firmware, source_path_text, source_sha256
 from firmware_model.firmware.harness import run_firmware
 from firmware_model.model.run import run_model
 from firmware_model.runtime import diskcache
@@ -97,7 +97,7 @@ def compute_case(spec: CaseSpec, generator: str = "emulation", builds: dict[Any,
     else:
         raise UserError(f"vectors: unknown generator {generator!r} (emulation or model)")
     words = np.asarray(trace.words, dtype=np.int64)
-    return CaseResult(spec=spec, generator=label, source=f"firmware_model/asm/{cfg.program}.s",
+    return CaseResult(spec=spec, generator=label, source=source_path_text(cfg.program),
                       source_sha256=source_sha, consts=consts,
                       init=np.asarray(trace.init_words, dtype=np.int64).tolist(),
                       words=words.tolist(), cycles=cycles,  # int64 -> Python ints

@@ -128,7 +128,8 @@ def _flight_case_specs(case_name: Any, spec_type: Any, stream_type: Any, require
                 "cut": f"liftoff - 2 s .. reference apogee + {AFTER_APOGEE_S:g} s",
                 "resampling": inputs.report.to_dict()}
         truth = {"apogee_s": round(ref.time_s - t0, 6), "apogee_sample": apogee_sample,
-                 "apogee_source": ref.source, "apogee_uncertainty_s": ref.uncertainty_s,
+                 "apogee_source": ref.source,
+                 "apogee_uncertainty_s": None if ref.uncertainty_s is None else round(ref.uncertainty_s, 6),
                  "apogee_altitude_m": None if ref.altitude_m is None else round(ref.altitude_m, 3),
                  "altos_apogee_s": None if not record.events.get("altos_apogee") else
                  round(record.events["altos_apogee"] - t0, 6)}

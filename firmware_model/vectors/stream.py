@@ -33,6 +33,7 @@ from firmware_model.firmware.assemble import (
     BARO_PA,
     STACK_TOP,
     build_firmware,
+    source_path_text,
     source_sha256,
     write_inputs,
 )
@@ -330,7 +331,7 @@ def generate_user(program: str, input_csv: str | Path, out: str | Path, config: 
         if fw is not None:
             cycles = {"cpu": "MC68000, zero wait states", "step_min": cyc_min, "step_max": cyc_max,
                       "step_max_sample": cyc_arg, "step_mean": round(cyc_sum / n, 3), "init": init_cycles}
-        res = vec_compute.CaseResult(spec=spec, generator=label, source=f"firmware_model/asm/{program}.s",
+        res = vec_compute.CaseResult(spec=spec, generator=label, source=source_path_text(program),
                                  source_sha256=source_sha, consts=consts, init=init_m, words=[], cycles=cycles,
                                  first_wrap=int(model.first_wrap), wrap_word=str(model.wrap_word),
                                  events_first=events_first if ev_col is not None else None)
