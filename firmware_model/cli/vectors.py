@@ -73,6 +73,10 @@ def run(args: argparse.Namespace) -> int:
             raise UserError("vectors: --input/--config/--no-header go with --firmware, not --all (the committed "
                             "matrix is fixed)")
         files = vectors.generate_all(args.out, args.generator, jobs=args.jobs)
+        if vectors.LAST_CARRIED:
+            print(f"vectors: ../shared/flights absent: kept the {len(vectors.LAST_CARRIED)} committed real-log "
+                  f"case(s) unchanged ({', '.join(vectors.LAST_CARRIED)}); everything else regenerated",
+                  file=sys.stderr)
     else:
         if not args.input:
             raise UserError("vectors: --firmware needs --input FILE.csv")

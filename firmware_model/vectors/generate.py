@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import itertools
 import json
+from dataclasses import dataclass
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -34,7 +35,8 @@ from firmware_model.runtime.hashing import sha256_bytes, sha256_file
 from firmware_model.runtime.output import worker_init
 from firmware_model.runtime.pool import end_pool, start_pool
 from firmware_model.runtime.progress import Progress
-from firmware_model.spec.config import PROGRAMS, load_config
+from firmware_model.flights.evalset import shared_dir
+from firmware_model.spec.config import PROGRAMS, BuildConfig, load_config
 from firmware_model.vectors.c_header import (
     _INT32_MIN,
     _c_expected,
@@ -240,7 +242,13 @@ def generate_all(out: str | Path, generator: str = "emulation", progress: bool |
     """Regenerate the whole committed set (:func:`case_matrix`) into ``out``; returns the files written. With
     ``jobs`` > 1 the workers start first, so their start-up overlaps the building of the case matrix, and they
     run the grid cases (:func:`grid_case_specs`) while the flight and pascal cases (:func:`tail_case_specs`:
-    logs read, flights simulated) are built."""
+    logs read, flights simulated) are built.
+
+    Without the shared logs (``../shared/flights`` or ``$FWEMU_SHARED_FLIGHTS`` absent) every other case is
+    regenerated and the real-log cases are carried over unchanged from the set already in ``out``
+    (:func:`carried_log_cases`: their files checked against its manifest, kept in their place in the case table),
+    so a newcomer's ``make main`` still refreshes what it can; :data:`LAST_CARRIED` names them for the report."""
+    logs = shared_dir() is not None
     pool = start_pool(jobs, _worker_start) if jobs > 1 else None
     try:
         grid = grid_case_specs()
@@ -249,10 +257,109 @@ def generate_all(out: str | Path, generator: str = "emulation", progress: bool |
             pool.terminate()
             pool.join()
         raise
-    results = generate(grid, generator, progress, jobs, pool=pool, render=True, more=tail_case_specs)
+    results: list[Any] = generate(grid, generator, progress, jobs, pool=pool, render=True,
+                                  more=lambda: tail_case_specs(require_logs=logs))
+    LAST_CARRIED.clear()
+    if not logs:
+        carried = carried_log_cases(Path(out), [r.spec.name for r in results])
+        LAST_CARRIED.extend(c.spec.name for c in carried)
+        results = _in_table_order(Path(out), results, carried)
     files = render_set(results, "all", AVR_CASES)
     write_set(files, out, "all")
     return files
+
+
+#: The real-log cases the last :func:`generate_all` carried over (the shared logs were absent).
+LAST_CARRIED: list[str] = []
+
+
+@dataclass(frozen=True)
+class _CarriedSpec:
+    name: str
+    cfg: Any
+
+
+@dataclass(frozen=True)
+class _CarriedConsts:
+    gains: dict[str, None]
+    ALT_TABLE: tuple[int, ...]
+    ALT_SHIFT: int
+
+
+@dataclass(frozen=True)
+class CarriedCase:
+    """A committed real-log case taken over unchanged: what :func:`render_set` and the case table need (its name,
+    program, pascal kind, gain names, altitude table), its generator, and its two files' bytes."""
+
+    spec: _CarriedSpec
+    consts: _CarriedConsts
+    generator: str
+    rendered: tuple[bytes, bytes]
+
+
+def _committed_table_order(out: Path) -> list[str]:
+    """The case names of the set in ``out`` in its case table's order (``c/cases.h``'s includes)."""
+    try:
+        text = (out / "c" / "cases.h").read_text()
+    except OSError:
+        return []
+    return [line[len('#include "'):-len('.h"')] for line in text.splitlines()
+            if line.startswith('#include "') and line.endswith('.h"') and line != '#include "fwv_case.h"']
+
+
+def carried_log_cases(out: Path, generated: Sequence[str]) -> list[CarriedCase]:
+    """The cases of the set in ``out`` that were not ``generated`` and come from a shared log (``input.provenance.
+    source`` under ``../shared/flights/``), each file checked against ``out``'s manifest. Raises
+    :class:`UserError` when ``out`` holds no committed set or a file does not match its manifest."""
+    try:
+        manifest = json.loads((out / "manifest.json").read_text())
+    except (OSError, ValueError):
+        raise UserError(f"vectors: the shared logs are absent and {out} holds no vector set to keep the real-log "
+                        "cases from (../shared/flights or $FWEMU_SHARED_FLIGHTS)") from None
+    hashes = manifest.get("files", {})
+    done = set(generated)
+    carried = []
+    for name in _committed_table_order(out):
+        if name in done:
+            continue
+        rels = (f"cases/{name}.json", f"cases/{name}.h")
+        data = []
+        for rel in rels:
+            try:
+                blob = (out / rel).read_bytes()
+            except OSError:
+                raise UserError(f"vectors: {out / rel}: missing, and the shared logs to regenerate it are absent") \
+                    from None
+            if sha256_bytes(blob) != hashes.get(rel):
+                raise UserError(f"vectors: {out / rel}: does not match {out / 'manifest.json'}, and the shared logs "
+                                "to regenerate it are absent")
+            data.append(blob)
+        doc = json.loads(data[0])
+        source = str(doc.get("input", {}).get("provenance", {}).get("source", ""))
+        if not source.startswith("../shared/flights/"):
+            raise UserError(f"vectors: case {name} in {out} is not generated any more and is not a real-log case: "
+                            "regenerate the set with the shared logs present")
+        table: tuple[int, ...] = ()
+        shift = 0
+        if doc.get("alt_table"):
+            table_doc = json.loads((out / doc["alt_table"]["file"]).read_text())
+            table, shift = tuple(int(v) for v in table_doc["nodes"]), int(table_doc["shift"])
+        cfg = BuildConfig.from_dict(doc["build_config"], where=f"{out / rels[0]}: build_config")
+        carried.append(CarriedCase(_CarriedSpec(name, cfg), _CarriedConsts({g: None for g in doc["gains"]}, table,
+                                                                           shift),
+                                   str(doc["generator"]), (data[0], data[1])))
+    return carried
+
+
+def _in_table_order(out: Path, results: Sequence[Any], carried: Sequence[CarriedCase]) -> list[Any]:
+    """``results`` and ``carried`` merged in the order of ``out``'s case table (a carried case keeps its place)."""
+    order = _committed_table_order(out)
+    by_name = {r.spec.name: r for r in list(results) + list(carried)}
+    if set(order) != set(by_name):
+        new = sorted(set(by_name) - set(order))
+        raise UserError(f"vectors: the case matrix changed ({len(new)} new case(s), e.g. {new[:3]}) and the shared "
+                        "logs are absent: regenerate the set with ../shared/flights present")
+    return [by_name[name] for name in order]
 
 
 def generate_subset(names: Sequence[str], out: str | Path, generator: str = "emulation") -> dict[str, bytes]:

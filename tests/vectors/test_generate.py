@@ -485,3 +485,45 @@ def test_integer_arrays_render_as_before() -> None:
     no_min = [v for v in vals if v != -(2**31)]
     assert vec_c_header._c_rows(np.asarray(no_min, dtype=np.int32)) == ",\n".join(
         "    " + ", ".join(str(v) for v in no_min[i:i + 16]) for i in range(0, len(no_min), 16))
+
+
+def test_real_log_cases_are_carried_over_unchanged_without_the_logs() -> None:
+    """Without ../shared/flights, `fwemu vectors --all` keeps the committed real-log cases: each one read back from
+    the set renders the same case-table row and altitude-table files as the committed ones, in the same place."""
+    from firmware_model.vectors.c_header import alt_table_files, cases_table_header
+
+    docs = {p.stem: json.loads(p.read_text()) for p in committed_cases()}
+    log_names = [n for n, d in docs.items()
+                 if str(d["input"]["provenance"].get("source", "")).startswith("../shared/flights/")]
+    assert len(log_names) >= 4
+    generated = [n for n in docs if n not in log_names]
+    carried = vectors.carried_log_cases(VECTORS, generated)
+    assert sorted(c.spec.name for c in carried) == sorted(log_names)
+    committed_h = (VECTORS / "c" / "cases.h").read_text()
+    for case in carried:
+        assert case.rendered == ((VECTORS / "cases" / f"{case.spec.name}.json").read_bytes(),
+                                 (VECTORS / "cases" / f"{case.spec.name}.h").read_bytes())
+        row = cases_table_header([case], "G").split("fwv_cases[] FWV_ROM = {\n")[1].split("\n};")[0]
+        assert row in committed_h, case.spec.name
+        for rel, data in (alt_table_files(case.consts).items() if case.consts.ALT_TABLE else ()):
+            assert (VECTORS / rel).read_bytes() == data, rel
+    order = vectors._committed_table_order(VECTORS)
+    assert len(order) == len(docs) and set(order) == set(docs)
+
+
+def test_carrying_over_refuses_a_tampered_or_missing_set(tmp_path: Path) -> None:
+    with pytest.raises(UserError, match="holds no vector set"):
+        vectors.carried_log_cases(tmp_path, [])
+    copy = tmp_path / "vectors"
+    (copy / "cases").mkdir(parents=True)
+    (copy / "c").mkdir()
+    for rel in ("manifest.json", "c/cases.h"):
+        (copy / rel).write_bytes((VECTORS / rel).read_bytes())
+    name = next(p.stem for p in committed_cases()
+                if str(json.loads(p.read_text())["input"]["provenance"].get("source", "")).startswith("../shared/"))
+    for ext in (".json", ".h"):
+        (copy / "cases" / f"{name}{ext}").write_bytes((VECTORS / "cases" / f"{name}{ext}").read_bytes())
+    (copy / "cases" / f"{name}.h").write_bytes(b"/* tampered */\n")
+    others = [n for n in vectors._committed_table_order(VECTORS) if n != name]
+    with pytest.raises(UserError, match="does not match"):
+        vectors.carried_log_cases(copy, others)
