@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from tests.support.imports import PACKAGE as PKG
-from tests.support.imports import ROOT, find_cycle, import_graph, module_graph
+from tests.support.imports import ROOT, find_cycle, import_graph, module_graph, parse_source
 
 #: Layer of each package: a module may import its own package and any package of a lower layer.
 LAYERS: dict[str, int] = {"runtime": 0, "spec": 1, "model": 2, "firmware": 3, "flights": 3, "vectors": 4,
@@ -41,7 +41,7 @@ def package_of(module: str) -> str | None:
 
 def project_imports(path: Path, root: Path = ROOT) -> list[tuple[str, int, bool]]:
     """(imported module, line, inside a function or TYPE_CHECKING block) for every firmware_model / isa import."""
-    tree = ast.parse(path.read_text(), str(path))
+    tree = parse_source(path)
     found: list[tuple[str, int, bool]] = []
 
     def visit(node: ast.AST, nested: bool) -> None:

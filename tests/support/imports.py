@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import ast
+import functools
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -18,6 +19,17 @@ def _module_name(path: Path, root: Path = ROOT) -> str:
     return ".".join(parts)
 
 
+def parse_source(path: Path) -> ast.Module:
+    """The syntax tree of ``path``, parsed once per distinct text in this process (the structure tests and their
+    teeth tests read the same ~300 files, and copies of them, several times; the callers only read the trees)."""
+    return _parse_text(path.read_text(), str(path.name))
+
+
+@functools.lru_cache(maxsize=4096)
+def _parse_text(text: str, name: str) -> ast.Module:
+    return ast.parse(text, name)
+
+
 def import_graph(package: Path = PACKAGE) -> dict[str, set[str]]:
     """``package`` (default firmware_model) module -> the modules of that package it imports anywhere at run time
     (top level or inside functions; not the annotation-only imports under ``if TYPE_CHECKING:``)."""
@@ -25,7 +37,7 @@ def import_graph(package: Path = PACKAGE) -> dict[str, set[str]]:
     graph: dict[str, set[str]] = {}
     for name, path in modules.items():
         deps: set[str] = set()
-        tree = ast.parse(path.read_text(), str(path))
+        tree = parse_source(path)
         typing_only = {id(n) for block in ast.walk(tree) if isinstance(block, ast.If)
                        and "TYPE_CHECKING" in ast.unparse(block.test) for n in ast.walk(block)}
         for node in ast.walk(tree):

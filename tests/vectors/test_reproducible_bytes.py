@@ -26,10 +26,12 @@ CORETYPES = ("Prescott", "Sandybridge", "Haswell")
 
 
 def representative_subset() -> list[str]:
-    """Per (program, rounding, k 4..8, ADC width 12/16): its ``edge_step`` case; plus the pascal-word edge cases
-    and one synthetic flight per program (the flights run the whole phase logic and the altitude table)."""
+    """Per (program, rounding, k 4..8): its ``edge_step`` case, with a 12-bit ADC at even k and a 16-bit one at odd
+    k; plus a pascal-word edge case and one synthetic flight per program (the flights run the whole phase logic and
+    the altitude table)."""
     names = [spec.name for spec in vec_cases.case_matrix(require_logs=False)]
-    picked = [n for n in names if n.endswith("_edge_step") and any(f"_k{k}_" in n for k in range(4, 9))]
+    picked = [n for n in names if n.endswith("_edge_step")
+              and any(f"_k{k}_b{12 if k % 2 == 0 else 16}_" in n for k in range(4, 9))]
     programs = {n.split("_floor_")[0].split("_half_up_")[0] for n in names}
     for program in sorted(programs):
         flights = [n for n in names if n.startswith(program + "_") and n.endswith("_flight")
@@ -47,6 +49,7 @@ def test_subset_covers_every_program_rounding_and_k() -> None:
             for k in range(4, 9):
                 assert any(n.startswith(f"{program}_{rounding}_k{k}_") for n in subset), (program, rounding, k)
     assert any("_pa_" in n for n in subset) and any(n.endswith("_flight") for n in subset)
+    assert any("_b12_" in n for n in subset) and any("_b16_" in n for n in subset)
     assert all((VECTORS / "cases" / f"{n}.json").is_file() for n in subset)
 
 
