@@ -299,4 +299,4 @@ def eigvals3(a: Matrix) -> list[complex]:
         else:
             im = math.sqrt(-d) / 2.0
             out = [complex(r, 0.0), complex(-b / 2.0, im), complex(-b / 2.0, -im)]
-    return sorted(out, key=lambda z: (-math.hypot(z.real, z.imag), -z.real, -z.imag))
+    return sorted(out, key=lambda z: (-math.sqrt(z.real * z.real + z.imag * z.imag), -z.real, -z.imag))

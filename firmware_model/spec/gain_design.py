@@ -248,7 +248,8 @@ def accel_sigma_units(cfg: BuildConfig) -> float:
     vertical on a tilted flight), times units_per_metre / accel_counts_per_mps2 (units/s^2)."""
     noise = max(cfg.accel_sigma, QUANT_RMS)
     model = cfg.accel_model_g * G0 * cfg.accel_counts_per_mps2
-    return math.hypot(noise, model) * cfg.units_per_metre / cfg.accel_counts_per_mps2
+    # sqrt of the sum of squares, not math.hypot: the same bits on every machine (spec/detmath.py)
+    return math.sqrt(noise * noise + model * model) * cfg.units_per_metre / cfg.accel_counts_per_mps2
 
 
 def describe(cfg: BuildConfig) -> str:
