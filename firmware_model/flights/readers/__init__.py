@@ -27,8 +27,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from firmware_model.flights.readers import (altosui, board, cats, cats_raw, columns, eeprom, eggtimer, generic,
-                                            raven, rdas, rrc3)
+from firmware_model.flights.readers import (aim, altimetercloud, altosui, blueraven, board, cats, cats_raw, columns,
+                                            eeprom, eggtimer, generic, perfectflite, raven, raven_fip, rdas, rrc3)
 from firmware_model.flights.readers._common import read_text
 from firmware_model.flights.readers.generic import write_generic
 from firmware_model.flights.record import FlightRecord
@@ -36,16 +36,20 @@ from firmware_model.runtime.errors import UserError
 
 #: Known formats.
 FORMATS: tuple[str, ...] = ("altosui", "eeprom", "cats", "cats_raw", "rrc3", "eggtimer", "raven", "board",
-                            "columns", "rdas", "generic")
+                            "columns", "rdas", "generic", "perfectflite", "raven_fip", "blueraven", "aim",
+                            "altimetercloud")
 _MODULES = {"altosui": altosui, "eeprom": eeprom, "cats": cats, "cats_raw": cats_raw, "rrc3": rrc3,
             "eggtimer": eggtimer, "raven": raven, "board": board, "columns": columns, "rdas": rdas,
-            "generic": generic}
+            "generic": generic, "perfectflite": perfectflite, "raven_fip": raven_fip,
+            "blueraven": blueraven, "aim": aim, "altimetercloud": altimetercloud}
 #: Detection order: the strict header tests first, RDAS (a majority of numeric lines) last.
 _DETECT: tuple[str, ...] = ("eeprom", "altosui", "cats", "cats_raw", "rrc3", "eggtimer", "raven", "board",
-                            "columns", "generic", "rdas")
+                            "columns", "perfectflite", "raven_fip", "blueraven", "aim", "altimetercloud",
+                            "generic", "rdas")
 #: Which reader takes which option.
 OPTIONS: dict[str, tuple[str, ...]] = {"sensor": ("cats_raw",), "columns": ("columns",),
-                                       "site_altitude_m": ("eggtimer", "raven", "columns"), "flight": ("eeprom",)}
+                                       "site_altitude_m": ("eggtimer", "raven", "columns", "perfectflite",
+                                                                           "altimetercloud"), "flight": ("eeprom",)}
 
 
 def _matches(text: str) -> list[str]:
@@ -58,7 +62,7 @@ def not_a_log(path: str | Path) -> str | None:
     text = read_text(path)
     if _matches(text):
         return None
-    for module in (cats_raw, board):
+    for module in (cats_raw, board, blueraven):
         why = module.companion_reason(text)
         if why:
             return why
