@@ -570,9 +570,9 @@ def test_eeprom_bad_files_name_their_line(tmp_path: Path) -> None:
     q = _write(tmp_path, "b.eeprom", "\n".join(lines[:1] + ['"log_format": 7, "ms5607": {,'] + lines[2:]) + "\n")
     with pytest.raises(UserError, match=rf"^{q}:2: the configuration is not valid JSON"):
         read_flight(q, format="eeprom")
-    r = _write(tmp_path, "c.eeprom", VALID["eeprom"].replace('"log_format": 7', '"log_format": 5'))
-    with pytest.raises(UserError, match=rf"^{r}:1: log_format 5 .*only 7 \(TeleMetrum v2/v3\), 19"):
-        read_flight(r)
+    r = _write(tmp_path, "c.eeprom", VALID["eeprom"].replace('"log_format": 7', '"log_format": 9'))
+    with pytest.raises(UserError, match=rf"^{r}:1: log_format 9 .*not a flight log format this reader knows"):
+        read_flight(r)          # 9 is TeleGPS (a GPS tracker's log: no barometer)
     s = _write(tmp_path, "d.eeprom", "\n".join(lines[:3]) + "\n")
     with pytest.raises(UserError, match=rf"^{s}:3: no 16-byte records after the configuration"):
         read_flight(s)
