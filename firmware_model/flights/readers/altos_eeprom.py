@@ -109,8 +109,11 @@ def looks_like(text: str) -> bool:
     if head.startswith("{"):
         return '"log_format"' in head
     lines = [ln.strip() for ln in head.splitlines()[:400] if ln.strip()]
-    return any(ln.startswith("Config version:") for ln in lines[:60]) and sum(bool(_RECORD.match(ln))
-                                                                               for ln in lines) >= 3
+    return _text_config(head) and sum(bool(_RECORD.match(ln)) for ln in lines) >= 3
+
+
+def _text_config(text: str) -> bool:
+    return any(ln.strip().startswith("Config version:") for ln in text.splitlines()[:60])
 
 
 def barometer_to_pressure(adc: np.ndarray) -> np.ndarray:
@@ -244,9 +247,13 @@ def _text_style(path: Path, text: str) -> Parsed:
     if ms:
         cfg["ms5607"] = ms
     if not rows:
-        raise fail(path, len(text.splitlines()), "a configuration with no records")
-    words = all(len(r[3]) == 2 and all(len(x) == 4 for x in r[3]) for r in rows)
+        last = max((i for i, ln in enumerate(text.splitlines(), start=1) if ln.strip()), default=1)
+        raise fail(path, last, "a configuration with no records")
+    first = rows[0][3]
+    words = len(first) == 2 and all(len(x) == 4 for x in first)
     fmt = cfg.get("log_format", 1 if words else None)
+    if fmt is None:
+        raise fail(path, rows[0][0], "no log-format line, and the first record is not two 16-bit words (log format 1)")
     if fmt not in FAMILIES:
         raise fail(path, 1, f"log-format {fmt!r}: not a flight log format this reader knows "
                             f"({', '.join(str(k) for k in sorted(FAMILIES))})")
@@ -408,7 +415,7 @@ def read(path: Path, flight: int | None = None) -> FlightRecord:
             cfg = {}
         if isinstance(cfg, dict) and cfg.get("log_format") in eeprom.LAYOUTS:
             return eeprom.read(path, flight=flight)
-    elif not looks_like(text):
+    elif not (looks_like(text) or _text_config(text)):
         raise fail(path, 1, "not an AltOS .eeprom (no JSON configuration, no 'Config version:' text configuration)")
     return decode(path, parse(path, text), flight)
 
