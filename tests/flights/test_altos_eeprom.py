@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -258,8 +259,6 @@ SEEDS = {
 @given(style=st.sampled_from(sorted(SEEDS)), data=st.data())
 def test_fuzz_no_traceback(style: str, data: st.DataObject) -> None:
     """Damage to a valid text-style or JSON-style file is read or refused with one UserError naming the file."""
-    import tempfile
-
     text = SEEDS[style]
     for _ in range(data.draw(st.integers(1, 4))):
         op = data.draw(st.sampled_from(["replace", "insert", "delete", "cut", "dup"]))
