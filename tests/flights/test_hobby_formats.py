@@ -193,6 +193,12 @@ def test_perfectflite_variants(tmp_path: Path) -> None:
     metres = read_flight(_write(tmp_path, "e.pf2", _pf2(apogee="91.4 m AGL", ground="304.8 m MSL")))
     assert metres.provenance["own_apogee_m"] == pytest.approx(91.4)
     assert metres.provenance["site_altitude_m"] == pytest.approx(304.8)
+    datacap = read_flight(_write(tmp_path, "g.csv", _bare(sep=",", header="Time,Altitude,Temperature,Voltage\n")))
+    assert np.array_equal(datacap.pressure_pa, bare.pressure_pa)          # unitless altitude: PerfectFlite's feet
+    noted = _pf2().replace("Firmware: 1.3", "Firmware: 1.3\r\nComments: first flight\r\non the new motor")
+    assert read_flight(_write(tmp_path, "h.pf2", noted.split("\r\n", 1)[1])).n == 60   # no device line, a comment
+    metre_csv = _bare(sep=",", header="time_s,altitude_m,temperature,voltage\n")
+    assert _matches(metre_csv) == ["generic"]
     # a site altitude given on the command line wins over the stated ground elevation
     given_site = read_flight(_write(tmp_path, "f.pf2", _pf2()), site_altitude_m=10.0)
     assert given_site.provenance["site_altitude_m"] == 10.0

@@ -11,7 +11,9 @@ barometer at 20 samples/s and report altitude above the pad in feet; they do not
   it becomes the log's own computer's apogee (``events["own_apogee"]``: the first row at or above it, and
   ``provenance["own_apogee_m"]``); ``Ground Elevation`` is the site altitude of the synthetic barometer.
 * **Columns**: ``Data: (Time, Altitude, Velocity, Temperature (F), Voltage)`` after the preamble, or a CSV header
-  line (``time_s,altitude_ft,temperature,voltage``, ``Time (s),Altitude (ft),...``), or none: bare rows of 4 fields
+  line whose every column is one of PerfectFlite's (``time_s,altitude_ft,temperature,voltage``, DataCap's
+  ``Time,Altitude,Velocity,Temperature,Voltage``, ``Time (s),Altitude (ft),...``; without a preamble, an altitude
+  named in metres is the generic CSV's, not PerfectFlite's), or none: bare rows of 4 fields
   ``time altitude temperature volts`` (StratoLogger serial download) or 5 fields in the ``Data:`` order. Names are
   matched by their first word (time, alt, veloc, temp, volt); units from the name (``_ft``, ``(ft)``, ``(feet)``,
   ``_m``, ``(m)``; feet when none), temperature ``(F)``/``(C)`` or a ``F``/``C`` suffix on the value (``76.7F``).
@@ -72,7 +74,8 @@ def _is_row(line: str, n: tuple[int, ...] = (4, 5)) -> bool:
 
 def _layout(text: str) -> tuple[dict[str, str], list[str], int, int] | None:
     """(preamble, column names, line of the column names (0: none), first data line), or None when the text is
-    not a PerfectFlite log."""
+    not a PerfectFlite log. A preamble must be PerfectFlite's: a first line naming the device or an ``Apogee:``
+    key; lines in it that are not ``Key: value`` (a comment's continuation) are skipped."""
     lines = text.splitlines()
     pre: dict[str, str] = {}
     device = False
@@ -80,22 +83,25 @@ def _layout(text: str) -> tuple[dict[str, str], list[str], int, int] | None:
         s = line.strip()
         if not s:
             continue
-        if pre and not (device or "apogee" in pre):
-            return None                       # a Key: value preamble, but not PerfectFlite's
+        ours = device or "apogee" in pre
         m = re.match(r"^Data:\s*\((.*)\)\s*$", s)
         if m:
             names = [n.strip() for n in re.split(r",(?![^(]*\))", m.group(1))]
-            return (pre, names, number, number + 1) if (device or "apogee" in pre) else None
+            return (pre, names, number, number + 1) if ours else None
         if _is_row(s):
+            if pre and not ours:
+                return None
             width = len(_fields(s))
             return (pre, list(_BARE4 if width == 4 else _BARE5), 0, number) if _bare_ok(lines[number - 1:]) \
                 else None
         kinds = _header_kinds(s)
         if kinds is not None:
+            if pre and not ours:
+                return None
             names = _names(s)
-            alt = names[kinds.index("altitude")].lower()
-            if not (pre or "ft" in alt or "feet" in alt):
-                return None                   # time + altitude in metres, no preamble: not PerfectFlite's
+            alt = re.sub(r"\s", "", names[kinds.index("altitude")].lower())
+            if not pre and re.search(r"(_m|\(m\)|\(meters\)|\(metres\))$", alt):
+                return None                   # time + altitude in metres, no preamble: the generic CSV's
             return pre, names, number, number + 1
         km = _KEY.match(s)
         if km:
@@ -104,7 +110,8 @@ def _layout(text: str) -> tuple[dict[str, str], list[str], int, int] | None:
         if not pre and not device and s.lower().startswith(("perfectflite", "stratologger")):
             device = True
             continue
-        return None
+        if not (device or pre):
+            return None
     return None
 
 
