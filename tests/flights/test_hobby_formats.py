@@ -193,6 +193,8 @@ def test_perfectflite_variants(tmp_path: Path) -> None:
     metres = read_flight(_write(tmp_path, "e.pf2", _pf2(apogee="91.4 m AGL", ground="304.8 m MSL")))
     assert metres.provenance["own_apogee_m"] == pytest.approx(91.4)
     assert metres.provenance["site_altitude_m"] == pytest.approx(304.8)
+    hm = np.asarray(altitude_m(metres.pressure_pa)) - float(altitude_m(pressure_pa(304.8)))
+    assert hm[40] == pytest.approx(300.0, abs=1e-6)          # the unitless Altitude column is in the preamble's m
     datacap = read_flight(_write(tmp_path, "g.csv", _bare(sep=",", header="Time,Altitude,Temperature,Voltage\n")))
     assert np.array_equal(datacap.pressure_pa, bare.pressure_pa)          # unitless altitude: PerfectFlite's feet
     noted = _pf2().replace("Firmware: 1.3", "Firmware: 1.3\r\nComments: first flight\r\non the new motor")

@@ -98,7 +98,7 @@ FAMILIES: dict[int, Family] = {
 #: AltosUI's default 2 g span for a format-1 log with no calibration (AltosEepromRecordFull.two_g_default).
 TWO_G_DEFAULT: int = 16294 - 15758
 _RECORD = re.compile(r"^([A-Za-z])\s+([0-9a-fA-F]{1,4})((?:\s+[0-9a-fA-F]+)+)\s*$")
-_TEXT_KEYS = ("Config version:", "Accel cal", "serial-number", "log-format", "ms5607 ", "Main deploy:",
+_TEXT_KEYS = ("Config version:", "Accel cal", "serial-number", "log-format", "ms5607 ", "Main deploy:", "Pad ",
               "Apogee delay:", "Radio channel:", "Callsign:", "product", "manufacturer", "software-version")
 
 
@@ -241,6 +241,11 @@ def _text_style(path: Path, text: str) -> Parsed:
                 cfg[key.replace("-number", "").replace("-", "_")] = int(value.strip())
             except ValueError:
                 raise fail(path, number, f"{key}: {value.strip()!r} is not a number") from None
+        elif s.startswith("Pad orientation:"):
+            m2 = re.match(r"^Pad orientation:\s*(\d+)", s)
+            if not m2:
+                raise fail(path, number, f"cannot read {s!r} (want 'Pad orientation: N')")
+            cfg["pad_orientation"] = int(m2.group(1))
         elif s.startswith(("product", "Config version:")):
             key, _, value = s.partition(":" if s.startswith("Config") else " ")
             cfg["config_version" if key.startswith("Config") else "product"] = value.strip()

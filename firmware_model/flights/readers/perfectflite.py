@@ -16,7 +16,7 @@ barometer at 20 samples/s and report altitude above the pad in feet; they do not
   named in metres is the generic CSV's, not PerfectFlite's), or none: bare rows of 4 fields
   ``time altitude temperature volts`` (StratoLogger serial download) or 5 fields in the ``Data:`` order. Names are
   matched by their first word (time, alt, veloc, temp, volt); units from the name (``_ft``, ``(ft)``, ``(feet)``,
-  ``_m``, ``(m)``; feet when none), temperature ``(F)``/``(C)`` or a ``F``/``C`` suffix on the value (``76.7F``).
+  ``_m``, ``(m)``; feet when none, metres when the preamble states its heights in m), temperature ``(F)``/``(C)`` or a ``F``/``C`` suffix on the value (``76.7F``).
 * Rows: comma, tab or space separated. Time s, altitude AGL. **Synthetic barometer**: pressure = standard
   atmosphere at altitude + site altitude (``site_altitude_m`` given, else the stated ground elevation, else sea
   level), said in the notes; ``ground_pressure_pa`` is that at the device's own zero.
@@ -200,6 +200,10 @@ def read(path: Path, site_altitude_m: float | None = None) -> FlightRecord:
         raise fail(path, names_line or data_line, f"the columns {names} name no time and altitude")
     scale = {k: _unit_of(path, names_line or data_line, n, k) for n, k in zip(names, kinds)
              if k in ("time", "altitude", "temperature")}
+    stated = [_HEIGHT.match(pre[k].strip()) for k in ("apogee", "ground elevation") if k in pre]
+    if names[kinds.index("altitude")].strip().lower() in ("altitude", "alt") and stated and \
+            all(m is not None and m.group(2).strip().lower() in ("m", "meters", "metres") for m in stated):
+        scale["altitude"] = 1.0     # a unitless altitude column in a log whose preamble states metres
     ti, ai = kinds.index("time"), kinds.index("altitude")
     tci = kinds.index("temperature") if "temperature" in kinds else None
     t_l, a_l, c_l, rows = [], [], [], []
