@@ -53,13 +53,14 @@ def _d1s(n: int) -> list[int]:
     return [6465444 - 900 * i for i in range(n)]          # pressure falling (the rocket climbs)
 
 
-def mega_records(fmt: int, n: int = 30, flight: int = 3, tick0: int = 65000) -> list[bytes]:
+def mega_records(fmt: int, n: int = 30, flight: int = 3, tick0: int = 65000, ground: int = -31, step: int = -39
+                 ) -> list[bytes]:
     size = 32
-    out = [rec("F", tick0, le(flight, 2) + le(-31, 2) + le(101000, 4) + le(2048, 2) + le(5, 2) + le(-7, 2), size)]
+    out = [rec("F", tick0, le(flight, 2) + le(ground, 2) + le(101000, 4) + le(2048, 2) + le(5, 2) + le(-7, 2), size)]
     out.append(rec("S", tick0, le(2, 2), size))
     for i, d1 in enumerate(_d1s(n)):
         imu = le(2048, 2) * 3 + bytes(12)
-        accel = -31 - 39 * (i % 3)                          # pad, +1 g over pad, +2 g over pad (19.5 counts/g)
+        accel = ground + step * (i % 3)                     # pad, +1 g over pad, +2 g over pad (19.5 counts/g)
         out.append(rec("A", tick0 + 10 * i, le(d1, 4) + le(8077636, 4) + imu + le(accel, 2), size))
         if i == 20:
             out.append(rec("S", tick0 + 10 * i, le(6, 2), size))      # drogue = AltOS's apogee
@@ -106,6 +107,14 @@ def test_mega_family_round_trip(fmt: int, tmp_path: Path) -> None:
     own = altos_eeprom.decode(p, altos_eeprom.parse(p, read_text(p)))
     assert np.array_equal(own.pressure_pa, r.pressure_pa) and np.array_equal(own.accel_counts, r.accel_counts)
     assert own.provenance["imu"]["pad_along_g"] == pytest.approx(2048 / altos_eeprom.FAMILIES[fmt].imu[3])
+
+
+def test_accelerometer_mounted_the_other_way(tmp_path: Path) -> None:
+    """A calibration whose -1 g reading is below its +1 g one (counts rise with the specific force): same forces."""
+    p = tmp_path / "inv.eeprom"
+    cfg = {"log_format": 16, "ms5607": COEF, "accel_cal_plus": 7, "accel_cal_minus": -32}
+    p.write_text(json_file(cfg, mega_records(16, ground=8, step=39)))
+    assert read_flight(p).specific_force_mps2()[:3] == pytest.approx([G0, 3 * G0, 5 * G0])
 
 
 @pytest.mark.parametrize("fmt", [6, 8, 12, 14])

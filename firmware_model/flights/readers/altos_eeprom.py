@@ -380,8 +380,8 @@ def decode(path: Path, p: Parsed, flight: int | None = None) -> FlightRecord:
         if fam.kind == "full" and (plus is None or minus is None):
             plus, minus = ground_accel, ground_accel + TWO_G_DEFAULT
             notes.append(f"no accelerometer calibration: AltosUI's default 2 g = {TWO_G_DEFAULT} counts")
-        if isinstance(plus, int) and isinstance(minus, int) and minus - plus > 0:
-            cpg = (minus - plus) / 2.0
+        if isinstance(plus, int) and isinstance(minus, int) and minus != plus:
+            cpg = (minus - plus) / 2.0      # negative for a sensor mounted the other way: the sign carries it
             cpm = -cpg / G0
             cal = {"counts_per_mps2": cpm, "offset_counts": ground_accel - G0 * cpm}
             acc = _s16(rs, fam.accel_at).astype(np.float64)[keep]

@@ -15,7 +15,7 @@ barometer at 20 samples/s and report altitude above the pad in feet; they do not
   ``Time,Altitude,Velocity,Temperature,Voltage``, ``Time (s),Altitude (ft),...``; without a preamble, an altitude
   named in metres is the generic CSV's, not PerfectFlite's), or none: bare rows of 4 fields
   ``time altitude temperature volts`` (StratoLogger serial download) or 5 fields in the ``Data:`` order. Names are
-  matched by their first word (time, alt, veloc, temp, volt); units from the name (``_ft``, ``(ft)``, ``(feet)``,
+  matched by their first letters (time, alt, vel, temp, volt); units from the name (``_ft``, ``(ft)``, ``(feet)``,
   ``_m``, ``(m)``; feet when none, metres when the preamble states its heights in m), temperature ``(F)``/``(C)`` or a ``F``/``C`` suffix on the value (``76.7F``).
 * Rows: comma, tab or space separated. Time s, altitude AGL. **Synthetic barometer**: pressure = standard
   atmosphere at altitude + site altitude (``site_altitude_m`` given, else the stated ground elevation, else sea
@@ -41,7 +41,7 @@ _HEIGHT = re.compile(r"^([-+]?\d+(?:\.\d*)?)\s*(.*?)\s*(AGL|MSL|ASL)?\s*$", re.I
 _SPLIT = re.compile(r"\s*[,\t;]\s*|\s+")
 _NUM = re.compile(r"^[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?[FC]?$")
 #: Column kinds by the first word of their name.
-_KINDS = (("time", "time"), ("alt", "altitude"), ("veloc", "velocity"), ("temp", "temperature"), ("volt", "voltage"))
+_KINDS = (("time", "time"), ("alt", "altitude"), ("vel", "velocity"), ("temp", "temperature"), ("volt", "voltage"))
 _BARE4 = ("time", "altitude", "temperature", "voltage")
 _BARE5 = ("time", "altitude", "velocity", "temperature", "voltage")
 
