@@ -125,8 +125,8 @@ def _fip(n: int = 40) -> str:
 def _blue(n: int = 40, day: int = 11, hr: bool = False) -> str:
     if hr:
         head = "Year,Month,Day,Time,Flight_Time_(s),Sync,Gyro_X,Gyro_Y,Gyro_Z,Accel_X,Accel_Y,Accel_Z\n"
-        return head + "".join(f"2024,5,{day},14:09:4{5 + i // 500}.{(i * 2) % 1000:03d},{-0.5 + i * 0.002:.3f},{i},"
-                              f"0,0,0,{-1.0 if i < 10 else -5.0:.2f},0.01,0.02\n" for i in range(n))
+        return head + "".join(f"2024,5,{day},14:09:{44 + (i * 4) // 1000}.{(i * 4) % 1000:03d},{-1.0 + i * 0.004:.3f},"
+                              f"{i},0,0,0,{-1.0 if i < 10 else -5.0:.2f},0.01,0.02\n" for i in range(n))
     head = ("Year,Month,Day,Time,Flight_Time_(s),Sync,Temperature_(F),Baro_Press_(atm),Baro_Altitude_AGL_(feet),"
             "Apogee\n")
     return head + "".join(f"2024,5,{day},14:09:{44 + i // 25}.{(i * 40) % 1000:03d},{-1 + i * 0.04:.2f},{i},86.0,"
@@ -215,15 +215,19 @@ def test_rdas_rows_are_not_perfectflite(tmp_path: Path) -> None:
 
 def test_blueraven_same_flight_pair_is_joined(tmp_path: Path) -> None:
     low = _write(tmp_path, "x-lr.csv", _blue())
-    _write(tmp_path, "x-hr.csv", _blue(hr=True))
+    _write(tmp_path, "x-hr.csv", _blue(n=450, hr=True))            # -1.0 .. 0.796 s, past the peak at 0.56 s
     rec = read_flight(low)
     assert rec.accel_mps2 is not None
     ok = np.isfinite(rec.accel_mps2)
-    assert ok.sum() == 40 and np.isfinite(rec.pressure_pa).sum() == 40
+    assert ok.sum() == 450 and np.isfinite(rec.pressure_pa).sum() == 40
+    assert rec.n == len(set(np.round(np.arange(40) * 0.04 - 1, 3)) | set(np.round(np.arange(450) * 0.004 - 1, 3)))
     # axis: Accel_X reads -1 g on the pad -> the rocket's axis is -X: +1 g, then +5 g
     assert rec.accel_mps2[ok][0] == pytest.approx(9.80665) and rec.accel_mps2[ok][-1] == pytest.approx(5 * 9.80665)
     assert read_flight(tmp_path / "x-hr.csv").n == rec.n          # the high-rate file reads its low-rate partner
-    _write(tmp_path, "x-hr.csv", _blue(hr=True, day=12))
+    _write(tmp_path, "x-hr.csv", _blue(n=100, hr=True))            # ends at -0.6 s, before the peak: refused
+    short = read_flight(low)
+    assert short.accel_mps2 is None and any("accelerometer REFUSED" in n for n in short.provenance["notes"])
+    _write(tmp_path, "x-hr.csv", _blue(n=450, hr=True, day=12))
     assert read_flight(low).accel_mps2 is None
     with pytest.raises(UserError, match=r"x-hr.csv:2: this high-rate file is another flight"):
         read_flight(tmp_path / "x-hr.csv")
@@ -324,3 +328,11 @@ def test_fuzz_no_traceback(fmt: str, data: st.DataObject) -> None:
             assert "np.float64" not in str(exc)
             return
         assert rec.n >= 2 and np.all(np.diff(rec.time_s) > 0)
+
+
+def test_fip_accelerometer_that_stops_in_the_ascent_is_refused(tmp_path: Path) -> None:
+    """The synthetic FIP file's accelerometer ends at 0.49 s, its barometer falls to 1.46 s: the record has no
+    accelerometer (holding its last value would feed 1 g to the rest of the flight) and says why."""
+    rec = read_flight(_write(tmp_path, "f-fip.csv", _fip()))
+    assert rec.accel_mps2 is None and rec.n == 30
+    assert any(n.startswith("accelerometer REFUSED: its series covers 0..0.4875 s") for n in rec.provenance["notes"])

@@ -86,6 +86,18 @@ def place_lines(axis: np.ndarray, parts: list[tuple[np.ndarray, list[int]]]) -> 
     return out
 
 
+def refusal(ta: np.ndarray, tb: np.ndarray, pb: np.ndarray) -> str | None:
+    """Why an accelerometer series sampled at ``ta`` must not be used with a barometer ``pb`` sampled at ``tb``
+    (None when it may): it must start by the barometer's first half second and last to the barometer's peak (its
+    lowest pressure); a series that stops in the ascent would be held at its last value for the rest of the flight
+    (the Raven export of :mod:`.raven` stops at 4.55 s of a 17.4 s ascent)."""
+    peak = float(tb[int(np.nanargmin(pb))])
+    if ta[0] <= tb[0] + 0.5 and ta[-1] >= peak:
+        return None
+    return (f"accelerometer REFUSED: its series covers {ta[0]:g}..{ta[-1]:g} s, the barometer {tb[0]:g}..{tb[-1]:g} s "
+            f"with its peak at {peak:g} s")
+
+
 def pad_axis(path: Path, line: int, pad: dict[str, np.ndarray], tolerance_g: float = 0.25) -> tuple[str, float]:
     """The accelerometer axis that reads about 1 g (in g) on the pad and its sign (the axis along gravity is the
     rocket's on a vertical pad): (column name, +1 or -1). Error naming ``line`` when no axis or more than one does."""
@@ -100,4 +112,4 @@ def pad_axis(path: Path, line: int, pad: dict[str, np.ndarray], tolerance_g: flo
     return hits[0]
 
 
-__all__ = ["G0", "PRESSURE_UNITS", "groups", "merge", "pad_axis", "place", "place_lines", "series"]
+__all__ = ["G0", "PRESSURE_UNITS", "groups", "merge", "pad_axis", "place", "place_lines", "refusal", "series"]

@@ -14,7 +14,8 @@ What the reader relies on (Entacore's AIM export and the shared sample):
   time order and named in the notes when its times are new and such rows are at most 1 % of the rows; more, or a
   repeated time, is an error naming the line.
 * The record: the union of the pressure group's and the acceleration group's times, no sample invented (each NaN
-  where it did not sample). The AIM's own apogee: the first row of the flag group with ``apogee detect`` = 1. Site
+  where it did not sample); an acceleration series that does not last from the first half second to the barometric
+  peak is refused (noted). The AIM's own apogee: the first row of the flag group with ``apogee detect`` = 1. Site
   altitude: ``Pressure MSL - Pressure AGL`` at the first pressure sample (``provenance["site_altitude_m"]``).
 """
 
@@ -67,7 +68,9 @@ def read(path: Path) -> FlightRecord:
         if both.size:
             prov_extra["site_altitude_m"] = float(msl[both[0]] - agl[both[0]])
     axis, acc, parts = tp, None, [(tp, lp)]
-    if "acceleration" in found:
+    if "acceleration" not in found:
+        notes.append("no acceleration group: barometer only")
+    else:
         tca, vca = found["acceleration"]
         ta, avals, _, la = ch.series(table, tca, vca, reorder=notes)
         g = avals[vca.index(head.index("acceleration"))]
@@ -76,13 +79,15 @@ def read(path: Path) -> FlightRecord:
         if not 0.5 <= pad_g <= 1.5:
             raise fail(path, la[0], f"acceleration reads {pad_g:.3g} on the pad: not in g (the AIM writes g; this "
                                     "unit is not known)")
-        axis = ch.merge(tp, ta)
-        acc = ch.place(axis, ta, g * G0)
-        parts.append((ta, la))
-        notes.append(f"pressure {tp.size} samples, acceleration {ta.size} samples: merged on their {axis.size} "
-                     "sample times, each NaN where it has no sample")
-    else:
-        notes.append("no acceleration group: barometer only")
+        why = ch.refusal(ta, tp[ok], p[ok])
+        if why is not None:
+            notes.append(why)
+        else:
+            axis = ch.merge(tp, ta)
+            acc = ch.place(axis, ta, g * G0)
+            parts.append((ta, la))
+            notes.append(f"pressure {tp.size} samples, acceleration {ta.size} samples: merged on their {axis.size} "
+                         "sample times, each NaN where it has no sample")
     pressure = ch.place(axis, tp, p)
     events: dict[str, float] = {}
     if "apogee detect" in found:

@@ -12,8 +12,10 @@ What the reader relies on (Featherweight's Blue Raven manual and app export; the
 * Joining: reading the low-rate file takes the high-rate file beside it (the same name with ``-hr``/``_hr`` for
   ``-lr``/``_lr``) and reading the high-rate file takes the low-rate one, **when both carry the same date and their
   wall-clock times overlap**; the acceleration is placed on the union of the two files' sample times (no sample
-  invented: NaN where a file has none). Files of different flights are not joined (a note, or an error when the
-  high-rate file is the one read: it has no barometer).
+  invented: NaN where a file has none), when the high-rate series lasts from the low-rate file's first half second
+  to its barometric peak (else it is refused, as :mod:`.raven` refuses a series that stops in the ascent). Files of
+  different flights are not joined (a note, or an error when the high-rate file is the one read: it has no
+  barometer).
 * Summary (``<name>.summary.csv`` beside): ``Max Altitude,4034.98 feet`` is the device's own apogee height
   (``provenance["own_apogee_m"]``) and ``Pad altitude ASL,230.55 feet`` the site altitude; its units must be
   ``feet`` or ``m`` (another is an error naming the line).
@@ -158,24 +160,28 @@ def read(path: Path) -> FlightRecord:
         htable = Table(high_path, read_text(high_path), ",", min_rows=2)
         lo0, lo1, hi0, hi1 = _clock(table, 0), _clock(table, len(lines) - 1), _clock(htable, 0), \
             _clock(htable, len(htable.rows) - 1)
-        if lo0.date() == hi0.date() and hi0 <= lo1 and lo0 <= hi1:
-            th, fh, how = _high(htable)
-            axis = ch.merge(t, th)
-            acc = ch.place(axis, th, fh)
-            p_axis = ch.place(axis, t, p)
-            temp = None if temp is None else ch.place(axis, t, temp)
-            row_lines = ch.place_lines(axis, [(t, lines), (th, htable.lines)])
-            notes.append(f"joined with {high_path.name}: {th.size} high-rate samples, {how}; merged on "
-                         f"{axis.size} sample times, each NaN where it has no sample")
-            p = p_axis
-        elif kind == "high":
+        same = lo0.date() == hi0.date() and hi0 <= lo1 and lo0 <= hi1
+        if not same and kind == "high":
             raise fail(path, htable.rows[0][0], f"this high-rate file is another flight ({hi0:%Y-%m-%d %H:%M:%S}) than "
                                                f"the low-rate file beside it ({low_path.name}, "
                                                f"{lo0:%Y-%m-%d %H:%M:%S}): nothing to join it with")
-        else:
+        if not same:
             notes.append(f"NOT joined with {high_path.name}: it is another flight ({hi0:%Y-%m-%d %H:%M:%S} .. "
                          f"{hi1:%H:%M:%S}, this file {lo0:%Y-%m-%d %H:%M:%S} .. {lo1:%H:%M:%S}): record without "
                          "accelerometer")
+        else:
+            th, fh, how = _high(htable)
+            why = ch.refusal(th, t, p)
+            if why is not None:
+                notes.append(f"{high_path.name}: {why}")
+            else:
+                axis = ch.merge(t, th)
+                acc = ch.place(axis, th, fh)
+                temp = None if temp is None else ch.place(axis, t, temp)
+                row_lines = ch.place_lines(axis, [(t, lines), (th, htable.lines)])
+                notes.append(f"joined with {high_path.name}: {th.size} high-rate samples, {how}; merged on "
+                             f"{axis.size} sample times, each NaN where it has no sample")
+                p = ch.place(axis, t, p)
     else:
         notes.append("no high-rate file beside it: record without accelerometer")
     events: dict[str, float] = {}

@@ -11,7 +11,8 @@ What the reader relies on (Featherweight's Raven user manual and FIP export; the
   the first barometer sample with it set.
 * The record: the union of the barometer's and the axial accelerometer's sample times (**no sample invented**:
   pressure is NaN at an accelerometer-only time and the acceleration NaN at a barometer-only time; the resampler
-  holds each over its own samples). Pressure = atm x 101325 Pa (also ``Pa``, ``kPa``, ``hPa``/``mbar``, ``psi``);
+  holds each over its own samples), when the accelerometer's series lasts from the barometer's first half second to
+  its peak (else it is refused and the notes say why, as :mod:`.raven` does). Pressure = atm x 101325 Pa (also ``Pa``, ``kPa``, ``hPa``/``mbar``, ``psi``);
   the acceleration in ``Gs``/``g`` x g0. Any other unit is an error naming the header line.
 * Site altitude: ``[Altitude (Baro-Ft-ASL)]`` - ``[Altitude (Baro-Ft-AGL)]`` at their first common sample, when
   both are exported (``provenance["site_altitude_m"]``).
@@ -122,19 +123,24 @@ def read(path: Path) -> FlightRecord:
     accel_name = next((n for n in found if n.startswith("Axial Accel")), None)
     axis = tb
     acc = None
-    if accel_name is not None:
+    if accel_name is None:
+        notes.append("no Axial Accel channel: barometer only")
+    else:
         a_scale = _unit(path, head_line, accel_name, ACCEL_UNITS)
         ta, ga, _, la = _channel(path, accel_name, found[accel_name])
-        axis = ch.merge(tb, ta)
-        acc = ch.place(axis, ta, ga * a_scale)
-        parts.append((ta, la))
-        notes.append(f"accelerometer {accel_name}: {ta.size} samples at {1.0 / float(np.median(np.diff(ta))):.0f} Hz, "
-                     f"barometer {tb.size} samples at {1.0 / float(np.median(np.diff(tb))):.0f} Hz: merged on their "
-                     f"{axis.size} sample times, each NaN where it has no sample")
-        if ta[-1] < tb[-1] - 1.0:
-            notes.append(f"the accelerometer's series ends at {ta[-1]:g} s, the barometer's at {tb[-1]:g} s")
-    else:
-        notes.append("no Axial Accel channel: barometer only")
+        why = ch.refusal(ta, tb, pb)
+        if why is not None:
+            notes.append(why)
+        else:
+            axis = ch.merge(tb, ta)
+            acc = ch.place(axis, ta, ga * a_scale)
+            parts.append((ta, la))
+            notes.append(f"accelerometer {accel_name}: {ta.size} samples at "
+                         f"{1.0 / float(np.median(np.diff(ta))):.0f} Hz, barometer {tb.size} samples at "
+                         f"{1.0 / float(np.median(np.diff(tb))):.0f} Hz: merged on their {axis.size} sample times, "
+                         "each NaN where it has no sample")
+            if ta[-1] < tb[-1] - 1.0:
+                notes.append(f"the accelerometer's series ends at {ta[-1]:g} s, the barometer's at {tb[-1]:g} s")
     p = ch.place(axis, tb, pb)
     temp = None
     tname = next((n for n in found if n.startswith("Temperature")), None)
