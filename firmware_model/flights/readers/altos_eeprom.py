@@ -44,7 +44,8 @@ normalised along @12. Counts per g: 2048 (MPU6000/MPU9250 at +-16 g, BMX160 at +
 ``accel_cal_plus/minus``) then the flash as hex bytes; (b) the old text style: ``Key: value`` config lines
 (``Config version: 1.3``, ``Accel cal +1g: 15801 -1g: 16325``, ``serial-number 1234``, ``log-format 1``,
 ``ms5607 sens: 46372`` ...) then one record per line: the type letter, the tick in hex, then either two 16-bit hex
-words (8-byte records: ``A 03e8 3d98 6ae0``) or the record's data bytes in hex (no checksum: AltosUI checked it when
+words (8-byte records: ``A 03e8 3d98 6ae0``, or space-padded ``A  3e8 3d98 6ae0``; a negative word may be written
+as 8 hex digits, its low 16 bits kept) or the record's data bytes in hex (no checksum: AltosUI checked it when
 it downloaded the log). No ``log-format`` line: two words per record means format 1.
 
 A file holds one or more flights (each starts at an ``F`` record); ``flight=N`` picks one (default the last).
@@ -97,7 +98,7 @@ FAMILIES: dict[int, Family] = {
 }
 #: AltosUI's default 2 g span for a format-1 log with no calibration (AltosEepromRecordFull.two_g_default).
 TWO_G_DEFAULT: int = 16294 - 15758
-_RECORD = re.compile(r"^([A-Za-z])\s+([0-9a-fA-F]{1,4})((?:\s+[0-9a-fA-F]+)+)\s*$")
+_RECORD = re.compile(r"^([A-Za-z])\s+([0-9a-fA-F]{1,8})((?:\s+[0-9a-fA-F]+)+)\s*$")
 _TEXT_KEYS = ("Config version:", "Accel cal", "serial-number", "log-format", "ms5607 ", "Main deploy:", "Pad ",
               "Apogee delay:", "Radio channel:", "Callsign:", "product", "manufacturer", "software-version")
 
@@ -255,7 +256,7 @@ def _text_style(path: Path, text: str) -> Parsed:
         last = max((i for i, ln in enumerate(text.splitlines(), start=1) if ln.strip()), default=1)
         raise fail(path, last, "a configuration with no records")
     first = rows[0][3]
-    words = len(first) == 2 and all(len(x) == 4 for x in first)
+    words = len(first) == 2 and all(len(x) <= 8 for x in first)
     fmt = cfg.get("log_format", 1 if words else None)
     if fmt is None:
         raise fail(path, rows[0][0], "no log-format line, and the first record is not two 16-bit words (log format 1)")
@@ -266,14 +267,16 @@ def _text_style(path: Path, text: str) -> Parsed:
     size = FAMILIES[fmt].size
     recs = np.zeros((len(rows), size), dtype=np.uint8)
     for i, (number, kind, tick, fields) in enumerate(rows):
-        if size == 8 and len(fields) == 2 and all(len(x) == 4 for x in fields):
-            data = int(fields[0], 16).to_bytes(2, "little") + int(fields[1], 16).to_bytes(2, "little")
+        if size == 8 and len(fields) == 2 and all(len(x) <= 8 for x in fields):
+            # 16-bit words, written %4x (space padded) or, for a negative one, as Java's 32-bit two's complement
+            data = (int(fields[0], 16) & 0xFFFF).to_bytes(2, "little") + \
+                (int(fields[1], 16) & 0xFFFF).to_bytes(2, "little")
         elif all(len(x) == 2 for x in fields) and len(fields) == size - 4:
             data = bytes(int(x, 16) for x in fields)
         else:
             raise fail(path, number, f"record {kind}: {len(fields)} fields, a log-format {fmt} record has "
                                      + ("2 words" if size == 8 else f"{size - 4} bytes"))
-        body = bytes([ord(kind), 0]) + tick.to_bytes(2, "little") + data
+        body = bytes([ord(kind), 0]) + (tick & 0xFFFF).to_bytes(2, "little") + data
         recs[i] = np.frombuffer(bytes([body[0], (-(0x5A + sum(body))) & 0xFF]) + body[2:], dtype=np.uint8)
     notes = ["old text style: no checksums in the file (AltosUI checked them when it downloaded the log)"]
     return Parsed(cfg, fmt, "text", recs, np.asarray([r[0] for r in rows]), np.ones(len(rows), dtype=bool), notes,
