@@ -128,7 +128,8 @@ def test_mini_family_round_trip(fmt: int, tmp_path: Path) -> None:
 
 def test_metrum_family_through_the_new_decoder_equals_the_old(tmp_path: Path) -> None:
     recs = [rec("F", 7, le(1, 2) + le(-22, 2) + le(101000, 4), 16)] + [
-        rec("A", 7 + 10 * i, le(d1, 4) + le(8077636, 4) + le(-22 - 19 * (i % 2), 2), 16) for i, d1 in enumerate(_d1s(30))]
+        rec("A", 7 + 10 * i, le(d1, 4) + le(8077636, 4) + le(-22 - 19 * (i % 2), 2), 16)
+        for i, d1 in enumerate(_d1s(30))]
     p = tmp_path / "t.eeprom"
     p.write_text(json_file({"log_format": 7, "ms5607": COEF, "accel_cal_plus": -22, "accel_cal_minus": 16}, recs))
     old = read_flight(p)

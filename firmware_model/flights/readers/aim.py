@@ -1,5 +1,5 @@
 """Entacore AIM (AIM USB / AIM XTRA) CSV export: each channel group has its own ``time`` column.
-docs/flights.md, "Entacore AIM".
+docs/flights.md, "Entacore AIM". Sample: ``../shared/flights/fusionspace/aim-xtra.csv``.
 
 What the reader relies on (Entacore's AIM export and the shared sample):
 

@@ -1,5 +1,5 @@
 """AltimeterCloud CSV (Rocketry Ltd Mercury and its siblings): unit-named columns, one row per sample.
-docs/flights.md, "AltimeterCloud".
+docs/flights.md, "AltimeterCloud". Sample: ``../shared/flights/fusionspace/altimetercloud-mercury.csv``.
 
 What the reader relies on (the AltimeterCloud export's column names, which carry their units; the shared sample):
 

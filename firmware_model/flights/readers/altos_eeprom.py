@@ -1,5 +1,7 @@
 """AltOS ``.eeprom`` files of every flight-computer family: the device's flash log as AltosUI saves it.
-docs/flights.md, "AltOS .eeprom".
+docs/flights.md, "AltOS .eeprom". Samples: ``../shared/flights/euroc21/piccard-telemega-serial-6733-flight-0004.eeprom``
+(format 19), ``piccard-telemetrum-nosecone-serial-5877-flight-0002.eeprom`` (format 7); the other families are
+checked on records built from AltOS's structs (tests/flights/test_altos_eeprom.py).
 
 Facts taken from AltOS (GPL-2+; our own code): the record structs of ``src/kernel/ao_log.h`` (``struct
 ao_log_record`` 8 bytes, ``struct ao_log_mega`` 32 bytes, ``struct ao_log_metrum`` and ``struct ao_log_mini``

@@ -1,5 +1,6 @@
 """Featherweight Blue Raven, the phone app's CSV export: a low-rate file (barometer, derived values, flags), a
-high-rate file (IMU) and a summary, written side by side. docs/flights.md, "Featherweight".
+high-rate file (IMU) and a summary, written side by side. docs/flights.md, "Featherweight". Samples:
+``../shared/flights/fusionspace/blueraven-app-lr.csv``, ``-hr.csv`` (another flight: not joined), ``.summary.csv``.
 
 What the reader relies on (Featherweight's Blue Raven manual and app export; the shared samples):
 

@@ -1,5 +1,7 @@
 """PerfectFlite altimeters (Pnut, StratoLogger SL100, StratoLoggerCF): the ``.pf2`` text DataCap saves, its CSV
 export, and the bare rows the StratoLogger sends down its serial port. docs/flights.md, "PerfectFlite".
+Samples: ``../shared/flights/fusionspace/perfectflite-pnut.pf2`` (the ``.pf2``), ``perfectflite-stratologger.csv``
+(the CSV).
 
 What the reader relies on (PerfectFlite's DataCap manual and the devices' behaviour: the altimeters sample their
 barometer at 20 samples/s and report altitude above the pad in feet; they do not keep pressure):
@@ -16,7 +18,8 @@ barometer at 20 samples/s and report altitude above the pad in feet; they do not
   named in metres is the generic CSV's, not PerfectFlite's), or none: bare rows of 4 fields
   ``time altitude temperature volts`` (StratoLogger serial download) or 5 fields in the ``Data:`` order. Names are
   matched by their first letters (time, alt, vel, temp, volt); units from the name (``_ft``, ``(ft)``, ``(feet)``,
-  ``_m``, ``(m)``; feet when none, metres when the preamble states its heights in m), temperature ``(F)``/``(C)`` or a ``F``/``C`` suffix on the value (``76.7F``).
+  ``_m``, ``(m)``; feet when none, metres when the preamble states its heights in m), temperature ``(F)``/``(C)``
+  or a ``F``/``C`` suffix on the value (``76.7F``).
 * Rows: comma, tab or space separated. Time s, altitude AGL. **Synthetic barometer**: pressure = standard
   atmosphere at altitude + site altitude (``site_altitude_m`` given, else the stated ground elevation, else sea
   level), said in the notes; ``ground_pressure_pa`` is that at the device's own zero.
@@ -62,7 +65,8 @@ def _header_kinds(line: str) -> list[str] | None:
     """The column kinds of a header line (comma/tab separated names), or None when it is not one."""
     names = _names(line)
     kinds = [_kind(n) for n in names]
-    if len(names) < 2 or None in kinds or kinds[0] != "time" or "altitude" not in kinds or len(set(kinds)) != len(kinds):
+    if len(names) < 2 or None in kinds or kinds[0] != "time" or "altitude" not in kinds \
+            or len(set(kinds)) != len(kinds):
         return None
     return kinds  # type: ignore[return-value]
 

@@ -1,5 +1,6 @@
 """Featherweight Raven, the FIP ("Featherweight Interface Program") CSV export: every channel in its own group
-``Time@NAME, NAME, bILBA`` side by side, each at the channel's own rate. docs/flights.md, "Featherweight".
+``Time@NAME, NAME, bILBA`` side by side, each at the channel's own rate. docs/flights.md, "Featherweight". Sample:
+``../shared/flights/fusionspace/featherweight-raven-fip.csv``.
 
 What the reader relies on (Featherweight's Raven user manual and FIP export; the shared sample):
 
@@ -12,8 +13,9 @@ What the reader relies on (Featherweight's Raven user manual and FIP export; the
 * The record: the union of the barometer's and the axial accelerometer's sample times (**no sample invented**:
   pressure is NaN at an accelerometer-only time and the acceleration NaN at a barometer-only time; the resampler
   holds each over its own samples), when the accelerometer's series lasts from the barometer's first half second to
-  its peak (else it is refused and the notes say why, as :mod:`.raven` does). Pressure = atm x 101325 Pa (also ``Pa``, ``kPa``, ``hPa``/``mbar``, ``psi``);
-  the acceleration in ``Gs``/``g`` x g0. Any other unit is an error naming the header line.
+  its peak (else it is refused and the notes say why, as :mod:`.raven` does). Pressure = atm x 101325 Pa (also
+  ``Pa``, ``kPa``, ``hPa``/``mbar``, ``psi``); the acceleration in ``Gs``/``g`` x g0. Any other unit is an error
+  naming the header line.
 * Site altitude: ``[Altitude (Baro-Ft-ASL)]`` - ``[Altitude (Baro-Ft-AGL)]`` at their first common sample, when
   both are exported (``provenance["site_altitude_m"]``).
 """
@@ -53,7 +55,10 @@ def _unit(path: Path, line: int, name: str, units: dict[str, float]) -> float:
     return units[unit]
 
 
-def _rows(path: Path, text: str) -> tuple[list[str], int, dict[str, tuple[list[float], list[float], list[str], list[int]]]]:
+_Channel = tuple[list[float], list[float], list[str], list[int]]
+
+
+def _rows(path: Path, text: str) -> tuple[list[str], int, dict[str, _Channel]]:
     """(header, header line, channel -> (times, values, flags, lines)). A row is walked group by group: a group
     with a time is ``time, value, flags`` (3 fields); a group whose series has ended is two empty fields (FIP drops
     its flags field), so a row has 2 or 3 fields per group; a row with every group's 3 fields is read as it is."""
@@ -66,7 +71,7 @@ def _rows(path: Path, text: str) -> tuple[list[str], int, dict[str, tuple[list[f
                                  for j in range(0, len(head), 3)):
         raise fail(path, number, "the header is not Time@<channel>, <channel>, bILBA groups")
     names = [head[j + 1] for j in range(0, len(head), 3)]
-    out: dict[str, tuple[list[float], list[float], list[str], list[int]]] = {n: ([], [], [], []) for n in names}
+    out: dict[str, _Channel] = {n: ([], [], [], []) for n in names}
     for num in range(number + 1, len(lines) + 1):
         fields = lines[num - 1].split(",")
         if not any(f.strip() for f in fields):
@@ -95,8 +100,7 @@ def _rows(path: Path, text: str) -> tuple[list[str], int, dict[str, tuple[list[f
     return head, number, out
 
 
-def _channel(path: Path, name: str, got: tuple[list[float], list[float], list[str], list[int]]
-             ) -> tuple[np.ndarray, np.ndarray, list[str], list[int]]:
+def _channel(path: Path, name: str, got: _Channel) -> tuple[np.ndarray, np.ndarray, list[str], list[int]]:
     t, v, f, ln = got
     if len(t) < 2:
         raise fail(path, ln[-1] if ln else 1, f"channel {name!r}: {len(t)} samples (need 2)")
