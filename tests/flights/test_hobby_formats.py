@@ -71,6 +71,13 @@ def test_device_statements_become_own_computer_and_site() -> None:
     assert br.provenance["own_apogee_m"] == pytest.approx(4034.98 * FT)
     assert br.provenance["site_altitude_m"] == pytest.approx(230.55 * FT)
     assert br.own_apogee()[0] == "Blue Raven"
+    # the AIM's site: Pressure MSL - Pressure AGL on its first row (643.192 - 0.360229 m)
+    assert read_flight(FS / "aim-xtra.csv").provenance["site_altitude_m"] == pytest.approx(643.192 - 0.360229)
+    # the Mercury's axis: acceleration_z reads about -1000 mG on the pad, so -z is the rocket's axis (+1 g)
+    merc = read_flight(FS / "altimetercloud-mercury.csv")
+    pad = merc.time_s < -5.0
+    assert np.nanmedian(merc.accel_mps2[pad]) == pytest.approx(9.80665, rel=0.05)
+    assert np.nanmax(merc.accel_mps2) > 5 * 9.80665                  # the boost, on the same axis
 
 
 @needs_shared
@@ -249,6 +256,8 @@ def test_aim_out_of_order_row_is_put_in_order_and_named(tmp_path: Path) -> None:
 BREAKS: list[tuple[str, int, str, str]] = [
     ("perfectflite", 3, "Apogee: 300 yd AGL", "Apogee: unknown unit 'yd'"),
     ("perfectflite", 12, "0.20, 12, 0", "3 fields, the columns"),
+    ("perfectflite", 8, "Data: (Time, Altitude (yd), Velocity, Temperature (F), Voltage)",
+     "Altitude (yd): unknown unit 'yd'"),
     ("perfectflite", 12, "0.20, 1x2, 0, 70.10, 9.10", "Altitude: cannot parse '1x2'"),
     ("raven_fip", 1, "Time@Axial Accel (Gs),Axial Accel (Gs),bILBA,Time@Baro (mmHg),Baro (mmHg),bILBA",
      "Baro (mmHg): unknown unit 'mmhg'"),
