@@ -58,7 +58,16 @@ EXPECTED: dict[str, str | None] = {
     "euroc21/sta-carl2-eggtimer.csv": "eggtimer", "euroc21/sta-carl2-rrc3.csv": "rrc3",
     "ncsu/LICENSE": None, "ncsu/jackpot-launch-3-firm.csv": "columns",
     "rocketpy/LICENSE": None, "rocketpy/juno3-rrc3.csv": "rrc3", "rocketpy/ndrt-2020-raven.csv": "raven",
+    "fusionspace/LICENSE": None, "fusionspace/aim-xtra.csv": "aim",
+    "fusionspace/altimetercloud-mercury.csv": "altimetercloud", "fusionspace/altusmetrum-telemetrum.csv": "altosui",
+    "fusionspace/blueraven-app-hr.csv": "blueraven", "fusionspace/blueraven-app-lr.csv": "blueraven",
+    "fusionspace/blueraven-app.summary.csv": None, "fusionspace/featherweight-raven-fip.csv": "raven_fip",
+    "fusionspace/perfectflite-pnut.pf2": "perfectflite", "fusionspace/perfectflite-stratologger.csv": "perfectflite",
 }
+#: Files a format claims that cannot be read alone, and why (the error must say so). The Blue Raven high-rate file is
+#: not the low-rate file's flight: dated 2026-01-18 against 2024-05-11, and it reads 60-75 g in boost where the
+#: summary of the low-rate flight says "Max motor burn acceleration, 24.1 Gs"; it has no barometer of its own.
+UNREADABLE: dict[str, str] = {"fusionspace/blueraven-app-hr.csv": "another flight"}
 #: The log's own computer and its apogee event as the README / the logs state it (computer, approximate time).
 OWN: dict[str, tuple[str, float]] = {
     "euroc21/sta-carl2-rrc3.csv": ("RRC3", 23.8),            # the row whose Events field is "Drogue"
@@ -94,6 +103,10 @@ def test_every_shared_file_detected_or_named_not_a_log(rel: str) -> None:
         return
     assert _matches(text) == [want]            # exactly one format claims it
     assert detect_format(path) == want
+    if rel in UNREADABLE:
+        with pytest.raises(UserError, match=rf"^{path}:\d+: .*{UNREADABLE[rel]}"):
+            read_flight(path)
+        return
     rec = read_flight(path)
     assert rec.n > 500 and np.all(np.isfinite(rec.time_s))
     # a barometer's range (the RRC3 logs end with junk rows, kept: juno3 191.25 and 1158.7 hPa, sta-carl2 1107.1)
@@ -557,9 +570,9 @@ def test_eeprom_bad_files_name_their_line(tmp_path: Path) -> None:
     q = _write(tmp_path, "b.eeprom", "\n".join(lines[:1] + ['"log_format": 7, "ms5607": {,'] + lines[2:]) + "\n")
     with pytest.raises(UserError, match=rf"^{q}:2: the configuration is not valid JSON"):
         read_flight(q, format="eeprom")
-    r = _write(tmp_path, "c.eeprom", VALID["eeprom"].replace('"log_format": 7', '"log_format": 5'))
-    with pytest.raises(UserError, match=rf"^{r}:1: log_format 5 .*only 7 \(TeleMetrum v2/v3\), 19"):
-        read_flight(r)
+    r = _write(tmp_path, "c.eeprom", VALID["eeprom"].replace('"log_format": 7', '"log_format": 9'))
+    with pytest.raises(UserError, match=rf"^{r}:1: log_format 9 .*not a flight log format this reader knows"):
+        read_flight(r)          # 9 is TeleGPS (a GPS tracker's log: no barometer)
     s = _write(tmp_path, "d.eeprom", "\n".join(lines[:3]) + "\n")
     with pytest.raises(UserError, match=rf"^{s}:3: no 16-byte records after the configuration"):
         read_flight(s)

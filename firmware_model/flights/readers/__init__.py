@@ -4,21 +4,26 @@
 it). One module per format (docs/flights.md has each format's facts):
 
 * ``altosui``: AltosUI CSV v5/v6, with or without the ``#version`` comment line — :mod:`.altosui`;
-* ``eeprom``: AltOS ``.eeprom`` raw flash logs (TeleMetrum v2/v3, TeleMega v4) — :mod:`.eeprom`;
+* ``eeprom``: AltOS ``.eeprom`` raw flash logs of every family (log formats 1, 5-8, 10, 12, 14-16, 19, 21, 22, 24,
+  25; JSON or old text style) — :mod:`.altos_eeprom` (formats 7 and 19 in JSON through :mod:`.eeprom`);
 * ``cats``: CATS baro + IMU pair (``ts,id,T,P`` / ``ts,id,Ax,...``) — :mod:`.cats`;
 * ``cats_raw``: CATS raw per-sensor files (``,ts,id,T,P`` ...; three barometers, events file) — :mod:`.cats_raw`;
 * ``rrc3``: Missile Works RRC3 export — :mod:`.rrc3`; ``eggtimer``: Eggtimer flight CSV — :mod:`.eggtimer`;
 * ``raven``: Featherweight Raven export — :mod:`.raven`;
 * ``board``: a team board's ``time,pressure`` sensor file + its state file — :mod:`.board`;
 * ``columns``: any CSV through a column map (built-in maps detected by their columns) — :mod:`.columns`;
-* ``rdas``: RDAS text export of the seeds — :mod:`.rdas`; ``generic``: our unit-named CSV — :mod:`.generic`.
+* ``rdas``: RDAS text export of the seeds — :mod:`.rdas`; ``generic``: our unit-named CSV — :mod:`.generic`;
+* ``perfectflite``: PerfectFlite .pf2 / DataCap CSV / StratoLogger rows — :mod:`.perfectflite`; ``raven_fip``:
+  Featherweight Raven FIP export — :mod:`.raven_fip`; ``blueraven``: Blue Raven app low/high-rate pair —
+  :mod:`.blueraven`; ``aim``: Entacore AIM export — :mod:`.aim`; ``altimetercloud``: AltimeterCloud (Rocketry Ltd
+  Mercury) — :mod:`.altimetercloud`.
 
 ``options`` (each passed only to the formats that take it; a format that does not is an error):
 ``sensor`` (cats_raw: ``BARO0``..; default the median), ``columns`` (a column map: forces ``columns``),
 ``site_altitude_m`` (altitude-only logs), ``flight`` (eeprom: the flight number in the file).
 
 :func:`not_a_log` says why a file is not a flight log (README, LICENSE, an Eggtimer info text, a CATS events
-file, a board's state file) so that a folder can be read file by file. Bad files raise one
+file, a board's state file, a Blue Raven summary) so that a folder can be read file by file. Bad files raise one
 :class:`~firmware_model.runtime.errors.UserError` naming the file and line (docs/flights.md).
 """
 
@@ -27,8 +32,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from firmware_model.flights.readers import (altosui, board, cats, cats_raw, columns, eeprom, eggtimer, generic,
-                                            raven, rdas, rrc3)
+from firmware_model.flights.readers import (aim, altimetercloud, altos_eeprom, altosui, blueraven, board, cats,
+                                            cats_raw, columns, eggtimer, generic, perfectflite, raven, raven_fip, rdas, rrc3)
 from firmware_model.flights.readers._common import read_text
 from firmware_model.flights.readers.generic import write_generic
 from firmware_model.flights.record import FlightRecord
@@ -36,16 +41,20 @@ from firmware_model.runtime.errors import UserError
 
 #: Known formats.
 FORMATS: tuple[str, ...] = ("altosui", "eeprom", "cats", "cats_raw", "rrc3", "eggtimer", "raven", "board",
-                            "columns", "rdas", "generic")
-_MODULES = {"altosui": altosui, "eeprom": eeprom, "cats": cats, "cats_raw": cats_raw, "rrc3": rrc3,
+                            "columns", "rdas", "generic", "perfectflite", "raven_fip", "blueraven", "aim",
+                            "altimetercloud")
+_MODULES = {"altosui": altosui, "eeprom": altos_eeprom, "cats": cats, "cats_raw": cats_raw, "rrc3": rrc3,
             "eggtimer": eggtimer, "raven": raven, "board": board, "columns": columns, "rdas": rdas,
-            "generic": generic}
+            "generic": generic, "perfectflite": perfectflite, "raven_fip": raven_fip,
+            "blueraven": blueraven, "aim": aim, "altimetercloud": altimetercloud}
 #: Detection order: the strict header tests first, RDAS (a majority of numeric lines) last.
 _DETECT: tuple[str, ...] = ("eeprom", "altosui", "cats", "cats_raw", "rrc3", "eggtimer", "raven", "board",
-                            "columns", "generic", "rdas")
+                            "columns", "perfectflite", "raven_fip", "blueraven", "aim", "altimetercloud",
+                            "generic", "rdas")
 #: Which reader takes which option.
 OPTIONS: dict[str, tuple[str, ...]] = {"sensor": ("cats_raw",), "columns": ("columns",),
-                                       "site_altitude_m": ("eggtimer", "raven", "columns"), "flight": ("eeprom",)}
+                                       "site_altitude_m": ("eggtimer", "raven", "columns", "perfectflite",
+                                                                           "altimetercloud"), "flight": ("eeprom",)}
 
 
 def _matches(text: str) -> list[str]:
@@ -58,7 +67,7 @@ def not_a_log(path: str | Path) -> str | None:
     text = read_text(path)
     if _matches(text):
         return None
-    for module in (cats_raw, board):
+    for module in (cats_raw, board, blueraven):
         why = module.companion_reason(text)
         if why:
             return why

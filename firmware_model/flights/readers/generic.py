@@ -39,11 +39,13 @@ _META = re.compile(r"^#\s*([A-Za-z_][A-Za-z0-9_]*)\s*[:=]\s*(.*?)\s*$")
 
 
 def looks_like(text: str) -> bool:
-    """True when the first non-comment line is a header with ``time_s``."""
+    """True when the first non-comment line is a header with ``time_s`` (and no ``altitude_ft``: a
+    ``time_s,altitude_ft,...`` header is the PerfectFlite StratoLogger CSV, :mod:`.perfectflite`)."""
     for line in text.splitlines():
         if not line.strip() or line.startswith("#"):
             continue
-        return "time_s" in [c.strip() for c in line.split(",")]
+        cols = [c.strip() for c in line.split(",")]
+        return "time_s" in cols and "altitude_ft" not in cols     # time_s,altitude_ft: PerfectFlite's CSV
     return False
 
 
