@@ -35,6 +35,7 @@ COMMANDS: dict[str, str] = {
     "design": "firmware_model.cli.design",
     "compare": "firmware_model.cli.compare",
     "budget": "firmware_model.cli.budget",
+    "inputs": "firmware_model.cli.inputs",
     "vectors": "firmware_model.cli.vectors",
     "simulate": "firmware_model.cli.simulate",
     "run": "firmware_model.cli.run",
