@@ -104,7 +104,7 @@ def _addr_fn(ctx: _Ctx, op: Operand, nb: int) -> Callable[[], int]:
     const, fn = _addr(ctx, op, nb)
     if fn is None:
         c = const
-        return lambda: c  # type: ignore[return-value]
+        return lambda: c  # type: ignore[return-value]  # the constant closure returns an int like the others
     return fn
 
 
@@ -605,19 +605,19 @@ def h_unary(ctx: _Ctx) -> Callable[[], int]:
     cyc = timing.cycles(ins)
     M = MASK[nb]
     if h == "clr":
-        kernel = lambda s, d, sr: (0, (sr & 0xFF10) | ZF)  # noqa: E731
+        kernel = lambda s, d, sr: (0, (sr & 0xFF10) | ZF)
     elif h == "not":
         lk = _k_logic(nb, "eor")
-        kernel = lambda s, d, sr: lk(M, d, sr)  # noqa: E731
+        kernel = lambda s, d, sr: lk(M, d, sr)
     elif h == "neg":
         sk = _k_sub(nb)
-        kernel = lambda s, d, sr: sk(d, 0, sr)  # noqa: E731
+        kernel = lambda s, d, sr: sk(d, 0, sr)
     elif h == "negx":
         xk = _k_subx(nb)
-        kernel = lambda s, d, sr: xk(d, 0, sr)  # noqa: E731
+        kernel = lambda s, d, sr: xk(d, 0, sr)
     else:  # tst
         lk = _k_logic(nb, "or")
-        kernel = lambda s, d, sr: lk(0, d, sr)  # noqa: E731
+        kernel = lambda s, d, sr: lk(0, d, sr)
     return _rmw(ctx, dst, nb, kernel, lambda: 0, cyc, write=h != "tst")
 
 

@@ -194,7 +194,7 @@ _KERNELS: dict[str, Callable[[int], Callable[[int, int, int], tuple[int, int]]]]
 
 # ------------------------------------------------------------------------------------------------------------------
 # Shift kernels: k(x, n, sr) -> (result, new sr); x unsigned nb-byte value, n >= 0 the count.
-def _k_shift(kind: str, nb: int) -> Callable[[int, int, int], tuple[int, int]]:
+def _k_shift(kind: str, nb: int) -> Callable[[int, int, int], tuple[int, int]]:  # noqa: C901 - one branch per shift/rotate kind (ASx, LSx, ROx, ROXx), as Musashi
     W, M, S = BITS[nb], MASK[nb], SIGN[nb]
 
     def nz(r: int) -> int:
@@ -332,7 +332,7 @@ def _format(instr: Instruction) -> str:
         from isa.formatter import format_instruction
 
         return format_instruction(instr)
-    except Exception:  # formatter missing or unable: fall back to a plain rendering
+    except Exception:  # noqa: BLE001 - formatter missing or unable: fall back to a plain rendering
         ops = ", ".join(f"{o.mode.value}:{o.reg}:{o.value}" for o in instr.operands)
         size = f".{instr.size.value}" if instr.size else ""
         return f"{instr.mnemonic}{size} {ops}".strip()

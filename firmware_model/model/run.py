@@ -138,7 +138,7 @@ def pure_kernels() -> ModuleType:
         spec = importlib.util.spec_from_file_location("firmware_model.model._kernels_pure", path)
         assert spec is not None and spec.loader is not None
         mod = importlib.util.module_from_spec(spec)
-        mod.FORCE_PURE = True  # type: ignore[attr-defined]
+        mod.FORCE_PURE = True  # type: ignore[attr-defined]  # a module attribute set before the module's code runs
         spec.loader.exec_module(mod)
         _PURE = mod
     return _PURE
@@ -292,7 +292,7 @@ def _run_kernels(kern: ModuleType, consts: "FirmwareConstants", adc: np.ndarray,
         adc_k, acc_k = adc.astype(object), acc.astype(object)
     c = kern.pack_constants(consts, dtype=dt)
     state = np.zeros((n_streams, kern.N_STATE), dtype=dt)
-    init_out = np.empty((n_streams, len(cols)), dtype=dt)
+    init_out: np.ndarray = np.empty((n_streams, len(cols)), dtype=dt)
     if out_words is not None and kern.COMPILED:
         out = out_words
     elif kern.COMPILED:
