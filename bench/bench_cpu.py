@@ -97,7 +97,7 @@ TRAP_PC = oracles.HANDLERS + 4 * 32
 #: inflate one system's time and not another's (``--wall`` uses the wall clock instead). Not the process's CPU
 #: time: until 2026-12-02 it was ``time.process_time``, which also charged a busy-waiting OpenBLAS thread to
 #: whichever system ran after a numpy call, and the firmware figures flipped between two values a factor of two
-#: apart (Musashi 178 k or 360 k samples/s; docs/testing.md, sixth round).
+#: apart (Musashi 178 k or 360 k samples/s; docs/history/testing-rounds.md, sixth round).
 CLOCK = time.thread_time
 
 

@@ -1,5 +1,5 @@
 """pytest configuration: load the hypothesis profile named by ``HYPOTHESIS_PROFILE`` (default ``ci``), and keep
-hypothesis's per-test overhead constant (docs/testing.md "How the suite is kept fast").
+hypothesis's per-test overhead constant (docs/history/testing-rounds.md).
 
 Two overheads of hypothesis 6.1xx grow with the suite, not with what a test checks:
 
@@ -16,7 +16,7 @@ Two overheads of hypothesis 6.1xx grow with the suite, not with what a test chec
 It also prints the closing lines tests record (the Cortex-M runs', :func:`pytest_terminal_summary`), loads
 the compiled model kernels in every test process (below), compiles the model's two numba drivers once before the
 xdist workers start when their cache is cold (:func:`pytest_configure`), and runs the longest files first and the
-thousands of millisecond oracle tests last (:func:`pytest_collection_modifyitems`): docs/testing.md, third round.
+thousands of millisecond oracle tests last (:func:`pytest_collection_modifyitems`): docs/history/testing-rounds.md, third round.
 """
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ def _end_worker_now() -> None:
     """An xdist worker's last exit handler: flush and leave with ``os._exit(0)``, skipping the interpreter's final
     teardown. By then the worker has reported every test and pytest has unconfigured (its unraisable-exception
     check included); what is left is freeing a heap of hundreds of MB (compiled blocks, numba, 16 MiB CPU maps),
-    measured at 2.5-3 s after a full run, while the controller waits for both workers (docs/testing.md, sixth
+    measured at 2.5-3 s after a full run, while the controller waits for both workers (docs/history/testing-rounds.md, sixth
     round). Registered first thing in this module, before numba and the tests are imported, so every exit handler
     registered later (llvmlite's and numba's shutdown flags, ``weakref.finalize``'s, which removes temporary
     directories still alive, multiprocessing's) runs before it; in a worker nothing registers one earlier (checked

@@ -75,7 +75,7 @@ def rounding_mode(consts: "FirmwareConstants") -> str:
 #: ``fwemu run`` / ``vectors --input`` / ``compare`` then takes 0.3 CPU-s instead of 0.8 (10+ s on a fresh
 #: machine). A call that would pass the budget, a call after it, and every call once the compiled kernels are
 #: loaded (or after an explicit ``engine="numba"``) use the compiled kernels. The words are the same either way
-#: (the same source, tests/model/test_kernels.py); docs/testing.md "Short model calls".
+#: (the same source, tests/model/test_kernels.py); docs/history/testing-rounds.md "Short model calls".
 AUTO_PURE_MAX_SAMPLES = 20_000
 _pure_budget_used = 0
 _BUDGET_LOCK = threading.Lock()
