@@ -10,7 +10,6 @@ import importlib.util
 import re
 import subprocess
 import sys
-import tempfile
 from pathlib import Path
 
 import pytest
@@ -36,10 +35,10 @@ def test_ruff_passes() -> None:
     assert r.returncode == 0, f"ruff check:\n{r.stdout}{r.stderr}"
 
 
-def test_mypy_passes() -> None:
+def test_mypy_passes(tmp_path: Path) -> None:
     _tool("mypy")
     folder = cache_dir()
-    cache = folder / "mypy" if folder is not None else Path(tempfile.mkdtemp(prefix="fwemu-mypy-"))
+    cache = folder / "mypy" if folder is not None else tmp_path / "mypy"   # disk cache off: a cold run
     r = subprocess.run([sys.executable, "-m", "mypy", "--cache-dir", str(cache)], cwd=ROOT, capture_output=True,
                        text=True, timeout=600)
     assert r.returncode == 0, f"mypy:\n{r.stdout}{r.stderr}"
