@@ -37,14 +37,14 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 
-from firmware_model.runtime.blas_threads import single_threaded_blas  # noqa: E402
+from firmware_model.runtime.blas_threads import single_threaded_blas  # noqa: E402 - with the single_threaded_blas() call below, which comes before numpy loads
 
 single_threaded_blas()  # before numpy loads: no OpenBLAS pool busy-waiting beside the timed runs
 
-from tests.support import oracles  # noqa: E402  (the shared RAM layout and the m68000-python adapter)
+from tests.support import oracles  # noqa: E402 - imported after single_threaded_blas(): numpy must not load first
 
-import isa  # noqa: E402
-from isa import codecache  # noqa: E402
+import isa  # noqa: E402 - imported after single_threaded_blas(): numpy must not load first
+from isa import codecache  # noqa: E402 - imported after single_threaded_blas(): numpy must not load first
 
 LOOPS: dict[str, str] = {
     "alu": """
@@ -97,7 +97,7 @@ TRAP_PC = oracles.HANDLERS + 4 * 32
 #: inflate one system's time and not another's (``--wall`` uses the wall clock instead). Not the process's CPU
 #: time: until 2026-12-02 it was ``time.process_time``, which also charged a busy-waiting OpenBLAS thread to
 #: whichever system ran after a numpy call, and the firmware figures flipped between two values a factor of two
-#: apart (Musashi 178 k or 360 k samples/s; docs/testing.md, sixth round).
+#: apart (Musashi 178 k or 360 k samples/s; docs/history/testing-rounds.md, sixth round).
 CLOCK = time.thread_time
 
 
@@ -226,16 +226,16 @@ def musashi_firmware(musashi: Musashi, build: object, adc: list[int], acc: list[
 
     cpu, mem, R = musashi.cpu, musashi.mem, musashi.R
     mem.clear_block(0, RAM_START + RAM_SIZE, 0)
-    mem.w_block(0, build.rom_image)  # type: ignore[attr-defined]
+    mem.w_block(0, build.rom_image)  # type: ignore[attr-defined]  # build is typed as object here (a FirmwareBuild)
     ret = 0x8000  # holds the stop opcode: just above the firmware's RAM
     mem.w16(ret, musashi.stop)
     cpu.w_sr(0x2700)
-    names = list(build.variables)  # type: ignore[attr-defined]
-    addr_size = [build.variables[w] for w in names]  # type: ignore[attr-defined]
+    names = list(build.variables)  # type: ignore[attr-defined]  # build is typed as object here (a FirmwareBuild)
+    addr_size = [build.variables[w] for w in names]  # type: ignore[attr-defined]  # build is typed as object here (a FirmwareBuild)
     A7, r32s, r16 = R.A7, mem.r32s, mem.r16
     w_reg, w_pc, w16, w32, execute = cpu.w_reg, cpu.w_pc, mem.w16, mem.w32, musashi.m.execute
     end = musashi.end
-    init, step = build.init_address, build.step_address  # type: ignore[attr-defined]
+    init, step = build.init_address, build.step_address  # type: ignore[attr-defined]  # build is typed as object here (a FirmwareBuild)
     out = []
     t = CLOCK()
     for i, entry in enumerate([init] + [step] * len(adc)):

@@ -40,17 +40,17 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 
-from firmware_model.runtime.blas_threads import single_threaded_blas  # noqa: E402
+from firmware_model.runtime.blas_threads import single_threaded_blas  # noqa: E402 - with the single_threaded_blas() call below, which comes before numpy loads
 
 single_threaded_blas()  # before numpy loads: no OpenBLAS pool busy-waiting on the cores being measured
 
-import numpy as np  # noqa: E402
-from tests.support.model_numpy import run_model_numpy  # noqa: E402
+import numpy as np  # noqa: E402 - imported after single_threaded_blas(): numpy must not load first
+from tests.support.model_numpy import run_model_numpy  # noqa: E402 - imported after single_threaded_blas(): numpy must not load first
 
-from firmware_model.model.run import ModelTrace, compiled_kernels, release_buffers, run_model  # noqa: E402
-from firmware_model.model.streams import synthetic_flight  # noqa: E402
-from firmware_model.spec.build_constants import build_constants  # noqa: E402
-from firmware_model.spec.config import BuildConfig  # noqa: E402
+from firmware_model.model.run import ModelTrace, compiled_kernels, release_buffers, run_model  # noqa: E402 - imported after single_threaded_blas(): numpy must not load first
+from firmware_model.model.streams import synthetic_flight  # noqa: E402 - imported after single_threaded_blas(): numpy must not load first
+from firmware_model.spec.build_constants import build_constants  # noqa: E402 - imported after single_threaded_blas(): numpy must not load first
+from firmware_model.spec.config import BuildConfig  # noqa: E402 - imported after single_threaded_blas(): numpy must not load first
 
 PROGRAMS = ("kalman_accel", "kalman_baro", "recursive", "recursive_seed_literal")
 TARGET_SINGLE = 20e6
@@ -181,7 +181,8 @@ def bench_program(program: str, args: argparse.Namespace) -> dict:
     r["numba_kept"], fk = best_rate(keep, args.streams * args.length, args.reps, (program, "kept"))
     assert len({x.words.__array_interface__["data"][0] for x in kept}) == len(kept), "kept results shared a buffer"
     r["identical_kept"] = same(fk, fb)
-    del kept, fk
+    kept.clear()   # the results' buffers are freed here
+    del fk
     release_buffers()
     buf = np.empty_like(fb.words)
     r["numba_out"], fo = best_rate(lambda: run_model(consts, *batch, engine="numba", out=buf),

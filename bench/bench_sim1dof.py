@@ -27,13 +27,13 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 
-from firmware_model.runtime.blas_threads import single_threaded_blas  # noqa: E402
+from firmware_model.runtime.blas_threads import single_threaded_blas  # noqa: E402 - with the single_threaded_blas() call below, which comes before numpy loads
 
 single_threaded_blas()  # before numpy loads: no OpenBLAS pool busy-waiting on the cores being measured
 
-import numpy as np  # noqa: E402
+import numpy as np  # noqa: E402 - imported after single_threaded_blas(): numpy must not load first
 
-from firmware_model.flights import sim1dof as s1  # noqa: E402
+from firmware_model.flights import sim1dof as s1  # noqa: E402 - imported after single_threaded_blas(): numpy must not load first
 
 _STARTUP = """
 import time

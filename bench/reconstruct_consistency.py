@@ -50,7 +50,7 @@ def main(argv: list[str] | None = None) -> int:
     for i, c in enumerate(cases):
         try:
             r = run_case(c, imu, gps, seed=a.seed + i, with_cost=not a.no_cost, **fault)
-        except Exception as exc:  # a diverged faulty run is a result, not a crash
+        except Exception as exc:  # noqa: BLE001 - a diverged faulty run is a result, not a crash
             print(f"{c.name}: {exc}", file=sys.stderr)
             r = {"name": c.name, "failed": str(exc)}
         res.append(r)

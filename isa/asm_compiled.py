@@ -45,7 +45,7 @@ _SHARED_EXPRS: dict[tuple[str, int], "_Expr | None"] = {}  # (field, column) -> 
 _SHARED_INSNS: dict[tuple[str, str | None, str, int], "_Insn | bool"] = {}
 _SHARED_DATA: dict[tuple[str, str | None, str, int], "_DataT | bool"] = {}
 _SHARED_ARGS: dict[str, list[str]] = {}  # macro call's operand field -> arguments
-_SHARED_EXPANSIONS: dict[tuple, tuple[str, ...]] = {}  # type: ignore[type-arg]  # (body, params, args, size, \@)
+_SHARED_EXPANSIONS: dict[tuple, tuple[str, ...]] = {}  # (body, params, args, size, \@)
 #: ... and of the encoder and the timing table (the plain path), pure functions of a (frozen) Instruction:
 #: (instruction, address) -> its bytes; instruction -> its length; instruction -> its cycle range.
 _SHARED_CODE: dict[tuple[Instruction, int], bytes] = {}
@@ -58,7 +58,7 @@ _TEMPLATE_LIMIT = 256
 _MISSING = object()
 
 
-def _shared(memo: dict) -> dict:  # type: ignore[type-arg]
+def _shared(memo: dict) -> dict:
     if len(memo) > _SHARED_LIMIT:
         memo.clear()
     return memo

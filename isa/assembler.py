@@ -297,7 +297,7 @@ class _Assembler(_Directives, _OperandSyntax):
     def _active(self) -> bool:
         return not self.conds or self.conds[-1].active
 
-    def _line(self, rec: _Rec, cond_base: int) -> None:
+    def _line(self, rec: _Rec, cond_base: int) -> None:  # noqa: C901 - one branch per kind of source line (macro body, conditional, label, directive, instruction)
         # Macro body collection: only ENDM (and a nested MACRO, which is refused) are looked at.
         if self.defining is not None:
             p = self._parse_fields(rec, lenient=True)
@@ -319,7 +319,7 @@ class _Assembler(_Directives, _OperandSyntax):
             elif p.op in ("else", "endif", "endc"):
                 self._cond_op(rec, p, cond_base)
             return
-        p = _SHARED_PARSE.get(rec.text)  # type: ignore[assignment]
+        p = _SHARED_PARSE.get(rec.text)
         if p is None:
             p = self._parse_fields(rec, lenient=False)
         kind = p.kind
@@ -493,7 +493,7 @@ class _Assembler(_Directives, _OperandSyntax):
             return None
         if parser.tok.kind != "end":
             return None
-        return _Expr(f, parser.pure, parser.used_here)  # type: ignore[arg-type,attr-defined]
+        return _Expr(f, parser.pure, parser.used_here)
 
     def _value(self, rec: _Rec, ex: _Expr, strict: bool = False) -> int:
         """Evaluate a compiled expression for ``rec`` (what :meth:`_eval_tokens` returns or raises)."""
@@ -513,10 +513,10 @@ class _Assembler(_Directives, _OperandSyntax):
                 ex = None
             else:
                 ex = self._compile_tokens(rec, toks)
-            _SHARED_EXPRS[key] = ex  # type: ignore[assignment]
+            _SHARED_EXPRS[key] = ex
         if ex is None or not _COMPILE:
             return self._eval_tokens(rec, self._tokens(rec, text, col), strict, what)
-        return self._value(rec, ex, strict)  # type: ignore[arg-type]
+        return self._value(rec, ex, strict)
 
     # --- location counter -------------------------------------------------------------------------------------------
     def _here(self) -> int:
@@ -606,7 +606,7 @@ class _Assembler(_Directives, _OperandSyntax):
                 if raw is not None:
                     buf += raw
                 else:
-                    buf += self._pack(rec, self._value(rec, ex), width, col)  # type: ignore[arg-type]
+                    buf += self._pack(rec, self._value(rec, ex), width, col)
             data = bytes(buf)
         addr = self._emit(rec, data, p.op_col)
         self._list(rec, addr, data)
@@ -655,7 +655,7 @@ class _Assembler(_Directives, _OperandSyntax):
             if const is not None and ex.const is not None and lo <= ex.const <= hi:
                 const += (ex.const & ((1 << (8 * t.width)) - 1)).to_bytes(t.width, "big")
             else:
-                const = None  # type: ignore[assignment]
+                const = None
         t.const = bytes(const) if const is not None else None
         return t
 
@@ -773,7 +773,7 @@ class _Assembler(_Directives, _OperandSyntax):
             data = bytes(n)
             cycles = None
         self._emit(rec, data, p.op_col)
-        self._list(rec, addr, data, cycles)  # type: ignore[arg-type]
+        self._list(rec, addr, data, cycles)
 
     def _compile_instruction(self, rec: _Rec, p: _Parsed) -> _Insn | None:
         """The compiled form of an instruction line (a function of its text), or None where
@@ -811,7 +811,7 @@ class _Assembler(_Directives, _OperandSyntax):
                     self.compiling = False
                 ps = self.operand_parser
                 f = template.value if callable(template.value) else None
-                ex = _Expr(f, ps.pure, ps.used_here) if f is not None else None  # type: ignore[attr-defined]
+                ex = _Expr(f, ps.pure, ps.used_here) if f is not None else None
                 ops.append(_Op(template, ex, ps.used_here, cols[-1]))
         modes = [o.mode for o in ops]
         if mn in _TO_A_FORM and len(ops) == 2 and modes[1] is Mode.AREG:
@@ -826,15 +826,15 @@ class _Assembler(_Directives, _OperandSyntax):
                     assert r is not None
                     mask = Operand(Mode.REGLIST, value=1 << (r.reg + (8 if r.mode is Mode.AREG else 0)))
                     ops[k] = _Op(mask, None, False, ops[k].col)
-        return _Insn(mn, size, alias, ops, cols)  # type: ignore[arg-type]
+        return _Insn(mn, size, alias, ops, cols)
 
     def _size_of(self, rec: _Rec, p: _Parsed, mn: str, rows: object, raising: bool = True) -> object:
         """The instruction's size from its suffix (branches: .W unless .s/.b); a bad suffix raises, or returns
         ``_MISSING`` when not ``raising``."""
-        is_branch = any(r.is_branch for r in rows)  # type: ignore[attr-defined]
+        is_branch = any(r.is_branch for r in rows)
         size: Size | None = None
         if p.size is not None:
-            legal = {s for r in rows for s in r.sizes if s is not None}  # type: ignore[attr-defined]
+            legal = {s for r in rows for s in r.sizes if s is not None}
             if is_branch:
                 legal |= {Size.B} if Size.S in legal else set()
             letter = p.size
@@ -892,12 +892,12 @@ class _Assembler(_Directives, _OperandSyntax):
         addr = self._here()
         try:
             if self.final:  # len(encode(i)) == length(i): tests/isa/test_codec.py checks it for every form
-                data = _SHARED_CODE.get((instr, addr))  # type: ignore[assignment]
+                data = _SHARED_CODE.get((instr, addr))
                 if data is None:
                     data = _shared(_SHARED_CODE)[(instr, addr)] = encode(instr, addr)
                 n = len(data)
             else:
-                n = _SHARED_LENGTH.get(instr)  # type: ignore[assignment]
+                n = _SHARED_LENGTH.get(instr)
                 if n is None:
                     n = _shared(_SHARED_LENGTH)[instr] = length(instr)
                 data = bytes(n)
@@ -906,7 +906,7 @@ class _Assembler(_Directives, _OperandSyntax):
         cycles = None
         if self.final:
             self.source_map[addr] = SourceLine(rec.file, rec.line, rec.text)
-            cycles = _SHARED_CYCLES.get(instr, _MISSING)  # type: ignore[assignment]
+            cycles = _SHARED_CYCLES.get(instr, _MISSING)
             if cycles is _MISSING:
                 cycles = _shared(_SHARED_CYCLES)[instr] = _cycle_range(instr)
         self._emit(rec, data, p.op_col)
@@ -980,7 +980,7 @@ class _Assembler(_Directives, _OperandSyntax):
 
 def _cycle_range(instr: Instruction) -> tuple[int, int] | None:
     """``isa.timing.cycle_range(instr)``; None if timing cannot price this instruction."""
-    from isa.timing import cycle_range  # noqa: PLC0415
+    from isa.timing import cycle_range
 
     return cycle_range(instr)
 

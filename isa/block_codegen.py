@@ -37,7 +37,7 @@ Contract with :mod:`isa.blocks` (whose :func:`_block_source` drives it) and :mod
 from __future__ import annotations
 
 import re
-from typing import Any
+from typing import Any, NamedTuple
 
 from isa import timing
 from isa.block_plan import (_ALL_FLAGS, _CONTROL, _FLAGS_NZVC, _READ_ONLY_DST, _SHIFT_NAMES, _may_fault,
@@ -156,6 +156,26 @@ def _lit(v: int) -> str:
 
 class _Unblockable(Exception):
     """Internal: this instruction is left to the per-instruction path (the block ends before it)."""
+
+
+class _Ins(NamedTuple):
+    """One instruction as :meth:`_BlockGen.instruction` hands it to the emitter of its handler (:data:`_EMITTERS`):
+    the instruction, its operands, size in bytes and mask, handler name, condition, address, the next address, the
+    flags asked for, its base clocks, the instruction count and constant clocks done on the path (``n_done``,
+    ``prefix``)."""
+
+    ins: Instruction
+    ops: tuple[Operand, ...]
+    nb: int
+    M: int
+    h: str
+    cond: int | None
+    pc: int
+    nxt: int
+    need: int
+    base: int
+    n_done: int
+    prefix: int
 
 
 class _BlockGen:
@@ -467,7 +487,7 @@ class _BlockGen:
                     ) -> None:
         """ADD/SUB/CMP flags from ``r`` (unmasked result) and ``rm`` (masked; None: only C/X asked for); only the
         bits in ``need``."""
-        M, S = MASK[nb], SIGN[nb]
+        M = MASK[nb]
         keep = 0xFF1F
         parts = []
         if need & (CF | (XF if kind != "cmp" else 0)):
@@ -701,7 +721,7 @@ class _BlockGen:
         else:
             self.setv(r, v)
 
-    def flush(self, regs: set[int] | None = None, extra: set[str] = frozenset()) -> None:  # type: ignore[assignment]
+    def flush(self, regs: set[int] | None = None, extra: set[str] = frozenset()) -> None:
         """Assign pending values to their register locals: all of them (``regs`` None), or those of ``regs`` and
         every pending value that names one of their locals or a local in ``extra`` (those locals are about to
         change)."""
@@ -798,7 +818,7 @@ class _BlockGen:
             return timing.cycles(ins)
         return None
 
-    def symbolic(self, ins: Instruction, h: str, need: int, pc: int) -> int | None:
+    def symbolic(self, ins: Instruction, h: str, need: int, pc: int) -> int | None:  # noqa: C901 - one branch per instruction family of the value layer (generated-code templates)
         """Take a register-only data instruction into the value layer: its result becomes the pending value of its
         register (no statement), flags are emitted when asked for. Returns its clocks, or None when it is left to
         the statement generator (memory operands, address registers, shifts with live flags, MUL by a register,
@@ -1180,190 +1200,239 @@ class _BlockGen:
             if sc is not None:
                 return sc, False
             self.pre_flush(ins, h, pc)
-        if h == "moveq":
-            v = _sx(ops[0].value & 0xFF, 1) & M32
-            self.emit(f"{self.wg(ops[1].reg)} = {v}")
-            if need & _FLAGS_NZVC:
-                self.emit(f"sr = (sr & 0xFF10) | {_nz(v, 4)}")
+        emitter = _EMITTERS.get(h)
+        if emitter is None:
+            raise _Unblockable(h)  # trap, illegal: the per-instruction path handles them
+        return emitter(self, _Ins(ins, ops, nb, M, h, cond, pc, nxt, need, base, n_done, prefix))
+
+    def _i_moveq(self, e: _Ins) -> tuple[int, bool]:
+        """MOVEQ."""
+        ins, ops, nb, M, h, cond, pc, nxt, need, base, n_done, prefix = e
+        v = _sx(ops[0].value & 0xFF, 1) & M32
+        self.emit(f"{self.wg(ops[1].reg)} = {v}")
+        if need & _FLAGS_NZVC:
+            self.emit(f"sr = (sr & 0xFF10) | {_nz(v, 4)}")
+        return base, False
+
+    def _i_move(self, e: _Ins) -> tuple[int, bool]:
+        """MOVE."""
+        ins, ops, nb, M, h, cond, pc, nxt, need, base, n_done, prefix = e
+        src, dst = ops
+        if dst.mode is _M.DREG:
+            if nb == 4 and src.mode not in (_M.DREG, _M.AREG, _M.IMM):  # straight into the register
+                v = self.read(src, nb, pc, self.wg(dst.reg))
+            else:
+                v = self.read(src, nb, pc, "v", materialize=nb != 4 or src.mode not in (_M.DREG, _M.AREG))
+                self.set_dreg(dst.reg, nb, v)
+            self.logic_flags(self.rg(dst.reg) if nb == 4 else v, nb, need)
             return base, False
-        if h == "move":
-            src, dst = ops
-            if dst.mode is _M.DREG:
-                if nb == 4 and src.mode not in (_M.DREG, _M.AREG, _M.IMM):  # straight into the register
-                    v = self.read(src, nb, pc, self.wg(dst.reg))
-                else:
-                    v = self.read(src, nb, pc, "v", materialize=nb != 4 or src.mode not in (_M.DREG, _M.AREG))
-                    self.set_dreg(dst.reg, nb, v)
-                self.logic_flags(self.rg(dst.reg) if nb == 4 else v, nb, need)
+        v = self.read(src, nb, pc, "v", materialize=True)
+        a = self.addr(dst, nb, pc, "eb")
+        self.logic_flags(v, nb, need)
+        self.write(nb, a, v, last=True)
+        return base, False
+
+    def _i_movea(self, e: _Ins) -> tuple[int, bool]:
+        """MOVEA."""
+        ins, ops, nb, M, h, cond, pc, nxt, need, base, n_done, prefix = e
+        v = self.read(ops[0], nb, pc, "v")
+        an = self.wg(8 + ops[1].reg)
+        self.emit(f"{an} = {v}" if nb == 4 else f"{an} = (({v} ^ 0x8000) - 0x8000) & 0xFFFFFFFF")
+        return base, False
+
+    def _i_arith(self, e: _Ins) -> tuple[int, bool]:
+        """ADD, ADDI, SUB, SUBI, CMP, CMPI, AND, ANDI, OR, ORI, EOR, EORI, ADDQ, SUBQ."""
+        ins, ops, nb, M, h, cond, pc, nxt, need, base, n_done, prefix = e
+        kind = h[:-1] if h.endswith(("i", "q")) else h
+        src, dst = ops
+        lazy = self.lazy == (kind, nb) and need & _ALL_FLAGS  # flags kept as lr/ls (set_lazy)
+        if h in ("addq", "subq"):
+            k = src.value
+            if dst.mode is _M.AREG:
+                an = self.wg(8 + dst.reg)
+                self.emit(f"{an} = ({an} {'+' if kind == 'add' else '-'} {k}) & 0xFFFFFFFF")
                 return base, False
-            v = self.read(src, nb, pc, "v", materialize=True)
-            a = self.addr(dst, nb, pc, "eb")
-            self.logic_flags(v, nb, need)
-            self.write(nb, a, v, last=True)
-            return base, False
-        if h == "movea":
-            v = self.read(ops[0], nb, pc, "v")
-            an = self.wg(8 + ops[1].reg)
-            self.emit(f"{an} = {v}" if nb == 4 else f"{an} = (({v} ^ 0x8000) - 0x8000) & 0xFFFFFFFF")
-            return base, False
-        if h in ("add", "addi", "sub", "subi", "cmp", "cmpi", "and", "andi", "or", "ori", "eor", "eori",
-                 "addq", "subq"):
-            kind = h[:-1] if h.endswith(("i", "q")) else h
-            src, dst = ops
-            lazy = self.lazy == (kind, nb) and need & _ALL_FLAGS  # flags kept as lr/ls (set_lazy)
-            if h in ("addq", "subq"):
-                k = src.value
-                if dst.mode is _M.AREG:
-                    an = self.wg(8 + dst.reg)
-                    self.emit(f"{an} = ({an} {'+' if kind == 'add' else '-'} {k}) & 0xFFFFFFFF")
-                    return base, False
-                s = str(k & M)
-            else:
-                # straight into ls only when no slow path of this instruction follows (a memory destination's
-                # read would take the previous lazy flags, which need the previous ls)
-                s = self.read(src, nb, pc, "ls" if lazy and dst.mode is _M.DREG else "s",
-                              materialize=dst.mode is not _M.DREG)
-            if dst.mode is _M.DREG:
-                dn = self.rg(dst.reg)
-                d = dn if nb == 4 else "x"
-                if nb != 4:
-                    self.emit(f"x = {dn} & {M}")
-            else:
-                a = self.addr_tmp(dst, nb, pc, "eb")
-                d = "x"
-                self.emit(f"x = {self.load(nb, a)}")
-            if lazy:
-                if s != "ls":
-                    self.emit(f"ls = {s}")
-                self.emit(f"lr = ls + {d}" if kind == "add" else f"lr = {d} - ls")
-                self.emit(f"rm = lr & {M}")
-                self.pending = None  # all five flags are now the lazy ones (a deferred MOVE's are overwritten)
-            elif kind in ("add", "sub", "cmp"):
-                expr = f"{s} + {d}" if kind == "add" else f"{d} - {s}"
-                if need & (_ALL_FLAGS if kind != "cmp" else _FLAGS_NZVC):
-                    self.emit(f"r = {expr}")
-                    self.emit(f"rm = r & {M}")
-                    self.arith_flags(kind, nb, s, d, need)
-                elif kind == "cmp":
-                    return base, False
-                else:
-                    self.emit(f"rm = ({expr}) & {M}")
-            else:
-                op = {"and": "&", "or": "|", "eor": "^"}[kind]
-                self.emit(f"rm = {s} {op} {d}")
-                self.logic_flags("rm", nb, need)
-            if kind == "cmp":
-                return base, False
-            if dst.mode is _M.DREG:
-                self.set_dreg(dst.reg, nb, "rm")
-            else:
-                self.write(nb, "eb", "rm", last=True)
-            return base, False
-        if h in ("adda", "suba"):
-            v = self.read(ops[0], nb, pc, "v")
-            an = self.wg(8 + ops[1].reg)
-            sign = "+" if h == "adda" else "-"
-            if nb == 2:
-                v = f"((({v}) ^ 0x8000) - 0x8000)"
-            self.emit(f"{an} = ({an} {sign} {v}) & 0xFFFFFFFF")
-            return base, False
-        if h == "cmpa":
-            v = self.read(ops[0], nb, pc, "v")
-            if nb == 2:
-                self.emit(f"s = ((({v}) ^ 0x8000) - 0x8000) & 0xFFFFFFFF")
-                v = "s"
-            an = self.rg(8 + ops[1].reg)
-            if need & _FLAGS_NZVC:
-                self.emit(f"r = {an} - {v}")
-                self.emit("rm = r & 0xFFFFFFFF")
-                self.arith_flags("cmp", 4, v, an, need)
-            return base, False
-        if h == "lea":
-            a = self.addr(ops[0], 4, pc, "ea")
-            self.emit(f"{self.wg(8 + ops[1].reg)} = {a} & 0xFFFFFFFF")
-            return base, False
-        if h == "pea":
-            a = self.addr(ops[0], 4, pc, "ea")
-            self.emit(f"v = {a} & 0xFFFFFFFF")
-            self.push("v")
-            return base, False
-        if h in ("clr", "not", "neg", "negx", "tst"):
-            dst = ops[0]
-            if dst.mode is _M.DREG:
-                dn = self.rg(dst.reg)
-                self.emit(f"x = {dn}" if nb == 4 else f"x = {dn} & {M}")
-            else:
-                a = self.addr_tmp(dst, nb, pc, "eb")
-                self.emit(f"x = {self.load(nb, a)}")
-            if h == "clr":
-                self.emit("rm = 0")
-                if need & _FLAGS_NZVC:
-                    self.emit("sr = (sr & 0xFF10) | 4")
-            elif h == "not":
-                self.emit(f"rm = x ^ {M}")
-                self.logic_flags("rm", nb, need)
-            elif h == "tst":
-                self.logic_flags("x", nb, need)
-                return base, False
-            elif h == "neg":
-                self.emit("r = -x")
+            s = str(k & M)
+        else:
+            # straight into ls only when no slow path of this instruction follows (a memory destination's
+            # read would take the previous lazy flags, which need the previous ls)
+            s = self.read(src, nb, pc, "ls" if lazy and dst.mode is _M.DREG else "s",
+                          materialize=dst.mode is not _M.DREG)
+        if dst.mode is _M.DREG:
+            dn = self.rg(dst.reg)
+            d = dn if nb == 4 else "x"
+            if nb != 4:
+                self.emit(f"x = {dn} & {M}")
+        else:
+            a = self.addr_tmp(dst, nb, pc, "eb")
+            d = "x"
+            self.emit(f"x = {self.load(nb, a)}")
+        if lazy:
+            if s != "ls":
+                self.emit(f"ls = {s}")
+            self.emit(f"lr = ls + {d}" if kind == "add" else f"lr = {d} - ls")
+            self.emit(f"rm = lr & {M}")
+            self.pending = None  # all five flags are now the lazy ones (a deferred MOVE's are overwritten)
+        elif kind in ("add", "sub", "cmp"):
+            expr = f"{s} + {d}" if kind == "add" else f"{d} - {s}"
+            if need & (_ALL_FLAGS if kind != "cmp" else _FLAGS_NZVC):
+                self.emit(f"r = {expr}")
                 self.emit(f"rm = r & {M}")
-                self.arith_flags("sub", nb, "x", "0", need)
-            else:
-                k = self.const(_k_subx(nb), f"negx{nb}", ("subx", nb))
-                self.emit(f"rm, sr = {k}(x, 0, sr)")
-            if dst.mode is _M.DREG:
-                self.set_dreg(dst.reg, nb, "rm")
-            else:
-                self.write(nb, "eb", "rm", last=True)
-            return base, False
-        if h == "cmpm":  # (Ay)+,(Ax)+: Ay read and incremented first; flags as CMP (X kept)
-            s_op, d_op = ops
-            sa = self.addr(s_op, nb, pc, "ea")
-            self.emit(f"s = {self.load(nb, sa)}")
-            da = self.addr(d_op, nb, pc, "eb")
-            self.emit(f"x = {self.load(nb, da)}")
-            if need & _FLAGS_NZVC:
-                self.emit("r = x - s")
-                self.emit(f"rm = r & {M}")
-                self.arith_flags("cmp", nb, "s", "x", need)
-            return base, False
-        if h in ("addx", "subx"):
-            s_op, d_op = ops
-            k = self.const((_k_subx if h == "subx" else _k_addx)(nb), f"{h}{nb}", (h, nb))
-            if s_op.mode is _M.DREG:
-                s = self.read(s_op, nb, pc, "s")
-                dn = self.rg(d_op.reg)
-                self.emit(f"rm, sr = {k}({s}, {dn if nb == 4 else f'{dn} & {M}'}, sr)")
-                self.set_dreg(d_op.reg, nb, "rm")
+                self.arith_flags(kind, nb, s, d, need)
+            elif kind == "cmp":
                 return base, False
-            sa = self.addr(s_op, nb, pc, "ea")
-            self.emit(f"s = {self.load(nb, sa)}")
-            da = self.addr_tmp(d_op, nb, pc, "eb")
-            self.emit(f"x = {self.load(nb, da)}")
-            self.emit(f"rm, sr = {k}(s, x, sr)")
+            else:
+                self.emit(f"rm = ({expr}) & {M}")
+        else:
+            op = {"and": "&", "or": "|", "eor": "^"}[kind]
+            self.emit(f"rm = {s} {op} {d}")
+            self.logic_flags("rm", nb, need)
+        if kind == "cmp":
+            return base, False
+        if dst.mode is _M.DREG:
+            self.set_dreg(dst.reg, nb, "rm")
+        else:
             self.write(nb, "eb", "rm", last=True)
+        return base, False
+
+    def _i_adda_suba(self, e: _Ins) -> tuple[int, bool]:
+        """ADDA, SUBA."""
+        ins, ops, nb, M, h, cond, pc, nxt, need, base, n_done, prefix = e
+        v = self.read(ops[0], nb, pc, "v")
+        an = self.wg(8 + ops[1].reg)
+        sign = "+" if h == "adda" else "-"
+        if nb == 2:
+            v = f"((({v}) ^ 0x8000) - 0x8000)"
+        self.emit(f"{an} = ({an} {sign} {v}) & 0xFFFFFFFF")
+        return base, False
+
+    def _i_cmpa(self, e: _Ins) -> tuple[int, bool]:
+        """CMPA."""
+        ins, ops, nb, M, h, cond, pc, nxt, need, base, n_done, prefix = e
+        v = self.read(ops[0], nb, pc, "v")
+        if nb == 2:
+            self.emit(f"s = ((({v}) ^ 0x8000) - 0x8000) & 0xFFFFFFFF")
+            v = "s"
+        an = self.rg(8 + ops[1].reg)
+        if need & _FLAGS_NZVC:
+            self.emit(f"r = {an} - {v}")
+            self.emit("rm = r & 0xFFFFFFFF")
+            self.arith_flags("cmp", 4, v, an, need)
+        return base, False
+
+    def _i_lea(self, e: _Ins) -> tuple[int, bool]:
+        """LEA."""
+        ins, ops, nb, M, h, cond, pc, nxt, need, base, n_done, prefix = e
+        a = self.addr(ops[0], 4, pc, "ea")
+        self.emit(f"{self.wg(8 + ops[1].reg)} = {a} & 0xFFFFFFFF")
+        return base, False
+
+    def _i_pea(self, e: _Ins) -> tuple[int, bool]:
+        """PEA."""
+        ins, ops, nb, M, h, cond, pc, nxt, need, base, n_done, prefix = e
+        a = self.addr(ops[0], 4, pc, "ea")
+        self.emit(f"v = {a} & 0xFFFFFFFF")
+        self.push("v")
+        return base, False
+
+    def _i_unary(self, e: _Ins) -> tuple[int, bool]:
+        """CLR, NOT, NEG, NEGX, TST."""
+        ins, ops, nb, M, h, cond, pc, nxt, need, base, n_done, prefix = e
+        dst = ops[0]
+        if dst.mode is _M.DREG:
+            dn = self.rg(dst.reg)
+            self.emit(f"x = {dn}" if nb == 4 else f"x = {dn} & {M}")
+        else:
+            a = self.addr_tmp(dst, nb, pc, "eb")
+            self.emit(f"x = {self.load(nb, a)}")
+        if h == "clr":
+            self.emit("rm = 0")
+            if need & _FLAGS_NZVC:
+                self.emit("sr = (sr & 0xFF10) | 4")
+        elif h == "not":
+            self.emit(f"rm = x ^ {M}")
+            self.logic_flags("rm", nb, need)
+        elif h == "tst":
+            self.logic_flags("x", nb, need)
             return base, False
-        if h == "ext":
-            dn = self.wg(ops[0].reg)
-            if ins.size is Size.W:
-                self.emit(f"v = ((({dn} & 0xFF) ^ 0x80) - 0x80) & 0xFFFF")
-                self.emit(f"{dn} = ({dn} & 0xFFFF0000) | v")
-                self.logic_flags("v", 2, need)
-            else:
-                self.emit(f"{dn} = ((({dn} & 0xFFFF) ^ 0x8000) - 0x8000) & 0xFFFFFFFF")
-                self.logic_flags(dn, 4, need)
+        elif h == "neg":
+            self.emit("r = -x")
+            self.emit(f"rm = r & {M}")
+            self.arith_flags("sub", nb, "x", "0", need)
+        else:
+            k = self.const(_k_subx(nb), f"negx{nb}", ("subx", nb))
+            self.emit(f"rm, sr = {k}(x, 0, sr)")
+        if dst.mode is _M.DREG:
+            self.set_dreg(dst.reg, nb, "rm")
+        else:
+            self.write(nb, "eb", "rm", last=True)
+        return base, False
+
+    def _i_cmpm(self, e: _Ins) -> tuple[int, bool]:
+        """CMPM: (Ay)+,(Ax)+: Ay read and incremented first; flags as CMP (X kept)."""
+        ins, ops, nb, M, h, cond, pc, nxt, need, base, n_done, prefix = e
+        s_op, d_op = ops
+        sa = self.addr(s_op, nb, pc, "ea")
+        self.emit(f"s = {self.load(nb, sa)}")
+        da = self.addr(d_op, nb, pc, "eb")
+        self.emit(f"x = {self.load(nb, da)}")
+        if need & _FLAGS_NZVC:
+            self.emit("r = x - s")
+            self.emit(f"rm = r & {M}")
+            self.arith_flags("cmp", nb, "s", "x", need)
+        return base, False
+
+    def _i_addx_subx(self, e: _Ins) -> tuple[int, bool]:
+        """ADDX, SUBX."""
+        ins, ops, nb, M, h, cond, pc, nxt, need, base, n_done, prefix = e
+        s_op, d_op = ops
+        k = self.const((_k_subx if h == "subx" else _k_addx)(nb), f"{h}{nb}", (h, nb))
+        if s_op.mode is _M.DREG:
+            s = self.read(s_op, nb, pc, "s")
+            dn = self.rg(d_op.reg)
+            self.emit(f"rm, sr = {k}({s}, {dn if nb == 4 else f'{dn} & {M}'}, sr)")
+            self.set_dreg(d_op.reg, nb, "rm")
             return base, False
-        if h == "swap":
-            dn = self.wg(ops[0].reg)
-            self.emit(f"{dn} = (({dn} << 16) | ({dn} >> 16)) & 0xFFFFFFFF")
+        sa = self.addr(s_op, nb, pc, "ea")
+        self.emit(f"s = {self.load(nb, sa)}")
+        da = self.addr_tmp(d_op, nb, pc, "eb")
+        self.emit(f"x = {self.load(nb, da)}")
+        self.emit(f"rm, sr = {k}(s, x, sr)")
+        self.write(nb, "eb", "rm", last=True)
+        return base, False
+
+    def _i_ext(self, e: _Ins) -> tuple[int, bool]:
+        """EXT."""
+        ins, ops, nb, M, h, cond, pc, nxt, need, base, n_done, prefix = e
+        dn = self.wg(ops[0].reg)
+        if ins.size is Size.W:
+            self.emit(f"v = ((({dn} & 0xFF) ^ 0x80) - 0x80) & 0xFFFF")
+            self.emit(f"{dn} = ({dn} & 0xFFFF0000) | v")
+            self.logic_flags("v", 2, need)
+        else:
+            self.emit(f"{dn} = ((({dn} & 0xFFFF) ^ 0x8000) - 0x8000) & 0xFFFFFFFF")
             self.logic_flags(dn, 4, need)
-            return base, False
-        if h == "exg":
-            a, b = (self.wg(o.reg + (8 if o.mode is _M.AREG else 0)) for o in ops)
-            self.emit(f"{a}, {b} = {b}, {a}")
-            return base, False
-        if h in ("mulu", "muls") and ops[0].mode is _M.IMM:  # constant source: constant clocks
+        return base, False
+
+    def _i_swap(self, e: _Ins) -> tuple[int, bool]:
+        """SWAP."""
+        ins, ops, nb, M, h, cond, pc, nxt, need, base, n_done, prefix = e
+        dn = self.wg(ops[0].reg)
+        self.emit(f"{dn} = (({dn} << 16) | ({dn} >> 16)) & 0xFFFFFFFF")
+        self.logic_flags(dn, 4, need)
+        return base, False
+
+    def _i_exg(self, e: _Ins) -> tuple[int, bool]:
+        """EXG."""
+        ins, ops, nb, M, h, cond, pc, nxt, need, base, n_done, prefix = e
+        a, b = (self.wg(o.reg + (8 if o.mode is _M.AREG else 0)) for o in ops)
+        self.emit(f"{a}, {b} = {b}, {a}")
+        return base, False
+
+    def _i_mul(self, e: _Ins) -> tuple[int, bool]:
+        """MULU, MULS."""
+        ins, ops, nb, M, h, cond, pc, nxt, need, base, n_done, prefix = e
+        if ops[0].mode is _M.IMM:  # constant source:  constant clocks
             sv = ops[0].value & 0xFFFF
             dn = self.wg(ops[1].reg)
             if h == "muls":
@@ -1375,106 +1444,132 @@ class _BlockGen:
                 extra = 2 * sv.bit_count()
             self.logic_flags(dn, 4, need)
             return 38 + timing.EA_TIME[ops[0].mode][0] + extra, False
-        if h in ("mulu", "muls"):
-            s = self.read(ops[0], 2, pc, "s", materialize=True)
-            dn = self.wg(ops[1].reg)
-            if h == "muls":
-                self.emit(f"{dn} = ((({s} ^ 0x8000) - 0x8000) * ((({dn} & 0xFFFF) ^ 0x8000) - 0x8000)) "
-                          "& 0xFFFFFFFF")
-            else:
-                self.emit(f"{dn} = {s} * ({dn} & 0xFFFF)")
-            self.logic_flags(dn, 4, need)
-            if h == "muls":
-                self.cycles(f"2 * (({s} << 1 ^ {s}) & 0xFFFF).bit_count()")
-            else:
-                self.cycles(f"2 * {s}.bit_count()")
-            return 38 + timing.EA_TIME[ops[0].mode][0], False
-        if h in ("divu", "divs"):
-            return self.divide(ops, h, pc, need), False
-        if h in _SHIFT_NAMES:
-            return self.shift(ins, h, nb, pc, need, base), False
-        if h == "scc":
-            dst = ops[0]
-            ce = _COND_EXPR[cond]  # type: ignore[index]
-            if dst.mode is _M.DREG:
-                dn = self.wg(dst.reg)
-                self.emit(f"if {ce}:")
-                self.emit(f"    {dn} |= 0xFF")
-                self.emit("    c += 2")
-                self.emit("else:")
-                self.emit(f"    {dn} &= 0xFFFFFF00")
-                self.dyn = True
-                return 4, False
-            a = self.addr(dst, 1, pc, "eb")
-            self.write(1, a, f"(0xFF if {ce} else 0)", last=True)
-            return timing.cycles(ins), False
-        if h in ("bcc", "bra", "bsr"):
-            target = ops[0].value & 0xFFFFFF
-            if target & 1:
-                raise _Unblockable("odd branch target")
-            if h == "bsr":
-                self.push(str(nxt & 0xFFFFFF))
-                self.exit(target, n_done, prefix + base)
-                return base, True
-            if h == "bra":
-                self.exit(target, n_done, prefix + base)
-                return base, True
-            self.emit(f"if {self.branch_test(cond)}:")  # type: ignore[arg-type]
-            self.ind += 1
-            self.exit(target, n_done, prefix + timing.cycles(ins, taken=True))
-            self.ind -= 1
-            return timing.cycles(ins, taken=False), False
-        if h == "dbcc":
-            dn_op, tgt = ops
-            target = tgt.value & 0xFFFFFF
-            if target & 1:
-                raise _Unblockable("odd branch target")
-            ce = _COND_EXPR[cond]  # type: ignore[index]
-            if ce == "True":
-                return 12, False
-            if ce != "False":
-                self.emit(f"if not ({ce}):")
-                self.ind += 1
-            dn = self.wg(dn_op.reg)
-            self.emit(f"w = ({dn} - 1) & 0xFFFF")
-            self.emit(f"{dn} = ({dn} & 0xFFFF0000) | w")
-            self.emit("if w == 0xFFFF:")
+        s = self.read(ops[0], 2, pc, "s", materialize=True)
+        dn = self.wg(ops[1].reg)
+        if h == "muls":
+            self.emit(f"{dn} = ((({s} ^ 0x8000) - 0x8000) * ((({dn} & 0xFFFF) ^ 0x8000) - 0x8000)) "
+                      "& 0xFFFFFFFF")
+        else:
+            self.emit(f"{dn} = {s} * ({dn} & 0xFFFF)")
+        self.logic_flags(dn, 4, need)
+        if h == "muls":
+            self.cycles(f"2 * (({s} << 1 ^ {s}) & 0xFFFF).bit_count()")
+        else:
+            self.cycles(f"2 * {s}.bit_count()")
+        return 38 + timing.EA_TIME[ops[0].mode][0], False
+
+    def _i_div(self, e: _Ins) -> tuple[int, bool]:
+        """DIVU, DIVS."""
+        ins, ops, nb, M, h, cond, pc, nxt, need, base, n_done, prefix = e
+        return self.divide(ops, h, pc, need), False
+
+    def _i_shift(self, e: _Ins) -> tuple[int, bool]:
+        """ASx, LSx, ROx, ROXx."""
+        ins, ops, nb, M, h, cond, pc, nxt, need, base, n_done, prefix = e
+        return self.shift(ins, h, nb, pc, need, base), False
+
+    def _i_scc(self, e: _Ins) -> tuple[int, bool]:
+        """SCC."""
+        ins, ops, nb, M, h, cond, pc, nxt, need, base, n_done, prefix = e
+        dst = ops[0]
+        ce = _COND_EXPR[cond]
+        if dst.mode is _M.DREG:
+            dn = self.wg(dst.reg)
+            self.emit(f"if {ce}:")
+            self.emit(f"    {dn} |= 0xFF")
             self.emit("    c += 2")
-            self.dyn = True
             self.emit("else:")
-            self.ind += 1
-            self.exit(target, n_done, prefix + timing.cycles(ins, taken=True))
-            self.ind -= 1
-            if ce != "False":
-                self.ind -= 1
+            self.emit(f"    {dn} &= 0xFFFFFF00")
+            self.dyn = True
+            return 4, False
+        a = self.addr(dst, 1, pc, "eb")
+        self.write(1, a, f"(0xFF if {ce} else 0)", last=True)
+        return timing.cycles(ins), False
+
+    def _i_branch(self, e: _Ins) -> tuple[int, bool]:
+        """BCC, BRA, BSR."""
+        ins, ops, nb, M, h, cond, pc, nxt, need, base, n_done, prefix = e
+        target = ops[0].value & 0xFFFFFF
+        if target & 1:
+            raise _Unblockable("odd branch target")
+        if h == "bsr":
+            self.push(str(nxt & 0xFFFFFF))
+            self.exit(target, n_done, prefix + base)
+            return base, True
+        if h == "bra":
+            self.exit(target, n_done, prefix + base)
+            return base, True
+        self.emit(f"if {self.branch_test(cond)}:")
+        self.ind += 1
+        self.exit(target, n_done, prefix + timing.cycles(ins, taken=True))
+        self.ind -= 1
+        return timing.cycles(ins, taken=False), False
+
+    def _i_dbcc(self, e: _Ins) -> tuple[int, bool]:
+        """DBCC."""
+        ins, ops, nb, M, h, cond, pc, nxt, need, base, n_done, prefix = e
+        dn_op, tgt = ops
+        target = tgt.value & 0xFFFFFF
+        if target & 1:
+            raise _Unblockable("odd branch target")
+        ce = _COND_EXPR[cond]
+        if ce == "True":
             return 12, False
-        if h in ("jmp", "jsr"):
-            a = self.addr(ops[0], 4, pc, "ea")
-            fault = self.const(_Fault, "Fault", ("Fault",))
-            ae = self.const(AddressError, "AddressError", ("AddressError",))
-            self.emit(f"t = {a} & 0xFFFFFF")
-            self.emit("if t & 1:")
-            self.emit(f"    raise {fault}({ae}, f\"jump to odd address ${{t:06X}}\")")
-            if h == "jsr":
-                self.push(str(nxt & 0xFFFFFF))
-            self.exit("t", n_done, prefix + base)
-            return base, True
-        if h == "rts":
-            sp = self.wg(15)
-            fault = self.const(_Fault, "Fault", ("Fault",))
-            ae = self.const(AddressError, "AddressError", ("AddressError",))
-            self.emit(f"v = {self.load(4, sp)}")
-            self.emit(f"{sp} = ({sp} + 4) & 0xFFFFFFFF")
-            self.emit(f"if v & 1 and (v & 0xFFFFFF) != {CALL_SENTINEL}:")
-            self.emit(f"    raise {fault}({ae}, f\"return to odd address ${{v & 0xFFFFFF:06X}}\")")
-            self.exit("(v & 0xFFFFFF)", n_done, prefix + base)
-            return base, True
-        if h == "movem":
-            self.movem(ins, nb, pc)
-            return base, False
-        if h == "nop":
-            return base, False
-        raise _Unblockable(h)  # trap, illegal: the per-instruction path handles them
+        if ce != "False":
+            self.emit(f"if not ({ce}):")
+            self.ind += 1
+        dn = self.wg(dn_op.reg)
+        self.emit(f"w = ({dn} - 1) & 0xFFFF")
+        self.emit(f"{dn} = ({dn} & 0xFFFF0000) | w")
+        self.emit("if w == 0xFFFF:")
+        self.emit("    c += 2")
+        self.dyn = True
+        self.emit("else:")
+        self.ind += 1
+        self.exit(target, n_done, prefix + timing.cycles(ins, taken=True))
+        self.ind -= 1
+        if ce != "False":
+            self.ind -= 1
+        return 12, False
+
+    def _i_jump(self, e: _Ins) -> tuple[int, bool]:
+        """JMP, JSR."""
+        ins, ops, nb, M, h, cond, pc, nxt, need, base, n_done, prefix = e
+        a = self.addr(ops[0], 4, pc, "ea")
+        fault = self.const(_Fault, "Fault", ("Fault",))
+        ae = self.const(AddressError, "AddressError", ("AddressError",))
+        self.emit(f"t = {a} & 0xFFFFFF")
+        self.emit("if t & 1:")
+        self.emit(f"    raise {fault}({ae}, f\"jump to odd address ${{t:06X}}\")")
+        if h == "jsr":
+            self.push(str(nxt & 0xFFFFFF))
+        self.exit("t", n_done, prefix + base)
+        return base, True
+
+    def _i_rts(self, e: _Ins) -> tuple[int, bool]:
+        """RTS."""
+        ins, ops, nb, M, h, cond, pc, nxt, need, base, n_done, prefix = e
+        sp = self.wg(15)
+        fault = self.const(_Fault, "Fault", ("Fault",))
+        ae = self.const(AddressError, "AddressError", ("AddressError",))
+        self.emit(f"v = {self.load(4, sp)}")
+        self.emit(f"{sp} = ({sp} + 4) & 0xFFFFFFFF")
+        self.emit(f"if v & 1 and (v & 0xFFFFFF) != {CALL_SENTINEL}:")
+        self.emit(f"    raise {fault}({ae}, f\"return to odd address ${{v & 0xFFFFFF:06X}}\")")
+        self.exit("(v & 0xFFFFFF)", n_done, prefix + base)
+        return base, True
+
+    def _i_movem(self, e: _Ins) -> tuple[int, bool]:
+        """MOVEM."""
+        ins, ops, nb, M, h, cond, pc, nxt, need, base, n_done, prefix = e
+        self.movem(ins, nb, pc)
+        return base, False
+
+    def _i_nop(self, e: _Ins) -> tuple[int, bool]:
+        """NOP."""
+        ins, ops, nb, M, h, cond, pc, nxt, need, base, n_done, prefix = e
+        return base, False
+
 
     def divide(self, ops: tuple[Operand, ...], h: str, pc: int, need: int = _ALL_FLAGS) -> int:
         """DIVU/DIVS with the clocks of :func:`isa.timing.divu_cycles` / :func:`isa.timing.divs_cycles` computed
@@ -1533,7 +1628,7 @@ class _BlockGen:
         self.emit("else:")
         self.emit(f"    aq = ad // {as_e}")
         if const:
-            self.emit(f"    q = -aq if sd < 0 else aq" if ss > 0 else f"    q = aq if sd < 0 else -aq")
+            self.emit("    q = -aq if sd < 0 else aq" if ss > 0 else "    q = aq if sd < 0 else -aq")
             base = (126, 120) if ss >= 0 else (124, 122)  # 2 * (61 + [sd < 0] + adjust): (sd < 0, sd >= 0)
             self.emit(f"    c += ({base[0]} if sd < 0 else {base[1]}) + 30 - 2 * ((aq >> 1) & 0x7FFF).bit_count()")
         else:
@@ -1633,3 +1728,22 @@ class _BlockGen:
         if post:
             self.emit(f"{self.wg(an)} = (ea + {len(regs) * nb}) & 0xFFFFFFFF")
         self.emit(self.load(2, f"ea + {len(regs) * nb}" if regs else "ea"))  # the 68000's extra word read
+
+
+#: Handler name -> the :class:`_BlockGen` method that emits it (what :meth:`_BlockGen.instruction` dispatches on;
+#: a handler without one, TRAP or ILLEGAL, is left to the per-instruction path).
+_EMITTERS: dict[str, Any] = {
+    "moveq": _BlockGen._i_moveq, "move": _BlockGen._i_move, "movea": _BlockGen._i_movea,
+    **dict.fromkeys(("add", "addi", "sub", "subi", "cmp", "cmpi", "and", "andi", "or", "ori", "eor", "eori", "addq",
+                     "subq"), _BlockGen._i_arith),
+    "adda": _BlockGen._i_adda_suba, "suba": _BlockGen._i_adda_suba, "cmpa": _BlockGen._i_cmpa,
+    "lea": _BlockGen._i_lea, "pea": _BlockGen._i_pea,
+    **dict.fromkeys(("clr", "not", "neg", "negx", "tst"), _BlockGen._i_unary),
+    "cmpm": _BlockGen._i_cmpm, "addx": _BlockGen._i_addx_subx, "subx": _BlockGen._i_addx_subx,
+    "ext": _BlockGen._i_ext, "swap": _BlockGen._i_swap, "exg": _BlockGen._i_exg,
+    "mulu": _BlockGen._i_mul, "muls": _BlockGen._i_mul, "divu": _BlockGen._i_div, "divs": _BlockGen._i_div,
+    **dict.fromkeys(_SHIFT_NAMES, _BlockGen._i_shift),
+    "scc": _BlockGen._i_scc, **dict.fromkeys(("bcc", "bra", "bsr"), _BlockGen._i_branch),
+    "dbcc": _BlockGen._i_dbcc, "jmp": _BlockGen._i_jump, "jsr": _BlockGen._i_jump, "rts": _BlockGen._i_rts,
+    "movem": _BlockGen._i_movem, "nop": _BlockGen._i_nop,
+}

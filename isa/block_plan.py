@@ -213,7 +213,7 @@ def _plan(entries: list[_Entry]) -> tuple[dict[int, tuple[Any, ...]], list[bool]
             if h in ("bcc", "bra", "dbcc"):
                 tgt = _branch_target(ins)
                 j = at.get(tgt)
-                if tgt == start and i >= head and not (h == "dbcc" and cond == 0):  # type: ignore[operator]
+                if tgt == start and i >= head and not (h == "dbcc" and cond == 0):  # type: ignore[operator]  # head is not None here: start == -1 (no address) when it is
                     role[i] = ("loop",)
                 elif h == "bcc" and j is not None and i < j <= hi:
                     if j - 1 > i and entries[j - 1][2] == "bra":

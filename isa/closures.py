@@ -23,9 +23,9 @@ from collections.abc import Callable
 from isa import timing
 from isa.errors import AddressError, DivideByZero, IllegalInstruction
 from isa.operands import Instruction, Operand, Size
-from isa.semantics import (CALL_SENTINEL, M32, MASK, NF, SIGN, VF, ZF, _COND, _KERNELS, _M, _Fault, _Stop, _handler,
-                           _inc, _k_add, _k_addx, _k_logic, _k_shift, _k_sub, _k_subx, _lowers_sp, _nb, _nz,
-                           _pc_target, _sx)
+from isa.semantics import (CALL_SENTINEL, CCR, KEEP_SYS, KEEP_SYS_X, M32, MASK, NF, SIGN, SR, VF, XC, ZF, _COND,
+                           _KERNELS, _M, _Fault, _Stop, _handler, _inc, _k_add, _k_addx, _k_logic, _k_shift, _k_sub,
+                           _k_subx, _lowers_sp, _nb, _nz, _pc_target, _sx)
 
 __all__ = ["HANDLERS", "build_closure"]
 
@@ -104,7 +104,7 @@ def _addr_fn(ctx: _Ctx, op: Operand, nb: int) -> Callable[[], int]:
     const, fn = _addr(ctx, op, nb)
     if fn is None:
         c = const
-        return lambda: c  # type: ignore[return-value]
+        return lambda: c  # type: ignore[return-value]  # the constant closure returns an int like the others
     return fn
 
 
@@ -136,21 +136,6 @@ def _reader(ctx: _Ctx, op: Operand, nb: int) -> Callable[[], int]:
     return lambda: rd(f())
 
 
-def _dreg_writer(R: list[int], i: int, nb: int) -> Callable[[int], None]:
-    if nb == 4:
-
-        def w4(v: int) -> None:
-            R[i] = v
-
-        return w4
-    keep = M32 ^ MASK[nb]
-
-    def w(v: int) -> None:
-        R[i] = (R[i] & keep) | v
-
-    return w
-
-
 def _packed(nxt: int, cycles: int) -> int:
     return (nxt & 0xFFFFFF) | (cycles << 32)
 
@@ -169,14 +154,14 @@ def _rmw(ctx: _Ctx, dst: Operand, nb: int, kernel: Callable[[int, int, int], tup
         if not write:
 
             def cmp_d() -> int:
-                R[16] = kernel(src(), R[i] & M, R[16])[1]
+                R[SR] = kernel(src(), R[i] & M, R[SR])[1]
                 return K
 
             return cmp_d
         keep = M32 ^ M
 
         def op_d() -> int:
-            r, R[16] = kernel(src(), R[i] & M, R[16])
+            r, R[SR] = kernel(src(), R[i] & M, R[SR])
             R[i] = (R[i] & keep) | r
             return K
 
@@ -187,7 +172,7 @@ def _rmw(ctx: _Ctx, dst: Operand, nb: int, kernel: Callable[[int, int, int], tup
 
         def cmp_m() -> int:
             s = src()
-            R[16] = kernel(s, rd(addr()), R[16])[1]
+            R[SR] = kernel(s, rd(addr()), R[SR])[1]
             return K
 
         return cmp_m
@@ -195,7 +180,7 @@ def _rmw(ctx: _Ctx, dst: Operand, nb: int, kernel: Callable[[int, int, int], tup
     def op_m() -> int:
         s = src()
         a = addr()
-        r, R[16] = kernel(s, rd(a), R[16])
+        r, R[SR] = kernel(s, rd(a), R[SR])
         wr(a, r)
         return K
 
@@ -229,7 +214,7 @@ def h_binary(ctx: _Ctx) -> Callable[[], int]:
                     r = d + k
                     rm = r & M32
                     R[i] = rm
-                    R[16] = ((R[16] & 0xFF00) | (0x11 if r > M32 else 0) | (8 if rm & S else (0 if rm else 4))
+                    R[SR] = ((R[SR] & KEEP_SYS) | (XC if r > M32 else 0) | (8 if rm & S else (0 if rm else 4))
                              | (2 if (k ^ rm) & (d ^ rm) & S else 0))
                     return K
 
@@ -241,7 +226,7 @@ def h_binary(ctx: _Ctx) -> Callable[[], int]:
                     r = d - k
                     rm = r & M32
                     R[i] = rm
-                    R[16] = ((R[16] & 0xFF00) | (0x11 if r < 0 else 0) | (8 if rm & S else (0 if rm else 4))
+                    R[SR] = ((R[SR] & KEEP_SYS) | (XC if r < 0 else 0) | (8 if rm & S else (0 if rm else 4))
                              | (2 if (k ^ d) & (d ^ rm) & S else 0))
                     return K
 
@@ -251,7 +236,7 @@ def h_binary(ctx: _Ctx) -> Callable[[], int]:
                 d = R[i]
                 r = d - k
                 rm = r & M32
-                R[16] = ((R[16] & 0xFF10) | (1 if r < 0 else 0) | (8 if rm & S else (0 if rm else 4))
+                R[SR] = ((R[SR] & KEEP_SYS_X) | (1 if r < 0 else 0) | (8 if rm & S else (0 if rm else 4))
                          | (2 if (k ^ d) & (d ^ rm) & S else 0))
                 return K
 
@@ -265,7 +250,7 @@ def h_binary(ctx: _Ctx) -> Callable[[], int]:
                 r = d + s
                 rm = r & M32
                 R[i] = rm
-                R[16] = ((R[16] & 0xFF00) | (0x11 if r > M32 else 0) | (8 if rm & S else (0 if rm else 4))
+                R[SR] = ((R[SR] & KEEP_SYS) | (XC if r > M32 else 0) | (8 if rm & S else (0 if rm else 4))
                          | (2 if (s ^ rm) & (d ^ rm) & S else 0))
                 return K
 
@@ -278,7 +263,7 @@ def h_binary(ctx: _Ctx) -> Callable[[], int]:
                 r = d - s
                 rm = r & M32
                 R[i] = rm
-                R[16] = ((R[16] & 0xFF00) | (0x11 if r < 0 else 0) | (8 if rm & S else (0 if rm else 4))
+                R[SR] = ((R[SR] & KEEP_SYS) | (XC if r < 0 else 0) | (8 if rm & S else (0 if rm else 4))
                          | (2 if (s ^ d) & (d ^ rm) & S else 0))
                 return K
 
@@ -289,7 +274,7 @@ def h_binary(ctx: _Ctx) -> Callable[[], int]:
             s = R[j]
             r = d - s
             rm = r & M32
-            R[16] = ((R[16] & 0xFF10) | (1 if r < 0 else 0) | (8 if rm & S else (0 if rm else 4))
+            R[SR] = ((R[SR] & KEEP_SYS_X) | (1 if r < 0 else 0) | (8 if rm & S else (0 if rm else 4))
                      | (2 if (s ^ d) & (d ^ rm) & S else 0))
             return K
 
@@ -334,7 +319,7 @@ def h_addq(ctx: _Ctx) -> Callable[[], int]:
                 r = d - k
                 rm = r & M32
                 R[i] = rm
-                R[16] = ((R[16] & 0xFF00) | (0x11 if r < 0 else 0) | (8 if rm & S else (0 if rm else 4))
+                R[SR] = ((R[SR] & KEEP_SYS) | (XC if r < 0 else 0) | (8 if rm & S else (0 if rm else 4))
                          | (2 if d & ~rm & S else 0))
                 return K
 
@@ -345,7 +330,7 @@ def h_addq(ctx: _Ctx) -> Callable[[], int]:
             r = d + k
             rm = r & M32
             R[i] = rm
-            R[16] = ((R[16] & 0xFF00) | (0x11 if r > M32 else 0) | (8 if rm & S else (0 if rm else 4))
+            R[SR] = ((R[SR] & KEEP_SYS) | (XC if r > M32 else 0) | (8 if rm & S else (0 if rm else 4))
                      | (2 if ~d & rm & S else 0))
             return K
 
@@ -373,7 +358,7 @@ def h_addx(ctx: _Ctx) -> Callable[[], int]:
     def addx_m() -> int:
         s = rd(sa())
         a = da()
-        r, R[16] = kernel(s, rd(a), R[16])
+        r, R[SR] = kernel(s, rd(a), R[SR])
         wr(a, r)
         return K
 
@@ -393,7 +378,7 @@ def h_cmpm(ctx: _Ctx) -> Callable[[], int]:
 
     def cmpm() -> int:
         s = rd(sa())
-        R[16] = kernel(s, rd(da()), R[16])[1]
+        R[SR] = kernel(s, rd(da()), R[SR])[1]
         return K
 
     return cmpm
@@ -455,13 +440,13 @@ def h_cmpa(ctx: _Ctx) -> Callable[[], int]:
     if nb == 2:
 
         def cmpaw() -> int:
-            R[16] = kernel(((src() ^ 0x8000) - 0x8000) & M32, R[i], R[16])[1]
+            R[SR] = kernel(((src() ^ 0x8000) - 0x8000) & M32, R[i], R[SR])[1]
             return K
 
         return cmpaw
 
     def cmpal() -> int:
-        R[16] = kernel(src(), R[i], R[16])[1]
+        R[SR] = kernel(src(), R[i], R[SR])[1]
         return K
 
     return cmpal
@@ -487,7 +472,7 @@ def h_move(ctx: _Ctx) -> Callable[[], int]:
                 def movel_rr() -> int:
                     v = R[j]
                     R[i] = v
-                    R[16] = (R[16] & 0xFF10) | (8 if v & S else (0 if v else 4))
+                    R[SR] = (R[SR] & KEEP_SYS_X) | (8 if v & S else (0 if v else 4))
                     return K
 
                 return movel_rr
@@ -495,7 +480,7 @@ def h_move(ctx: _Ctx) -> Callable[[], int]:
             def move_rr() -> int:
                 v = R[j] & M
                 R[i] = (R[i] & keep) | v
-                R[16] = (R[16] & 0xFF10) | (8 if v & S else (0 if v else 4))
+                R[SR] = (R[SR] & KEEP_SYS_X) | (8 if v & S else (0 if v else 4))
                 return K
 
             return move_rr
@@ -504,7 +489,7 @@ def h_move(ctx: _Ctx) -> Callable[[], int]:
         def move_xr() -> int:
             v = src()
             R[i] = (R[i] & keep) | v
-            R[16] = (R[16] & 0xFF10) | (8 if v & S else (0 if v else 4))
+            R[SR] = (R[SR] & KEEP_SYS_X) | (8 if v & S else (0 if v else 4))
             return K
 
         return move_xr
@@ -519,7 +504,7 @@ def h_move(ctx: _Ctx) -> Callable[[], int]:
 
             def move_rd() -> int:
                 v = R[j] & M
-                R[16] = (R[16] & 0xFF10) | (8 if v & S else (0 if v else 4))
+                R[SR] = (R[SR] & KEEP_SYS_X) | (8 if v & S else (0 if v else 4))
                 wr(R[ar] + disp, v)
                 return K
 
@@ -527,7 +512,7 @@ def h_move(ctx: _Ctx) -> Callable[[], int]:
 
         def move_xd() -> int:
             v = src()
-            R[16] = (R[16] & 0xFF10) | (8 if v & S else (0 if v else 4))
+            R[SR] = (R[SR] & KEEP_SYS_X) | (8 if v & S else (0 if v else 4))
             wr(R[ar] + disp, v)
             return K
 
@@ -537,7 +522,7 @@ def h_move(ctx: _Ctx) -> Callable[[], int]:
 
         def move_xc() -> int:
             v = src()
-            R[16] = (R[16] & 0xFF10) | (8 if v & S else (0 if v else 4))
+            R[SR] = (R[SR] & KEEP_SYS_X) | (8 if v & S else (0 if v else 4))
             wr(c, v)
             return K
 
@@ -547,7 +532,7 @@ def h_move(ctx: _Ctx) -> Callable[[], int]:
     def move_xm() -> int:
         v = src()
         a = addr()
-        R[16] = (R[16] & 0xFF10) | (8 if v & S else (0 if v else 4))
+        R[SR] = (R[SR] & KEEP_SYS_X) | (8 if v & S else (0 if v else 4))
         wr(a, v)
         return K
 
@@ -589,7 +574,7 @@ def h_moveq(ctx: _Ctx) -> Callable[[], int]:
 
     def moveq() -> int:
         R[i] = v
-        R[16] = (R[16] & 0xFF10) | flags
+        R[SR] = (R[SR] & KEEP_SYS_X) | flags
         return K
 
     return moveq
@@ -605,19 +590,19 @@ def h_unary(ctx: _Ctx) -> Callable[[], int]:
     cyc = timing.cycles(ins)
     M = MASK[nb]
     if h == "clr":
-        kernel = lambda s, d, sr: (0, (sr & 0xFF10) | ZF)  # noqa: E731
+        kernel = lambda s, d, sr: (0, (sr & KEEP_SYS_X) | ZF)
     elif h == "not":
         lk = _k_logic(nb, "eor")
-        kernel = lambda s, d, sr: lk(M, d, sr)  # noqa: E731
+        kernel = lambda s, d, sr: lk(M, d, sr)
     elif h == "neg":
         sk = _k_sub(nb)
-        kernel = lambda s, d, sr: sk(d, 0, sr)  # noqa: E731
+        kernel = lambda s, d, sr: sk(d, 0, sr)
     elif h == "negx":
         xk = _k_subx(nb)
-        kernel = lambda s, d, sr: xk(d, 0, sr)  # noqa: E731
+        kernel = lambda s, d, sr: xk(d, 0, sr)
     else:  # tst
         lk = _k_logic(nb, "or")
-        kernel = lambda s, d, sr: lk(0, d, sr)  # noqa: E731
+        kernel = lambda s, d, sr: lk(0, d, sr)
     return _rmw(ctx, dst, nb, kernel, lambda: 0, cyc, write=h != "tst")
 
 
@@ -632,7 +617,7 @@ def h_ext(ctx: _Ctx) -> Callable[[], int]:
         def extw() -> int:
             v = _sx(R[i] & 0xFF, 1) & 0xFFFF
             R[i] = (R[i] & 0xFFFF0000) | v
-            R[16] = (R[16] & 0xFF10) | _nz(v, 2)
+            R[SR] = (R[SR] & KEEP_SYS_X) | _nz(v, 2)
             return K
 
         return extw
@@ -640,7 +625,7 @@ def h_ext(ctx: _Ctx) -> Callable[[], int]:
     def extl() -> int:
         v = _sx(R[i] & 0xFFFF, 2) & M32
         R[i] = v
-        R[16] = (R[16] & 0xFF10) | _nz(v, 4)
+        R[SR] = (R[SR] & KEEP_SYS_X) | _nz(v, 4)
         return K
 
     return extl
@@ -656,7 +641,7 @@ def h_swap(ctx: _Ctx) -> Callable[[], int]:
         v = R[i]
         v = ((v << 16) | (v >> 16)) & M32
         R[i] = v
-        R[16] = (R[16] & 0xFF10) | _nz(v, 4)
+        R[SR] = (R[SR] & KEEP_SYS_X) | _nz(v, 4)
         return K
 
     return swap
@@ -696,7 +681,7 @@ def h_mul(ctx: _Ctx) -> Callable[[], int]:
         else:
             p = s * (R[i] & 0xFFFF)
         R[i] = p
-        R[16] = (R[16] & 0xFF10) | _nz(p, 4)
+        R[SR] = (R[SR] & KEEP_SYS_X) | _nz(p, 4)
         return nxt | ((tc(s) + ea) << 32)
 
     return mul
@@ -736,9 +721,9 @@ def h_div(ctx: _Ctx) -> Callable[[], int]:
         if ok:
             q &= 0xFFFF
             R[i] = ((rem & 0xFFFF) << 16) | q
-            R[16] = (R[16] & 0xFF10) | _nz(q, 2)
+            R[SR] = (R[SR] & KEEP_SYS_X) | _nz(q, 2)
         else:
-            R[16] = (R[16] & 0xFF10) | NF | VF
+            R[SR] = (R[SR] & KEEP_SYS_X) | NF | VF
         return nxt | ((tc(d, s) + ea) << 32)
 
     return div
@@ -772,7 +757,7 @@ def h_shift(ctx: _Ctx) -> Callable[[], int]:
                 sx = (x ^ S) - S
                 r = (sx >> n) & M32
                 R[i] = r
-                R[16] = ((R[16] & 0xFF00) | (0x11 if (sx >> (n - 1)) & 1 else 0)
+                R[SR] = ((R[SR] & KEEP_SYS) | (XC if (sx >> (n - 1)) & 1 else 0)
                          | (8 if r & S else (0 if r else 4)))
                 return K
 
@@ -783,7 +768,7 @@ def h_shift(ctx: _Ctx) -> Callable[[], int]:
                 x = R[i]
                 r = x >> n
                 R[i] = r
-                R[16] = (R[16] & 0xFF00) | (0x11 if (x >> (n - 1)) & 1 else 0) | (8 if r & S else (0 if r else 4))
+                R[SR] = (R[SR] & KEEP_SYS) | (XC if (x >> (n - 1)) & 1 else 0) | (8 if r & S else (0 if r else 4))
                 return K
 
             return lsrl_i
@@ -793,14 +778,14 @@ def h_shift(ctx: _Ctx) -> Callable[[], int]:
                 x = R[i]
                 r = (x << n) & M32
                 R[i] = r
-                R[16] = ((R[16] & 0xFF00) | (0x11 if (x >> (32 - n)) & 1 else 0)
+                R[SR] = ((R[SR] & KEEP_SYS) | (XC if (x >> (32 - n)) & 1 else 0)
                          | (8 if r & S else (0 if r else 4)))
                 return K
 
             return lsll_i
 
         def shift_i() -> int:
-            r, R[16] = kernel(R[i] & M, n, R[16])
+            r, R[SR] = kernel(R[i] & M, n, R[SR])
             R[i] = (R[i] & keep) | r
             return K
 
@@ -811,7 +796,7 @@ def h_shift(ctx: _Ctx) -> Callable[[], int]:
 
     def shift_r() -> int:
         n = R[j] & 63
-        r, R[16] = kernel(R[i] & M, n, R[16])
+        r, R[SR] = kernel(R[i] & M, n, R[SR])
         R[i] = (R[i] & keep) | r
         return nxt | base + (n << 33)
 
@@ -830,7 +815,7 @@ def h_scc(ctx: _Ctx) -> Callable[[], int]:
         Kf = _packed(ctx.nxt, timing.cycles(ins, taken=False))
 
         def scc_d() -> int:
-            if table[R[16] & 31]:
+            if table[R[SR] & CCR]:
                 R[i] |= 0xFF
                 return Kt
             R[i] &= 0xFFFFFF00
@@ -842,7 +827,7 @@ def h_scc(ctx: _Ctx) -> Callable[[], int]:
     addr = _addr_fn(ctx, dst, 1)
 
     def scc_m() -> int:
-        wb(addr(), 0xFF if table[R[16] & 31] else 0)
+        wb(addr(), 0xFF if table[R[SR] & CCR] else 0)
         return K
 
     return scc_m
@@ -862,12 +847,12 @@ def h_bcc(ctx: _Ctx) -> Callable[[], int]:
         odd = _odd_jump(target)
 
         def bcc_odd() -> int:
-            return odd() if table[R[16] & 31] else Kf
+            return odd() if table[R[SR] & CCR] else Kf
 
         return bcc_odd
 
     def bcc() -> int:
-        return Kt if table[R[16] & 31] else Kf
+        return Kt if table[R[SR] & CCR] else Kf
 
     return bcc
 
@@ -887,7 +872,7 @@ def h_dbcc(ctx: _Ctx) -> Callable[[], int]:
     Ke = _packed(ctx.nxt, timing.cycles(ins, expired=True))
 
     def dbcc() -> int:
-        if table[R[16] & 31]:
+        if table[R[SR] & CCR]:
             return Kc
         v = R[i]
         w = (v - 1) & 0xFFFF

@@ -64,12 +64,12 @@ from isa.blocks import _RN, BLOCK_MAX, _BlockInfo, block_entries, compile_block
 from isa.closures import HANDLERS, build_closure
 from isa.errors import AddressError, BusError, CPUFault, IllegalInstruction, IsaError, LimitExceeded
 from isa.memory import _CODE, _TOP, MapError, MapFacts, Memory, Region
-
-_SET_CODE_TABLE = bytes(b | _CODE for b in range(256))
-_PL = struct.Struct(">L").pack_into
 from isa.operands import Instruction
 from isa.program import Program
 from isa.semantics import CALL_SENTINEL, M32, _Fault, _format, _Stop
+
+_SET_CODE_TABLE = bytes(b | _CODE for b in range(256))
+_PL = struct.Struct(">L").pack_into
 
 __all__ = ["CPU", "RunResult", "HANDLERS", "MapError", "CALL_SENTINEL", "Region"]
 
@@ -123,7 +123,7 @@ class RegisterView:
 
     def __eq__(self, other: object) -> bool:
         try:
-            return list(self) == list(other)  # type: ignore[call-overload]
+            return list(self) == list(other)
         except TypeError:
             return NotImplemented
 
@@ -531,7 +531,7 @@ class CPU:
         ``"max_cycles"`` when ``stop_at_limit`` is true. Faults raise their :class:`~isa.errors.CPUFault`."""
         return RunResult(*self._run(max_instructions, max_cycles, until_pc, stop_at_limit))
 
-    def _run(self, max_instructions: int | None, max_cycles: int | None, until_pc: int | None,
+    def _run(self, max_instructions: int | None, max_cycles: int | None, until_pc: int | None,  # noqa: C901 - the interpreter's hot loop: block dispatch, limits and stop conditions inline for speed
              stop_at_limit: bool, n: int = 0, cyc: int = 0, start_pc: int | None = None
              ) -> tuple[str, int | None, int, int, int]:
         """:meth:`run` without building the :class:`RunResult`: (reason, trap number, instructions, clocks, PC).

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 from isa.errors import IllegalInstruction
 from isa.operands import IndexReg, Instruction, Mode, Operand, Size
@@ -51,7 +52,7 @@ _BUCKETS: list[list[Row]] = [[r for r in TABLE if (n << 12 ^ r.fixed_bits) & r.f
 
 _UNSET = object()
 #: Opcode word -> row or None, filled on first use by :func:`row_for`.
-_ROWS: list[object] = [_UNSET] * 65536
+_ROWS: list[Any] = [_UNSET] * 65536  # a Row, None (not in the subset) or _UNSET (not looked up yet)
 
 
 def row_for(word: int) -> Row | None:
@@ -65,7 +66,10 @@ def row_for(word: int) -> Row | None:
         if len(found) > 1:
             raise RuntimeError(f"opcode ${word:04X} matches both {found[0]} and {found[1]}")
         row = _ROWS[word] = found[0] if found else None
-    return row  # type: ignore[return-value]
+    return row
+
+
+OPCODE_MAP: list[Row | None]   # declared only: built by the module __getattr__ below on first access
 
 
 def __getattr__(name: str) -> object:
@@ -90,7 +94,7 @@ def _s32(v: int) -> int:
     return v - 0x100000000 if v & 0x80000000 else v
 
 
-def decode(fetch_word: Callable[[int], int], address: int) -> Decoded:
+def decode(fetch_word: Callable[[int], int], address: int) -> Decoded:  # noqa: C901 - one branch per extension-word and operand kind of the table's rows
     """Decode the instruction at ``address`` (even, 24-bit), reading words via ``fetch_word(addr) -> 0..0xFFFF``.
 
     Raises :class:`~isa.errors.IllegalInstruction` (with ``pc=address``) for an opcode word outside the subset.
@@ -185,8 +189,8 @@ def decode(fetch_word: Callable[[int], int], address: int) -> Decoded:
                     pc += 2
                 operands[i] = Operand(mode, 0, value)
     assert all(op is not None for op in operands)
-    instr = Instruction(row.canonical_mnemonic(cond if row.conditional else None), size,  # type: ignore[arg-type]
-                        tuple(operands))  # type: ignore[arg-type]
+    instr = Instruction(row.canonical_mnemonic(cond if row.conditional else None), size,  # type: ignore[arg-type]  # size/operands are complete here for the row (checked by the table's tests)
+                        tuple(operands))  # type: ignore[arg-type]  # the operand tuple is complete for the row
     return Decoded(instr, row, pc - address, cond)
 
 

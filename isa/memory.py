@@ -156,7 +156,7 @@ class Memory:
             fl[r.start : r.start + r.size] = fl[r.start : r.start + r.size].translate(_CLEAR_WRITTEN_TABLE)
 
     # ------------------------------------------------------------------------------------------ program access
-    def _build_accessors(self) -> None:
+    def _build_accessors(self) -> None:  # noqa: C901 - builds each size's fast accessor for each region kind inline (hot path)
         m = self.mem
         fl = self.flags
         f16, f32 = self.flags16, self.flags32

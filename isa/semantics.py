@@ -22,6 +22,16 @@ MASK = {1: 0xFF, 2: 0xFFFF, 4: M32}
 SIGN = {1: 0x80, 2: 0x8000, 4: 0x80000000}
 BITS = {1: 8, 2: 16, 4: 32}
 XF, NF, ZF, VF, CF = 0x10, 0x08, 0x04, 0x02, 0x01
+#: The status register's index in the register file ``R`` (D0-D7, A0-A7, SR: :mod:`isa.closures`).
+SR = 16
+#: The condition-code bits of the SR (X N Z V C).
+CCR = 0x1F
+#: SR masks that keep the system byte (``KEEP_SYS``), or the system byte and X (``KEEP_SYS_X``: the instructions
+#: that leave X alone), while the flags are rewritten.
+KEEP_SYS = 0xFF00
+KEEP_SYS_X = 0xFF10
+#: X and C together: a carry or borrow that extends (ADD/SUB/NEG set both, Musashi's FLAG_X = FLAG_C).
+XC = XF | CF
 
 #: Return address pushed by :meth:`isa.cpu.CPU.call`; odd, so it can never be the address of a real instruction.
 CALL_SENTINEL = 0xFFFFFF
@@ -80,9 +90,9 @@ def _k_add(nb: int) -> Callable[[int, int, int], tuple[int, int]]:
     def k(s: int, d: int, sr: int) -> tuple[int, int]:
         r = s + d
         rm = r & M
-        f = sr & 0xFF00
+        f = sr & KEEP_SYS
         if r > M:
-            f |= 0x11
+            f |= XC
         if rm & S:
             f |= 8
         elif not rm:
@@ -96,8 +106,8 @@ def _k_add(nb: int) -> Callable[[int, int, int], tuple[int, int]]:
 
 def _k_sub(nb: int, keep_x: bool = False) -> Callable[[int, int, int], tuple[int, int]]:
     M, S = MASK[nb], SIGN[nb]
-    keep = 0xFF10 if keep_x else 0xFF00
-    cbits = 0x01 if keep_x else 0x11
+    keep = KEEP_SYS_X if keep_x else KEEP_SYS
+    cbits = CF if keep_x else XC
 
     def k(s: int, d: int, sr: int) -> tuple[int, int]:
         r = d - s
@@ -126,7 +136,7 @@ def _k_addx(nb: int) -> Callable[[int, int, int], tuple[int, int]]:
         if rm:
             f &= ~4
         if r > M:
-            f |= 0x11
+            f |= XC
         if rm & S:
             f |= 8
         if (s ^ rm) & (d ^ rm) & S:
@@ -146,7 +156,7 @@ def _k_subx(nb: int) -> Callable[[int, int, int], tuple[int, int]]:
         if rm:
             f &= ~4
         if r < 0:
-            f |= 0x11
+            f |= XC
         if rm & S:
             f |= 8
         if (s ^ d) & (d ^ rm) & S:
@@ -163,19 +173,19 @@ def _k_logic(nb: int, op: str) -> Callable[[int, int, int], tuple[int, int]]:
 
         def k(s: int, d: int, sr: int) -> tuple[int, int]:
             r = s & d
-            return r, (sr & 0xFF10) | (8 if r & S else 0) | (0 if r else 4)
+            return r, (sr & KEEP_SYS_X) | (8 if r & S else 0) | (0 if r else 4)
 
     elif op == "or":
 
         def k(s: int, d: int, sr: int) -> tuple[int, int]:
             r = s | d
-            return r, (sr & 0xFF10) | (8 if r & S else 0) | (0 if r else 4)
+            return r, (sr & KEEP_SYS_X) | (8 if r & S else 0) | (0 if r else 4)
 
     else:
 
         def k(s: int, d: int, sr: int) -> tuple[int, int]:
             r = s ^ d
-            return r, (sr & 0xFF10) | (8 if r & S else 0) | (0 if r else 4)
+            return r, (sr & KEEP_SYS_X) | (8 if r & S else 0) | (0 if r else 4)
 
     return k
 
@@ -194,7 +204,7 @@ _KERNELS: dict[str, Callable[[int], Callable[[int, int, int], tuple[int, int]]]]
 
 # ------------------------------------------------------------------------------------------------------------------
 # Shift kernels: k(x, n, sr) -> (result, new sr); x unsigned nb-byte value, n >= 0 the count.
-def _k_shift(kind: str, nb: int) -> Callable[[int, int, int], tuple[int, int]]:
+def _k_shift(kind: str, nb: int) -> Callable[[int, int, int], tuple[int, int]]:  # noqa: C901 - one branch per shift/rotate kind (ASx, LSx, ROx, ROXx), as Musashi
     W, M, S = BITS[nb], MASK[nb], SIGN[nb]
 
     def nz(r: int) -> int:
@@ -204,7 +214,7 @@ def _k_shift(kind: str, nb: int) -> Callable[[int, int, int], tuple[int, int]]:
 
         def k(x: int, n: int, sr: int) -> tuple[int, int]:
             if n == 0:
-                return x, (sr & 0xFF10) | nz(x)
+                return x, (sr & KEEP_SYS_X) | nz(x)
             if n < W:
                 r = (x << n) & M
                 c = (x >> (W - n)) & 1
@@ -214,13 +224,13 @@ def _k_shift(kind: str, nb: int) -> Callable[[int, int, int], tuple[int, int]]:
                 r = 0
                 c = x & 1 if n == W else 0
                 v = x != 0
-            return r, (sr & 0xFF00) | (0x11 if c else 0) | nz(r) | (2 if v else 0)
+            return r, (sr & KEEP_SYS) | (XC if c else 0) | nz(r) | (2 if v else 0)
 
     elif kind == "asr":
 
         def k(x: int, n: int, sr: int) -> tuple[int, int]:
             if n == 0:
-                return x, (sr & 0xFF10) | nz(x)
+                return x, (sr & KEEP_SYS_X) | nz(x)
             sx = (x ^ S) - S
             if n < W:
                 r = (sx >> n) & M
@@ -228,49 +238,49 @@ def _k_shift(kind: str, nb: int) -> Callable[[int, int, int], tuple[int, int]]:
             else:
                 r = M if sx < 0 else 0
                 c = 1 if sx < 0 else 0
-            return r, (sr & 0xFF00) | (0x11 if c else 0) | nz(r)
+            return r, (sr & KEEP_SYS) | (XC if c else 0) | nz(r)
 
     elif kind == "lsl":
 
         def k(x: int, n: int, sr: int) -> tuple[int, int]:
             if n == 0:
-                return x, (sr & 0xFF10) | nz(x)
+                return x, (sr & KEEP_SYS_X) | nz(x)
             if n <= W:
                 r = (x << n) & M
                 c = (x >> (W - n)) & 1
             else:
                 r = c = 0
-            return r, (sr & 0xFF00) | (0x11 if c else 0) | nz(r)
+            return r, (sr & KEEP_SYS) | (XC if c else 0) | nz(r)
 
     elif kind == "lsr":
 
         def k(x: int, n: int, sr: int) -> tuple[int, int]:
             if n == 0:
-                return x, (sr & 0xFF10) | nz(x)
+                return x, (sr & KEEP_SYS_X) | nz(x)
             if n <= W:
                 r = x >> n
                 c = (x >> (n - 1)) & 1
             else:
                 r = c = 0
-            return r, (sr & 0xFF00) | (0x11 if c else 0) | nz(r)
+            return r, (sr & KEEP_SYS) | (XC if c else 0) | nz(r)
 
     elif kind == "rol":
 
         def k(x: int, n: int, sr: int) -> tuple[int, int]:
             if n == 0:
-                return x, (sr & 0xFF10) | nz(x)
+                return x, (sr & KEEP_SYS_X) | nz(x)
             m = n % W
             r = ((x << m) | (x >> (W - m))) & M
-            return r, (sr & 0xFF10) | (r & 1) | nz(r)
+            return r, (sr & KEEP_SYS_X) | (r & 1) | nz(r)
 
     elif kind == "ror":
 
         def k(x: int, n: int, sr: int) -> tuple[int, int]:
             if n == 0:
-                return x, (sr & 0xFF10) | nz(x)
+                return x, (sr & KEEP_SYS_X) | nz(x)
             m = n % W
             r = ((x >> m) | (x << (W - m))) & M
-            return r, (sr & 0xFF10) | (1 if r & S else 0) | nz(r)
+            return r, (sr & KEEP_SYS_X) | (1 if r & S else 0) | nz(r)
 
     elif kind in ("roxl", "roxr"):
         W1 = W + 1
@@ -281,14 +291,14 @@ def _k_shift(kind: str, nb: int) -> Callable[[int, int, int], tuple[int, int]]:
             xb = (sr >> 4) & 1
             m = n % W1
             if m == 0:  # includes n == 0: C = X, X unchanged
-                return x, (sr & 0xFF10) | xb | nz(x)
+                return x, (sr & KEEP_SYS_X) | xb | nz(x)
             v = (xb << W) | x
             if left:
                 v = ((v << m) | (v >> (W1 - m))) & M1
             else:
                 v = ((v >> m) | (v << (W1 - m))) & M1
             r = v & M
-            return r, (sr & 0xFF00) | (0x11 if v >> W else 0) | nz(r)
+            return r, (sr & KEEP_SYS) | (XC if v >> W else 0) | nz(r)
 
     else:  # pragma: no cover - table and handlers are checked to agree
         raise KeyError(kind)
@@ -332,7 +342,7 @@ def _format(instr: Instruction) -> str:
         from isa.formatter import format_instruction
 
         return format_instruction(instr)
-    except Exception:  # formatter missing or unable: fall back to a plain rendering
+    except Exception:  # noqa: BLE001 - formatter missing or unable: fall back to a plain rendering
         ops = ", ".join(f"{o.mode.value}:{o.reg}:{o.value}" for o in instr.operands)
         size = f".{instr.size.value}" if instr.size else ""
         return f"{instr.mnemonic}{size} {ops}".strip()

@@ -176,7 +176,7 @@ def _ea(mode: Mode, size: Size | None, ext: int, draw: Callable[[int, int], int]
     if mode is Mode.PCINDEX:
         return Operand(mode, 0, (ext + draw(*_s(8))) & 0xFFFFFF, _index(draw))
     if mode is Mode.IMM:
-        bits = {Size.B: 8, Size.W: 16, Size.L: 32}.get(size, 16)  # type: ignore[arg-type]
+        bits = {Size.B: 8, Size.W: 16, Size.L: 32}.get(size, 16)  # type: ignore[arg-type]  # size None (unsized) falls to the default 16
         return Operand(mode, 0, draw(*_s(bits)))
     raise ValueError(f"mode {mode} is not an EA mode")
 

@@ -266,7 +266,7 @@ class Row:
 
 def _std(mn: str, pattern: str, operands: tuple[OperandSpec, ...], handler: str | None = None, **kw: object) -> Row:
     """A B/W/L row with the size in the standard 2-bit field."""
-    return Row(mn, pattern, (Size.B, Size.W, Size.L), operands, handler or mn, size_codes=_STD, **kw)  # type: ignore[arg-type]
+    return Row(mn, pattern, (Size.B, Size.W, Size.L), operands, handler or mn, size_codes=_STD, **kw)  # type: ignore[arg-type]  # **kw carries the optional Row fields
 
 
 _BCC_CONDS = tuple(CONDITION_NAMES[2:])
@@ -410,7 +410,7 @@ def matches(row: Row, word: int) -> bool:
         if spec.kind == "ea":
             assert spec.mode_field and spec.reg_field
             mode = ea_mode(row.get(word, spec.mode_field), row.get(word, spec.reg_field))
-            if mode is None or mode not in row.allowed_modes(i, size):  # type: ignore[arg-type]
+            if mode is None or mode not in row.allowed_modes(i, size):  # type: ignore[arg-type]  # size None is accepted by allowed_modes for unsized rows
                 return False
         elif spec.kind == "branch" and spec.data_field and row.get(word, spec.data_field) == 0:
             return False

@@ -144,7 +144,7 @@ def shift_count_cycles(size: Size | None, count: int) -> int:
     return (8 if size is Size.L else 6) + 2 * count
 
 
-def cycles(
+def cycles(  # noqa: C901 - one branch per instruction timing rule of the 68000 tables
     instr: Instruction,
     *,
     taken: bool = True,

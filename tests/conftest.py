@@ -1,5 +1,5 @@
 """pytest configuration: load the hypothesis profile named by ``HYPOTHESIS_PROFILE`` (default ``ci``), and keep
-hypothesis's per-test overhead constant (docs/testing.md "How the suite is kept fast").
+hypothesis's per-test overhead constant (docs/history/testing-rounds.md).
 
 Two overheads of hypothesis 6.1xx grow with the suite, not with what a test checks:
 
@@ -16,7 +16,7 @@ Two overheads of hypothesis 6.1xx grow with the suite, not with what a test chec
 It also prints the closing lines tests record (the Cortex-M runs', :func:`pytest_terminal_summary`), loads
 the compiled model kernels in every test process (below), compiles the model's two numba drivers once before the
 xdist workers start when their cache is cold (:func:`pytest_configure`), and runs the longest files first and the
-thousands of millisecond oracle tests last (:func:`pytest_collection_modifyitems`): docs/testing.md, third round.
+thousands of millisecond oracle tests last (:func:`pytest_collection_modifyitems`): docs/history/testing-rounds.md, third round.
 """
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ def _end_worker_now() -> None:
     """An xdist worker's last exit handler: flush and leave with ``os._exit(0)``, skipping the interpreter's final
     teardown. By then the worker has reported every test and pytest has unconfigured (its unraisable-exception
     check included); what is left is freeing a heap of hundreds of MB (compiled blocks, numba, 16 MiB CPU maps),
-    measured at 2.5-3 s after a full run, while the controller waits for both workers (docs/testing.md, sixth
+    measured at 2.5-3 s after a full run, while the controller waits for both workers (docs/history/testing-rounds.md, sixth
     round). Registered first thing in this module, before numba and the tests are imported, so every exit handler
     registered later (llvmlite's and numba's shutdown flags, ``weakref.finalize``'s, which removes temporary
     directories still alive, multiprocessing's) runs before it; in a worker nothing registers one earlier (checked
@@ -54,9 +54,9 @@ if os.environ.get("PYTEST_XDIST_WORKER"):
     atexit.register(_end_worker_now)
 
 
-from tests.support.profiles import PROFILE  # noqa: E402
+from tests.support.profiles import PROFILE  # noqa: E402 - after the xdist worker exit hook is registered
 
-from firmware_model.runtime.blas_threads import single_threaded_blas  # noqa: E402
+from firmware_model.runtime.blas_threads import single_threaded_blas  # noqa: E402 - after the xdist worker exit hook is registered
 
 # One BLAS thread in this process, the xdist workers and the CLI subprocesses the tests start (they inherit it):
 # an idle OpenBLAS thread busy-waits after each threaded call and takes the other worker's core
@@ -70,7 +70,7 @@ settings.load_profile(PROFILE)
 # AUTO_PURE_MAX_SAMPLES), and the in-process model tests are meant to exercise what a long run uses. (The two
 # engines are compared in tests/model/test_kernels.py; tests/model/test_engine_auto.py checks the rule itself in
 # fresh interpreters.)
-from firmware_model.model import kernels as _model_kernels  # noqa: E402,F401
+from firmware_model.model import kernels as _model_kernels  # noqa: E402 - after single_threaded_blas(): numpy must not load first
 
 
 def _memo_inspect() -> types.ModuleType:
@@ -86,7 +86,7 @@ def _memo_inspect() -> types.ModuleType:
             return memo[obj]
         except (KeyError, TypeError):
             pass
-        src = inspect.getsource(obj)  # type: ignore[arg-type]
+        src = inspect.getsource(obj)  # type: ignore[arg-type]  # obj is a function or class here
         try:
             memo[obj] = src
         except TypeError:  # unhashable: not memoized
@@ -95,7 +95,7 @@ def _memo_inspect() -> types.ModuleType:
 
     proxy = types.ModuleType("inspect")
     proxy.__dict__.update(inspect.__dict__)
-    proxy.getsource = getsource  # type: ignore[attr-defined]
+    proxy.getsource = getsource  # type: ignore[attr-defined]  # patching inspect's getsource on the proxy
     return proxy
 
 
@@ -220,7 +220,7 @@ def case_seed(item: pytest.Item) -> int | None:
 
 
 @pytest.hookimpl(hookwrapper=True, tryfirst=True)
-def pytest_runtest_call(item: pytest.Item):  # type: ignore[no-untyped-def]
+def pytest_runtest_call(item: pytest.Item):
     fn = getattr(getattr(item, "obj", None), "__func__", getattr(item, "obj", None))
     own = getattr(fn, "_hypothesis_internal_use_settings", None)
     own_seed = getattr(fn, "_hypothesis_internal_use_seed", None)
@@ -236,7 +236,7 @@ def pytest_runtest_call(item: pytest.Item):  # type: ignore[no-untyped-def]
             fn._hypothesis_internal_use_seed = own_seed
 
 
-def pytest_terminal_summary(terminalreporter, exitstatus, config):  # type: ignore[no-untyped-def]
+def pytest_terminal_summary(terminalreporter, exitstatus, config):
     """Print the closing lines that tests recorded (``record_property("closing_line", ...)``: the Cortex-M runs'
     ``cortex-m0-Os: 673 passed, 0 failed``), in test order, passed or failed; xdist carries them to this process."""
     lines = []

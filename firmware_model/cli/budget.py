@@ -18,7 +18,7 @@ from firmware_model.spec.config import load_config
 DEFAULT_PROGRAMS: tuple[str, ...] = ("recursive", "kalman_baro", "kalman_accel")
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]  # argparse's private class is not generic at runtime
     """Add the ``budget`` subcommand."""
     p = subparsers.add_parser("budget", help="cycle/RAM/ROM/headroom budget of firmware builds (Markdown + JSON)",
                               description="Run each build on the emulated 68000 over the synthetic flight and "

@@ -39,7 +39,7 @@ SENSORS: tuple[str, ...] = ("adc16", "adc12", "pascal")
 TUNINGS: tuple[str, ...] = ("default", "recommended")
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]  # argparse's private class is not generic at runtime
     """Add the ``check-port`` subcommand."""
     p = subparsers.add_parser("check-port", help="check a team's C port against the bit-exact model (shrunk "
                                                  "differences as C unit tests)",

@@ -14,7 +14,7 @@ from firmware_model.runtime.output import staged_folder
 from firmware_model.runtime.progress import Progress
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]  # argparse's private class is not generic at runtime
     """Add the ``evaluate`` subcommand."""
     p = subparsers.add_parser("evaluate", help="the apogee table over flights (Markdown, CSV, JSON)",
                               description="Run every method over every flight; per flight the reference apogee "

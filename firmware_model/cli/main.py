@@ -35,6 +35,7 @@ COMMANDS: dict[str, str] = {
     "design": "firmware_model.cli.design",
     "compare": "firmware_model.cli.compare",
     "budget": "firmware_model.cli.budget",
+    "inputs": "firmware_model.cli.inputs",
     "vectors": "firmware_model.cli.vectors",
     "simulate": "firmware_model.cli.simulate",
     "run": "firmware_model.cli.run",
@@ -102,7 +103,7 @@ class _GuardedStdout:
 
     def write(self, text: str) -> int:
         try:
-            return self._stream.write(text)  # type: ignore[attr-defined]
+            return self._stream.write(text)  # type: ignore[attr-defined]  # the wrapped stream is typed as object
         except BrokenPipeError:
             raise
         except OSError as exc:
@@ -112,7 +113,7 @@ class _GuardedStdout:
 
     def flush(self) -> None:
         try:
-            self._stream.flush()  # type: ignore[attr-defined]
+            self._stream.flush()  # type: ignore[attr-defined]  # the wrapped stream is typed as object
         except BrokenPipeError:
             raise
         except OSError as exc:
@@ -160,7 +161,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     output.reset_run_state()
     real_stdout = sys.stdout
-    sys.stdout = _GuardedStdout(real_stdout)  # type: ignore[assignment]
+    sys.stdout = _GuardedStdout(real_stdout)  # type: ignore[assignment]  # a proxy of sys.stdout, not a TextIO subclass
     try:
         with output.interruptible():
             _declare_out_early(sys.argv[1:] if argv is None else argv, output)

@@ -19,7 +19,7 @@ from firmware_model.runtime.progress import Progress
 from firmware_model.runtime.engine import parse_scheduler
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]  # argparse's private class is not generic at runtime
     """Add the ``montecarlo`` subcommand."""
     p = subparsers.add_parser(
         "montecarlo", help="every method over N dispersed simulated flights: P(early), P(missed), with intervals",
@@ -55,8 +55,8 @@ def _progress(show: bool):
         if "bar" not in state:
             state["start"] = done
             state["bar"] = Progress(max(n - done, 1), "montecarlo", enabled=show, unit="flights", eta=True)
-        start = int(state["start"])  # type: ignore[arg-type]
-        state["bar"].update(done - start, n - start)  # type: ignore[union-attr]
+        start = int(state["start"])  # type: ignore[arg-type]  # state holds the start count and the progress bar under str keys
+        state["bar"].update(done - start, n - start)  # type: ignore[union-attr]  # state['bar'] is the Progress set just above
 
     return progress
 

@@ -23,7 +23,7 @@ from firmware_model.runtime.output import write_file
 from firmware_model.spec.build_constants import build_constants
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]  # argparse's private class is not generic at runtime
     """Add the ``plot`` subcommand."""
     p = subparsers.add_parser("plot", help="PNG of a run: raw/filtered altitude, velocity, events (--zoom: apogee)",
                               description="RUN is a CSV written by `fwemu run`, or a flight (file or sim:NAME), "

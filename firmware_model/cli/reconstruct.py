@@ -21,7 +21,7 @@ from firmware_model.runtime.errors import UserError
 from firmware_model.runtime.output import staged_folder
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]  # argparse's private class is not generic at runtime
     p = subparsers.add_parser("reconstruct", help="UKF + smoother reconstruction of one flight (CSV, JSON, PNG)",
                               description=__doc__.split("\n\n")[0].replace("``", ""))
     p.add_argument("flight", metavar="FLIGHT", help="a flight log (AltosUI CSV, CATS pair, ...) or sim:NAME")

@@ -39,7 +39,7 @@ from firmware_model.spec.config import BuildConfig
 from firmware_model.spec.tuning import TUNINGS, describe_tuning, tuning_fields
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]  # argparse's private class is not generic at runtime
     """Add the ``run`` subcommand."""
     p = subparsers.add_parser(
         "run", help="replay a flight through a firmware build on the emulated 68000 (per-sample CSV + summary)",

@@ -17,7 +17,7 @@ from firmware_model.runtime.errors import UserError
 from firmware_model.runtime.output import write_file
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]  # argparse's private class is not generic at runtime
     """Add the ``simulate`` subcommand."""
     p = subparsers.add_parser("simulate", help="write a simulated flight (generic CSV with truth columns)",
                               description="--scenario NAME (see --list), or a 1-DOF rocket: --motor, --dry-mass, "

@@ -15,7 +15,7 @@ from firmware_model.runtime.errors import UserError
 from firmware_model.runtime.output import staged_folder
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]  # argparse's private class is not generic at runtime
     """Add the ``sweep`` subcommand."""
 
     p = subparsers.add_parser("sweep", help="apogee error against R/q (Schultz 2002 Figure 10) and k: table + PNG",

@@ -193,7 +193,7 @@ def _assemble_cached(program: str, equates: tuple[tuple[str, int], ...], stamp: 
 
 def _symbol(prog: object, name: str, program: str) -> object:
     try:
-        return prog.symbol(name)  # type: ignore[attr-defined]
+        return prog.symbol(name)  # type: ignore[attr-defined]  # isa's Program/CPU are typed as object here (isa stays an optional import)
     except KeyError:
         raise UserError(f"firmware program {program!r} does not define the symbol {name!r}") from None
 
@@ -225,16 +225,16 @@ def _describe(name: str, consts: FirmwareConstants, prog: object, sources: tuple
     variables: dict[str, tuple[int, int]] = {}
     for word, size in STATE_WORDS[name]:
         sym = _symbol(prog, word, name)
-        address = int(sym.address)  # type: ignore[attr-defined]
+        address = int(sym.address)  # type: ignore[attr-defined]  # isa's Program/CPU are typed as object here (isa stays an optional import)
         if not (RAM_START <= address and address + size <= STACK_TOP) or address % 2:
             raise UserError(f"firmware program {name!r}: state word {word} at ${address:06X} is not an even RAM "
                             f"address in ${RAM_START:06X}-${STACK_TOP - 1:06X}")
-        if sym.size and sym.size < size:  # type: ignore[attr-defined]
+        if sym.size and sym.size < size:  # type: ignore[attr-defined]  # isa's Program/CPU are typed as object here (isa stays an optional import)
             raise UserError(f"firmware program {name!r}: state word {word} has {sym.size} bytes, needs {size}")
         variables[word] = (address, size)
     rom = bytearray()
     ram_end = RAM_START
-    for seg in prog.segments:  # type: ignore[attr-defined]
+    for seg in prog.segments:  # type: ignore[attr-defined]  # isa's Program/CPU are typed as object here (isa stays an optional import)
         end = seg.origin + len(seg.data)
         if seg.bss or RAM_START <= seg.origin < STACK_TOP:
             if not (RAM_START <= seg.origin and end <= STACK_TOP):
@@ -253,8 +253,8 @@ def _describe(name: str, consts: FirmwareConstants, prog: object, sources: tuple
         program=prog,
         sources=sources,
         source_sha256=digest,
-        init_address=int(init.address),  # type: ignore[attr-defined]
-        step_address=int(step.address),  # type: ignore[attr-defined]
+        init_address=int(init.address),  # type: ignore[attr-defined]  # isa's Program/CPU are typed as object here (isa stays an optional import)
+        step_address=int(step.address),  # type: ignore[attr-defined]  # isa's Program/CPU are typed as object here (isa stays an optional import)
         variables=MappingProxyType(variables),
         rom_image=bytes(rom),
         ram_bytes=ram_end - RAM_START,
@@ -276,7 +276,7 @@ def write_inputs(cpu: object, pascal: bool, baro: int, acc: int) -> None:
     """Write one sample into the input registers of docs/firmware-spec.md §2: ``baro`` into ``BARO_ADC`` (16-bit
     word) or, for a pascal build, into ``BARO_PA`` (32-bit long, two's complement); ``acc`` into ``ACCEL_ADC``."""
     if pascal:
-        cpu.write(BARO_PA, int(baro) & 0xFFFFFFFF, 4)  # type: ignore[attr-defined]
+        cpu.write(BARO_PA, int(baro) & 0xFFFFFFFF, 4)  # type: ignore[attr-defined]  # isa's Program/CPU are typed as object here (isa stays an optional import)
     else:
-        cpu.write(BARO_ADC, int(baro), 2)  # type: ignore[attr-defined]
-    cpu.write(ACCEL_ADC, int(acc) & 0xFFFF, 2)  # type: ignore[attr-defined]
+        cpu.write(BARO_ADC, int(baro), 2)  # type: ignore[attr-defined]  # isa's Program/CPU are typed as object here (isa stays an optional import)
+    cpu.write(ACCEL_ADC, int(acc) & 0xFFFF, 2)  # type: ignore[attr-defined]  # isa's Program/CPU are typed as object here (isa stays an optional import)

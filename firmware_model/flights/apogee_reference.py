@@ -324,7 +324,7 @@ def reference_apogee(record: FlightRecord) -> ReferenceApogee:
 
 
 # ------------------------------------------------------------------------------------------------ a table
-def reference_table(paths: list[str], format: str | None = None) -> str:  # noqa: A002
+def reference_table(paths: list[str], format: str | None = None) -> str:
     """The Markdown table of docs/flights.md for flight logs ``paths``: reference apogee, its uncertainty,
     altitude, fitted curvature, spikes rejected, and the log's own computer's apogee against it where the log has
     one (AltOS's first drogue state, an RRC3's Drogue event, CATS's EV_APOGEE, ...: ``FlightRecord.own_apogee``).

@@ -238,10 +238,6 @@ def _running_median(x: np.ndarray, n: int) -> np.ndarray:
     return np.median(win, axis=1)
 
 
-def _at(t: np.ndarray, y: np.ndarray, x: float) -> float:
-    return float(np.interp(x, t, y))
-
-
 def measure(tr: Trace, traj: Trajectory) -> list[Signature]:
     """The signatures of one barometer (see the module doc)."""
     t, m = tr.time_s, traj.mach

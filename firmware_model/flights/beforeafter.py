@@ -141,7 +141,7 @@ def main(argv: list[str]) -> int:
             before, after = rescore(before), rescore(after)
         print(table(before, after))
     except BrokenPipeError:            # `... | head`: the reader is gone
-        sys.stdout = None              # type: ignore[assignment]  (no second failure at the final flush)
+        sys.stdout = None              # type: ignore[assignment]  # no second failure at the final flush
         return 0
     except UserError as exc:
         print(f"error: {exc}", file=sys.stderr)

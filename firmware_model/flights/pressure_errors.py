@@ -315,8 +315,3 @@ def real_flight_errors(record: FlightRecord, mach: np.ndarray | None = None,
               "max_dip_mach": float(mach[i_min]), "peak_mach": float(np.max(mach))}
     return _with_effect(record, out, effect)
 
-
-def baro_error_altitude_m(record: FlightRecord, truth_pressure_pa: np.ndarray) -> np.ndarray:
-    """The barometric altitude error (m) of ``record`` against the error-free pressure ``truth_pressure_pa``."""
-    p = np.asarray(record.pressure_pa, dtype=np.float64)
-    return np.asarray(atm.altitude_m(p)) - np.asarray(atm.altitude_m(np.asarray(truth_pressure_pa)))

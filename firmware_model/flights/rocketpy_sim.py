@@ -159,7 +159,7 @@ def simulate_rocketpy_with_mach(rocket: Rocket, launch: Launch = Launch(), name:
     acc = np.stack([np.asarray(fl.ax(t_fl)), np.asarray(fl.ay(t_fl)), np.asarray(fl.az(t_fl))])
     spec = (acc[0] * axis[0] + acc[1] * axis[1] + (acc[2] + G0) * axis[2])
     earth_r = float(env.earth_radius)
-    geo = lambda h: earth_r * h / (earth_r + h)  # noqa: E731
+    geo = lambda h: earth_r * h / (earth_r + h)
     site = launch.site_altitude_m
     alt = geo(z_asl) - geo(site)
     pressure = np.asarray(atm.pressure_pa(geo(z_asl)), dtype=np.float64)
@@ -167,7 +167,7 @@ def simulate_rocketpy_with_mach(rocket: Rocket, launch: Launch = Launch(), name:
     p0 = float(atm.pressure_pa(geo(site)))
     pad_spec = G0 * sin(radians(inclination_deg))
     t_rec = (np.arange(n_pad + t_fl.size) - n_pad) / hz
-    cat = lambda pad_value, x: np.concatenate([np.full(n_pad, pad_value), x])  # noqa: E731
+    cat = lambda pad_value, x: np.concatenate([np.full(n_pad, pad_value), x])
     burn_i = int(round(rocket.motor.burn_time_s * hz))
     vmag = np.sqrt(at(4) ** 2 + at(5) ** 2 + vz ** 2)
     summary = {
@@ -212,5 +212,5 @@ def _rocketpy_version() -> str:
     try:
         from importlib.metadata import version
         return version("rocketpy")
-    except Exception:  # pragma: no cover
+    except Exception:  # pragma: no cover  # noqa: BLE001 - any failure to read the metadata: version unknown
         return "unknown"

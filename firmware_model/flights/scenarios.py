@@ -376,7 +376,7 @@ def _simulate_physics(s: Scenario) -> tuple[FlightRecord, np.ndarray]:
         if path.exists():
             try:
                 return load_record(path)
-            except Exception:  # a damaged cache entry is recomputed
+            except Exception:  # noqa: BLE001 - a damaged cache entry is recomputed
                 pass
         rec, mach = simulate_rocketpy_with_mach(s.build_rocket(), s.build_launch(), name=s.name, **s.rocketpy)
         try:

@@ -600,7 +600,7 @@ def rocket_from_unit(u: Sequence[float], box: Box = Box(), name: str = "random")
     diameter, cd scale, drogue; the 8th is the site altitude, used by the caller). None if the box has no mass
     for that motor scaling."""
     motor_name = box.motors[min(int(u[0] * len(box.motors)), len(box.motors) - 1)]
-    lerp = lambda r, x: r[0] + (r[1] - r[0]) * x  # noqa: E731
+    lerp = lambda r, x: r[0] + (r[1] - r[0]) * x
     motor = load_motor(motor_name).scaled(lerp(box.thrust_scale, u[1]), lerp(box.time_scale, u[2]))
     mb = mass_bounds(motor, box.mach[0], box.mach[1], box.min_thrust_to_weight)
     if mb is None:

@@ -245,7 +245,7 @@ def _mirror_kalman(consts: "FirmwareConstants", g: dict[str, float], adc: np.nda
     return init, out
 
 
-def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: bool, h_all: np.ndarray,
+def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: bool, h_all: np.ndarray,  # noqa: C901 - mirrors the firmware's Kalman step (spec §6) branch for branch
                        baro_ok_all: np.ndarray, acc: np.ndarray) -> list[tuple[float, ...]]:
     """The Kalman mirror of ONE stream on Python floats (C doubles): the rows of the words in ``word_names`` order.
 
@@ -273,7 +273,7 @@ def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: 
     acc0 = accs[0]
     cal = rej = neg = ev = phase = cst = dly = lock = clp = 0
     e0 = 0.0
-    rows = []
+    rows: list[tuple[float, ...]] = []
     for h, baro_ok, a in zip(hs, oks, accs):
         ev = ev & LATCHED_EVENTS
         if not baro_ok:
@@ -580,7 +580,7 @@ def kalman_error_bound(consts: "FirmwareConstants", e1_max: float, e2_max: float
     Kf = np.array([[consts.float_gains[c[i]] for c in cols] for i in range(3)])
     Kq = np.array([[consts.gains[c[i]].value for c in cols] for i in range(3)])
     Lu, Lr = _closed_loop_sums(K, tuple(map(tuple, Kf)))
-    rho = lambda s: rounding_error_bound(s, mode)  # noqa: E731
+    rho = lambda s: rounding_error_bound(s, mode)
     u_bar = np.array([rho(K) + rho(2 * K + 1), rho(K), 0.0])
     mul_round = np.array([sum(rho(consts.gains[c[i]].s) for c in cols) for i in range(3)])
     dK = np.abs(Kq - Kf)
@@ -615,7 +615,7 @@ class SwitchedBound:
     decided: int
 
 
-def kalman_switched_bound(consts: "FirmwareConstants", fm: FloatTrace, adc: np.ndarray,
+def kalman_switched_bound(consts: "FirmwareConstants", fm: FloatTrace, adc: np.ndarray,  # noqa: C901 - follows the Kalman step's decisions (gated, transonic, clipped) sample by sample
                           acc: np.ndarray | None = None) -> SwitchedBound:
     """Bound on ``|X_int - X_mirror|`` (X1, X2, X3, word scale) for ONE stream, valid at every sample while the
     integer run takes the same decisions as the mirror ``fm`` (barometer used or not: valid / gated; transonic
@@ -635,7 +635,7 @@ def kalman_switched_bound(consts: "FirmwareConstants", fm: FloatTrace, adc: np.n
     if consts.program not in ("kalman_baro", "kalman_accel"):
         raise UserError(f"kalman_switched_bound: {consts.program!r} is not a Kalman program")
     mode = "half_up" if consts.ROUND else "floor"
-    rho = lambda s: rounding_error_bound(s, mode)  # noqa: E731
+    rho = lambda s: rounding_error_bound(s, mode)
     accel = consts.program == "kalman_accel"
     adc = np.asarray(adc, dtype=np.float64)
     acc = np.zeros_like(adc) if acc is None else np.asarray(acc, dtype=np.float64)
@@ -643,9 +643,9 @@ def kalman_switched_bound(consts: "FirmwareConstants", fm: FloatTrace, adc: np.n
     dt = 2.0 ** -K
     F = np.array([[1.0, dt, dt * dt / 2], [0.0, 1.0, dt], [0.0, 0.0, 1.0]])
     fg, qg = consts.float_gains, consts.gains
-    col = lambda names: np.array([fg[n] for n in names])  # noqa: E731
-    dcol = lambda names: np.array([abs(qg[n].value - fg[n]) for n in names])  # noqa: E731
-    rcol = lambda names: np.array([rho(qg[n].s) for n in names])  # noqa: E731
+    col = lambda names: np.array([fg[n] for n in names])
+    dcol = lambda names: np.array([abs(qg[n].value - fg[n]) for n in names])
+    rcol = lambda names: np.array([rho(qg[n].s) for n in names])
     b1, b2 = ("G11", "G21", "G31"), ("G12", "G22", "G32")
     H1 = np.array([[1.0, 0.0, 0.0]])
     H2 = np.array([[0.0, 0.0, 1.0]])

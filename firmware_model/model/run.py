@@ -75,7 +75,7 @@ def rounding_mode(consts: "FirmwareConstants") -> str:
 #: ``fwemu run`` / ``vectors --input`` / ``compare`` then takes 0.3 CPU-s instead of 0.8 (10+ s on a fresh
 #: machine). A call that would pass the budget, a call after it, and every call once the compiled kernels are
 #: loaded (or after an explicit ``engine="numba"``) use the compiled kernels. The words are the same either way
-#: (the same source, tests/model/test_kernels.py); docs/testing.md "Short model calls".
+#: (the same source, tests/model/test_kernels.py); docs/history/testing-rounds.md "Short model calls".
 AUTO_PURE_MAX_SAMPLES = 20_000
 _pure_budget_used = 0
 _BUDGET_LOCK = threading.Lock()
@@ -138,7 +138,7 @@ def pure_kernels() -> ModuleType:
         spec = importlib.util.spec_from_file_location("firmware_model.model._kernels_pure", path)
         assert spec is not None and spec.loader is not None
         mod = importlib.util.module_from_spec(spec)
-        mod.FORCE_PURE = True  # type: ignore[attr-defined]
+        mod.FORCE_PURE = True  # type: ignore[attr-defined]  # a module attribute set before the module's code runs
         spec.loader.exec_module(mod)
         _PURE = mod
     return _PURE
@@ -292,7 +292,7 @@ def _run_kernels(kern: ModuleType, consts: "FirmwareConstants", adc: np.ndarray,
         adc_k, acc_k = adc.astype(object), acc.astype(object)
     c = kern.pack_constants(consts, dtype=dt)
     state = np.zeros((n_streams, kern.N_STATE), dtype=dt)
-    init_out = np.empty((n_streams, len(cols)), dtype=dt)
+    init_out: np.ndarray = np.empty((n_streams, len(cols)), dtype=dt)
     if out_words is not None and kern.COMPILED:
         out = out_words
     elif kern.COMPILED:

@@ -202,7 +202,7 @@ def transonic_dip_error(t: np.ndarray, v: np.ndarray, dip_m: float, dip_s: float
     if dip_m == 0.0 and jump_m == 0.0:
         return err
     above = v > MACH1_MPS
-    cross = list(np.flatnonzero(above[1:] != above[:-1]) + 1) or [int(np.argmax(v))]
+    cross: list[Any] = list(np.flatnonzero(above[1:] != above[:-1]) + 1) or [int(np.argmax(v))]
     for c in cross:
         tc = t[c]
         inside = np.abs(t - tc) < dip_s / 2
@@ -430,8 +430,8 @@ def _as_streams(values: Any, name: str, lo: int, hi: int, what: str = "16-bit in
     outside = (out < lo) | (out > hi)
     if outside.any():
         s, i = (int(v) for v in np.argwhere(outside)[0])
-        where = f"sample {i}" if arr.ndim == 1 else f"stream {s} sample {i}"
-        raise UserError(f"{name}: {where} = {int(out[s, i])} outside {lo}..{hi} ({what})")
+        at = f"sample {i}" if arr.ndim == 1 else f"stream {s} sample {i}"
+        raise UserError(f"{name}: {at} = {int(out[s, i])} outside {lo}..{hi} ({what})")
     return out
 
 
@@ -447,7 +447,7 @@ def flight_params_for(cfg: BuildConfig, fast: bool = False) -> FlightParams:
     """The synthetic flight's sensor parameters matching ``cfg`` (same counts/metre, noise, baro sign).
     ``fast``: a transonic flight (14 g for 2 s, peak ~300 m/s, with a 60 m barometer error in 290..375 m/s) that
     exercises the Mach lockout of kalman_accel (kalman_baro has none: docs/firmware-spec.md §6)."""
-    sensors = dict(units_per_metre=cfg.units_per_metre, baro_sign=cfg.baro_sign, baro_sigma=cfg.baro_sigma,
+    sensors: dict[str, Any] = dict(units_per_metre=cfg.units_per_metre, baro_sign=cfg.baro_sign, baro_sigma=cfg.baro_sigma,
                    accel_counts_per_mps2=cfg.accel_counts_per_mps2, accel_sigma=cfg.accel_sigma)
     if fast:
         return FlightParams(boost_accel_g=14.0, burn_s=2.5, drag_per_m=0.0004, transonic_error_m=60.0, **sensors)
@@ -477,7 +477,7 @@ class CsvInfo:
                 "bits": self.bits, "k": self.k, "seed": None, "columns": "adc,acc" if self.has_acc else "adc"}
 
 
-def iter_stream_csv(path: str | Path, bits: int, k: int, require_acc: bool = False, chunk: int = CSV_CHUNK,
+def iter_stream_csv(path: str | Path, bits: int, k: int, require_acc: bool = False, chunk: int = CSV_CHUNK,  # noqa: C901 - one loop that validates every row of a user CSV with a message per problem
                     info: CsvInfo | None = None):  # -> Iterator[tuple[np.ndarray, np.ndarray]]
     """Read a user stream from CSV in chunks of up to ``chunk`` samples, in constant memory: yields
     ``(adc, acc)`` int64 arrays. The file: UTF-8 (a byte-order mark, as Excel writes, is accepted), ``#`` lines

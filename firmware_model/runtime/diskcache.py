@@ -38,7 +38,7 @@ def load(path: Path, accept: Callable[[Any], bool]) -> Any | None:
     """The object pickled at ``path`` if ``accept(obj)``, else None (also when the file is missing or damaged)."""
     try:
         with open(path, "rb") as fh:
-            obj = pickle.load(fh)  # noqa: S301 - our own cache file, content-keyed, in the user's cache dir
+            obj = pickle.load(fh)  # our own cache file, content-keyed, in the user's cache dir
     except Exception:  # noqa: BLE001 - missing, truncated or foreign: a miss
         return None
     return obj if accept(obj) else None
@@ -78,7 +78,7 @@ def source_digest() -> str:
     files = sorted(root.rglob("*.py")) + sorted(p for p in (root / "flights" / "data").rglob("*") if p.is_file())
     for path in files:
         h.update(str(path.relative_to(root)).encode() + b"\0" + path.read_bytes() + b"\0")
-    versions = []
+    versions: list[tuple[str, str | None]] = []
     for dist in ("numpy", "scipy", "numba", "rocketpy"):
         try:
             versions.append((dist, metadata.version(dist)))

@@ -81,7 +81,7 @@ def parse_scheduler(text: str | None, jobs: int = 1) -> Backend:
 def dask_available() -> bool:
     """True when ``distributed`` is importable (the optional ``montecarlo`` extra)."""
     try:
-        import distributed  # noqa: F401  (lazy: an optional heavy dependency)
+        import distributed  # noqa: F401 - only whether it imports: an optional heavy dependency
     except ImportError:
         return False
     return True
@@ -140,14 +140,13 @@ def _run_local(fn: Callable[[Any], Any], chunks: Sequence[Any], todo: list[int],
         while pending or running:
             for s in range(workers):
                 if pending and not any(v[0] == s for v in running.values()):
-                    if slots[s] is None:
-                        slots[s] = _new_executor()
+                    pool = slots[s] = slots[s] or _new_executor()
                     i = pending.pop()
                     try:
-                        running[slots[s].submit(fn, chunks[i])] = (s, i)
+                        running[pool.submit(fn, chunks[i])] = (s, i)
                     except cf.process.BrokenProcessPool:
-                        slots[s] = _new_executor()
-                        running[slots[s].submit(fn, chunks[i])] = (s, i)
+                        pool = slots[s] = _new_executor()
+                        running[pool.submit(fn, chunks[i])] = (s, i)
             done, _ = cf.wait(list(running), timeout=0.5, return_when=cf.FIRST_COMPLETED)
             raise_if_interrupted()
             for fut in done:
@@ -160,7 +159,8 @@ def _run_local(fn: Callable[[Any], Any], chunks: Sequence[Any], todo: list[int],
                     if lost[i] > LOCAL_RETRIES:
                         raise UserError(f"engine: chunk {i} lost its worker process {lost[i]} times; giving up "
                                         "(a chunk that kills its worker each time)") from None
-                    _kill(slots[s])
+                    if (dead := slots[s]) is not None:
+                        _kill(dead)
                     slots[s] = None
                     pending.append(i)
                     continue

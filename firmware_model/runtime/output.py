@@ -87,7 +87,7 @@ from firmware_model.runtime.errors import UserError
 try:  # POSIX; elsewhere the lock is a no-op (documented)
     import fcntl
 except ImportError:  # pragma: no cover - not on Linux
-    fcntl = None  # type: ignore[assignment]
+    fcntl = None  # type: ignore[assignment]  # no fcntl module on this platform: the lock is a no-op
 
 #: Prefix of every temporary and lock name this module creates.
 TEMP_PREFIX: str = ".fwemu-"
@@ -313,7 +313,8 @@ def open_atomic(path: str | Path, mode: str = "w", encoding: str = "utf-8") -> I
     _state["active"].append(key)
     done = False
     try:
-        with os.fdopen(fd, mode, **({} if "b" in mode else {"encoding": encoding, "newline": ""})) as f:
+        text: dict[str, Any] = {} if "b" in mode else {"encoding": encoding, "newline": ""}
+        with os.fdopen(fd, mode, **text) as f:
             yield f
         with signals_deferred():
             raise_if_interrupted()

@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from fractions import Fraction
+from typing import Any
 
 from firmware_model.runtime.errors import UserError
 from firmware_model.spec.alt_table import table_of_config
@@ -147,13 +148,13 @@ def build_constants(cfg: BuildConfig) -> FirmwareConstants:
     rec_v = cfg.accel_counts_per_mps2 * 2.0**cfg.k     # accel counts x samples per m/s
     recursive = cfg.program in ("recursive", "recursive_seed_literal")
     lo, hi = cfg.baro_range
-    kalman = {}
+    kalman: dict[str, Any] = {}
 
     def samples(name: str, seconds: float, low: int) -> int:
         return min(32767, max(low, _round_int(name, seconds * 2.0**cfg.k, where)))
 
     # issue 20: phases (coast, descent) in every program but the Schultz 2002 listing, in the program's units
-    phases = {} if cfg.program == "recursive_seed_literal" else dict(
+    phases: dict[str, Any] = {} if cfg.program == "recursive_seed_literal" else dict(
         A_COAST=_round_int("A_COAST", cfg.coast_mps2 * (cfg.accel_counts_per_mps2 if recursive else kalman_v), where),
         COAST_N=samples("COAST_N", cfg.coast_s, 1),
         V_DESC=_round_int("V_DESC", cfg.descent_mps * (rec_v if recursive else kalman_v), where),

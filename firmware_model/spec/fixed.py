@@ -179,8 +179,8 @@ def wrapped(exact: IntLike, bits: int = 32) -> Union[bool, np.ndarray]:
     if _is_array(exact):
         if bits >= 64:
             return np.zeros(np.shape(exact), dtype=bool)
-        return (exact < lo) | (exact > hi)
-    return not lo <= exact <= hi
+        return np.asarray((exact < lo) | (exact > hi))
+    return bool(not lo <= exact <= hi)
 
 
 def fits(x: IntLike, bits: int = 32) -> bool:
@@ -257,11 +257,11 @@ def to_q(x: Union[float, np.ndarray], frac_bits: int, mode: str = "half_up") -> 
     xf = float(x)
     if not math.isfinite(xf):
         raise FixedPointError(f"to_q: value {x!r} is not finite")
-    y = math.ldexp(xf, frac_bits)
-    fl = math.floor(y)
-    if mode == "half_up" and (y - fl) >= 0.5:
-        fl += 1
-    return fl
+    ys = math.ldexp(xf, frac_bits)
+    q = math.floor(ys)
+    if mode == "half_up" and (ys - q) >= 0.5:
+        q += 1
+    return q
 
 
 def from_q(q: IntLike, frac_bits: int) -> Union[float, np.ndarray]:

@@ -80,7 +80,7 @@ def tool_version() -> str:
         from importlib.metadata import version
 
         return f"fwemu {version('fwemu')}"
-    except Exception:  # pragma: no cover - not installed
+    except Exception:  # pragma: no cover  # noqa: BLE001 - not installed, or any failure to read the metadata
         return "fwemu unknown"
 
 

@@ -75,7 +75,7 @@ def case_schema() -> dict[str, Any]:
     }
 
 
-def validate(instance: Any, schema: dict[str, Any], where: str = "$") -> list[str]:
+def validate(instance: Any, schema: dict[str, Any], where: str = "$") -> list[str]:  # noqa: C901 - one branch per JSON Schema keyword of the subset
     """Check ``instance`` against the subset of JSON Schema that :func:`case_schema` uses (type, const, enum,
     required, properties, additionalProperties, items, minimum/maximum, minItems/maxItems, pattern). Returns the
     problems found as ``<json path>: <why>`` strings (empty when valid)."""

@@ -232,7 +232,7 @@ def _put(f: Any, text: str) -> None:
     f.write(text)
 
 
-def generate_user(program: str, input_csv: str | Path, out: str | Path, config: str | Path | None = None,
+def generate_user(program: str, input_csv: str | Path, out: str | Path, config: str | Path | None = None,  # noqa: C901 - the streamed pipeline's steps (spool, run, cross-check, write) share its stage folder and state
                   generator: str = "emulation", header: bool = True, progress: bool | None = None,
                   chunk: int = CHUNK) -> dict[str, int]:
     """A one-case vector set (kind ``user``) from a user CSV, in constant memory (module docstring). Returns

@@ -96,7 +96,7 @@ def test_bias_table_uses_and_names_the_program() -> None:
     accel = bias_table("kalman_accel", ks=(5,), seconds=8.0)
     assert baro.splitlines()[0].startswith("kalman_baro: ") and accel.splitlines()[0].startswith("kalman_accel: ")
     assert "acc = 1 g" in accel and "acc = " not in baro
-    row = lambda text: [line for line in text.splitlines() if line.startswith("| 5 | floor |")][0]  # noqa: E731
+    row = lambda text: [line for line in text.splitlines() if line.startswith("| 5 | floor |")][0]
     assert row(baro) != row(accel)
     with pytest.raises(UserError, match="for kalman_baro, kalman_accel, not recursive"):
         bias_table("recursive", ks=(5,), seconds=1.0)

@@ -173,7 +173,7 @@ def test_folder_lock_excludes_a_second_writer_and_times_out_clearly(tmp_path: Pa
 
 
 # ------------------------------------------------------------------------------------------ two writers (item 9)
-def _writer(out: str, tag: int, rounds: int, queue: multiprocessing.Queue,  # type: ignore[type-arg]
+def _writer(out: str, tag: int, rounds: int, queue: multiprocessing.Queue,  # type: ignore[type-arg]  # multiprocessing.Queue is not generic at runtime
             go: multiprocessing.synchronize.Barrier) -> None:
     """Write a small vector set ``rounds`` times, each round with content unique to (tag, round)."""
     try:
@@ -189,7 +189,7 @@ def _writer(out: str, tag: int, rounds: int, queue: multiprocessing.Queue,  # ty
                 sort_keys=True).encode()
             vectors.write_set(files, out, "subset")
         queue.put((tag, "ok"))
-    except BaseException as exc:  # report everything to the parent
+    except BaseException as exc:  # noqa: BLE001 - report everything to the parent
         queue.put((tag, f"{type(exc).__name__}: {exc}"))
 
 
@@ -253,7 +253,7 @@ def test_budget_to_full_stdout_still_writes_nothing_partial(tmp_path: Path) -> N
 
 
 @pytest.fixture
-def tmpfs(tmp_path: Path):  # type: ignore[no-untyped-def]
+def tmpfs(tmp_path: Path):
     """Mount small tmpfs file systems (read-only, 16 KiB) when allowed (root in a container); else skip."""
     mounted: list[Path] = []
 
@@ -272,7 +272,7 @@ def tmpfs(tmp_path: Path):  # type: ignore[no-untyped-def]
         subprocess.run(["umount", str(point)], capture_output=True)
 
 
-def test_read_only_and_full_file_systems_are_one_line(tmpfs, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+def test_read_only_and_full_file_systems_are_one_line(tmpfs, tmp_path: Path) -> None:
     ro = tmpfs("ro", "ro,size=1m")
     full = tmpfs("full", "size=16k")
     csv = tmp_path / "s.csv"

@@ -23,7 +23,7 @@ isa = pytest.importorskip("isa")
 pytest.importorskip("isa.assembler")
 pytest.importorskip("isa.cpu")
 
-from firmware_model.firmware.assemble import ASM_DIR  # noqa: E402
+from firmware_model.firmware.assemble import ASM_DIR  # noqa: E402 - after pytest.importorskip of isa
 
 INT32_MIN, INT32_MAX = -(1 << 31), (1 << 31) - 1
 EDGE_E = (0, 1, -1, 2, -2, INT32_MAX, INT32_MIN, INT32_MIN + 1, INT32_MAX - 1, 0x7FFF, 0x8000, -0x8000, -0x8001,
@@ -231,7 +231,7 @@ def spec_alt(c: object, adc: int) -> int:
     return wrap32(lo + rs_exact((hi - lo) * f, s, bool(c.ROUND)))
 
 
-def spec_kalman_step(c: object, st: dict[str, int], adc: int, acc: int) -> dict[str, int]:
+def spec_kalman_step(c: object, st: dict[str, int], adc: int, acc: int) -> dict[str, int]:  # noqa: C901 - spells out docs/firmware-spec.md §6 step by step, as the spec reads
     """docs/firmware-spec.md §6 step 0-10, one sample, exact integers (Mach lockout: kalman_accel only)."""
     h = bool(c.ROUND)
     K = c.K
@@ -361,7 +361,7 @@ def spec_kalman_step(c: object, st: dict[str, int], adc: int, acc: int) -> dict[
     return st
 
 
-def spec_recursive_step(c: object, st: dict[str, int], adc: int, acc: int) -> dict[str, int]:
+def spec_recursive_step(c: object, st: dict[str, int], adc: int, acc: int) -> dict[str, int]:  # noqa: C901 - spells out docs/firmware-spec.md §5 step by step, as the spec reads
     """docs/firmware-spec.md §5 steps 0-6, one sample, exact integers."""
     h = bool(c.ROUND)
     ev = st["EVENTS"] & LATCHED                                      # 0. per-sample bits
@@ -496,7 +496,7 @@ def _acc_near_drag(c: object, acc0: int, step: int) -> int:
     gives it."""
     m, sh = c.gains["ACC_G"].m, c.gains["ACC_G"].s
     h = bool(c.ROUND)
-    a = lambda x: _mulg_exact(x - acc0, m, sh, h)   # noqa: E731 - increasing in x (ACC_G > 0)
+    a = lambda x: _mulg_exact(x - acc0, m, sh, h)  # increasing in x (ACC_G > 0)
     x = acc0 - (c.A_DRAG << sh) // max(1, m)        # about where a crosses -A_DRAG
     x = max(-32768, min(32767, x))
     while x > -32768 and a(x) >= -c.A_DRAG:

@@ -26,14 +26,14 @@ from tests.support.profiles import examples
 pytest.importorskip("isa.assembler")
 pytest.importorskip("isa.cpu")
 
-from firmware_model.flights import strategies as fst  # noqa: E402
-from firmware_model.firmware.assemble import STACK_TOP, build_firmware  # noqa: E402
-from firmware_model.spec.config import PROGRAMS, BuildConfig  # noqa: E402
-from firmware_model.firmware.harness import FirmwareTrace, run_firmware  # noqa: E402
-from firmware_model.model.streams import FlightParams, synthetic_flight  # noqa: E402
-from firmware_model.model.run import run_model  # noqa: E402
-from firmware_model.spec.build_constants import build_constants  # noqa: E402
-from firmware_model.model.trace import EVENT_BITS  # noqa: E402
+from firmware_model.flights import strategies as fst
+from firmware_model.firmware.assemble import STACK_TOP, build_firmware
+from firmware_model.spec.config import PROGRAMS, BuildConfig
+from firmware_model.firmware.harness import FirmwareTrace, run_firmware
+from firmware_model.model.streams import FlightParams, synthetic_flight
+from firmware_model.model.run import run_model
+from firmware_model.spec.build_constants import build_constants
+from firmware_model.model.trace import EVENT_BITS
 
 KS = (4, 5, 6, 7, 8)
 ROUNDINGS = ("floor", "half_up")
@@ -42,7 +42,7 @@ KALMAN = ("kalman_baro", "kalman_accel")
 
 def assert_same(cfg_or_build: object, adc: np.ndarray, acc: np.ndarray | None = None) -> FirmwareTrace:
     """Run CPU and model on the same input; fail at the first differing word with a reproducer."""
-    build = cfg_or_build if hasattr(cfg_or_build, "step_address") else build_firmware(cfg_or_build)  # type: ignore
+    build = cfg_or_build if hasattr(cfg_or_build, "step_address") else build_firmware(cfg_or_build)  # type: ignore  # a BuildConfig or an already built firmware
     cpu = run_firmware(build, adc, acc)
     model = run_model(build.consts, adc, acc)
     assert cpu.names == model.names
@@ -76,7 +76,7 @@ def _cfg(program: str, k: int, rounding: str, **kw: object) -> BuildConfig:
         from firmware_model.vectors.cases import _flight_sensor
 
         kw["baro_pa_per_count"], kw["baro_pa_at_zero"] = _flight_sensor(16)
-    return BuildConfig(program=program, k=k, rounding=rounding, **kw)  # type: ignore[arg-type]
+    return BuildConfig(program=program, k=k, rounding=rounding, **kw)  # type: ignore[arg-type]  # **kw of mixed BuildConfig field types
 
 
 COMBOS = [(p, k, r) for p in PROGRAMS for k in KS for r in ROUNDINGS]

@@ -25,7 +25,7 @@ pytestmark = pytest.mark.skipif(AS is None or OBJCOPY is None,
                                 reason="m68k-linux-gnu-as/objcopy not installed (Debian binutils-m68k-linux-gnu)")
 
 
-def _gnu_source(build) -> str:  # type: ignore[no-untyped-def]
+def _gnu_source(build) -> str:
     from isa.decoder import decode_bytes
     from isa.formatter import format_gnu
 
@@ -58,7 +58,7 @@ def _gnu_bytes(src: str, work: Path) -> bytes:
 def test_rom_image_equals_gnu_as(program: str, kind: str, rounding: str, tmp_path: Path) -> None:
     extra = {"baro_kind": "pascal", "units_per_metre": 12.0} if kind == "pascal" else {"baro_min": 1,
                                                                                          "baro_max": 65534}
-    build = build_firmware(BuildConfig(program=program, k=6, rounding=rounding, **extra))  # type: ignore[arg-type]
+    build = build_firmware(BuildConfig(program=program, k=6, rounding=rounding, **extra))  # type: ignore[arg-type]  # **extra of mixed BuildConfig field types
     src = _gnu_source(build)
     gnu = _gnu_bytes(src, tmp_path)
     ours = build.rom_image

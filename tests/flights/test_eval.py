@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import math
 
 import numpy as np
 import pytest
@@ -12,8 +11,7 @@ from hypothesis import strategies as st
 
 from firmware_model.runtime.errors import UserError
 from firmware_model.flights.evaluate import (METHODS, Detection, FlightResult, Reference, detect_from_events,
-                                             methods_named, render_csv, render_json, render_markdown, run_method,
-                                             summarize)
+                                             methods_named, render_csv, render_json, render_markdown, summarize)
 from firmware_model.model.trace import EVENT_BITS
 from tests.support.profiles import examples
 

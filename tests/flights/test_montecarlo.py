@@ -248,7 +248,7 @@ def test_rows_identical_for_one_and_two_local_workers(tmp_path):
     fmt = "parquet" if have_pyarrow() else "csv"
     spec = small_spec()
     a = run_montecarlo(spec, 11, 10, tmp_path / "a", fmt=fmt, figures=False)
-    b = run_montecarlo(spec, 11, 10, tmp_path / "b", Backend("local", 2), fmt=fmt, figures=False)
+    run_montecarlo(spec, 11, 10, tmp_path / "b", Backend("local", 2), fmt=fmt, figures=False)
     assert _bytes(tmp_path / "a") == _bytes(tmp_path / "b")
     assert (tmp_path / "a" / "summary.md").read_bytes() == (tmp_path / "b" / "summary.md").read_bytes()
     rows = read_rows(a.rows_path)
@@ -261,7 +261,7 @@ def test_rows_identical_for_one_and_two_local_workers(tmp_path):
 
 def test_resume_after_an_interrupt_equals_an_uninterrupted_run(tmp_path):
     spec = small_spec()
-    full = run_montecarlo(spec, 2, 12, tmp_path / "full", fmt="csv", figures=False)
+    run_montecarlo(spec, 2, 12, tmp_path / "full", fmt="csv", figures=False)
 
     class Stop(Exception):
         pass

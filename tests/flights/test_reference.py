@@ -122,7 +122,7 @@ def _as_log(rec: FlightRecord, noise_pa: float, seed: int, rate_hz: float = 100.
     return FlightRecord(name=rec.name, time_s=t, pressure_pa=p, provenance={"source": rec.name})
 
 
-from firmware_model.flights.strategies import flights  # noqa: E402  (after the helpers: the module is heavy to read)
+from firmware_model.flights.strategies import flights  # noqa: E402 - after the helpers: the module is heavy to read
 
 
 @settings(max_examples=examples(15))

@@ -5,7 +5,6 @@ cross-check of the two (docs/flights-sim.md)."""
 from __future__ import annotations
 
 import hashlib
-from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -83,9 +82,9 @@ def test_drag_free_flight_matches_rocket_equation():
     rocket = s1.Rocket("nodrag", dry, 0.1, motor, cd_scale=0.0, drogue_cd_area_m2=0.0)
     rec = s1.simulate_1dof(rocket, s1.Launch(record_hz=1000.0, descent_s=1.0))[0]
     ve = motor.total_impulse_ns / motor.propellant_mass_kg
-    mass = lambda t: dry + float(motor.propellant_at(t))  # noqa: E731
+    mass = lambda t: dry + float(motor.propellant_at(t))
     t_l = optimize.brentq(lambda t: float(motor.thrust_at(t)) - mass(t) * G, 1e-6, 0.05)
-    v = lambda t: ve * np.log(mass(t_l) / mass(t)) - G * (t - t_l)  # noqa: E731
+    v = lambda t: ve * np.log(mass(t_l) / mass(t)) - G * (t - t_l)
     tb = motor.burn_time_s
     vb = v(tb)
     zb = integrate.quad(v, t_l, tb, points=list(motor.time_s[1:-1]), epsabs=1e-10, limit=200)[0]

@@ -34,12 +34,12 @@ def h(hexstr: str) -> bytes:
 
 
 def code(src: str, **kw: object) -> bytes:
-    return assemble(src, **kw).code  # type: ignore[arg-type]
+    return assemble(src, **kw).code  # type: ignore[arg-type]  # **kw of mixed assemble() argument types
 
 
 def err(src: str, **kw: object) -> AssemblyError:
     with pytest.raises(AssemblyError) as info:
-        assemble(src, **kw)  # type: ignore[arg-type]
+        assemble(src, **kw)  # type: ignore[arg-type]  # **kw of mixed assemble() argument types
     return info.value
 
 
@@ -848,8 +848,8 @@ def _passes(src: str, monkeypatch: pytest.MonkeyPatch) -> list[bool]:
     run_pass = A._Assembler._pass
 
     def counting(self: object) -> None:
-        finals.append(self.final)  # type: ignore[attr-defined]
-        run_pass(self)  # type: ignore[arg-type]
+        finals.append(self.final)  # type: ignore[attr-defined]  # the patched pass runs on the assembler instance
+        run_pass(self)  # type: ignore[arg-type]  # the patched pass runs on the assembler instance
 
     monkeypatch.setattr(A._Assembler, "_pass", counting)
     assemble(src, origin=0x400)

@@ -232,7 +232,7 @@ def _run_both(image: bytes, d: list[int], a: list[int], ccr: int, kwargs: dict[s
         cpu.sr = 0x2700 | ccr
         cpu.pc = oracles.CODE
         try:
-            res = cpu.run(**kwargs)  # type: ignore[arg-type]
+            res = cpu.run(**kwargs)  # type: ignore[arg-type]  # **kwargs of mixed run() argument types
             outcome: tuple[object, ...] = ("ok", res)
         except CPUFault as exc:
             outcome = (type(exc).__name__, str(exc), exc.pc, exc.instruction)
@@ -378,8 +378,8 @@ def flow_layout(items: list[object], origin: int) -> bytes:
 
     def target(k: int, item: tuple[object, ...]) -> int:
         if item[0] == "b":
-            return min(k + 1 + item[2], len(items))  # type: ignore[operator]
-        return max(k - item[2], 0)  # type: ignore[operator]
+            return min(k + 1 + item[2], len(items))  # type: ignore[operator]  # item[2] is an int in these rows
+        return max(k - item[2], 0)  # type: ignore[operator]  # item[2] is an int in these rows
 
     wide = addresses([False] * len(items))
     short_ok = [not isinstance(it, Instruction) and it[0] in ("b", "bb") and bool(it[3])

@@ -251,7 +251,7 @@ def test_demo_bytes_equal_gnu_as(tmp_path: Path) -> None:
     prog = assemble(DEMO.read_text(), filename=str(DEMO), origin=0x1000)
     segs = {s.name: s for s in prog.segments}
     (tmp_path / "demo.s").write_text(_to_gnu(DEMO.read_text()))
-    run = lambda *cmd: subprocess.run(cmd, cwd=tmp_path, check=True, capture_output=True)  # noqa: E731
+    run = lambda *cmd: subprocess.run(cmd, cwd=tmp_path, check=True, capture_output=True)
     run("m68k-linux-gnu-as", "-m68000", "-o", "demo.o", "demo.s")
     run("m68k-linux-gnu-ld", "-e", "0", "-Ttext=0x1000", f"-Tdata=0x{segs['data'].origin:x}", "-o", "demo.elf",
         "demo.o")

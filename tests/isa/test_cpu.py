@@ -45,7 +45,7 @@ def one(src: str, **kw: object) -> tuple[CPU, int]:
     cpu.a[7] = 0x8000
     for name, value in kw.items():
         if name == "sr":
-            cpu.sr = value  # type: ignore[assignment]
+            cpu.sr = value  # type: ignore[assignment]  # **kw values are typed object; the sr values given are ints
         else:
             getattr(cpu, name[0])[int(name[1])] = value
     return cpu, cpu.step()
@@ -739,7 +739,7 @@ def test_caller_runs_the_entry_block_itself() -> None:
         c.load(isa.assemble(_CALLER_ROUTINES["one block"], origin=ORG))
     calls = []
     plain = cpu.call
-    cpu.call = lambda *a, **k: (calls.append(a), plain(*a, **k))[1]  # type: ignore[method-assign]
+    cpu.call = lambda *a, **k: (calls.append(a), plain(*a, **k))[1]  # type: ignore[method-assign]  # a spy wraps the method for the test
     run = cpu.caller(ORG)
     assert [run() for _ in range(4)] == [twin.call(ORG) for _ in range(4)]
     assert len(calls) == 1 and cpu.d[1] == twin.d[1] == 28

@@ -19,9 +19,9 @@ import pytest
 
 pytest.importorskip("m68000_python", reason="m68000-python (the reference) is not installed")
 
-from tests.support import oracles  # noqa: E402
-from isa.decoder import OPCODE_MAP  # noqa: E402
-from tests.support.profiles import PROFILE  # noqa: E402
+from tests.support import oracles
+from isa.decoder import OPCODE_MAP
+from tests.support.profiles import PROFILE
 
 #: m68000-python handler names of 68000 words that are not in our subset, and why (docs/isa-oracles.md).
 OUTSIDE_SUBSET = {

@@ -134,7 +134,7 @@ def _run(src: str, d: list[int], ccr: int, blocks: bool, **kw: object) -> tuple[
     cpu.sr = 0x2700 | ccr
     cpu.pc = oracles.CODE
     try:
-        res = cpu.run(**kw)  # type: ignore[arg-type]
+        res = cpu.run(**kw)  # type: ignore[arg-type]  # **kw of mixed run() argument types
         out: tuple[object, ...] = ("ok", res.instructions, res.cycles)
     except isa.errors.CPUFault as exc:
         out = (type(exc).__name__, str(exc), exc.pc)

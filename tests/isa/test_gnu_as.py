@@ -94,7 +94,7 @@ def _layout(items: list[Instruction] | list[Form], rng: random.Random | None = N
     return out
 
 
-def _edge_draw(rng: random.Random):  # type: ignore[no-untyped-def]
+def _edge_draw(rng: random.Random):
     def draw(lo: int, hi: int) -> int:
         r = rng.random()
         if r < 0.15:
@@ -108,7 +108,7 @@ def _edge_draw(rng: random.Random):  # type: ignore[no-untyped-def]
     return draw
 
 
-def _symbolizer(placed: list[tuple[int, Instruction]]):  # type: ignore[no-untyped-def]
+def _symbolizer(placed: list[tuple[int, Instruction]]):
     """Targets as ``L<k>+addend`` from the nearest label at or below (``L0`` for targets below the corpus); GNU
     as requires the addend of a PC-relative expression to fit 16 bits."""
     addrs = [a for a, _ in placed]
@@ -202,7 +202,7 @@ def test_branches_at_range_limits_match_gnu_as(tmp_path: Path) -> None:
     placed: list[tuple[int, Instruction]] = []
     addr = ORIGIN
 
-    def put(make) -> None:  # type: ignore[no-untyped-def]
+    def put(make) -> None:
         nonlocal addr
         instr = make(addr)
         placed.append((addr, instr))

@@ -95,7 +95,7 @@ def _run(code: bytes, d: list[int], a: list[int], ccr: int, kwargs: dict[str, ob
     cpu.pc = CODE
     cpu.reset_counters()
     try:
-        res = cpu.run(**kwargs)  # type: ignore[arg-type]
+        res = cpu.run(**kwargs)  # type: ignore[arg-type]  # **kwargs of mixed run() argument types
         outcome: tuple[object, ...] = ("ok", res)
     except CPUFault as exc:
         outcome = (type(exc).__name__, str(exc), exc.pc, exc.instruction)

@@ -30,7 +30,7 @@ WORDS = np.arange(65536, dtype=np.uint32)
 DOCS = Path(__file__).resolve().parents[2] / "docs" / "isa-internals.md"
 
 
-def _row_words(row) -> list[int]:  # type: ignore[no-untyped-def]
+def _row_words(row) -> list[int]:
     """Every opcode word of ``row``: candidates by fixed bits (numpy), then the row's own validity predicate."""
     cand = WORDS[(WORDS & row.fixed_mask) == row.fixed_bits]
     return [int(w) for w in cand if matches(row, int(w))]

@@ -24,8 +24,7 @@ from hypothesis import strategies as st
 
 import isa
 from isa import block_codegen, codecache
-from isa.encoder import encode
-from isa.operands import Instruction, Mode, Operand
+from isa.operands import Instruction, Mode
 from isa.strategies import instructions
 from tests.support.profiles import examples
 
@@ -182,8 +181,8 @@ def _block_text(src: str) -> str:
     seen: list[str] = []
     orig = blocks._block_source
 
-    def spy(*args: object, **kw: object):  # noqa: ANN202
-        r = orig(*args, **kw)  # type: ignore[arg-type]
+    def spy(*args: object, **kw: object):
+        r = orig(*args, **kw)  # type: ignore[arg-type]  # a spy forwards the arguments unchanged
         seen.append(r[0])
         return r
 

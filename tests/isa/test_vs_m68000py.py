@@ -8,11 +8,11 @@ import pytest
 
 pytest.importorskip("m68000_python", reason="m68000-python (the reference) is not installed")
 
-from hypothesis import given, seed, settings  # noqa: E402
-from hypothesis import strategies as st  # noqa: E402
+from hypothesis import given, seed, settings
+from hypothesis import strategies as st
 
-from tests.support import oracles  # noqa: E402
-from tests.support.profiles import examples  # noqa: E402
+from tests.support import oracles
+from tests.support.profiles import examples
 
 _REF: oracles.M68000PyRef | None = None
 
@@ -43,7 +43,7 @@ HALF = len(COMBOS) // 2
 @pytest.mark.parametrize("combo", COMBOS[:HALF], ids=oracles.combo_id)
 @settings(max_examples=examples(1))
 @given(data=st.data())
-def test_every_row_size_mode_a(combo, data) -> None:  # noqa: ANN001
+def test_every_row_size_mode_a(combo, data) -> None:
     """Each (row, size, first-EA mode), first half of the table: a random instruction and state per example."""
     row, size, mode = combo
     check(oracles.random_case(data, row, size, mode))
@@ -53,7 +53,7 @@ def test_every_row_size_mode_a(combo, data) -> None:  # noqa: ANN001
 @pytest.mark.parametrize("combo", COMBOS[HALF:], ids=oracles.combo_id)
 @settings(max_examples=examples(1))
 @given(data=st.data())
-def test_every_row_size_mode_b(combo, data) -> None:  # noqa: ANN001
+def test_every_row_size_mode_b(combo, data) -> None:
     """Each (row, size, first-EA mode), second half of the table."""
     row, size, mode = combo
     check(oracles.random_case(data, row, size, mode))
@@ -64,7 +64,7 @@ def test_every_row_size_mode_b(combo, data) -> None:  # noqa: ANN001
 # ci: 3 random states per (row, size); before oracles.random_case the first of 4 was hypothesis's all-zero one
 @settings(max_examples=examples(4, ci=3))
 @given(data=st.data())
-def test_every_row_size_any_modes(combo, data) -> None:  # noqa: ANN001
+def test_every_row_size_any_modes(combo, data) -> None:
     """Each (row, size) with every operand mode drawn: more states per row."""
     row, size = combo
     eas = [i for i, spec in enumerate(row.operands) if spec.kind == "ea"]
@@ -78,7 +78,7 @@ def test_every_row_size_any_modes(combo, data) -> None:  # noqa: ANN001
 @pytest.mark.parametrize("combo", oracles.odd_combos(), ids=oracles.combo_id)
 @settings(max_examples=examples(1))
 @given(data=st.data())
-def test_odd_addresses_are_address_errors(combo, data) -> None:  # noqa: ANN001
+def test_odd_addresses_are_address_errors(combo, data) -> None:
     """Word/long accesses and jumps at odd addresses: ours raises AddressError exactly when the 68000 takes the
     address-error exception (vector 3)."""
     row, size, mode = combo
@@ -87,7 +87,7 @@ def test_odd_addresses_are_address_errors(combo, data) -> None:  # noqa: ANN001
         assert theirs.fault == "address", f"the reference took no address error ({theirs.fault}): test is vacuous"
 
 
-def descending_long(instr) -> bool:  # noqa: ANN001
+def descending_long(instr) -> bool:
     """True for the long accesses the 68000 makes low word first (MOVE.L and MOVEM.L to -(An); ADDX.L/SUBX.L
     -(Ay),-(Ax)): when the whole long is unmapped the chip's bus error names the low word, 2 above the first
     unmapped byte that ours names (docs/isa-oracles.md, "Bus-error addresses")."""
@@ -119,7 +119,7 @@ def check_bus(case: oracles.Case) -> oracles.State:
 @pytest.mark.parametrize("combo", oracles.bus_combos(), ids=oracles.combo_id)
 @settings(max_examples=examples(1))
 @given(data=st.data())
-def test_bus_errors_name_the_faulting_access(combo, data) -> None:  # noqa: ANN001
+def test_bus_errors_name_the_faulting_access(combo, data) -> None:
     """Every memory operand at the end of the RAM or beyond (long accesses straddling it included): the same fault
     as the chip, at the address of the access the chip faulted on (issue 8.3: a long read of $7FFE with RAM
     ending at $8000 named $7FFE, the mapped word)."""
@@ -189,7 +189,7 @@ def test_single_example_cases_draw_random_states() -> None:
 
     @settings(max_examples=1)
     @given(data=st.data())
-    def one(combo, data) -> None:  # noqa: ANN001
+    def one(combo, data) -> None:
         oracles.random_case(data, *combo)
 
     before, oracles.DRAWN = oracles.DRAWN, drawn

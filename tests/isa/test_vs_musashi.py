@@ -21,11 +21,11 @@ import pytest
 
 pytest.importorskip("machine68k", reason="machine68k (Musashi) is not installed")
 
-from hypothesis import given, settings  # noqa: E402
-from hypothesis import strategies as st  # noqa: E402
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-from tests.support import oracles  # noqa: E402
-from tests.support.profiles import examples  # noqa: E402
+from tests.support import oracles
+from tests.support.profiles import examples
 
 
 def _dst(case: oracles.Case) -> int:
@@ -54,7 +54,7 @@ HALF = len(COMBOS) // 2  # hypothesis 6.170 (derandomized) overflows the stack p
 @pytest.mark.parametrize("combo", COMBOS[:HALF], ids=oracles.combo_id)
 @settings(max_examples=examples(1))
 @given(data=st.data())
-def test_every_row_size_mode_a(combo, data) -> None:  # noqa: ANN001
+def test_every_row_size_mode_a(combo, data) -> None:
     """Each (row, size, first-EA mode), first half of the table."""
     row, size, mode = combo
     check(oracles.random_case(data, row, size, mode))
@@ -64,7 +64,7 @@ def test_every_row_size_mode_a(combo, data) -> None:  # noqa: ANN001
 @pytest.mark.parametrize("combo", COMBOS[HALF:], ids=oracles.combo_id)
 @settings(max_examples=examples(1))
 @given(data=st.data())
-def test_every_row_size_mode_b(combo, data) -> None:  # noqa: ANN001
+def test_every_row_size_mode_b(combo, data) -> None:
     """Each (row, size, first-EA mode), second half of the table."""
     row, size, mode = combo
     check(oracles.random_case(data, row, size, mode))
@@ -75,7 +75,7 @@ def test_every_row_size_mode_b(combo, data) -> None:  # noqa: ANN001
 # ci: 2 random states per (row, size); before oracles.random_case the first of 3 was hypothesis's all-zero one
 @settings(max_examples=examples(3, ci=2))
 @given(data=st.data())
-def test_every_row_size_any_modes(combo, data) -> None:  # noqa: ANN001
+def test_every_row_size_any_modes(combo, data) -> None:
     """Each (row, size) with its operand modes drawn."""
     row, size = combo
     eas = [i for i, spec in enumerate(row.operands) if spec.kind == "ea"]
@@ -89,7 +89,7 @@ def test_every_row_size_any_modes(combo, data) -> None:  # noqa: ANN001
 @pytest.mark.parametrize("combo", oracles.odd_combos(), ids=oracles.combo_id)
 @settings(max_examples=examples(1))
 @given(data=st.data())
-def test_odd_addresses_are_address_errors(combo, data) -> None:  # noqa: ANN001
+def test_odd_addresses_are_address_errors(combo, data) -> None:
     """Odd word/long accesses and jump targets: ours raises AddressError exactly where Musashi's trace shows the
     access the 68000 would fault on."""
     row, size, mode = combo

@@ -40,7 +40,7 @@ def pascal_cfg(program: str, k: int = 6, rounding: str = "floor", **kw: object) 
     kw.setdefault("units_per_metre", PA_PER_M)
     if program == "kalman_accel":
         kw.setdefault("ratio", 100.0)
-    return BuildConfig(program=program, k=k, rounding=rounding, baro_kind="pascal", **kw)  # type: ignore[arg-type]
+    return BuildConfig(program=program, k=k, rounding=rounding, baro_kind="pascal", **kw)  # type: ignore[arg-type]  # **kw of mixed BuildConfig field types
 
 
 def assert_cpu_equals_models(cfg: BuildConfig, p: np.ndarray, acc: np.ndarray):
@@ -279,14 +279,14 @@ def test_pascal_inputs_and_configs_are_user_errors() -> None:
                       ({"baro_sign": 1}, "baro_sign"), ({"alt_shift": 16}, "alt_shift"),
                       ({"alt_shift": 5}, "16 KB ROM")):
         with pytest.raises(UserError, match=match):
-            BuildConfig(**{"baro_kind": "pascal", **kw})  # type: ignore[arg-type]
+            BuildConfig(**{"baro_kind": "pascal", **kw})  # type: ignore[arg-type]  # **kw of mixed BuildConfig field types
     cfg = pascal_cfg("kalman_accel")
     assert cfg.to_dict()["baro_kind"] == "pascal" and "baro_kind" not in BuildConfig().to_dict()
     assert BuildConfig.from_dict(cfg.to_dict()) == cfg
 
 
 # ---------------------------------------------------------------------------------------------------- CLI
-def _fwemu(*argv: str):  # type: ignore[no-untyped-def]
+def _fwemu(*argv: str):
     import os
     import subprocess
     import sys

@@ -28,7 +28,7 @@ FLOAT_SLACK = 1e-6  # float64 round-off of the mirror (|EST| < 2^25, 2^-52 relat
 
 
 def _consts(**kw: object):
-    return build_constants(BuildConfig(program="recursive", **kw))  # type: ignore[arg-type]
+    return build_constants(BuildConfig(program="recursive", **kw))  # type: ignore[arg-type]  # **kw of mixed BuildConfig field types
 
 
 def _bound(S: int, rounding: str) -> tuple[float, float]:

@@ -50,7 +50,7 @@ def assert_same(cfg: BuildConfig, adc: np.ndarray, acc: np.ndarray):
 
 
 def _consts(**kw: object):
-    return build_constants(BuildConfig(program="recursive", **kw))  # type: ignore[arg-type]
+    return build_constants(BuildConfig(program="recursive", **kw))  # type: ignore[arg-type]  # **kw of mixed BuildConfig field types
 
 
 def _flight(k: int, seed: int = 7, **params):

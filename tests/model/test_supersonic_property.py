@@ -73,7 +73,6 @@ def test_no_detection_more_than_1s_early_when_the_accelerometer_clips(rounding: 
         assert lead >= -1.0, f"{program} {rounding}: apogee {lead:+.2f} s before the truth on {f}"
         if program != "kalman_baro":
             assert lead <= 3.0, f"{program} {rounding}: apogee {lead:+.2f} s after the truth on {f}"
-            ev = tr.column("EVENTS")
             clip, clear = tr.first_event("ACC_CLIP"), tr.first_event("CLIP_CLEAR")
             assert 0 < clip < clear < tr.first_event("APOGEE"), (clip, clear)
 

@@ -78,7 +78,7 @@ def test_dask_worker_killed_mid_run_gives_the_rows_of_an_unkilled_run(tmp_path):
 
     spec = load_spec({**SMALL_SPEC, "chunk_flights": 2})
     n = 24
-    ref = run_montecarlo(spec, 9, n, tmp_path / "ref", fmt="csv", figures=False)
+    run_montecarlo(spec, 9, n, tmp_path / "ref", fmt="csv", figures=False)
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
                                   silence_logs=50) as cluster, distributed.Client(cluster) as client:
         before = client.run(os.getpid)

@@ -177,7 +177,7 @@ def test_acc_g_too_large_is_a_user_error() -> None:
 
 def test_build_constants_rejects_non_config() -> None:
     with pytest.raises(UserError, match="BuildConfig"):
-        build_constants({"k": 7})  # type: ignore[arg-type]
+        build_constants({"k": 7})  # type: ignore[arg-type]  # a wrong type on purpose: the test checks the error
 
 
 def test_transonic_gain_below_the_representable_range_is_zero() -> None:

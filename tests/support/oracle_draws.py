@@ -29,7 +29,7 @@ class Recorder:
         self.by_test: dict[str, list[tuple]] = defaultdict(list)
 
     @pytest.hookimpl(hookwrapper=True)
-    def pytest_runtest_call(self, item: pytest.Item):  # type: ignore[no-untyped-def]
+    def pytest_runtest_call(self, item: pytest.Item):
         oracles.DRAWN = []
         try:
             yield

@@ -23,8 +23,15 @@ from __future__ import annotations
 
 import functools
 import random
+import re
 from dataclasses import dataclass, field
 from typing import Sequence
+
+from hypothesis import assume
+from hypothesis import strategies as st
+
+from isa.operands import IndexReg, Instruction, Mode, Operand, Size
+from isa.table import TABLE
 
 MASK32 = 0xFFFFFFFF
 RAM_SIZE = 0x20000  #: bytes of mapped RAM, from address 0
@@ -340,7 +347,7 @@ class OursAdapter:
         self.cpu = None
         self.image = bytearray()
 
-    def new_cpu(self, machine: Machine):  # noqa: ANN201 - isa.CPU is imported lazily
+    def new_cpu(self, machine: Machine):  # isa.CPU is imported lazily
         """The adapter's CPU with ``machine`` loaded (RAM, registers, CCR, PC). One CPU is reused: its 16 MiB
         backing store is costly to allocate, and host writes invalidate any code it compiled before."""
         import numpy as np
@@ -409,7 +416,6 @@ class OursAdapter:
         )
 
 
-import re  # noqa: E402
 
 #: The faulting address in our BusError messages ("... unmapped address $020000 at PC=...", "... at $020000 at").
 _FAULT_ADDRESS = re.compile(r"\$([0-9A-F]{6}) at PC=")
@@ -418,29 +424,29 @@ _FAULT_ADDRESS = re.compile(r"\$([0-9A-F]{6}) at PC=")
 # These four helpers isolate the parts of isa.CPU's interface that the contract leaves open.
 
 
-def make_cpu(isa_module):  # noqa: ANN001, ANN201
+def make_cpu(isa_module):
     """An ``isa.CPU`` with only ``[0, RAM_SIZE)`` mapped (as RAM); everything else is a bus error."""
     cpu = isa_module.CPU(mapped=False)
     cpu.map(0, RAM_SIZE, "ram", writable=True)
     return cpu
 
 
-def set_ccr(cpu, ccr: int) -> None:  # noqa: ANN001
+def set_ccr(cpu, ccr: int) -> None:
     """Set X N Z V C (bits 4..0) of our CPU's status register (the rest stays $2700)."""
     cpu.sr = 0x2700 | (ccr & 0x1F)
 
 
-def get_ccr(cpu) -> int:  # noqa: ANN001
+def get_ccr(cpu) -> int:
     """X N Z V C (bits 4..0) of our CPU's status register."""
     return cpu.sr & 0x1F
 
 
-def trapped(cpu) -> bool:  # noqa: ANN001
+def trapped(cpu) -> bool:
     """True when the last step executed TRAP #n (our CPU stops instead of vectoring)."""
     return cpu.last_trap is not None
 
 
-def trap_number(cpu) -> int:  # noqa: ANN001
+def trap_number(cpu) -> int:
     """The n of the TRAP #n the last step executed."""
     return int(cpu.last_trap)
 
@@ -504,11 +510,6 @@ def ref_disassembly(code: bytes, address: int) -> str:
 
 # ---------------------------------------------------------------------------------------- case generation
 
-from hypothesis import assume  # noqa: E402
-from hypothesis import strategies as st  # noqa: E402
-
-from isa.operands import IndexReg, Instruction, Mode, Operand, Size  # noqa: E402
-from isa.table import TABLE  # noqa: E402
 
 #: 32-bit edge values every register and memory draw is biased towards.
 EDGE32 = (0, 1, 0xFFFFFFFF, 0x7FFF, 0x8000, 0x7FFFFFFF, 0x80000000, 0xFFFF, 0xFFFF8000, 0x7F, 0x80, 0xFF,
@@ -561,7 +562,7 @@ class Case:
     machine: Machine
 
 
-def size_bytes(row, size: Size | None) -> int:  # noqa: ANN001
+def size_bytes(row, size: Size | None) -> int:
     """Operand width in bytes of ``row`` at ``size`` (implied sizes: MULS/DIVS word, LEA long ...)."""
     if size is None or size is Size.S:
         return 2
@@ -585,7 +586,7 @@ def _a_value() -> st.SearchStrategy[int]:
     return st.one_of(u32(), st.integers(DATA_LO, DATA_HI - 1))
 
 
-def draw_instruction(draw, row, size: Size | None, first_mode: Mode | None) -> Instruction:  # noqa: ANN001
+def draw_instruction(draw, row, size: Size | None, first_mode: Mode | None) -> Instruction:
     """A random canonical instruction of ``row`` at ``size`` whose first EA operand has ``first_mode``.
 
     The other operands' modes and the condition are drawn here; the operand values come from
@@ -618,7 +619,7 @@ DRAWN: list[tuple[str, tuple[int, ...], tuple[int, ...], int, tuple[int, ...]]] 
 
 
 @st.composite
-def cases(draw, row, size: Size | None, first_mode: Mode | None, odd: bool = False,  # noqa: ANN001
+def cases(draw, row, size: Size | None, first_mode: Mode | None, odd: bool = False,  # noqa: C901 - one branch per operand constraint of the instruction table's rows
           bus: bool = False) -> Case:
     """A complete test case for ``row``/``size``/``first_mode``.
 
@@ -793,7 +794,7 @@ def cases(draw, row, size: Size | None, first_mode: Mode | None, odd: bool = Fal
 _NOT_SIMPLEST = st.integers(0, 0xFFFF)
 
 
-def random_case(data, row, size: Size | None, mode: Mode | None, **kw) -> Case:  # noqa: ANN001
+def random_case(data, row, size: Size | None, mode: Mode | None, **kw) -> Case:
     """``data.draw(cases(row, size, mode, **kw))``, but never hypothesis's simplest example.
 
     Hypothesis runs the simplest example of a test first (every choice at its minimum: D0-D7 = 0, CCR = 0, the
@@ -825,7 +826,7 @@ def bus_combos() -> list[tuple[object, Size | None, Mode | None]]:
 
 
 @st.composite
-def cmpm_cases(draw) -> Case:  # noqa: ANN001
+def cmpm_cases(draw) -> Case:
     """CMPM (Ay)+,(Ax)+ with Ay = Ax and A7 (byte steps of 2) drawn often, both pointing at edge-valued data."""
     from isa.encoder import encode
 

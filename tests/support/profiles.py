@@ -6,7 +6,7 @@
 Tests that need an explicit example count call :func:`examples` so that the thorough profile scales it. A long
 property run (seconds per hundred examples) may name a smaller count for ``ci`` (issue 10: long property runs move
 behind ``thorough``, which keeps their examples): ``examples(150, ci=30)`` runs 30 examples under ``ci`` and still
-20 x 150 = 3,000 under ``thorough``, as before (docs/testing.md, third round, has the table).
+20 x 150 = 3,000 under ``thorough``, as before (docs/history/testing-rounds.md, third round, has the table).
 """
 
 from __future__ import annotations

@@ -36,7 +36,7 @@ def files_of(folder: Path) -> dict[str, bytes]:
     return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
 
 
-def chunked(stepper_run, adc: np.ndarray, acc: np.ndarray, size: int) -> list:  # type: ignore[no-untyped-def]
+def chunked(stepper_run, adc: np.ndarray, acc: np.ndarray, size: int) -> list:
     return [stepper_run(adc[i:i + size], acc[i:i + size], i) for i in range(0, len(adc), size)]
 
 

@@ -322,7 +322,7 @@ def sense_chunk(spec: dict[str, Any], seed: int, flight_ids: list[int] | tuple[i
         na[i, :ni] = g.standard_normal(ni)
     if np.any(pressure <= 0):
         raise UserError("montecarlo: a pressure spike made the pressure <= 0 (spike_magnitude_pa too large)")
-    col = lambda name: np.array([float(p[name]) for p in params])[:, None]  # noqa: E731
+    col = lambda name: np.array([float(p[name]) for p in params])[:, None]
     adc = np.empty((nf, n_max), dtype=np.int64)
     acc = np.empty((nf, n_max), dtype=np.int64)
     for (bname, aname), idx in _groups(params).items():
@@ -418,7 +418,7 @@ def run_chunk(task: dict[str, Any], timing: dict[str, float] | None = None) -> d
     _add(timing, "model", t0, c0, t1, c1)
     t_apo, z_apo, t_lift, max_mach = s.events[:, 1], s.events[:, 2], s.events[:, 3], s.events[:, 4]
     nc = len(combos)
-    rep = lambda a: np.repeat(np.asarray(a), nc)   # noqa: E731  (per flight -> per row)
+    rep = lambda a: np.repeat(np.asarray(a), nc)  # per flight -> per row
     f = np.stack([first[c] for c in combos], axis=1).reshape(-1)      # rows: flight-major, then combo
     fired = f >= 0
     t = np.where(fired, (f + rep(s.offset)) * plan.dt, np.nan)

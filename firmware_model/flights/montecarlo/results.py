@@ -30,7 +30,7 @@ EVENT_COLUMNS: dict[str, str] = {"early_05": "P(> 0.5 s early)", "early_1": "P(>
 
 def have_pyarrow() -> bool:
     try:
-        import pyarrow  # noqa: F401  (lazy: the optional 'montecarlo' extra)
+        import pyarrow  # noqa: F401 - only whether it imports: the optional 'montecarlo' extra
     except ImportError:
         return False
     return True

@@ -69,7 +69,7 @@ def _lookup(tab, u):
     return tab[i] * (1.0 - f) + tab[i + 1] * f
 
 
-def _flight(h, m_per, max_rec, max_steps, mt, mf, mcum, cd_tab, logz, rho_tab, c_tab,
+def _flight(h, m_per, max_rec, max_steps, mt, mf, mcum, cd_tab, logz, rho_tab, c_tab,  # noqa: C901 - one numba-compiled RK4 loop: motor, drag, wind, rail, recovery events inline for speed
             dry, prop, ts, fs, cd_scale, area, cda_d, site, tscale, wind, wdir, wexp, incl, rail, delay, descent,
             z_out, vz_out, az_out, fax_out, mach_out, ev):
     """One flight (scalar RK4). Writes the recorded columns and ``ev`` (see :data:`EVENTS`)."""
@@ -115,18 +115,14 @@ def _flight(h, m_per, max_rec, max_steps, mt, mf, mcum, cd_tab, logz, rho_tab, c
         m0 = 0.0
         for s in range(4):
             if s == 0:
-                cx, cy, cz, cvx, cvy, cvz, ts_ = x, y, z, vx, vy, vz, t
+                cz, cvx, cvy, cvz, ts_ = z, vx, vy, vz, t   # (x, y: the forces do not depend on them)
             elif s == 1 or s == 2:
-                cx = x + 0.5 * h * kx[s - 1]
-                cy = y + 0.5 * h * ky[s - 1]
                 cz = z + 0.5 * h * kz[s - 1]
                 cvx = vx + 0.5 * h * kvx[s - 1]
                 cvy = vy + 0.5 * h * kvy[s - 1]
                 cvz = vz + 0.5 * h * kvz[s - 1]
                 ts_ = t + 0.5 * h
             else:
-                cx = x + h * kx[2]
-                cy = y + h * ky[2]
                 cz = z + h * kz[2]
                 cvx = vx + h * kvx[2]
                 cvy = vy + h * kvy[2]

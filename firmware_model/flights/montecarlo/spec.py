@@ -170,7 +170,7 @@ def read_spec_file(path: str | Path) -> dict[str, Any]:
     return raw
 
 
-def load_spec(raw: dict[str, Any], where: str = "spec") -> dict[str, Any]:
+def load_spec(raw: dict[str, Any], where: str = "spec") -> dict[str, Any]:  # noqa: C901 - checks each section and key of a spec in turn, one error message each
     """Check a raw spec and return the complete one (every default filled in; plain data, JSON-ready)."""
     unknown = set(raw) - _TOP_KEYS
     if unknown:

@@ -92,7 +92,7 @@ def detect_format(path: str | Path) -> str:
                     "name it with format= / --format, or map its columns with --columns")
 
 
-def read_flight(path: str | Path, format: str | None = None,  # noqa: A002 (the CLI's --format)
+def read_flight(path: str | Path, format: str | None = None,  # the CLI's --format
                 **options: Any) -> FlightRecord:
     """Read one flight log. ``format``: one of :data:`FORMATS` to skip detection, or None to detect.
     ``options``: see the module docstring (None values are ignored)."""

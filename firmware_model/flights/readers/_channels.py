@@ -18,7 +18,7 @@ PRESSURE_UNITS: dict[str, float] = {"atm": 101325.0, "pa": 1.0, "kpa": 1000.0, "
                                     "psi": 6894.757293168}
 
 
-def groups(header: list[str], is_time) -> list[tuple[int, list[int]]]:  # type: ignore[no-untyped-def]
+def groups(header: list[str], is_time) -> list[tuple[int, list[int]]]:
     """(time column, its value columns) for every run of columns that starts with a time column."""
     out: list[tuple[int, list[int]]] = []
     for j, name in enumerate(header):

@@ -214,7 +214,7 @@ def _json_style(path: Path, text: str) -> Parsed:
     return Parsed(cfg, fmt, "json", recs, lines, good, notes, body_line)
 
 
-def _text_style(path: Path, text: str) -> Parsed:
+def _text_style(path: Path, text: str) -> Parsed:  # noqa: C901 - one branch per record line kind of the text .eeprom, each checked with its own message
     cfg: dict = {}
     ms: dict[str, int] = {}
     rows: list[tuple[int, str, int, list[str]]] = []

@@ -74,7 +74,7 @@ def header_names(line: str) -> list[str]:
     return names
 
 
-def read(path: Path) -> FlightRecord:
+def read(path: Path) -> FlightRecord:  # noqa: C901 - the CSV v5/v6 variants and their optional columns, each checked with its own message
     """Read one AltosUI CSV (v5 or v6) into a :class:`FlightRecord`."""
     text = read_text(path)
     lines = text.splitlines()

@@ -141,7 +141,7 @@ def read(path: Path) -> FlightRecord:
     table = Table(low_path, low_text, ",", min_rows=2, allow_duplicates=True)
     hl = table.header_line
     bcol = next(h for h in table.header if _BARO.match(h))
-    unit = _BARO.match(bcol).group(1).lower()        # type: ignore[union-attr]
+    unit = _BARO.match(bcol).group(1).lower()        # type: ignore[union-attr]  # bcol was picked because it matches
     if unit not in ch.PRESSURE_UNITS:
         raise fail(low_path, hl, f"{bcol}: unknown unit {unit!r} (know {', '.join(ch.PRESSURE_UNITS)})")
     t = table.floats("Flight_Time_(s)")

@@ -95,7 +95,7 @@ def _bytes(path: Path, body: str, first_line: int) -> bytes:
     return bytes(out)
 
 
-def read(path: Path, flight: int | None = None) -> FlightRecord:
+def read(path: Path, flight: int | None = None) -> FlightRecord:  # noqa: C901 - the .eeprom's JSON header, flight selection and record kinds, each checked with its own message
     """Read one flight of an AltOS .eeprom file."""
     text = read_text(path)
     if not text.lstrip().startswith("{"):

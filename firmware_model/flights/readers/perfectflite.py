@@ -68,7 +68,7 @@ def _header_kinds(line: str) -> list[str] | None:
     if len(names) < 2 or None in kinds or kinds[0] != "time" or "altitude" not in kinds \
             or len(set(kinds)) != len(kinds):
         return None
-    return kinds  # type: ignore[return-value]
+    return kinds  # type: ignore[return-value]  # no None left: refused above
 
 
 def _is_row(line: str, n: tuple[int, ...] = (4, 5)) -> bool:
@@ -185,7 +185,7 @@ def _unit_of(path: Path, line: int, name: str, kind: str) -> float | str:
     return 1.0
 
 
-def read(path: Path, site_altitude_m: float | None = None) -> FlightRecord:
+def read(path: Path, site_altitude_m: float | None = None) -> FlightRecord:  # noqa: C901 - the three layouts (.pf2, DataCap CSV, bare rows), each checked with its own message
     """Read a PerfectFlite log (``.pf2``, DataCap CSV or bare rows): altitude only, a synthetic barometer."""
     text = read_text(path)
     lay = _layout(text)

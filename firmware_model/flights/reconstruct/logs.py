@@ -153,7 +153,7 @@ def _cats_raw_imu(rec: FlightRecord, notes: list[str]) -> tuple[Any, Any]:
     return out_a, out_g
 
 
-def read_imu_log(path: str | Path, format: str | None = None) -> ImuLog:  # noqa: A002
+def read_imu_log(path: str | Path, format: str | None = None) -> ImuLog:
     path = Path(path)
     if not path.is_file():
         raise UserError(f"{path}: no such flight log")

@@ -46,11 +46,6 @@ def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     return v + w * t + np.cross(u, t)
 
 
-def rotate_inv(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """R(q)^T v (site -> body)."""
-    return rotate(qconj(q), v)
-
-
 def tilt_deg(q: np.ndarray) -> np.ndarray:
     """Angle (deg) between the body z axis (the rocket's axis) and the site's vertical."""
     axis_z = 1.0 - 2.0 * (q[..., 1] ** 2 + q[..., 2] ** 2)

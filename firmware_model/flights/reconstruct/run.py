@@ -237,7 +237,7 @@ def _fill(x: np.ndarray) -> np.ndarray:
     return x
 
 
-def reconstruct_log(path: str | Path, format: str | None = None,  # noqa: A002
+def reconstruct_log(path: str | Path, format: str | None = None,
                     deploy_s: float | None = None) -> Reconstruction:
     """A real log (module docstring): vertical channel, from the 3-axis IMU where the log has a gyroscope.
     ``deploy_s``: when a recovery charge fired (s on the log's axis), overriding the log's own events (e.g. the

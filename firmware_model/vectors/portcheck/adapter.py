@@ -123,7 +123,7 @@ def _line_of(text: str, needle: str) -> str:
     return f":{text.count(chr(10), 0, i) + 1}" if i >= 0 else ""
 
 
-def load_adapter(path: str | Path) -> Adapter:
+def load_adapter(path: str | Path) -> Adapter:  # noqa: C901 - one check per adapter key, each naming the file, line and key
     """Read an adapter file (JSON, docs/port-check.md "Adapter"); every problem is a :class:`UserError` naming the
     file, the line where it can, and the key."""
     path = Path(path)

@@ -178,7 +178,7 @@ def build_port(sources: list[str | Path] = (), lib: str | Path | None = None, ad
                str(out)]
         what = " ".join(s.name for s in srcs)
     else:
-        libp = Path(lib).resolve()  # type: ignore[arg-type]
+        libp = Path(lib).resolve()  # type: ignore[arg-type]  # lib is set whenever srcs is not (the branch above)
         incs.append(f"-I{libp.parent}")
         cmd = [cc, *STRICT_FLAGS, *extra, "-fPIC", "-shared", *incs, str(glue), "-o", str(out), str(libp),
                f"-Wl,-rpath,{libp.parent}"]

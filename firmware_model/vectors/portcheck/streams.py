@@ -47,7 +47,7 @@ def register_range(cfg: BuildConfig) -> tuple[int, int]:
 def baro_boundaries(cfg: BuildConfig, consts: object) -> list[int]:
     """Barometer words worth hitting on purpose for this build, inside the register's range."""
     lo, hi = register_range(cfg)
-    bmin, bmax = int(consts.BARO_MIN), int(consts.BARO_MAX)  # type: ignore[attr-defined]
+    bmin, bmax = int(consts.BARO_MIN), int(consts.BARO_MAX)  # type: ignore[attr-defined]  # consts is typed as object here (a FirmwareConstants)
     vals = [lo, lo + 1, hi - 1, hi, bmin - 1, bmin, bmin + 1, bmax - 1, bmax, bmax + 1, (bmin + bmax) // 2]
     if cfg.pascal:
         vals += list(PASCAL_EDGES)
