@@ -238,7 +238,7 @@ def test_full_set_is_every_sensing_at_k_5_6_7():
         tagged = {v[:3] for v in scenario_variants(n)}
         got = {(x.baro, x.accel, x.noise) for x in sims if x.source == f"sim:{n}"}
         assert got == tagged, n
-    with pytest.raises(UserError, match="known: eval, sim, logs, quick, full, realbaro"):
+    with pytest.raises(UserError, match="known: eval, sim, logs, quick, full, realbaro, ram"):
         named_set("nope")
 
 
