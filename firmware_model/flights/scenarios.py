@@ -472,7 +472,7 @@ def start_in_boost(rec: FlightRecord, mach: np.ndarray, after_liftoff_s: float) 
     i0 = int(np.searchsorted(t, lift + float(after_liftoff_s)))
     if not 0 < i0 < t.size - 2:
         raise UserError(f"{rec.name}: cannot start the log {after_liftoff_s} s after liftoff ({lift:g} s)")
-    cut = lambda a: None if a is None else np.asarray(a)[i0:].copy()  # noqa: E731
+    cut = lambda a: None if a is None else np.asarray(a)[i0:].copy()
     truth = Truth(altitude_m=cut(rec.truth.altitude_m), velocity_mps=cut(rec.truth.velocity_mps),
                   accel_mps2=cut(rec.truth.accel_mps2), apogee_time_s=rec.truth.apogee_time_s,
                   apogee_altitude_m=rec.truth.apogee_altitude_m)
