@@ -46,6 +46,8 @@ MAX_TABLE_NODES: int = 2049
 MAX_TABLE_SHIFT_SPAN: int = 11
 #: Kalman state units per m/s (and per m/s^2): Q24.8 metres.
 KALMAN_UNITS_PER_MPS: float = 256.0
+#: Fields in barometer counts that cannot exceed the sensor's whole range (2^table_bits).
+WHOLE_RANGE_FIELDS: tuple[str, ...] = ("baro_sigma", "units_per_metre")
 #: At most this many characters of a bad value are echoed in an error message.
 ECHO_CHARS: int = 80
 
@@ -336,7 +338,7 @@ class BuildConfig:
             key = "baro_min" if self.baro_min is not None and not 0 <= lo <= min(hi, full) else "baro_max"
             raise ConfigError(key, f"valid {'pascal' if self.pascal else 'ADC'} range [{lo}, {hi}] is empty or "
                               f"leaves the input; allowed: 0 <= baro_min <= baro_max <= {full}", self.source)
-        for name in ("baro_sigma", "units_per_metre"):
+        for name in WHOLE_RANGE_FIELDS:
             value = getattr(self, name)
             if value > full + 1:
                 raise ConfigError(name, f"{echo(value)} exceeds the {tb}-bit barometer's whole range; allowed: "

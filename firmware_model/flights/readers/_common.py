@@ -8,6 +8,7 @@ numbers are 1-based physical lines of the file) and never returns half a record.
 from __future__ import annotations
 
 import math
+import stat
 import re
 from pathlib import Path
 
@@ -35,7 +36,19 @@ def licence_of(path: Path) -> tuple[str, str]:
 
 
 def read_text(path: Path) -> str:
-    """The file's text, or a UserError naming it (missing, unreadable, not text, empty)."""
+    """The file's text, or a UserError naming it (missing, a folder, a FIFO or device, unreadable, not text,
+    empty). Only a regular file is opened: reading a FIFO would block until a writer comes (issue 33)."""
+    try:
+        mode = path.stat().st_mode
+    except FileNotFoundError:
+        raise UserError(f"{path}: no such flight log") from None
+    except OSError as exc:
+        raise UserError(f"{path}: cannot read: {exc.strerror}") from None
+    if stat.S_ISDIR(mode):
+        raise UserError(f"{path}: is a directory, not a flight log")
+    if not stat.S_ISREG(mode):
+        kind = "a FIFO" if stat.S_ISFIFO(mode) else "a socket" if stat.S_ISSOCK(mode) else "a device"
+        raise UserError(f"{path}: is {kind}, not a flight log file (give a regular file)")
     try:
         data = path.read_bytes()
     except FileNotFoundError:
@@ -225,6 +238,24 @@ def gaps_note(t: np.ndarray, lines: list[int], limit_s: float = 1.0) -> list[str
     if big.size > 5:
         out.append(f"... {big.size - 5} more gaps over {show(limit_s)} s")
     return out
+
+
+#: The altitudes a log may hold (m above its pad or sea level): the standard atmosphere this package uses ends
+#: near 32 km and is extended; past 100 km (the Karman line) a barometric altitude is not a reading (issue 33:
+#: an altitude of 1e308 ft reached liftoff detection as "pressure must be > 0 Pa").
+ALTITUDE_RANGE_M: tuple[float, float] = (-1000.0, 100_000.0)
+
+
+def check_altitude(path: Path, lines: list[int], altitude_m: np.ndarray, column: str, unit: str = "m",
+                   scale: float = 1.0) -> None:
+    """A UserError ``FILE:LINE: COLUMN: VALUE UNIT is out of range; allowed: ...`` for the first altitude outside
+    :data:`ALTITUDE_RANGE_M` (``altitude_m`` in metres; ``scale`` metres per ``unit`` for the message)."""
+    lo, hi = ALTITUDE_RANGE_M
+    bad = np.nonzero(np.isfinite(altitude_m) & ((altitude_m < lo) | (altitude_m > hi)))[0]
+    if bad.size:
+        i = int(bad[0])
+        raise fail(path, lines[i], f"{column}: {show(float(altitude_m[i]) / scale)} {unit} is out of range; allowed: "
+                                   f"{show(round(lo / scale))}..{show(round(hi / scale))} {unit} (a barometric altitude)")
 
 
 #: Site altitude (m above sea level) assumed for an altitude-only log when none is given: sea level.
