@@ -8,6 +8,7 @@ numbers are 1-based physical lines of the file) and never returns half a record.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 import stat
 import re
 from pathlib import Path
@@ -62,14 +63,37 @@ def read_text(path: Path) -> str:
     except UnicodeDecodeError as exc:
         line = data[: exc.start].count(b"\n") + 1
         raise UserError(f"{path}:{line}: not a text file (byte 0x{data[exc.start]:02x} is not UTF-8)") from None
-    if not text.strip():
+    if not text or text.isspace():     # (not text.strip(): that copies a whole log ending in a newline)
         raise UserError(f"{path}:1: empty file")
     return text
 
 
+def iter_lines(text: str, limit: int | None = None) -> Iterator[str]:
+    """The lines of ``text`` one at a time (``str.splitlines`` without building the list: a 200 MiB log's list of
+    lines took more memory than its text; issue 33), at most ``limit`` of them."""
+    if "\r" in text and "\n" not in text:            # old Mac line ends: rare and small
+        yield from text.splitlines()[:limit]
+        return
+    start, n, size = 0, 0, len(text)
+    while start < size and (limit is None or n < limit):
+        end = text.find("\n", start)
+        if end < 0:
+            end = size
+        line = text[start:end]
+        yield line[:-1] if line.endswith("\r") else line
+        start, n = end + 1, n + 1
+
+
 def fail(path: Path, line: int, what: str) -> UserError:
-    """The one error type of the readers: ``file:line: what``."""
+    """The one error type of the readers: ``file:line: what``, ``what`` cut to :data:`MAX_WHAT_CHARS` (issue 33:
+    a 5 MB unparseable field was echoed as a 5,000,109-byte error line)."""
+    if len(what) > MAX_WHAT_CHARS:
+        what = what[:MAX_WHAT_CHARS - 30] + f"...({len(what):,} chars)"
     return UserError(f"{path}:{line}: {what}")
+
+
+#: The longest reason a reader's error line carries (a field's text in it is cut).
+MAX_WHAT_CHARS: int = 300
 
 
 def parse_float(path: Path, line: int, column: str, text: str, *, allow_empty: bool = False) -> float:
