@@ -572,7 +572,8 @@ def leftovers(folder: str | Path) -> list[Path]:
     return sorted(p for p in folder.iterdir() if p.name.startswith(TEMP_PREFIX))
 
 
-__all__ = ["TEMP_PREFIX", "STALE_STAGE_S", "remove_stale_stages", "Interrupted", "OutputError", "declare_output", "folder_lock", "interruptible",
+__all__ = ["TEMP_PREFIX", "STALE_STAGE_S", "remove_stale_stages", "Interrupted", "OutputError", "declare_output",
+           "folder_lock", "interruptible",
            "interrupts_deferred", "interrupted_message", "leftovers", "open_atomic", "pending_signal",
            "raise_if_interrupted", "reset_run_state", "signals_deferred", "staged_folder", "worker_init",
            "worker_signals_ignored", "write_file"]

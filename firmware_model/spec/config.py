@@ -558,9 +558,10 @@ def _text_of(path: str | Path) -> str | None:
 
 def from_sources(data: dict[str, Any], given: dict[str, Any], where: str, text: str | None = None,
                  flag_names: dict[str, str] | None = None, under: dict[str, Any] | None = None) -> BuildConfig:
-    """The config of ``under`` (e.g. a tuning's fields), then the file's ``data``, then the flags ``given``,
-    validated and checked against the documented range (:func:`check_documented_range`); a field that fails is reported where the user wrote it: ``FILE:LINE: key: ...`` for a key of the
-    file (``text`` its contents, for the line), ``--flag: ...`` for a flag, ``WHERE: key: ...`` otherwise."""
+    """The config of ``under`` (e.g. a tuning's fields), then the file's ``data``, then the flags ``given``, validated
+    and checked against the documented range (:func:`check_documented_range`); a field that fails is reported where
+    the user wrote it: ``FILE:LINE: key: ...`` for a key of the file (``text`` its contents, for the line), ``--flag:
+    ...`` for a flag, ``WHERE: key: ...`` otherwise."""
     try:
         cfg = BuildConfig.from_dict((under or {}) | data | given, where=where)
         check_documented_range(cfg, where)

@@ -54,7 +54,8 @@ def broken_port(tmp: Path, name: str) -> Path:
     step = "void fw_step(fw_program prog, const fw_consts *c, fw_state *st, int32_t adc, int16_t acc)\n{"
     assert src.count(head) == 1 and src.count(step) == 1 and src.count('#include "fw.h"\n') == 1
     src = src.replace('#include "fw.h"\n', '#include "fw.h"\n' + PRELUDE)
-    src = src.replace(head, head + "\n    fwx_n = 0;").replace(step, step + f"\n    if (++fwx_n == 3) {BROKEN[name][0]}")
+    src = src.replace(head, head + "\n    fwx_n = 0;")
+    src = src.replace(step, step + f"\n    if (++fwx_n == 3) {BROKEN[name][0]}")
     d = tmp / name
     d.mkdir(parents=True)
     (d / "fw.c").write_text(src)

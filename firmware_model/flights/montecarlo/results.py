@@ -337,5 +337,6 @@ def write_figures(folder: Path, cols: dict[str, np.ndarray], summary: list[dict[
     return written
 
 
-__all__ = ["EVENT_COLUMNS", "chunk_rows", "encode", "flights_for", "have_pyarrow", "merge", "read_rows", "render_markdown",
+__all__ = ["EVENT_COLUMNS", "chunk_rows", "encode", "flights_for", "have_pyarrow", "merge", "read_rows",
+           "render_markdown",
            "summarize", "wilson", "write_figures", "write_summary"]

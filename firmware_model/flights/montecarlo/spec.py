@@ -371,13 +371,15 @@ def load_spec(raw: dict[str, Any], where: str = "spec") -> dict[str, Any]:
         pe_raw.pop("shape", None)
     if not isinstance(pe_raw, dict) or not isinstance(pe_raw.get("model"), str) \
             or pe_raw.get("model") not in PRESSURE_ERROR_PARAMS:
-        raise UserError(f"{where}: pressure_error: model: {echo(pe_raw.get('model') if isinstance(pe_raw, dict) else pe_raw)}"
+        got = pe_raw.get("model") if isinstance(pe_raw, dict) else pe_raw
+        raise UserError(f"{where}: pressure_error: model: {echo(got)}"
                         f"; allowed: a [pressure_error] table with model = one of {', '.join(PRESSURE_ERROR_PARAMS)}")
     model = pe_raw["model"]
     pdefs = PRESSURE_ERROR_PARAMS[model]
     bad = set(pe_raw) - {"model"} - set(pdefs)
     if bad:
-        raise UserError(f"{where}: pressure_error ({model}): unknown parameter(s) {clip(', '.join(sorted(map(str, bad))))}; known: "
+        raise UserError(f"{where}: pressure_error ({model}): unknown parameter(s) "
+                        f"{clip(', '.join(sorted(map(str, bad))))}; known: "
                         f"{', '.join(pdefs) or 'none'}")
     pe = {"model": model, "params": {p: _check_dist(f"{where}: pressure_error", p, pe_raw.get(p, d),
                                                     PRESSURE_ERROR_RANGES.get(p))

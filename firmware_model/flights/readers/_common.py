@@ -278,8 +278,9 @@ def check_altitude(path: Path, lines: list[int], altitude_m: np.ndarray, column:
     bad = np.nonzero(np.isfinite(altitude_m) & ((altitude_m < lo) | (altitude_m > hi)))[0]
     if bad.size:
         i = int(bad[0])
-        raise fail(path, lines[i], f"{column}: {show(float(altitude_m[i]) / scale)} {unit} is out of range; allowed: "
-                                   f"{show(round(lo / scale))}..{show(round(hi / scale))} {unit} (a barometric altitude)")
+        raise fail(path, lines[i], f"{column}: {show(float(altitude_m[i]) / scale)} {unit} is out of range; "
+                                   f"allowed: {show(round(lo / scale))}..{show(round(hi / scale))} {unit} "
+                                   "(a barometric altitude)")
 
 
 #: Site altitude (m above sea level) assumed for an altitude-only log when none is given: sea level.

@@ -27,7 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
-from firmware_model.flights.readers._common import check_time, fail, iter_lines, licence_of, parse_float, read_text, show
+from firmware_model.flights.readers._common import (check_time, fail, iter_lines, licence_of, parse_float,
+                                                    read_text, show)
 from firmware_model.flights.record import FlightRecord, Truth
 from firmware_model.spec.atmosphere import G0, pressure_pa
 
@@ -132,15 +133,18 @@ def read(path: Path) -> FlightRecord:
     if baro[0] == "pressure_pa":
         p = raw
     elif baro[0] == "pressure_hpa":
-        p = raw * 100.0
+        with np.errstate(over="ignore"):   # 1e308 hPa: inf, refused with its line by the record
+            p = raw * 100.0
     else:
         p = np.asarray(pressure_pa(raw), dtype=np.float64)
     bad = np.nonzero(~(p > 0) & np.isfinite(p))[0]
     if bad.size:
-        raise fail(path, int(line_of[int(bad[0])]), f"{baro[0]}: {show(float(raw[int(bad[0])]))} gives a pressure <= 0 Pa")
+        raise fail(path, int(line_of[int(bad[0])]),
+                   f"{baro[0]}: {show(float(raw[int(bad[0])]))} gives a pressure <= 0 Pa")
     acc = None
     if accel:
-        acc = values[accel[0]] * (G0 if accel[0] == "accel_g" else 1.0)
+        with np.errstate(over="ignore"):   # as above: the record refuses an infinite acceleration
+            acc = values[accel[0]] * (G0 if accel[0] == "accel_g" else 1.0)
 
     t = values["time_s"]
     truth = None

@@ -234,7 +234,7 @@ def glue_core(adapter: Adapter, programs: tuple[str, ...] = PROGRAMS, prefix: st
             lines.append(f"        return {len(names)};")
         lines += ["    default:", "        break;", "    }", "    return 0;"]
     lines += ["}", ""]
-    lines += ["/* FWPC_PROGRESS(i): i samples stepped (-1: before init); check-port's child reports it after a crash */",
+    lines += ["/* FWPC_PROGRESS(i): i samples stepped (-1: before init); check-port's child reads it after a crash */",
               "#ifndef FWPC_PROGRESS", "#define FWPC_PROGRESS(i) ((void)0)", "#endif", "",
               f"static int32_t {prefix}_run(int32_t program, const int32_t *v, const int32_t *alt, int32_t n, "
               "const int32_t *baro, const int16_t *acc, int32_t nw, int32_t *out)", "{",
