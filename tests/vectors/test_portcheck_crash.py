@@ -127,3 +127,33 @@ def test_sigterm_ends_a_run_stuck_in_a_hanging_port(tmp_path: Path) -> None:
     assert time.monotonic() - t0 < 3.0
     assert p.returncode == 143 and "interrupted" in err and "Traceback" not in err
     assert list((tmp_path / "tmp").iterdir()) == [] and not (tmp_path / "out").exists()
+
+
+@needs_cc
+def test_finding_files_are_written_as_one_set_or_not_at_all(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                            capsys: pytest.CaptureFixture[str]) -> None:
+    """A disk that fills up after the first of the three files (issue 33: 1 of 3 was left): none of them, the
+    folder's earlier contents intact, exit 2 with one line."""
+    import errno
+
+    from firmware_model.vectors.portcheck import repro
+
+    src = broken_port(tmp_path / "ports", "abort")
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "earlier.txt").write_text("kept")
+    real = repro.write_file
+    calls = []
+
+    def full_disk(path, data):
+        calls.append(path)
+        if len(calls) == 2:
+            raise OSError(errno.ENOSPC, "No space left on device", str(path))
+        return real(path, data)
+
+    monkeypatch.setattr(repro, "write_file", full_disk)
+    code = main(["check-port", str(src), "--program", "kalman_baro", "--time", "10", "--out", str(out), "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 2 and "No space left on device" in err and "Traceback" not in err, err
+    assert len(calls) == 2
+    assert sorted(p.name for p in out.iterdir()) == ["earlier.txt"]
