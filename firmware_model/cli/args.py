@@ -13,18 +13,37 @@ def nonnegative_int(text: str) -> int:
     try:
         value = int(text, 10)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+        raise argparse.ArgumentTypeError(f"{text[:80]!r} is not an integer; allowed: an integer >= 0") from None
     if value < 0:
-        raise argparse.ArgumentTypeError(f"{value} must be >= 0")
+        raise argparse.ArgumentTypeError(f"{value} is out of range; allowed: an integer >= 0")
     return value
 
 
 def positive_int(text: str) -> int:
-    """An integer >= 1 (``--jobs``)."""
-    value = nonnegative_int(text)
+    """An integer >= 1 (``--jobs``): 0 and negatives get the same message."""
+    try:
+        value = int(text, 10)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text[:80]!r} is not an integer; allowed: an integer >= 1") from None
     if value < 1:
-        raise argparse.ArgumentTypeError(f"{value} must be >= 1")
+        raise argparse.ArgumentTypeError(f"{value} is out of range; allowed: an integer >= 1")
     return value
+
+
+def bounded_int(lo: int, hi: int, what: str = ""):
+    """An argparse type: an integer ``lo..hi`` (one message for every value outside; ``what`` names the cap)."""
+
+    def parse(text: str) -> int:
+        allowed = f"allowed: an integer {lo:,}..{hi:,}{f' ({what})' if what else ''}"
+        try:
+            value = int(text, 10)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text[:80]!r} is not an integer; {allowed}") from None
+        if not lo <= value <= hi:
+            raise argparse.ArgumentTypeError(f"{text[:80]} is out of range; {allowed}")
+        return value
+
+    return parse
 
 
 def positive_float(text: str) -> float:

@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 from hypothesis.configuration import set_hypothesis_home_dir, storage_directory
 
-from firmware_model.cli.args import nonnegative_int, positive_float, positive_int
+from firmware_model.cli.args import bounded_int, nonnegative_int, positive_float, positive_int
 from firmware_model.runtime import output
 from firmware_model.runtime.errors import UserError
 from firmware_model.spec.config import PROGRAMS, ROUNDINGS, BuildConfig, load_config
@@ -33,6 +33,7 @@ from firmware_model.vectors.cases import case_config, pascal_case_config
 from firmware_model.vectors.portcheck.adapter import load_adapter
 from firmware_model.vectors.portcheck.build import build_port
 from firmware_model.vectors.portcheck.check import check_port
+from firmware_model.vectors.portcheck.isolate import MEMORY_LIMIT_MB, STREAM_TIMEOUT_S
 from firmware_model.vectors.portcheck.repro import describe, write_repro
 
 SENSORS: tuple[str, ...] = ("adc16", "adc12", "pascal")
@@ -68,6 +69,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     p.add_argument("--out", type=Path, default=Path("port-check"), help="folder for the files of a difference "
                                                                         "(default port-check)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.add_argument("--stream-timeout", type=positive_float, default=STREAM_TIMEOUT_S, metavar="S",
+                   help=f"wall-time limit of one stream in the port's child process (default {STREAM_TIMEOUT_S:g} s; "
+                        "past it the port is reported as hanging)")
+    p.add_argument("--memory", type=bounded_int(16, 1 << 20, "MiB"), default=MEMORY_LIMIT_MB, metavar="MIB",
+                   help=f"address-space limit of the port's child process (default {MEMORY_LIMIT_MB} MiB)")
     p.set_defaults(func=run)
 
 
@@ -132,13 +138,15 @@ def run(args: argparse.Namespace) -> int:
     adapter = load_adapter(args.adapter) if args.adapter else None
     output.declare_output(args.out)
     includes = list(args.include) + ([str(Path(args.adapter).resolve().parent)] if args.adapter else [])
-    port = build_port(args.sources, lib=args.lib, adapter=adapter, include_dirs=includes, cflags=args.cflags)
+    port = build_port(args.sources, lib=args.lib, adapter=adapter, include_dirs=includes, cflags=args.cflags,
+                      memory_mb=args.memory, timeout_s=args.stream_timeout)
     home = storage_directory(intent_to_write=False).home_directory
     try:
         if port.workdir is not None:  # hypothesis's caches go with the build, not into the user's current folder
             set_hypothesis_home_dir(port.workdir / ".hypothesis")
         return _check(args, cfg, streams, examples, port)
     finally:
+        port.close()           # the port's child process, before its folder goes
         set_hypothesis_home_dir(home)
         if port.workdir is not None:  # the build folder (a fresh temporary one) and hypothesis's caches in it
             shutil.rmtree(port.workdir, ignore_errors=True)
@@ -169,6 +177,9 @@ def _check(args: argparse.Namespace, cfg: BuildConfig, streams: list[Any], examp
     for line in describe(res.mismatch):
         print(line)
     paths = write_repro(res.mismatch, port.adapter, args.out, args.seed)
+    if res.mismatch.crash is not None:
+        print("  reproduce: build a test file below with your port and run it (under a debugger or with "
+              "-fsanitize=address,undefined)")
     print(f"  found after {res.examples_to_failure} streams ({res.samples_to_failure:,} samples, "
           f"{res.seconds_to_failure:.1f} s), shrunk in {res.shrink_seconds:.1f} s; replay: --seed {args.seed}")
     for p in paths:

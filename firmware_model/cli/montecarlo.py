@@ -8,11 +8,11 @@ import sys
 import time
 from pathlib import Path
 
-from firmware_model.cli.args import nonnegative_int, positive_int
+from firmware_model.cli.args import bounded_int, nonnegative_int, positive_int
 from firmware_model.runtime.errors import UserError
 from firmware_model.flights.export import generic_csv
 from firmware_model.flights.montecarlo.pipeline import replay_configs, replay_record
-from firmware_model.flights.montecarlo.run import run_montecarlo
+from firmware_model.flights.montecarlo.run import MAX_FLIGHTS, run_montecarlo
 from firmware_model.flights.montecarlo.spec import load_spec, read_spec_file
 from firmware_model.runtime.output import declare_output, write_file
 from firmware_model.runtime.progress import Progress
@@ -29,7 +29,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
                     "P(missed), P(fired before burnout) with 95 % Wilson intervals. Flight i is reproducible "
                     "alone from (--seed, i).")
     p.add_argument("spec", type=Path, metavar="SPEC", help="the spec file (.toml or .json; docs/montecarlo.md)")
-    p.add_argument("-n", "--flights", type=positive_int, default=1000, help="number of flights (default 1000)")
+    p.add_argument("-n", "--flights", type=bounded_int(1, MAX_FLIGHTS, "the cap on flights per run"), default=1000,
+                   help=f"number of flights (default 1000; 1..{MAX_FLIGHTS:,})")
     p.add_argument("--seed", type=nonnegative_int, default=0, help="master seed (default 0)")
     p.add_argument("--out", type=Path, default=Path("out/montecarlo"), help="output folder (default out/montecarlo)")
     p.add_argument("--jobs", "-j", type=positive_int, default=1, metavar="N",
@@ -87,7 +88,8 @@ def run_cli(args: argparse.Namespace) -> int:
     show = not args.quiet and sys.stderr.isatty()
     t0 = time.perf_counter()
     res = run_montecarlo(spec, args.seed, args.flights, args.out, backend, args.format, args.resume,
-                         progress=_progress(show), figures=not args.no_figures)
+                         progress=_progress(show), figures=not args.no_figures,
+                         note=lambda text: print(f"fwemu: {text}", file=sys.stderr))
     total = time.perf_counter() - t0
     s = res.seconds
     comp = ", ".join(f"{k} {v:.1f}" for k, v in s.items())

@@ -249,6 +249,10 @@ def resolve_flights(items: Iterable[str], simulated: bool = False, logs: bool = 
                                         noise=noise, label=_label(item[4:], k, ks)))
             continue
         path = Path(item)
+        if path.is_dir():
+            raise UserError(f"{item}: is a folder, not a flight file (name the log files in it)")
+        if path.exists() and not path.is_file():
+            raise UserError(f"{item}: is not a regular file (a FIFO or a device), not a flight file")
         if not path.is_file():
             raise UserError(f"{item}: no such flight file (or use sim:NAME / set:NAME)")
         for k in ks:

@@ -219,7 +219,13 @@ def firmware_inputs(record: FlightRecord, k: int, baro: BaroSensor | None = None
     tr = record.truth
     for name in ("altitude_m", "velocity_mps", "accel_mps2"):
         cols[f"true_{name}"] = None if tr is None else getattr(tr, name)
-    g, out, report = resample(t, cols, k, method=method, t_start=a, t_end=b)
+    try:
+        g, out, report = resample(t, cols, k, method=method, t_start=a, t_end=b)
+    except UserError as exc:      # name the log (issue 33: a shifted time column gave a message without a file)
+        src = record.provenance.get("source", record.name)
+        hint = (" (no accelerometer sample inside the barometer's time span: a shifted or mismatched time column?)"
+                if "accel_mps2" in str(exc) else "")
+        raise UserError(f"{src}: {exc}{hint}") from None
     before = g < t[0]
     pads = {"pressure_pa": _pad_value(t, cols["pressure_pa"], lift)}
     if f is not None:

@@ -15,6 +15,12 @@ import numpy as np
 from firmware_model.runtime.errors import UserError
 
 
+#: Static pressures a flight log may hold (Pa): above 0, at most two atmospheres.
+PRESSURE_RANGE_PA: tuple[float, float] = (0.0, 200_000.0)
+#: The largest specific force a flight log may hold (m/s^2): 10,000 g, past any motor or ejection shock.
+MAX_ACCEL_MPS2: float = 10_000.0 * 9.80665
+
+
 @dataclass(frozen=True)
 class Truth:
     """What really happened, where known (simulators): arrays on the record's time axis plus the true apogee.
@@ -83,6 +89,35 @@ class FlightRecord:
             arr = getattr(self, name)
             if arr is not None and np.asarray(arr).shape != (n,):
                 raise UserError(f"{where}: {name} has shape {np.asarray(arr).shape}, time has ({n},)")
+        self._check_plausible(t, where)
+
+    def _check_plausible(self, t: np.ndarray, where: str) -> None:
+        """Issue 33: a pressure outside :data:`PRESSURE_RANGE_PA` (1e308 Pa reached the barometer model) or an
+        acceleration beyond :data:`MAX_ACCEL_MPS2` is an error naming the file's line (``row_lines``) or the row. (A
+        clock jump is judged later, where the flight is known: :mod:`firmware_model.flights.firmware_inputs` refuses
+        one before apogee naming its line and ends the stream at one after it, with a note: docs/flights.md "Gaps".)"""
+        def at(i: int) -> str:
+            if self.row_lines is not None and len(self.row_lines) == len(t):
+                return f"{where}:{int(self.row_lines[i])}"
+            return f"{where}: row {i}"
+
+        if self.pressure_pa is not None:
+            p = np.asarray(self.pressure_pa, dtype=np.float64)
+            lo, hi = PRESSURE_RANGE_PA
+            bad = np.nonzero(~np.isnan(p) & ~((p > lo) & (p <= hi)))[0]
+            if bad.size:
+                i = int(bad[0])
+                how = (" (from the altitude column through the standard atmosphere)"
+                       if self.provenance.get("synthetic_baro") else "")
+                raise UserError(f"{at(i)}: pressure: {p[i]:.6g} Pa{how} is out of range; allowed: more than "
+                                f"{lo:g} and at most {hi:,.0f} Pa")
+        if self.accel_mps2 is not None:
+            a = np.asarray(self.accel_mps2, dtype=np.float64)
+            bad = np.nonzero(~np.isnan(a) & ~(np.abs(a) <= MAX_ACCEL_MPS2))[0]
+            if bad.size:
+                i = int(bad[0])
+                raise UserError(f"{at(i)}: acceleration: {a[i]:.6g} m/s^2 is out of range; allowed: at most "
+                                f"{MAX_ACCEL_MPS2:,.0f} m/s^2 (10,000 g) either way")
 
     def own_apogee(self) -> tuple[str, float] | None:
         """The log's own flight computer's apogee: ``(computer, time_s)``, or None when the log has none.

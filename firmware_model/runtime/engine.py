@@ -94,20 +94,23 @@ def run_chunks(fn: Callable[[Any], Any], chunks: Sequence[Any], backend: Backend
     """Yield ``(i, fn(chunks[i]))`` for every chunk index not in ``skip``, as chunks finish (any order). ``fn``
     and the chunks must pickle (except with one local worker). ``on_start(text)`` is told once the workers are
     up (e.g. the Dask dashboard address)."""
-    todo = [i for i in range(len(chunks)) if i not in set(skip)]
-    if not todo:
+    skip = set(skip)
+    n_todo = len(chunks) - sum(1 for i in skip if 0 <= i < len(chunks))
+    if n_todo <= 0:
         return
+    # the indices are streamed, never listed: a run of 10^9 flights has millions of chunks (issue 33)
+    todo = (i for i in range(len(chunks)) if i not in skip)
     if backend.kind == "local":
-        if backend.workers == 1 or len(todo) == 1:
+        if backend.workers == 1 or n_todo == 1:
             if on_start:
                 on_start("this process")
             for i in todo:
                 raise_if_interrupted()
                 yield i, fn(chunks[i])
             return
-        yield from _run_local(fn, chunks, todo, min(backend.workers, len(todo)), on_start)
+        yield from _run_local(fn, chunks, todo, min(backend.workers, n_todo), on_start)
     elif backend.kind == "dask":
-        yield from _run_dask(fn, chunks, todo, backend, on_start)
+        yield from _run_dask(fn, chunks, list(todo), backend, on_start)
     else:
         raise UserError(f"engine: unknown backend {backend.kind!r}")
 
@@ -128,10 +131,10 @@ def _kill(ex: cf.ProcessPoolExecutor) -> None:
             p.join(5)
 
 
-def _run_local(fn: Callable[[Any], Any], chunks: Sequence[Any], todo: list[int], workers: int,
+def _run_local(fn: Callable[[Any], Any], chunks: Sequence[Any], todo: Iterator[int], workers: int,
                on_start: Callable[[str], None] | None) -> Iterator[tuple[int, Any]]:
-    pending = list(reversed(todo))           # pop() takes the lowest index first
-    lost = {i: 0 for i in todo}
+    pending = _Pending(todo)                 # pop() takes the lowest index first (lost chunks before new ones)
+    lost: dict[int, int] = {}
     slots: list[cf.ProcessPoolExecutor | None] = [None] * workers
     running: dict[cf.Future, tuple[int, int]] = {}    # future -> (slot, chunk index)
     try:
@@ -155,7 +158,7 @@ def _run_local(fn: Callable[[Any], Any], chunks: Sequence[Any], todo: list[int],
                     res = fut.result()
                 except cf.process.BrokenProcessPool:
                     # the worker process died: only its chunk is lost; run it again in a new process
-                    lost[i] += 1
+                    lost[i] = lost.get(i, 0) + 1
                     if lost[i] > LOCAL_RETRIES:
                         raise UserError(f"engine: chunk {i} lost its worker process {lost[i]} times; giving up "
                                         "(a chunk that kills its worker each time)") from None
@@ -173,6 +176,30 @@ def _run_local(fn: Callable[[Any], Any], chunks: Sequence[Any], todo: list[int],
         for ex in slots:
             if ex is not None:
                 _kill(ex)
+
+
+class _Pending:
+    """The chunk indices still to run: chunks handed back (a lost worker's) first, then the stream ``todo``;
+    truthy while any remain (pulls one index ahead)."""
+
+    def __init__(self, todo: Iterator[int]) -> None:
+        self._todo = iter(todo)
+        self._back: list[int] = []
+        self._next: int | None = next(self._todo, None)
+
+    def __bool__(self) -> bool:
+        return bool(self._back) or self._next is not None
+
+    def pop(self) -> int:
+        if self._back:
+            return self._back.pop()
+        i = self._next
+        assert i is not None
+        self._next = next(self._todo, None)
+        return i
+
+    def append(self, i: int) -> None:
+        self._back.append(i)
 
 
 def _run_dask(fn: Callable[[Any], Any], chunks: Sequence[Any], todo: list[int], backend: Backend,
@@ -225,10 +252,15 @@ class ChunkStore:
     not at all, so a run interrupted anywhere (even by SIGKILL) resumes from the chunks on disk; a fingerprint
     mismatch (a different spec, seed or code) refuses the resume instead of mixing two runs."""
 
-    def __init__(self, folder: str | Path, fingerprint: dict[str, Any], ext: str, resume: bool = False) -> None:
+    def __init__(self, folder: str | Path, fingerprint: dict[str, Any], ext: str, resume: bool = False,
+                 valid: Callable[[Path], bool] | None = None) -> None:
         self.folder = Path(folder)
         self.ext = ext
         self.fingerprint = fingerprint
+        #: a check of a chunk file's contents (``--resume`` redoes a chunk that fails it: truncated, corrupt)
+        self.valid = valid
+        #: chunk files found invalid and removed by :meth:`done`
+        self.redone: list[Path] = []
         run = self.folder / "run.json"
         want = json.dumps(fingerprint, sort_keys=True, indent=1) + "\n"
         if self.folder.exists() and any(self.folder.iterdir()):
@@ -252,7 +284,15 @@ class ChunkStore:
         for p in self.folder.glob(f"chunk-*.{self.ext}"):
             if not p.name.startswith(TEMP_PREFIX):
                 with contextlib.suppress(ValueError):
-                    out.add(int(p.name[len("chunk-"):-len(self.ext) - 1]))
+                    i = int(p.name[len("chunk-"):-len(self.ext) - 1])
+                    if self.valid is not None and not self.valid(p):
+                        # a chunk file that is not whole (truncated or overwritten after its commit): redo it
+                        with contextlib.suppress(OSError):
+                            p.unlink()
+                        self.redone.append(p)
+                        self.redone.sort()
+                        continue
+                    out.add(i)
         return out
 
     def commit(self, i: int, data: bytes) -> None:

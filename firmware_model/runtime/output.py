@@ -484,8 +484,9 @@ def staged_folder(target: str | Path, owned: Sequence[str] = (), whole: bool = F
     base = _stage_base(target)
     if whole and base != target.parent:
         raise OutputError(f"{shown}: cannot replace it: its parent folder {target.parent} is not writable")
+    remove_stale_stages(base, target.name or "root")
     try:
-        stage = Path(tempfile.mkdtemp(prefix=f"{TEMP_PREFIX}stage-{target.name or 'root'}-", dir=base))
+        stage = Path(tempfile.mkdtemp(prefix=f"{TEMP_PREFIX}stage-{target.name or 'root'}-{os.getpid()}-", dir=base))
     except OSError as exc:
         raise _fail(shown, "cannot write", exc) from None
     key = str(shown)
@@ -520,6 +521,50 @@ def staged_folder(target: str | Path, owned: Sequence[str] = (), whole: bool = F
         shutil.rmtree(stage, ignore_errors=True)
 
 
+#: A stage folder without its owner's process id (written before the id was part of the name) is stale after this
+#: many seconds.
+STALE_STAGE_S: float = 24 * 3600.0
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OSError):
+        return True      # someone else's process: alive as far as we can tell
+    return True
+
+
+def remove_stale_stages(base: Path, name: str) -> list[Path]:
+    """Remove the stage folders of ``name`` in ``base`` that a killed run left (issue 33: a SIGKILLed ``vectors``
+    left 12 MB that no later run removed): a stage is named ``.fwemu-stage-NAME-PID-XXXX``; it is stale when
+    process PID no longer runs on this machine (a live run staging into the same target keeps its own). A stage
+    without a PID (older versions) is stale after :data:`STALE_STAGE_S`. Returns the folders removed."""
+    removed = []
+    prefix = f"{TEMP_PREFIX}stage-{name}-"
+    try:
+        entries = [p for p in base.iterdir() if p.name.startswith(prefix) and p.is_dir()]
+    except OSError:
+        return removed
+    for p in entries:
+        rest = p.name[len(prefix):]
+        if "-" in rest:
+            head, tail = rest.split("-", 1)
+            if not head.isdigit() or "-" in tail:
+                continue                       # another target's stage (its name goes on after NAME-)
+            stale = int(head) != os.getpid() and not _pid_alive(int(head))
+        else:
+            try:
+                stale = time.time() - p.stat().st_mtime > STALE_STAGE_S
+            except OSError:
+                continue
+        if stale:
+            shutil.rmtree(p, ignore_errors=True)
+            removed.append(p)
+    return removed
+
+
 def leftovers(folder: str | Path) -> list[Path]:
     """Temporary or lock names of this module directly inside ``folder`` (e.g. after a SIGKILL)."""
     folder = Path(folder)
@@ -528,7 +573,8 @@ def leftovers(folder: str | Path) -> list[Path]:
     return sorted(p for p in folder.iterdir() if p.name.startswith(TEMP_PREFIX))
 
 
-__all__ = ["TEMP_PREFIX", "Interrupted", "OutputError", "declare_output", "folder_lock", "interruptible",
+__all__ = ["TEMP_PREFIX", "STALE_STAGE_S", "remove_stale_stages", "Interrupted", "OutputError", "declare_output",
+           "folder_lock", "interruptible",
            "interrupts_deferred", "interrupted_message", "leftovers", "open_atomic", "pending_signal",
            "raise_if_interrupted", "reset_run_state", "signals_deferred", "staged_folder", "worker_init",
            "worker_signals_ignored", "write_file"]

@@ -28,7 +28,7 @@ from typing import Any
 from firmware_model.runtime.errors import UserError
 from firmware_model.spec.alt_table import table_of_config
 from firmware_model.spec.atmosphere import G0
-from firmware_model.spec.config import BuildConfig
+from firmware_model.spec.config import KALMAN_UNITS_PER_MPS, BuildConfig
 from firmware_model.spec.fixed import INT32_MAX, INT32_MIN, MAX_SHIFT, QGain, _round_half_away, quantize_gain
 from firmware_model.spec.gain_design import describe, float_gains, innovation_sigma_m
 
@@ -130,6 +130,15 @@ def build_constants(cfg: BuildConfig) -> FirmwareConstants:
     threshold that does not fit int32."""
     if not isinstance(cfg, BuildConfig):
         raise UserError(f"build_constants needs a BuildConfig, got {type(cfg).__name__}")
+    try:
+        return _build_constants(cfg)
+    except UserError as exc:
+        if cfg.source is None:
+            raise
+        raise UserError(f"{cfg.source}: {exc}") from None  # the file the config came from, then the design's words
+
+
+def _build_constants(cfg: BuildConfig) -> FirmwareConstants:
     where = describe(cfg)
     fg = float_gains(cfg)
     gains: dict[str, QGain] = {}
@@ -144,8 +153,8 @@ def build_constants(cfg: BuildConfig) -> FirmwareConstants:
             gains[name] = quantize_gain(name, g)
         except UserError as exc:
             raise UserError(f"{where}: {exc}") from None
-    kalman_v = 256.0                                   # Q24.8 m/s per m/s (the Kalman programs run in metres)
-    rec_v = cfg.accel_counts_per_mps2 * 2.0**cfg.k     # accel counts x samples per m/s
+    kalman_v = KALMAN_UNITS_PER_MPS                    # Q24.8 m/s per m/s (the Kalman programs run in metres)
+    rec_v = cfg.recursive_units_per_mps                # accel counts x samples per m/s
     recursive = cfg.program in ("recursive", "recursive_seed_literal")
     lo, hi = cfg.baro_range
     kalman: dict[str, Any] = {}

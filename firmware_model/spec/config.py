@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from firmware_model.runtime.errors import UserError
+from firmware_model.spec.atmosphere import G0 as _G0
 
 #: TeleMetrum v1 (MP3H6115A through a 16-bit-scaled ADC; the AltosUI log notes in docs/flights.md): raw = (P/1000*0.009 - 0.095)*32752,
 #: i.e. P(raw) = PA_AT_ZERO + PA_PER_COUNT * raw.
@@ -35,6 +36,153 @@ PA_TABLE_BITS: int = 17
 PA_DEFAULT_RANGE: tuple[int, int] = (1000, 120000)
 #: Default table segment shift of the pascal kind: nodes every 2^7 = 128 Pa (1,025 nodes; docs/numerics.md).
 PA_DEFAULT_ALT_SHIFT: int = 7
+
+
+#: The altitude table's node cap: 4 bytes a node, 2,049 nodes = 8,196 bytes, the most the 68000's 16 KB ROM holds
+#: next to the program (docs/numerics.md "Altitude table"). It also bounds the table fit's memory (quadratic in the
+#: node count: 2^15 + 1 nodes asked for 8 GiB, issue 33).
+MAX_TABLE_NODES: int = 2049
+#: log2(MAX_TABLE_NODES - 1): the smallest alt_shift is table_bits - this.
+MAX_TABLE_SHIFT_SPAN: int = 11
+#: Kalman state units per m/s (and per m/s^2): Q24.8 metres.
+KALMAN_UNITS_PER_MPS: float = 256.0
+#: Fields in barometer counts that cannot exceed the sensor's whole range (2^table_bits).
+WHOLE_RANGE_FIELDS: tuple[str, ...] = ("baro_sigma", "units_per_metre")
+#: At most this many characters of a bad value are echoed in an error message.
+ECHO_CHARS: int = 80
+
+#: Physical bounds shared by several fields (issue 33): every number a config holds is checked against one, so no
+#: input can overflow a float in the design or an int32 in the build. Each is far outside what a rocket does.
+MAX_SPEED_MPS: float = 3000.0        # Mach ~9; the amateur altitude records peak near Mach 5
+MAX_ACCEL_MPS2: float = 1000.0 * 9.80665   # 1,000 g
+MAX_SECONDS: float = 3600.0          # an hour: longer than any boost, coast or descent
+MAX_QUANT_ALT_M: float = 30000.0     # the altitude table's floor (1,000 Pa) lies near 31 km
+
+
+def echo(value: Any) -> str:
+    """``repr(value)`` cut to :data:`ECHO_CHARS` characters (a 5 MB string must not become a 5 MB error line)."""
+    text = repr(value)
+    if len(text) <= ECHO_CHARS:
+        return text
+    return text[:ECHO_CHARS - 20] + f"...({len(text):,} chars)"
+
+
+class ConfigError(UserError):
+    """A build-config field that failed validation: ``key`` is the field the user wrote, ``detail`` says what was
+    wrong and what is allowed; the message is ``WHERE: key: detail``."""
+
+    def __init__(self, key: str, detail: str, where: str | None = None) -> None:
+        self.key, self.detail = key, detail
+        super().__init__(f"{where or 'build config'}: {key}: {detail}")
+
+    def at(self, where: str) -> ConfigError:
+        """The same error located at ``where`` (a file, ``file:line``)."""
+        return ConfigError(self.key, self.detail, where)
+
+
+@dataclass(frozen=True)
+class Rule:
+    """The type and range of one field: ``kind`` int | number | choice; ``lo``/``hi`` inclusive bounds (``lo_open``:
+    the lower bound excluded); ``choices`` for a choice; ``null`` when ``None`` is allowed; ``unit`` and ``why``
+    for the message."""
+
+    kind: str
+    lo: float | None = None
+    hi: float | None = None
+    lo_open: bool = False
+    choices: tuple[Any, ...] = ()
+    null: bool = False
+    unit: str = ""
+    why: str = ""
+
+    def allowed(self) -> str:
+        if self.kind == "choice":
+            text = " or ".join(", ".join(map(str, self.choices)).rsplit(", ", 1))
+        else:
+            word = "an integer" if self.kind == "int" else "a number"
+            lo = "" if self.lo is None else f"{'>' if self.lo_open else '>='} {self.lo:,.10g}"
+            hi = "" if self.hi is None else f"<= {self.hi:,.10g}"
+            if self.kind == "int" and self.lo is not None and self.hi is not None:
+                text = f"{word} {self.lo:,.0f}..{self.hi:,.0f}"
+            else:
+                text = f"{word} {' and '.join(b for b in (lo, hi) if b)}".rstrip()
+            text += f" {self.unit}" if self.unit else ""
+        text += " or null" if self.null else ""
+        return text + (f" ({self.why})" if self.why else "")
+
+    def check(self, name: str, value: Any, where: str | None) -> None:
+        if value is None and self.null:
+            return
+        if self.kind == "choice":
+            if isinstance(value, bool) or value not in self.choices or not isinstance(value, type(self.choices[0])):
+                raise ConfigError(name, f"{echo(value)} is not an allowed value; allowed: {self.allowed()}", where)
+            return
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or (
+                self.kind == "int" and not isinstance(value, int)):
+            kind = "true/false" if isinstance(value, bool) else type(value).__name__
+            kind = {"str": "text", "NoneType": "null", "dict": "an object", "list": "a list"}.get(kind, kind)
+            raise ConfigError(name, f"{echo(value)} is {kind}; allowed: {self.allowed()}", where)
+        if isinstance(value, float) and not math.isfinite(value):
+            raise ConfigError(name, f"{echo(value)} is not finite; allowed: {self.allowed()}", where)
+        low = self.lo is not None and (value <= self.lo if self.lo_open else value < self.lo)
+        if low or (self.hi is not None and value > self.hi):
+            raise ConfigError(name, f"{echo(value)} is out of range; allowed: {self.allowed()}", where)
+
+
+_SPEED = Rule("number", 0.0, MAX_SPEED_MPS, unit="m/s", why="Mach ~9 and above is not a rocket")
+_ACCEL = Rule("number", 0.0, MAX_ACCEL_MPS2, unit="m/s^2", why="1,000 g")
+_SECONDS = Rule("number", 0.0, MAX_SECONDS, unit="s")
+
+#: The build config's schema (issue 33): type and physical range of every field; cross-field rules (the
+#: barometer's range, the table's node cap, int32 thresholds) are in :meth:`BuildConfig.validate`.
+FIELDS: dict[str, Rule] = {
+    "program": Rule("choice", choices=PROGRAMS),
+    "k": Rule("int", 0, 10, why="sample period 2^-k s"),
+    "rounding": Rule("choice", choices=ROUNDINGS),
+    "baro_kind": Rule("choice", choices=BARO_KINDS),
+    "baro_bits": Rule("int", 8, 16, unit="bits", why="barometer ADC width"),
+    "baro_sign": Rule("choice", choices=(-1, 1)),
+    "units_per_metre": Rule("number", 1e-3, float(1 << PA_TABLE_BITS), unit="counts per metre",
+                            why="at most the sensor's whole range in one metre"),
+    "accel_counts_per_mps2": Rule("number", 1e-3, 32767.0, unit="counts per m/s^2",
+                                  why="a 16-bit word spanning at least 1 m/s^2"),
+    "shift": Rule("int", 1, 8, why="recursive filter shift S: ADC << (8-S) must be a left shift"),
+    "threshold_q8": Rule("int", 1, 1 << 20, why="apogee threshold, Q24.8"),
+    "gate_mps": _SPEED,
+    "noise_model": Rule("choice", choices=NOISE_MODELS),
+    "ratio": Rule("number", 0.0, 1e12, lo_open=True, why="R/q; above 1e12 the process noise vanishes"),
+    "baro_sigma": Rule("number", 0.0, float(1 << PA_TABLE_BITS), lo_open=True, unit="counts",
+                       why="at most the sensor's whole range"),
+    "accel_sigma": Rule("number", 0.0, 65536.0, lo_open=True, unit="counts",
+                        why="at most the 16-bit accelerometer word's range"),
+    "accel_model_g": Rule("number", 0.0, 100.0, unit="g"),
+    "mach_lo_mps": _SPEED,
+    "mach_hi_mps": _SPEED,
+    "mach_innov_m": Rule("number", 0.0, 1e5, unit="m"),
+    "baro_min": Rule("int", null=True, why="raw barometer word; the range is checked below"),
+    "baro_max": Rule("int", null=True, why="raw barometer word; the range is checked below"),
+    "liftoff_mps": _SPEED,
+    "baro_pa_per_count": Rule("number", 0.0, 1e5, lo_open=True, null=True, unit="Pa",
+                              why="one count is at most an atmosphere"),
+    "baro_pa_at_zero": Rule("number", -1e6, 1e6, null=True, unit="Pa", why="ten atmospheres either way"),
+    "alt_shift": Rule("int", 1, 15, null=True, why="altitude-table segment 2^alt_shift counts"),
+    "cal_p": Rule("int", 0, 8, null=True, why="pad calibration over 2^cal_p samples"),
+    "gate_sigmas": Rule("number", 0.0, 1000.0, why="innovation gate in sigmas; 0 = no gate"),
+    "gate_hold_s": _SECONDS,
+    "apogee_hold_s": _SECONDS,
+    "transonic_r_factor": Rule("number", 1.0, 1e6),
+    "baro_rate_mps": _SPEED,
+    "mach_settle_s": _SECONDS,
+    "mach_delay_s": _SECONDS,
+    "coast_mps2": _ACCEL,
+    "coast_s": _SECONDS,
+    "drag_mps2": _ACCEL,
+    "thrust_mps2": _ACCEL,
+    "descent_mps": _SPEED,
+    "clip_drag_mps2": _ACCEL,
+    "clip_s": _SECONDS,
+    "quant_alt_m": Rule("number", 0.0, MAX_QUANT_ALT_M, unit="m", why="above the pad; the table ends near 31 km"),
+}
 
 
 @dataclass(frozen=True)
@@ -144,101 +292,93 @@ class BuildConfig:
     clip_s: float = 0.25
     quant_alt_m: float = 3000.0
     extra: dict[str, Any] = field(default_factory=dict, compare=False, hash=False)
+    #: where the config came from (its file), for messages; not a setting (not in :meth:`to_dict`)
+    source: str | None = field(default=None, compare=False, hash=False, repr=False)
 
     def __post_init__(self) -> None:
         self.validate()
 
     # ------------------------------------------------------------------ validation
-    def validate(self) -> None:  # noqa: C901 - one range check per BuildConfig field, each naming the field
-        """Raise :class:`UserError` naming the first field whose value is out of its documented range."""
-
-        def bad(name: str, why: str) -> UserError:
-            return UserError(f"build config: {name}={getattr(self, name)!r}: {why}")
-
-        for name in ("k", "baro_bits", "baro_sign", "shift", "threshold_q8", "baro_min", "baro_max"):
-            if isinstance(getattr(self, name), bool):
-                raise bad(name, "must be an integer, not true/false")
-        for name in ("units_per_metre", "accel_counts_per_mps2", "ratio", "baro_sigma", "accel_sigma", "gate_mps",
-                     "liftoff_mps", "mach_lo_mps", "mach_hi_mps", "mach_innov_m"):
-            if isinstance(getattr(self, name), bool):
-                raise bad(name, "must be a number, not true/false")
-        for name in ("baro_min", "baro_max"):
-            if getattr(self, name) is not None and not isinstance(getattr(self, name), int):
-                raise bad(name, "must be an integer ADC code or null")
+    def validate(self) -> None:
+        """Raise :class:`ConfigError` (a :class:`UserError`) for the first field whose value has the wrong type,
+        lies outside its physical range (:data:`FIELDS`) or, combined with the others, would not fit the firmware's
+        integers or its ROM. The message reads ``WHERE: key: what was wrong; what is allowed`` (WHERE = ``source``,
+        the file the config came from, else "build config"); the value is echoed at most :data:`ECHO_CHARS`
+        characters."""
+        for name, rule in FIELDS.items():
+            rule.check(name, getattr(self, name), self.source)
         if not isinstance(self.extra, dict):
-            raise bad("extra", "must be a JSON object (free-form notes carried into the vectors' build_config)")
-        if not isinstance(self.program, str) or self.program not in PROGRAMS:
-            raise bad("program", f"must be one of {', '.join(PROGRAMS)}")
-        if not isinstance(self.k, int) or not 0 <= self.k <= 10:
-            raise bad("k", "sample period 2^-k needs an integer k in 0..10")
-        if not isinstance(self.rounding, str) or self.rounding not in ROUNDINGS:
-            raise bad("rounding", f"must be one of {', '.join(ROUNDINGS)}")
-        if not isinstance(self.baro_kind, str) or self.baro_kind not in BARO_KINDS:
-            raise bad("baro_kind", f"must be one of {', '.join(BARO_KINDS)}")
-        if not isinstance(self.baro_bits, int) or not 8 <= self.baro_bits <= 16:
-            raise bad("baro_bits", "barometer ADC width must be 8..16 bits")
-        if not isinstance(self.baro_sign, int) or self.baro_sign not in (1, -1):
-            raise bad("baro_sign", "must be +1 or -1")
-        for name in ("units_per_metre", "accel_counts_per_mps2", "ratio", "baro_sigma", "accel_sigma"):
-            value = getattr(self, name)
-            if not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
-                raise bad(name, "must be a finite number > 0")
-        if not isinstance(self.shift, int) or not 1 <= self.shift <= 8:
-            raise bad("shift", "recursive filter shift S must be 1..8 (ADC << (8-S) must be a left shift)")
-        if not isinstance(self.threshold_q8, int) or not 1 <= self.threshold_q8 <= 1 << 20:
-            raise bad("threshold_q8", "apogee threshold must be 1..2^20 (Q24.8)")
-        if not isinstance(self.noise_model, str) or self.noise_model not in NOISE_MODELS:
-            raise bad("noise_model", f"must be one of {', '.join(NOISE_MODELS)}")
-        for name in ("gate_mps", "liftoff_mps", "mach_lo_mps", "mach_hi_mps", "mach_innov_m"):
-            value = getattr(self, name)
-            if not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
-                raise bad(name, "must be a finite number >= 0")
+            raise ConfigError("extra", f"{echo(self.extra)} is not a JSON object; allowed: free-form notes carried "
+                              "into the vectors' build_config", self.source)
         if self.mach_lo_mps >= self.mach_hi_mps:
-            raise bad("mach_lo_mps", f"must be below mach_hi_mps={self.mach_hi_mps}")
-        for name in ("baro_pa_per_count",):
-            value = getattr(self, name)
-            if value is not None and (not isinstance(value, (int, float)) or isinstance(value, bool)
-                                      or not math.isfinite(value) or value <= 0):
-                raise bad(name, "must be a finite number > 0 (Pa per count) or null")
-        if self.baro_pa_at_zero is not None and (not isinstance(self.baro_pa_at_zero, (int, float))
-                                                 or isinstance(self.baro_pa_at_zero, bool)
-                                                 or not math.isfinite(self.baro_pa_at_zero)):
-            raise bad("baro_pa_at_zero", "must be a finite number (Pa) or null")
+            raise ConfigError("mach_lo_mps", f"{echo(self.mach_lo_mps)} is not below mach_hi_mps="
+                              f"{echo(self.mach_hi_mps)}; allowed: mach_lo_mps < mach_hi_mps", self.source)
         if self.pascal:
             if self.baro_sign != -1:
-                raise bad("baro_sign", "a pascal word falls as the rocket climbs: baro_sign must be -1")
+                raise ConfigError("baro_sign", "a pascal word falls as the rocket climbs; allowed: baro_sign -1",
+                                  self.source)
             for name in ("baro_pa_per_count", "baro_pa_at_zero"):
                 if getattr(self, name) is not None:
-                    raise bad(name, "a pascal barometer reports pascals (identity transfer function): must be null")
+                    raise ConfigError(name, "a pascal barometer reports pascals (identity transfer function); "
+                                      "allowed: null", self.source)
         tb = self.table_bits
-        lo_shift = 6 if self.pascal else 1      # pascal: 2^(17-6)+1 nodes = 8,196 bytes, the most the 16 KB ROM holds
-        if self.alt_shift is not None and (isinstance(self.alt_shift, bool) or not isinstance(self.alt_shift, int)
-                                           or not lo_shift <= self.alt_shift <= min(15, tb - 1)):
-            raise bad("alt_shift", f"altitude-table segment shift must be {lo_shift}..{min(15, tb - 1)} or null"
-                      + (" (a pascal table of 2^(17-alt_shift)+1 nodes must fit the 16 KB ROM)" if self.pascal else ""))
-        if self.cal_p is not None and (isinstance(self.cal_p, bool) or not isinstance(self.cal_p, int)
-                                       or not 0 <= self.cal_p <= 8):
-            raise bad("cal_p", "pad calibration over 2^cal_p samples needs cal_p in 0..8 (or null)")
-        for name in ("gate_sigmas", "gate_hold_s", "apogee_hold_s", "baro_rate_mps", "mach_settle_s", "mach_delay_s",
-                     "coast_mps2", "coast_s", "drag_mps2", "thrust_mps2", "descent_mps", "quant_alt_m", "clip_drag_mps2",
-                     "clip_s", "accel_model_g"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
-                raise bad(name, "must be a finite number >= 0")
-        if (isinstance(self.transonic_r_factor, bool) or not isinstance(self.transonic_r_factor, (int, float))
-                or not math.isfinite(self.transonic_r_factor) or self.transonic_r_factor < 1):
-            raise bad("transonic_r_factor", "must be a finite number >= 1")
+        # the table has 2^(tb - alt_shift) + 1 nodes of 4 bytes: the 68000's 16 KB ROM holds at most
+        # MAX_TABLE_NODES of them, and the table's least-squares fit (spec/alt_table.py) takes memory growing with
+        # the square of the node count: the cap bounds both before any allocation
+        lo_shift = max(1, tb - MAX_TABLE_SHIFT_SPAN)
+        hi_shift = min(15, tb - 1)
+        if self.alt_shift is not None and not lo_shift <= self.alt_shift <= hi_shift:
+            raise ConfigError("alt_shift", f"{echo(self.alt_shift)} gives a table of 2^({tb}-alt_shift)+1 nodes "
+                              f"outside 3..{MAX_TABLE_NODES:,} (the {MAX_TABLE_NODES:,}-node cap: 4 bytes a node must "
+                              f"fit the 16 KB ROM); allowed: {lo_shift}..{hi_shift} or null for a {tb}-bit "
+                              f"{'pascal word' if self.pascal else 'ADC'}", self.source)
         full = (1 << tb) - 1
         lo, hi = self.baro_range
         if not 0 <= lo <= hi <= full:
-            raise bad("baro_min", f"valid {'pascal' if self.pascal else 'ADC'} range [{lo}, {hi}] must lie inside "
-                                  f"[0, {full}]")
+            key = "baro_min" if self.baro_min is not None and not 0 <= lo <= min(hi, full) else "baro_max"
+            raise ConfigError(key, f"valid {'pascal' if self.pascal else 'ADC'} range [{lo}, {hi}] is empty or "
+                              f"leaves the input; allowed: 0 <= baro_min <= baro_max <= {full}", self.source)
+        for name in WHOLE_RANGE_FIELDS:
+            value = getattr(self, name)
+            if value > full + 1:
+                raise ConfigError(name, f"{echo(value)} exceeds the {tb}-bit barometer's whole range; allowed: "
+                                  f"(0, {full + 1}] for this sensor", self.source)
+        self._check_fits_int32()
+
+    def _check_fits_int32(self) -> None:
+        """The velocity and acceleration thresholds times their state scale must fit the firmware's signed
+        32-bit words (docs/gain-design.md): the recursive programs count velocity in accelerometer counts x
+        samples (``accel_counts_per_mps2 * 2^k`` per m/s), so a fast gate on a fine accelerometer at a high k
+        can overflow; the key named is the one the user wrote."""
+        recursive = self.program in ("recursive", "recursive_seed_literal")
+        v_scale = self.recursive_units_per_mps if recursive else KALMAN_UNITS_PER_MPS
+        a_scale = self.accel_counts_per_mps2 if recursive else KALMAN_UNITS_PER_MPS
+        what = "accel_counts_per_mps2 x 2^k" if recursive else "256 (Q24.8)"
+        a_what = "accel_counts_per_mps2" if recursive else what
+        checks = [("gate_mps", 0.0, self.recursive_units_per_mps, "m/s", "accel_counts_per_mps2 x 2^k"),
+                  ("liftoff_mps", 0.0, v_scale, "m/s", what),
+                  ("descent_mps", 0.0, v_scale, "m/s", what),
+                  ("coast_mps2", 0.0, a_scale, "m/s^2", a_what),
+                  ("clip_drag_mps2", _G0, a_scale, "m/s^2", a_what)]
+        for name, offset, scale, unit, label in checks:
+            value = (getattr(self, name) + offset) * scale
+            if abs(value) >= 2**31 - 1:
+                raise ConfigError(name, f"{echo(getattr(self, name))} {unit} x {scale:,.6g} state units per {unit} "
+                                  f"({label}) = {value:.4g} does not fit the firmware's signed 32-bit word; allowed: "
+                                  f"at most {(2**31 - 2) / scale - offset:.6g} {unit} with this sensor and k",
+                                  self.source)
 
     # ------------------------------------------------------------------ derived
     @property
     def dt(self) -> float:
         """Sample period in seconds (2^-k)."""
         return 2.0 ** -self.k
+
+    @property
+    def recursive_units_per_mps(self) -> float:
+        """The recursive programs' velocity scale: accelerometer counts x samples per m/s
+        (``accel_counts_per_mps2 * 2^k``: VEL is the running sum of ``acc - ACC0``)."""
+        return self.accel_counts_per_mps2 * 2.0**self.k
 
     @property
     def pascal(self) -> bool:
@@ -302,6 +442,7 @@ class BuildConfig:
         """The config as a JSON-ready dict (``extra`` omitted when empty, ``baro_kind`` when ``adc``: the ADC
         builds' configs read as before the pascal kind existed)."""
         data = dataclasses.asdict(self)
+        del data["source"]
         if not data["extra"]:
             del data["extra"]
         if data["baro_kind"] == "adc":
@@ -311,19 +452,17 @@ class BuildConfig:
     @classmethod
     def from_dict(cls, data: dict[str, Any], where: str = "build config") -> BuildConfig:
         """Build a config from a dict, rejecting unknown keys with a message naming ``where`` and the key."""
-        names = {f.name for f in dataclasses.fields(cls)}
+        names = {f.name for f in dataclasses.fields(cls)} - {"source"}
         unknown = sorted(set(data) - names)
         if unknown:
-            raise UserError(f"{where}: unknown field(s) {', '.join(unknown)}; known: {', '.join(sorted(names))}")
-        try:
-            return cls(**data)
-        except TypeError as exc:  # wrong type for a field
-            raise UserError(f"{where}: {exc}") from None
+            raise UserError(f"{where}: {echo(unknown[0])[:ECHO_CHARS]}: unknown field; known: "
+                            f"{', '.join(sorted(names))}")
+        return cls(**data, source=where)
 
     @classmethod
     def from_file(cls, path: str | Path) -> BuildConfig:
         """Read a config from a JSON file (see :func:`read_config_file`); errors name the file."""
-        return cls.from_dict(read_config_file(path), where=str(path))
+        return from_sources(read_config_file(path), {}, str(path), _text_of(path))
 
 
 #: Smallest tuning ratio R/q inside the documented input range (docs/numerics.md: no wrap-around above it).
@@ -335,8 +474,8 @@ def check_documented_range(cfg: BuildConfig, where: str = "build config") -> Non
     tuning ratio R/q below :data:`MIN_RATIO` (gains so large that the states can wrap around int32)."""
     low = MIN_RATIO.get(cfg.program)
     if low is not None and cfg.ratio < low:
-        raise UserError(f"{where}: ratio={cfg.ratio!r} is below the documented range for {cfg.program} "
-                        f"(R/q >= {low:g}; below it the integer states can wrap around, docs/numerics.md)")
+        raise ConfigError("ratio", f"{echo(cfg.ratio)} is below the documented range for {cfg.program}; allowed: "
+                          f"R/q >= {low:g} (below it the integer states can wrap around, docs/numerics.md)", where)
 
 
 def _line_of_key(text: str, key: str, occurrence: int) -> int:
@@ -407,6 +546,31 @@ def load_config(path: str | Path | None = None, overrides: dict[str, Any] | None
         if "program" in data and "program" in given and data["program"] != given["program"]:
             raise UserError(f"{path}: program={data['program']!r} contradicts {names['program']} "
                             f"{given['program']}; a build config is tuned for one program: drop one of them")
-    cfg = BuildConfig.from_dict(data | given, where=where)
-    check_documented_range(cfg, where)
-    return cfg
+    return from_sources(data, given, where, _text_of(path) if path is not None else None, names)
+
+
+def _text_of(path: str | Path) -> str | None:
+    try:
+        return Path(path).read_bytes().decode("utf-8-sig")
+    except (OSError, UnicodeDecodeError):
+        return None
+
+
+def from_sources(data: dict[str, Any], given: dict[str, Any], where: str, text: str | None = None,
+                 flag_names: dict[str, str] | None = None, under: dict[str, Any] | None = None) -> BuildConfig:
+    """The config of ``under`` (e.g. a tuning's fields), then the file's ``data``, then the flags ``given``, validated
+    and checked against the documented range (:func:`check_documented_range`); a field that fails is reported where
+    the user wrote it: ``FILE:LINE: key: ...`` for a key of the file (``text`` its contents, for the line), ``--flag:
+    ...`` for a flag, ``WHERE: key: ...`` otherwise."""
+    try:
+        cfg = BuildConfig.from_dict((under or {}) | data | given, where=where)
+        check_documented_range(cfg, where)
+        return cfg
+    except ConfigError as exc:
+        if exc.key in given:
+            flag = (flag_names or {}).get(exc.key, "--" + exc.key.replace("_", "-"))
+            raise exc.at(f"{flag} (over {where})" if data else flag) from None
+        if exc.key in data and text is not None:
+            line = _line_of_key(text, exc.key, 1)
+            raise exc.at(f"{where}:{line}" if line else where) from None
+        raise

@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from firmware_model.runtime.errors import UserError
-from firmware_model.spec.config import BuildConfig, check_documented_range, load_config, read_config_file
+from firmware_model.spec.config import BuildConfig, from_sources, load_config, read_config_file
 
 #: The tunings the commands take (``--tuning``): the BuildConfig defaults, or :data:`RECOMMENDED`.
 TUNINGS: tuple[str, ...] = ("default", "recommended")
@@ -77,9 +77,7 @@ def load_tuned_config(path: str | Path | None, overrides: dict[str, Any] | None,
     data = read_config_file(path) if path is not None else {}
     given = {key: value for key, value in (overrides or {}).items() if value is not None}
     where = str(path) if path is not None else "build config"
-    out = BuildConfig.from_dict(tuned | data | given, where=where)
-    check_documented_range(out, where)
-    return out
+    return from_sources(data, given, where, None, flag_names, under=tuned)
 
 
 __all__ = ["RECOMMENDED", "TUNINGS", "recommended_config", "tuning_fields", "describe_tuning", "load_tuned_config"]

@@ -148,13 +148,13 @@ def test_csv_undecodable_bytes_name_the_line(tmp_path: Path) -> None:
 # ------------------------------------------------------------------------------------------ config JSON (item 11)
 @pytest.mark.parametrize("text, expected", [
     ('{"k": 5,\n "rounding": "floor",\n "k": 6}', "c.json:3: duplicate key 'k' (JSON keys must be unique)"),
-    ('{"extra": 5}', "extra=5: must be a JSON object"),
-    ('{"bogus": 1}', "unknown field(s) bogus"),
-    ('{"program": "kalman_baro", "ratio": 500}', "ratio=500 is below the documented range for kalman_baro "
-                                                 "(R/q >= 1000"),
-    ('{"program": "kalman_accel", "ratio": 5.0}', "ratio=5.0 is below the documented range for kalman_accel "
-                                                  "(R/q >= 10"),
-    ('{"k": true}', "k=True: must be an integer"),
+    ('{"extra": 5}', "c.json:1: extra: 5 is not a JSON object"),
+    ('{"bogus": 1}', "c.json: 'bogus': unknown field; known: "),
+    ('{"program": "kalman_baro", "ratio": 500}', "c.json:1: ratio: 500 is below the documented range for "
+                                                 "kalman_baro; allowed: R/q >= 1000"),
+    ('{"program": "kalman_accel",\n "ratio": 5.0}', "c.json:2: ratio: 5.0 is below the documented range for "
+                                                    "kalman_accel; allowed: R/q >= 10"),
+    ('{"k": true}', "c.json:1: k: True is true/false; allowed: an integer 0..10"),
     ('[1, 2]', "a build config must be a JSON object"),
     ('{"k": 5', "c.json:1:8: invalid JSON"),
 ])
@@ -168,7 +168,7 @@ def test_config_json_with_bom_and_ratio_at_the_bound(tmp_path: Path) -> None:
     write(tmp_path / "c.json", b"\xef\xbb\xbf" + json.dumps({"ratio": 1000.0, "k": 6}).encode())
     assert load_config(tmp_path / "c.json").ratio == 1000.0
     line = error_line(fwemu("design", "--ratio", "999", cwd=tmp_path))   # a flag below the range, too
-    assert "ratio=999.0 is below the documented range" in line
+    assert "--ratio: ratio: 999.0 is below the documented range" in line
     assert load_config(None, {"program": "recursive", "ratio": 1.0}).ratio == 1.0   # ratio unused there
 
 

@@ -228,7 +228,7 @@ def test_budget_out_naming_a_file_or_a_path_below_a_file(tmp_path: Path) -> None
 def test_negative_seeds_are_usage_errors(argv: list[str], tmp_path: Path) -> None:
     r = fwemu(*argv, cwd=tmp_path)
     assert r.returncode == 2 and "Traceback" not in r.stderr
-    assert "must be >= " in r.stderr.splitlines()[-1]
+    assert "is out of range; allowed: an integer >= " in r.stderr.splitlines()[-1]
     assert list(tmp_path.iterdir()) == []
 
 

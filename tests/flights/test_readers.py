@@ -286,6 +286,8 @@ def test_rdas_bad_line(tmp_path: Path) -> None:
 
 # ------------------------------------------------------------------------------------------------ writer
 finite = st.floats(-1e6, 1e6, allow_nan=False, allow_infinity=False)
+#: Accelerations a record may hold (issue 33: at most 10,000 g either way, FlightRecord refuses more).
+plausible_accel = st.floats(-9.8e4, 9.8e4, allow_nan=False, allow_infinity=False)
 
 
 @settings(max_examples=examples(40))
@@ -304,7 +306,7 @@ def test_generic_round_trip_bit_exact(data: st.DataObject, n: int, with_acc: boo
     p = np.array(data.draw(st.lists(st.floats(1.0, 2e5), min_size=n, max_size=n)))
     if gaps:
         p[data.draw(st.integers(1, n - 1))] = np.nan
-    acc = np.array(data.draw(st.lists(finite, min_size=n, max_size=n))) if with_acc else None
+    acc = np.array(data.draw(st.lists(plausible_accel, min_size=n, max_size=n))) if with_acc else None
     truth = None
     if with_truth:
         truth = Truth(altitude_m=np.array(data.draw(st.lists(finite, min_size=n, max_size=n))),

@@ -148,9 +148,12 @@ def test_equates_are_int32_and_complete(program: str, k: int, rounding: str) -> 
 
 
 def test_threshold_that_overflows_int32_is_a_user_error() -> None:
-    cfg = BuildConfig(program="recursive", accel_counts_per_mps2=1e6)  # 30 m/s * 1e6 * 128 = 3.8e9 > 2^31
-    with pytest.raises(UserError, match="V_LIFT=.*signed 32-bit"):
-        build_constants(cfg)
+    """Issue 33: the config refuses a threshold whose state value overflows int32, naming the key the user wrote
+    (here V_GATE = gate_mps x accel_counts_per_mps2 x 2^k = 100 x 32,000 x 1,024 = 3.3e9 > 2^31)."""
+    with pytest.raises(UserError, match=r"gate_mps: 100 m/s x 3.2768e\+07 .* = 3.277e\+09 does not fit .*signed "
+                                        r"32-bit word; allowed: at most 65.536 m/s"):
+        BuildConfig(program="recursive", k=10, accel_counts_per_mps2=32000.0, gate_mps=100)
+    build_constants(BuildConfig(program="recursive", k=10, accel_counts_per_mps2=32000.0, gate_mps=65.5))
 
 
 def test_design_gain_below_2_pow_minus_33_is_built_as_zero() -> None:

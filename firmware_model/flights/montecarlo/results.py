@@ -69,7 +69,28 @@ def encode(cols: dict[str, Any], fmt: str) -> bytes:
     return out.getvalue().encode()
 
 
-def merge(paths: Sequence[Path], dest: Path, fmt: str) -> None:
+def chunk_rows(path: Path, fmt: str) -> int | None:
+    """The number of rows of a chunk file, or None when it is not whole (a Parquet file whose magic bytes, footer
+    or row groups do not read; a CSV without its header or with a cut last line): ``--resume`` redoes it."""
+    try:
+        if fmt == "parquet":
+            import pyarrow.parquet as pq
+
+            with open(path, "rb") as f:
+                head = f.read(4)
+                f.seek(-4, 2)
+                if head != b"PAR1" or f.read(4) != b"PAR1":
+                    return None
+            return int(pq.read_table(path).num_rows)
+        data = path.read_bytes()
+        if not data.endswith(b"\n") or not data.startswith(b"flight,"):
+            return None
+        return data.count(b"\n") - 1
+    except Exception:      # noqa: BLE001 - any failure to read it back means it is not a whole chunk
+        return None
+
+
+def merge(paths: Iterable[Path], dest: Path, fmt: str) -> None:
     """Concatenate chunk files (in the given order) into ``dest`` atomically (streamed: one chunk in memory)."""
     if fmt == "parquet":
         import pyarrow.parquet as pq
@@ -316,5 +337,6 @@ def write_figures(folder: Path, cols: dict[str, np.ndarray], summary: list[dict[
     return written
 
 
-__all__ = ["EVENT_COLUMNS", "encode", "flights_for", "have_pyarrow", "merge", "read_rows", "render_markdown",
+__all__ = ["EVENT_COLUMNS", "chunk_rows", "encode", "flights_for", "have_pyarrow", "merge", "read_rows",
+           "render_markdown",
            "summarize", "wilson", "write_figures", "write_summary"]

@@ -8,6 +8,8 @@ numbers are 1-based physical lines of the file) and never returns half a record.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
+import stat
 import re
 from pathlib import Path
 
@@ -35,7 +37,19 @@ def licence_of(path: Path) -> tuple[str, str]:
 
 
 def read_text(path: Path) -> str:
-    """The file's text, or a UserError naming it (missing, unreadable, not text, empty)."""
+    """The file's text, or a UserError naming it (missing, a folder, a FIFO or device, unreadable, not text,
+    empty). Only a regular file is opened: reading a FIFO would block until a writer comes (issue 33)."""
+    try:
+        mode = path.stat().st_mode
+    except FileNotFoundError:
+        raise UserError(f"{path}: no such flight log") from None
+    except OSError as exc:
+        raise UserError(f"{path}: cannot read: {exc.strerror}") from None
+    if stat.S_ISDIR(mode):
+        raise UserError(f"{path}: is a directory, not a flight log")
+    if not stat.S_ISREG(mode):
+        kind = "a FIFO" if stat.S_ISFIFO(mode) else "a socket" if stat.S_ISSOCK(mode) else "a device"
+        raise UserError(f"{path}: is {kind}, not a flight log file (give a regular file)")
     try:
         data = path.read_bytes()
     except FileNotFoundError:
@@ -49,14 +63,37 @@ def read_text(path: Path) -> str:
     except UnicodeDecodeError as exc:
         line = data[: exc.start].count(b"\n") + 1
         raise UserError(f"{path}:{line}: not a text file (byte 0x{data[exc.start]:02x} is not UTF-8)") from None
-    if not text.strip():
+    if not text or text.isspace():     # (not text.strip(): that copies a whole log ending in a newline)
         raise UserError(f"{path}:1: empty file")
     return text
 
 
+def iter_lines(text: str, limit: int | None = None) -> Iterator[str]:
+    """The lines of ``text`` one at a time (``str.splitlines`` without building the list: a 200 MiB log's list of
+    lines took more memory than its text; issue 33), at most ``limit`` of them."""
+    if "\r" in text and "\n" not in text:            # old Mac line ends: rare and small
+        yield from text.splitlines()[:limit]
+        return
+    start, n, size = 0, 0, len(text)
+    while start < size and (limit is None or n < limit):
+        end = text.find("\n", start)
+        if end < 0:
+            end = size
+        line = text[start:end]
+        yield line[:-1] if line.endswith("\r") else line
+        start, n = end + 1, n + 1
+
+
 def fail(path: Path, line: int, what: str) -> UserError:
-    """The one error type of the readers: ``file:line: what``."""
+    """The one error type of the readers: ``file:line: what``, ``what`` cut to :data:`MAX_WHAT_CHARS` (issue 33:
+    a 5 MB unparseable field was echoed as a 5,000,109-byte error line)."""
+    if len(what) > MAX_WHAT_CHARS:
+        what = what[:MAX_WHAT_CHARS - 30] + f"...({len(what):,} chars)"
     return UserError(f"{path}:{line}: {what}")
+
+
+#: The longest reason a reader's error line carries (a field's text in it is cut).
+MAX_WHAT_CHARS: int = 300
 
 
 def parse_float(path: Path, line: int, column: str, text: str, *, allow_empty: bool = False) -> float:
@@ -225,6 +262,25 @@ def gaps_note(t: np.ndarray, lines: list[int], limit_s: float = 1.0) -> list[str
     if big.size > 5:
         out.append(f"... {big.size - 5} more gaps over {show(limit_s)} s")
     return out
+
+
+#: The altitudes a log may hold (m above its pad or sea level): the standard atmosphere this package uses ends
+#: near 32 km and is extended; past 100 km (the Karman line) a barometric altitude is not a reading (issue 33:
+#: an altitude of 1e308 ft reached liftoff detection as "pressure must be > 0 Pa").
+ALTITUDE_RANGE_M: tuple[float, float] = (-1000.0, 100_000.0)
+
+
+def check_altitude(path: Path, lines: list[int], altitude_m: np.ndarray, column: str, unit: str = "m",
+                   scale: float = 1.0) -> None:
+    """A UserError ``FILE:LINE: COLUMN: VALUE UNIT is out of range; allowed: ...`` for the first altitude outside
+    :data:`ALTITUDE_RANGE_M` (``altitude_m`` in metres; ``scale`` metres per ``unit`` for the message)."""
+    lo, hi = ALTITUDE_RANGE_M
+    bad = np.nonzero(np.isfinite(altitude_m) & ((altitude_m < lo) | (altitude_m > hi)))[0]
+    if bad.size:
+        i = int(bad[0])
+        raise fail(path, lines[i], f"{column}: {show(float(altitude_m[i]) / scale)} {unit} is out of range; "
+                                   f"allowed: {show(round(lo / scale))}..{show(round(hi / scale))} {unit} "
+                                   "(a barometric altitude)")
 
 
 #: Site altitude (m above sea level) assumed for an altitude-only log when none is given: sea level.

@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from firmware_model.flights.readers._common import check_time, fail, licence_of, parse_float, read_text
+from firmware_model.flights.readers._common import check_time, fail, iter_lines, licence_of, parse_float, read_text
 from firmware_model.flights.record import FlightRecord
 from firmware_model.spec.atmosphere import G0
 
@@ -47,7 +47,7 @@ def looks_like(text: str) -> bool:
     """True when the text is an AltosUI CSV: a comment line naming the columns ``#version,serial,...`` with
     ``time``, ``state_name`` and ``pressure``, or (an export without the comment lines) a first line naming
     ``time``, ``pressure``, ``acceleration`` and one more AltosUI column (``altitude``, ``height``, ``speed``, ...)."""
-    for line in text.splitlines()[:200]:
+    for line in iter_lines(text, 200):
         if line.startswith("#version"):
             names = {n.strip() for n in line[1:].split(",")}
             return {"time", "state_name", "pressure"} <= names
@@ -56,7 +56,7 @@ def looks_like(text: str) -> bool:
 
 def _headerless(text: str) -> int | None:
     """Line number of a headerless export's column line, or None."""
-    for number, line in enumerate(text.splitlines()[:200], start=1):
+    for number, line in enumerate(iter_lines(text, 200), start=1):
         if not line.strip() or line.startswith("#"):
             continue
         names = {n.strip() for n in line.split(",")}
@@ -74,23 +74,35 @@ def header_names(line: str) -> list[str]:
     return names
 
 
-def read(path: Path) -> FlightRecord:  # noqa: C901 - the CSV v5/v6 variants and their optional columns, each checked with its own message
-    """Read one AltosUI CSV (v5 or v6) into a :class:`FlightRecord`."""
+def read(path: Path) -> FlightRecord:  # noqa: C901 - one pass over the CSV v5/v6 variants and their optional columns, each checked with its own message
+    """Read one AltosUI CSV (v5 or v6) into a :class:`FlightRecord`: one pass over the lines into numeric
+    arrays (memory: the text and a few numbers per row; no per-row field lists)."""
     text = read_text(path)
-    lines = text.splitlines()
     header: list[str] | None = None
     header_line = 0
     config: dict[str, str] = {}
-    data: list[tuple[int, list[str]]] = []
-    plain = None if any(ln.startswith("#version") for ln in lines[:200]) else _headerless(text)
-    for number, line in enumerate(lines, start=1):
+    plain = None if any(ln.startswith("#version") for ln in iter_lines(text, 200)) else _headerless(text)
+    cap = text.count("\n") + 1
+    t, p, acc, temp_all = (np.empty(cap) for _ in range(4))
+    state_code = np.empty(cap, dtype=np.int32)
+    line_of = np.empty(cap, dtype=np.int64)
+    codes: dict[str, int] = {}
+    widths: set[int] = set()
+    n = 0
+    col: dict[str, int] = {}
+    need = 0
+    required: tuple[str, ...] = REQUIRED
+    version = "?"
+    last_t, last_kept, conflicting, repeats = -math.inf, "", 0, 0
+    number = 0
+    for number, line in enumerate(iter_lines(text), start=1):
         if not line.strip():
             continue
         if number == plain:
             header, header_line = header_names(line), number
             continue
         if line.startswith("#"):
-            if data:
+            if n:
                 raise fail(path, number, "comment line after the data started")
             if line.startswith("#version"):
                 header, header_line = header_names(line), number
@@ -100,59 +112,56 @@ def read(path: Path) -> FlightRecord:  # noqa: C901 - the CSV v5/v6 variants and
             continue
         if header is None:
             raise fail(path, number, "data before the '#version,...' header line (not an AltosUI CSV?)")
-        data.append((number, line.split(",")))
-    if header is None:
-        raise fail(path, len(lines), "no '#version,...' header line (not an AltosUI CSV?)")
-    required = REQUIRED if plain is None or "state_name" in header else tuple(c for c in REQUIRED
-                                                                            if c != "state_name")
-    missing = [c for c in required if c not in header]
-    if missing:
-        raise fail(path, header_line, f"missing column(s) {', '.join(missing)}")
-    if not data:
-        raise fail(path, header_line, "no data rows")
-    col = {name: header.index(name) for name in REQUIRED + ("temperature", "version")
-           if name in header}
-    need = max(col[c] for c in required) + 1
-    version = data[0][1][col["version"]].strip() if "version" in col else "?"
-
-    n = len(data)
-    t = np.empty(n)
-    p = np.empty(n)
-    acc = np.empty(n)
-    temp = np.full(n, math.nan) if "temperature" in col else None
-    states: list[str] = []
-    line_of = [num for num, _ in data]
-    widths = set()
-    for i, (num, fields) in enumerate(data):
+        if not n:       # the first data row: the header is settled
+            required = REQUIRED if plain is None or "state_name" in header else tuple(
+                c for c in REQUIRED if c != "state_name")
+            missing = [c for c in required if c not in header]
+            if missing:
+                raise fail(path, header_line, f"missing column(s) {', '.join(missing)}")
+            col = {name: header.index(name) for name in REQUIRED + ("temperature", "version") if name in header}
+            need = max(col[c] for c in required) + 1
+        fields = line.split(",")
+        if not n and "version" in col and col["version"] < len(fields):
+            version = fields[col["version"]].strip()
         widths.add(len(fields))
         if len(fields) < need:
-            raise fail(path, num, f"{len(fields)} fields, the columns used need at least {need}")
-        t[i] = parse_float(path, num, "time", fields[col["time"]])
-        p[i] = parse_float(path, num, "pressure", fields[col["pressure"]])
-        if not p[i] > 0:
-            raise fail(path, num, f"pressure: {fields[col['pressure']].strip()} Pa is not positive")
-        acc[i] = parse_float(path, num, "acceleration", fields[col["acceleration"]])
-        if temp is not None and col["temperature"] < len(fields):
-            temp[i] = parse_float(path, num, "temperature", fields[col["temperature"]], allow_empty=True)
+            raise fail(path, number, f"{len(fields)} fields, the columns used need at least {need}")
+        ti = parse_float(path, number, "time", fields[col["time"]])
+        pi = parse_float(path, number, "pressure", fields[col["pressure"]])
+        if not pi > 0:
+            raise fail(path, number, f"pressure: {fields[col['pressure']].strip()} Pa is not positive")
+        t[n], p[n] = ti, pi
+        acc[n] = parse_float(path, number, "acceleration", fields[col["acceleration"]])
+        temp_all[n] = (parse_float(path, number, "temperature", fields[col["temperature"]], allow_empty=True)
+                       if "temperature" in col and col["temperature"] < len(fields) else math.nan)
         if "state_name" in col:
             state = fields[col["state_name"]].strip()
             if not state:
-                raise fail(path, num, "state_name: empty field")
-            states.append(state)
+                raise fail(path, number, "state_name: empty field")
         else:
-            states.append("")
-
+            state = ""
+        state_code[n] = codes.setdefault(state, len(codes))
+        line_of[n] = number
+        if ti > last_t:
+            last_t, last_kept = ti, line
+        elif ti == last_t:     # a repeated timestamp (dropped below): a different row is a conflicting one
+            conflicting += line != last_kept
+        n += 1
+    del text
+    if header is None:
+        raise fail(path, max(number, 1), "no '#version,...' header line (not an AltosUI CSV?)")
+    if not n:
+        missing = [c for c in REQUIRED if c not in header and (c != "state_name" or plain is None)]
+        if missing:
+            raise fail(path, header_line, f"missing column(s) {', '.join(missing)}")
+        raise fail(path, header_line, "no data rows")
+    t, p, acc, line_of = t[:n], p[:n], acc[:n], line_of[:n]
+    temp = temp_all[:n] if "temperature" in col else None
     keep, repeats = check_time(path, line_of, t, drop_repeats=True)
-    conflicting = 0
-    last_kept = 0
-    for i in range(n):
-        if keep[i]:
-            last_kept = i
-        elif data[i][1] != data[last_kept][1]:
-            conflicting += 1
+    names_of = {c: name for name, c in codes.items()}
     t, p, acc = t[keep], p[keep], acc[keep]
     temp = temp[keep] if temp is not None else None
-    states = [s for s, k in zip(states, keep) if k]
+    states = [names_of[int(c)] for c in state_code[:n][keep]]
 
     events: dict[str, float] = {}
     for ti, state in zip(t, states):
@@ -192,4 +201,4 @@ def read(path: Path) -> FlightRecord:  # noqa: C901 - the CSV v5/v6 variants and
         "repeated_timestamps_dropped": int(repeats), "conflicting_repeats": int(conflicting),
     }
     return FlightRecord(name=path.stem, time_s=t, pressure_pa=p, accel_mps2=acc + G0, temperature_c=temp,
-                        events=events, provenance=provenance, row_lines=np.asarray(line_of)[keep])
+                        events=events, provenance=provenance, row_lines=line_of[keep])

@@ -52,8 +52,12 @@ def parse_map(spec: str | dict[str, str] | Path, where: str = "--columns") -> di
     else:
         text = str(spec)
         path = Path(text)
-        if "=" not in text and path.is_file():
+        if "=" not in text:
+            # a file name (no target=COL pair in it): a missing one is said so, not "is not target=source"
             where = str(path)
+            if not path.exists():
+                raise UserError(f"{path}: no such column map file (a map is a file of target=COL lines, or "
+                                "target=COL pairs separated by commas)")
             text = read_text(path)
             items = [ln.split("#", 1)[0].strip() for ln in text.splitlines()]
         else:

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from firmware_model.flights.readers._common import (Table, check_time, fail, gaps_note, header_fields,
-                                                    licence_of, read_text, synthetic_pressure)
+                                                    check_altitude, licence_of, read_text, synthetic_pressure)
 from firmware_model.flights.record import FlightRecord
 
 FT: float = 0.3048
@@ -70,6 +70,7 @@ def read(path: Path, site_altitude_m: float | None = None) -> FlightRecord:
     if site_altitude_m is None:
         site_altitude_m = info_site_altitude(path)
         source = f"'ASL Alt.' of {path.stem}-info.txt"
+    check_altitude(path, lines, alt_ft * FT, "Alt", "ft", FT)
     p, how = synthetic_pressure(alt_ft * FT, site_altitude_m, source)
     notes.append(how)
     events: dict[str, float] = {}

@@ -27,7 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
-from firmware_model.flights.readers._common import check_time, fail, licence_of, parse_float, read_text
+from firmware_model.flights.readers._common import (check_time, fail, iter_lines, licence_of, parse_float,
+                                                    read_text, show)
 from firmware_model.flights.record import FlightRecord, Truth
 from firmware_model.spec.atmosphere import G0, pressure_pa
 
@@ -70,12 +71,20 @@ def truth_apogee(t: np.ndarray, h: np.ndarray | None, v: np.ndarray | None) -> t
 def read(path: Path) -> FlightRecord:  # noqa: C901 - each optional column and its unit, checked with its own message
     """Read a generic flight CSV into a :class:`FlightRecord`."""
     text = read_text(path)
-    lines = text.splitlines()
     meta: dict[str, str] = {}
     header: list[str] | None = None
     header_line = 0
-    rows: list[tuple[int, list[str]]] = []
-    for number, line in enumerate(lines, start=1):
+    cap = text.count("\n") + 1
+    values: dict[str, np.ndarray] = {}
+    idx: dict[str, int] = {}
+    used: list[str] = []
+    baro: list[str] = []
+    accel: list[str] = []
+    line_of = np.empty(cap, dtype=np.int64)
+    n = 0
+    number = 0
+    # one pass, each row parsed into the numeric arrays at once (no per-row field lists: issue 33)
+    for number, line in enumerate(iter_lines(text), start=1):
         if not line.strip():
             continue
         if header is None:
@@ -85,35 +94,38 @@ def read(path: Path) -> FlightRecord:  # noqa: C901 - each optional column and i
                     meta[m.group(1)] = m.group(2)
                 continue
             header, header_line = [c.strip() for c in line.split(",")], number
+            dup = sorted({c for c in header if header.count(c) > 1 and c})
+            if dup:
+                raise fail(path, header_line, f"column(s) named twice: {', '.join(dup)}")
+            if "time_s" not in header:
+                raise fail(path, header_line, "missing column time_s")
+            baro = [c for c in BARO_COLUMNS if c in header]
+            if len(baro) != 1:
+                raise fail(path, header_line, "need exactly one barometer column of " + ", ".join(BARO_COLUMNS)
+                           + (f" (found {', '.join(baro)})" if baro else ""))
+            accel = [c for c in ACCEL_COLUMNS if c in header]
+            if len(accel) > 1:
+                raise fail(path, header_line, f"at most one accelerometer column of {', '.join(ACCEL_COLUMNS)}")
+            used = ["time_s", baro[0], *accel, *[c for c in TRUTH_COLUMNS + OPTIONAL if c in header]]
+            idx = {c: header.index(c) for c in used}
+            values = {c: np.empty(cap) for c in used}
             continue
         if line.startswith("#"):
             continue
-        rows.append((number, line.split(",")))
-    if header is None:
-        raise fail(path, len(lines), "no header row")
-    dup = sorted({c for c in header if header.count(c) > 1 and c})
-    if dup:
-        raise fail(path, header_line, f"column(s) named twice: {', '.join(dup)}")
-    if "time_s" not in header:
-        raise fail(path, header_line, "missing column time_s")
-    baro = [c for c in BARO_COLUMNS if c in header]
-    if len(baro) != 1:
-        raise fail(path, header_line, "need exactly one barometer column of " + ", ".join(BARO_COLUMNS)
-                   + (f" (found {', '.join(baro)})" if baro else ""))
-    accel = [c for c in ACCEL_COLUMNS if c in header]
-    if len(accel) > 1:
-        raise fail(path, header_line, f"at most one accelerometer column of {', '.join(ACCEL_COLUMNS)}")
-    if not rows:
-        raise fail(path, header_line, "no data rows")
-    used = ["time_s", baro[0], *accel, *[c for c in TRUTH_COLUMNS + OPTIONAL if c in header]]
-    idx = {c: header.index(c) for c in used}
-    values = {c: np.empty(len(rows)) for c in used}
-    for i, (num, fields) in enumerate(rows):
+        fields = line.split(",")
         if len(fields) != len(header):
-            raise fail(path, num, f"{len(fields)} fields, the header has {len(header)}")
+            raise fail(path, number, f"{len(fields)} fields, the header has {len(header)}")
         for c in used:
-            values[c][i] = parse_float(path, num, c, fields[idx[c]], allow_empty=c != "time_s")
-    line_of = [num for num, _ in rows]
+            values[c][n] = parse_float(path, number, c, fields[idx[c]], allow_empty=c != "time_s")
+        line_of[n] = number
+        n += 1
+    del text
+    if header is None:
+        raise fail(path, max(number, 1), "no header row")
+    if not n:
+        raise fail(path, header_line, "no data rows")
+    values = {c: v[:n] for c, v in values.items()}
+    line_of = line_of[:n]
     check_time(path, line_of, values["time_s"], drop_repeats=False)
     for c in used:
         if c != "time_s" and not np.any(np.isfinite(values[c])):
@@ -123,15 +135,18 @@ def read(path: Path) -> FlightRecord:  # noqa: C901 - each optional column and i
     if baro[0] == "pressure_pa":
         p = raw
     elif baro[0] == "pressure_hpa":
-        p = raw * 100.0
+        with np.errstate(over="ignore"):   # 1e308 hPa: inf, refused with its line by the record
+            p = raw * 100.0
     else:
         p = np.asarray(pressure_pa(raw), dtype=np.float64)
     bad = np.nonzero(~(p > 0) & np.isfinite(p))[0]
     if bad.size:
-        raise fail(path, line_of[int(bad[0])], f"{baro[0]}: {rows[int(bad[0])][1][idx[baro[0]]].strip()} gives a pressure <= 0 Pa")
+        raise fail(path, int(line_of[int(bad[0])]),
+                   f"{baro[0]}: {show(float(raw[int(bad[0])]))} gives a pressure <= 0 Pa")
     acc = None
     if accel:
-        acc = values[accel[0]] * (G0 if accel[0] == "accel_g" else 1.0)
+        with np.errstate(over="ignore"):   # as above: the record refuses an infinite acceleration
+            acc = values[accel[0]] * (G0 if accel[0] == "accel_g" else 1.0)
 
     t = values["time_s"]
     truth = None
@@ -166,7 +181,7 @@ def read(path: Path) -> FlightRecord:  # noqa: C901 - each optional column and i
         notes.append("pressure from altitude_m through the standard atmosphere")
     provenance = {
         "source": meta.get("source", str(path)), "file": str(path), "format": "generic",
-        "licence": meta.get("licence", licence), "origin": origin, "rows": len(rows),
+        "licence": meta.get("licence", licence), "origin": origin, "rows": n,
         "columns": used, "meta": meta, "notes": notes,
     }
     return FlightRecord(name=meta.get("name", path.stem), time_s=t, pressure_pa=p, accel_mps2=acc,

@@ -26,7 +26,8 @@ import numpy as np
 
 from firmware_model.spec.atmosphere import G0
 from firmware_model.flights.readers._common import (Table, check_time, fail, gaps_note, header_fields,
-                                                    licence_of, parse_float, read_text, synthetic_pressure)
+                                                    check_altitude, licence_of, parse_float, read_text,
+                                                    synthetic_pressure)
 from firmware_model.flights.record import FlightRecord
 
 FT: float = 0.3048
@@ -75,6 +76,7 @@ def read(path: Path, site_altitude_m: float | None = None) -> FlightRecord:
     t, alt_ft, flags, lines = _series(table, alt_col - 1, alt_col, flag_col, "altitude")
     check_time(path, lines, t, drop_repeats=False)
     notes = list(table.notes)
+    check_altitude(path, lines, alt_ft * FT, "Altitude (Ft-AGL)", "ft", FT)
     p, how = synthetic_pressure(alt_ft * FT, site_altitude_m)
     notes.append(how)
     events: dict[str, float] = {}

@@ -89,7 +89,13 @@ def read(path: Path) -> FlightRecord:
     if bad.size:
         field_text = table.rows[int(bad[0])][1][table.index("pressure")].strip()
         raise fail(path, lines[int(bad[0])], f"pressure: {field_text} hPa is not positive")
-    if np.any(np.diff(t) <= 0) and _text_sorted(table, t):
+    bad = np.nonzero(hpa > 2000.0)[0]
+    if bad.size:
+        field_text = table.rows[int(bad[0])][1][table.index("pressure")].strip()[:40]
+        raise fail(path, lines[int(bad[0])], f"pressure: {field_text} hPa is out of range; allowed: at most 2,000 hPa")
+    if np.any(np.diff(t) <= 0) and np.all(t >= 0) and _text_sorted(table, t):
+        # a spreadsheet's text sort of non-negative times; negative times in text order are not a log (issue 33:
+        # negated times were sorted into an apogee at -21.9 s) and stay an error below
         order = np.argsort(t, kind="stable")
         t, hpa = t[order], hpa[order]
         lines = [lines[i] for i in order]

@@ -33,7 +33,7 @@ from firmware_model.spec.config import PROGRAMS, read_config_file
 from firmware_model.vectors.cases import GAIN_NAMES, PROGRAM_IDS, SCALAR_CONSTANTS
 
 #: Version of the glue's ABI (``fwpc_abi()``); bumped when the three functions change.
-GLUE_ABI: int = 1
+GLUE_ABI: int = 2
 #: Placeholders an adapter's C templates may use.
 PLACEHOLDERS: tuple[str, ...] = ("s", "c", "baro", "acc", "program")
 #: Keys of an adapter file.
@@ -234,12 +234,15 @@ def glue_core(adapter: Adapter, programs: tuple[str, ...] = PROGRAMS, prefix: st
             lines.append(f"        return {len(names)};")
         lines += ["    default:", "        break;", "    }", "    return 0;"]
     lines += ["}", ""]
-    lines += [f"static int32_t {prefix}_run(int32_t program, const int32_t *v, const int32_t *alt, int32_t n, "
+    lines += ["/* FWPC_PROGRESS(i): i samples stepped (-1: before init); check-port's child reads it after a crash */",
+              "#ifndef FWPC_PROGRESS", "#define FWPC_PROGRESS(i) ((void)0)", "#endif", "",
+              f"static int32_t {prefix}_run(int32_t program, const int32_t *v, const int32_t *alt, int32_t n, "
               "const int32_t *baro, const int16_t *acc, int32_t nw, int32_t *out)", "{",
               f"    static {adapter.consts_type} fwpc_c;", f"    static {adapter.state_type} fwpc_s;",
               "    int32_t i, k = 0;", "    memset(&fwpc_c, 0, sizeof fwpc_c);",
               "    memset(&fwpc_s, 0, sizeof fwpc_s);",
-              f"    {prefix}_set(&fwpc_c, v, alt);", "    if (n < 1) {", "        return 0;", "    }",
+              f"    {prefix}_set(&fwpc_c, v, alt);", "    FWPC_PROGRESS(-1);", "    if (n < 1) {",
+              "        return 0;", "    }",
               "    switch (program) {"]
     for p in programs:
         if p not in adapter.programs:
@@ -247,10 +250,11 @@ def glue_core(adapter: Adapter, programs: tuple[str, ...] = PROGRAMS, prefix: st
         call = dict(s="fwpc_s", c="fwpc_c", program=adapter.programs[p])
         lines += [f"    case {PROGRAM_IDS[p]}:",
                   "        " + _fill(adapter.init, baro="baro[0]", acc="acc[0]", **call),
-                  f"        k = {prefix}_words(program, &fwpc_s, nw, out);",
+                  f"        k = {prefix}_words(program, &fwpc_s, nw, out);", "        FWPC_PROGRESS(0);",
                   "        for (i = 0; i < n; i++) {",
                   "            " + _fill(adapter.step, baro="baro[i]", acc="acc[i]", **call),
-                  f"            {prefix}_words(program, &fwpc_s, nw, out + (i + 1) * nw);", "        }",
+                  f"            {prefix}_words(program, &fwpc_s, nw, out + (i + 1) * nw);",
+                  "            FWPC_PROGRESS(i + 1);", "        }",
                   "        break;"]
     lines += ["    default:", "        return -1;", "    }", "    return k;", "}", ""]
     return "\n".join(lines)
@@ -297,6 +301,10 @@ def glue_source(adapter: Adapter) -> str:
         "int32_t fwpc_run_stream(int32_t program, const int32_t *v, const int32_t *alt, int32_t n, "
         "const int32_t *baro, const int16_t *acc, int32_t nw, int32_t *out);", "",
         f"int32_t fwpc_abi(void) {{ return {GLUE_ABI}; }}", "",
+        "/* set by check-port's child process (a word of a shared file): the samples stepped so far */",
+        "extern volatile int32_t *fwpc_progress_word;", "volatile int32_t *fwpc_progress_word = 0;",
+        "#define FWPC_PROGRESS(i) do { if (fwpc_progress_word) { *fwpc_progress_word = (int32_t)(i); } } while (0)",
+        "",
         glue_core(adapter),
         "int32_t fwpc_run_stream(int32_t program, const int32_t *v, const int32_t *alt, int32_t n, "
         "const int32_t *baro, const int16_t *acc, int32_t nw, int32_t *out)", "{",

@@ -1,14 +1,14 @@
-"""Build a port into a shared library with the host C compiler and drive it through ctypes.
+"""Build a port into a shared library with the host C compiler and run it in a child process.
 
 :func:`build_port` compiles the team's sources (or links their prebuilt library) together with the glue of
 :mod:`firmware_model.vectors.portcheck.adapter`, with strict flags (:data:`STRICT_FLAGS`: C99, every warning an error);
 :class:`Port` runs one whole stream per call (init, then step on every sample, all state words back in one
-array), so the cost per sample is the port's own.
+array), so the cost per sample is the port's own, in a child process (:mod:`.isolate`): a crashing or hanging
+port is a finding, not the end of check-port.
 """
 
 from __future__ import annotations
 
-import ctypes
 import os
 import shlex
 import shutil
@@ -31,6 +31,7 @@ from firmware_model.vectors.portcheck.adapter import (
     consts_vector,
     glue_source,
 )
+from firmware_model.vectors.portcheck.isolate import DRIVER_C, Child, PortCrash
 
 #: Flags every port is compiled with (then ``--cflags``): the golden-vector harness's (vectors/c/Makefile).
 STRICT_FLAGS: tuple[str, ...] = ("-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-O2")
@@ -70,9 +71,11 @@ def _compile(cmd: list[str], what: str) -> None:
 
 @dataclass
 class Port:
-    """A loaded port: ``run(program, consts, adc, acc)`` gives the state words after init and after each step."""
+    """A built port: ``run(program, consts, adc, acc)`` gives the state words after init and after each step. The
+    port runs in a child process (:class:`~firmware_model.vectors.portcheck.isolate.Child`): a crash or a hang
+    raises :class:`~firmware_model.vectors.portcheck.isolate.PortCrash` here; :meth:`close` ends the child."""
 
-    lib: Any
+    child: Child
     adapter: Adapter
     path: Path
     workdir: Path | None = None
@@ -84,13 +87,14 @@ class Port:
         maps)."""
         if program not in self._names:
             pid = PROGRAM_IDS[program]
-            n = int(self.lib.fwpc_n_words(pid))
-            if not 0 <= n <= 256:
-                raise UserError(f"check-port: the port reports {n} state words for {program}")
-            names = []
-            for i in range(n):
-                raw = self.lib.fwpc_word_name(pid, i)
-                names.append(raw.decode("ascii", "replace") if raw else "?")
+            try:
+                n = self.child.n_words(pid)
+                if not 0 <= n <= 256:
+                    raise UserError(f"check-port: the port reports {n} state words for {program}")
+                names = [self.child.word_name(pid, i) for i in range(n)]
+            except PortCrash as exc:
+                raise UserError(f"check-port: the port's process ended while listing its state words: {exc}") \
+                    from None
             self._names[program] = tuple(names)
         return self._names[program]
 
@@ -104,50 +108,47 @@ class Port:
                             f"the model's are {' '.join(model)} (docs/firmware-spec.md section 7)")
 
     def run(self, program: str, consts: Any, adc: np.ndarray, acc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``(init_words (nw,), words (n, nw))`` as int64 (``.w`` words zero-extended, ``.l`` words signed)."""
+        """``(init_words (nw,), words (n, nw))`` as int64 (``.w`` words zero-extended, ``.l`` words signed).
+        Raises :class:`PortCrash` when the port crashes, exits or hangs on this stream."""
         nw = len(word_names(program))
         n = int(len(adc))
         vec = np.asarray(consts_vector(consts), dtype=np.int32)
         alt = np.asarray(consts.ALT_TABLE if consts.ALT_TABLE else [0], dtype=np.int32)
-        baro = np.ascontiguousarray(np.asarray(adc, dtype=np.int64).astype(np.int32))
-        acc16 = np.ascontiguousarray(np.asarray(acc, dtype=np.int64).astype(np.int16))
-        out = np.zeros((n + 1) * nw, dtype=np.int32)
-        k = self.lib.fwpc_run_stream(PROGRAM_IDS[program], vec.ctypes.data, alt.ctypes.data, n, baro.ctypes.data,
-                                     acc16.ctypes.data, nw, out.ctypes.data)
+        baro = np.asarray(adc, dtype=np.int64).astype(np.int32)
+        acc16 = np.asarray(acc, dtype=np.int64).astype(np.int16).astype(np.int32)
+        k, out = self.child.run_stream(PROGRAM_IDS[program], vec, alt, baro, acc16, nw)
         if k < 0:
             raise UserError(f"check-port: the port does not run program {program}")
-        words = out.astype(np.int64).reshape(n + 1, nw)
+        words = out.reshape(n + 1, nw)
         return words[0], words[1:]
 
+    def close(self) -> None:
+        """End the port's child process."""
+        self.child.close()
 
-def _load(path: Path, adapter: Adapter, workdir: Path | None, description: str) -> Port:
+
+def _load(path: Path, adapter: Adapter, workdir: Path, description: str, limits: dict[str, Any]) -> Port:
+    child = Child(workdir / "fwpc_driver", workdir, **limits)
     try:
-        lib = ctypes.CDLL(str(path))
-    except OSError as exc:
-        raise UserError(f"check-port: cannot load {path}: {exc}") from None
-    try:
-        abi = lib.fwpc_abi
-    except AttributeError:
-        raise UserError(f"check-port: {path} has no check-port glue (fwpc_abi)") from None
-    abi.restype = ctypes.c_int32
-    if abi() != GLUE_ABI:
-        raise UserError(f"check-port: {path}: glue ABI {abi()} != {GLUE_ABI}")
-    p = ctypes.c_void_p
-    lib.fwpc_run_stream.argtypes = [ctypes.c_int32, p, p, ctypes.c_int32, p, p, ctypes.c_int32, p]
-    lib.fwpc_run_stream.restype = ctypes.c_int32
-    lib.fwpc_n_words.argtypes = [ctypes.c_int32]
-    lib.fwpc_n_words.restype = ctypes.c_int32
-    lib.fwpc_word_name.argtypes = [ctypes.c_int32, ctypes.c_int32]
-    lib.fwpc_word_name.restype = ctypes.c_char_p
-    return Port(lib=lib, adapter=adapter, path=path, workdir=workdir, description=description)
+        abi = child.abi()
+    except PortCrash as exc:
+        child.close()
+        raise UserError(f"check-port: the port's process ended before its first stream: {exc}") from None
+    if abi != GLUE_ABI:
+        child.close()
+        raise UserError(f"check-port: {path}: glue ABI {abi} != {GLUE_ABI}")
+    return Port(child=child, adapter=adapter, path=path, workdir=workdir, description=description)
 
 
 def build_port(sources: list[str | Path] = (), lib: str | Path | None = None, adapter: Adapter | None = None,
-               include_dirs: list[str | Path] = (), cflags: str = "", workdir: str | Path | None = None) -> Port:
+               include_dirs: list[str | Path] = (), cflags: str = "", workdir: str | Path | None = None,
+               **limits: Any) -> Port:
     """Compile ``sources`` (C files; their folders are include paths) with the glue into one shared library, or
     (``lib``) compile the glue alone and link it against the team's shared library. ``adapter``: default the
     fw.h API (:func:`~firmware_model.vectors.portcheck.adapter.api_adapter`). Build problems are one-line
-    :class:`UserError`\\ s (the compiler's first error line)."""
+    :class:`UserError`\\ s (the compiler's first error line). The library is linked into a small driver program
+    that runs it in a child process (``limits``: :class:`~firmware_model.vectors.portcheck.isolate.Child`'s
+    ``memory_mb``, ``timeout_s``, ``output_bytes``)."""
     adapter = adapter or api_adapter()
     srcs = [Path(s) for s in sources]
     if bool(srcs) == (lib is not None):
@@ -183,9 +184,13 @@ def build_port(sources: list[str | Path] = (), lib: str | Path | None = None, ad
         cmd = [cc, *STRICT_FLAGS, *extra, "-fPIC", "-shared", *incs, str(glue), "-o", str(out), str(libp),
                f"-Wl,-rpath,{libp.parent}"]
         what = f"the glue for {libp.name}"
+    driver = wd / "fwpc_driver.c"
+    driver.write_text(DRIVER_C)
     try:
         _compile(cmd, what)
-        return _load(out, adapter, wd, what)
+        _compile([cc, "-std=c99", "-O2", str(driver), "-o", str(wd / "fwpc_driver"), str(out),
+                  f"-Wl,-rpath,{wd.resolve()}"], "the check-port driver")
+        return _load(out, adapter, wd, what, limits)
     except BaseException:
         if workdir is None:  # our own temporary folder: nothing in it is worth keeping
             shutil.rmtree(wd, ignore_errors=True)

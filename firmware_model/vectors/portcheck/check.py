@@ -23,6 +23,7 @@ from firmware_model.model.trace import word_names
 from firmware_model.spec.build_constants import build_constants
 from firmware_model.spec.config import BuildConfig
 from firmware_model.vectors.portcheck.build import Port
+from firmware_model.vectors.portcheck.isolate import PortCrash
 from firmware_model.vectors.portcheck.streams import port_streams
 
 #: Examples per round (the granularity of the time budget and of the progress report).
@@ -59,6 +60,8 @@ class Mismatch:
     shrunk_len: int = 0
     #: "hypothesis" (found and shrunk by the search) or "given" (a stream passed in, e.g. a case's; cut only).
     source: str = "hypothesis"
+    #: the port crashed or hung on this stream (its ``actual`` words are unknown: zeros)
+    crash: PortCrash | None = None
 
 
 @dataclass
@@ -131,7 +134,38 @@ def mismatch_of(port: Port, cfg: BuildConfig, consts: Any, adc: np.ndarray, acc:
                     first_len=first_len or len(adc), shrunk_len=shrunk_len or len(adc))
 
 
-def check_port(port: Port, cfg: BuildConfig, *, examples: int | None = 1000, seconds: float | None = None,
+#: Seconds hypothesis may spend shrinking a crash (a hang: this many stream time-outs, each a killed child).
+CRASH_SHRINK_S: float = 20.0
+HANG_SHRINK_TRIES: int = 3
+
+
+def crash_of(port: Port, cfg: BuildConfig, consts: Any, adc: np.ndarray, acc: np.ndarray, crash: PortCrash,
+             first_len: int = 0, shrunk_len: int = 0) -> Mismatch:
+    """The :class:`Mismatch` of a stream the port crashed or hung on: cut after the sample it was stepping
+    (``crash.samples_done``; the whole stream when the cut one does not end the same way), with the model's
+    words as the expected ones."""
+    a2, c2 = np.asarray(adc, dtype=np.int64), np.asarray(acc, dtype=np.int64)
+    cut = max(1, crash.samples_done + 1)
+    if cut < len(a2) and "answer" in crash.kind:
+        a2, c2 = a2[:cut], c2[:cut]      # a hang: the progress word says where (no second time-out to confirm)
+    elif cut < len(a2):
+        try:
+            port.run(cfg.program, consts, a2[:cut], c2[:cut])
+        except PortCrash as again:
+            if again.kind == crash.kind:
+                a2, c2, crash = a2[:cut], c2[:cut], again
+    m = run_model(consts, a2, c2)
+    exp_init = np.asarray(m.init_words, dtype=np.int64)
+    exp = np.asarray(m.words, dtype=np.int64).reshape(len(a2), -1)
+    sample = min(max(crash.samples_done, -1), len(a2) - 1)
+    diff = Difference(sample, "(crash)", -1, 0, 0)
+    return Mismatch(cfg=cfg, consts=consts, adc=a2, acc=c2, diff=diff, names=word_names(cfg.program),
+                    expected_init=exp_init, expected=exp, actual_init=np.zeros_like(exp_init),
+                    actual=np.zeros_like(exp), first_len=first_len or len(adc), shrunk_len=shrunk_len or len(adc),
+                    crash=crash)
+
+
+def check_port(port: Port, cfg: BuildConfig, *, examples: int | None = 1000, seconds: float | None = None,  # noqa: C901 - the check loop with its crash, hang, time and shrink outcomes in one place
                seed: int = 0, progress: Callable[[CheckResult], None] | None = None,
                extra_streams: list[tuple[np.ndarray, np.ndarray]] = (), consts: Any = None) -> CheckResult:
     """Search for a stream on which ``port`` differs from the model for build ``cfg``.
@@ -146,7 +180,10 @@ def check_port(port: Port, cfg: BuildConfig, *, examples: int | None = 1000, sec
     res = CheckResult(cfg=cfg, seed=seed, mismatch=None)
     t0 = time.perf_counter()
     for adc, acc in extra_streams:
-        mm = mismatch_of(port, cfg, consts, np.asarray(adc), np.asarray(acc))
+        try:
+            mm = mismatch_of(port, cfg, consts, np.asarray(adc), np.asarray(acc))
+        except PortCrash as crash:
+            mm = crash_of(port, cfg, consts, np.asarray(adc), np.asarray(acc), crash)
         if mm is not None:
             mm.source = "given"
         res.examples += 1
@@ -158,14 +195,36 @@ def check_port(port: Port, cfg: BuildConfig, *, examples: int | None = 1000, sec
             res.stopped_by = "difference (given stream)"
             return res
     strategy = port_streams(cfg, consts)
-    state: dict[str, Any] = {"last": None, "failed_at": None, "first_len": 0}
+    state: dict[str, Any] = {"last": None, "failed_at": None, "first_len": 0, "crash": None, "hangs": 0}
 
     def test(stream: tuple[np.ndarray, np.ndarray]) -> None:
         adc, acc = stream
         if state["failed_at"] is None:
             res.examples += 1
             res.samples += len(adc)
-        diff, _ = compare(port, cfg, consts, adc, acc)
+        elif state["crash"] is not None:
+            # shrinking a crash costs a child process per try, a hang a whole time-out: within the budget
+            # (CRASH_SHRINK_S, or what is left of --time) and at most HANG_SHRINK_TRIES more time-outs
+            spent = time.perf_counter() - state["failed_at"]
+            budget = CRASH_SHRINK_S if seconds is None else min(CRASH_SHRINK_S, max(0.0, seconds - (
+                state["failed_at"] - t0)))
+            hang_cost = port.child.timeout_s if state["hangs"] else 0.0
+            if spent + hang_cost > budget or state["hangs"] > HANG_SHRINK_TRIES:
+                return
+        try:
+            diff, _ = compare(port, cfg, consts, adc, acc)
+        except PortCrash as crash:
+            if state["crash"] is not None and crash.kind != state["crash"].kind:
+                return  # another failure than the one being shrunk
+            if state["failed_at"] is None:
+                state["failed_at"] = time.perf_counter()
+                state["first_len"] = len(adc)
+            state["hangs"] += "answer" in crash.kind
+            state["crash"] = crash
+            state["last"] = (adc, acc)
+            raise _PortDiffers(f"crash: {crash.kind}") from None
+        if diff is not None and state["crash"] is not None:
+            return      # shrinking a crash: a plain difference is another failure
         if diff is not None:
             if state["failed_at"] is None:
                 state["failed_at"] = time.perf_counter()
@@ -202,7 +261,13 @@ def check_port(port: Port, cfg: BuildConfig, *, examples: int | None = 1000, sec
             t_fail = state["failed_at"]
             res.examples_to_failure, res.samples_to_failure = res.examples, res.samples
             res.seconds_to_failure = t_fail - t0
-            res.mismatch = mismatch_of(port, cfg, consts, adc, acc, state["first_len"], len(adc))
+            if state["crash"] is not None:
+                res.mismatch = crash_of(port, cfg, consts, adc, acc, state["crash"], state["first_len"], len(adc))
+            else:
+                try:
+                    res.mismatch = mismatch_of(port, cfg, consts, adc, acc, state["first_len"], len(adc))
+                except PortCrash as crash:
+                    res.mismatch = crash_of(port, cfg, consts, adc, acc, crash, state["first_len"], len(adc))
             res.shrink_seconds = time.perf_counter() - t_fail
             res.stopped_by = "difference"
             break
@@ -213,4 +278,5 @@ def check_port(port: Port, cfg: BuildConfig, *, examples: int | None = 1000, sec
     return res
 
 
-__all__ = ["CheckResult", "Difference", "Mismatch", "check_port", "compare", "first_difference", "mismatch_of"]
+__all__ = ["CheckResult", "Difference", "Mismatch", "check_port", "compare", "crash_of", "first_difference",
+           "mismatch_of"]
