@@ -541,7 +541,7 @@ def remove_stale_stages(base: Path, name: str) -> list[Path]:
     left 12 MB that no later run removed): a stage is named ``.fwemu-stage-NAME-PID-XXXX``; it is stale when
     process PID no longer runs on this machine (a live run staging into the same target keeps its own). A stage
     without a PID (older versions) is stale after :data:`STALE_STAGE_S`. Returns the folders removed."""
-    removed = []
+    removed: list[Path] = []
     prefix = f"{TEMP_PREFIX}stage-{name}-"
     try:
         entries = [p for p in base.iterdir() if p.name.startswith(prefix) and p.is_dir()]

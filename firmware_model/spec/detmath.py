@@ -47,25 +47,39 @@ _SQRT_HALF: float = 0.70710678118654752440
 
 
 def exp(x: np.ndarray | float) -> np.ndarray | float:
-    """e^x, element-wise, from basic operations only (module docstring). ``x`` finite with |x| < 700."""
+    """e^x, element-wise, from basic operations only (module docstring). Like numpy's, but silent: NaN gives NaN,
+    x > 709.78 gives inf and x < -745.2 gives 0 (the arguments the project uses are far inside)."""
     a = np.asarray(x, dtype=np.float64)
-    if not np.all(np.isfinite(a)) or np.any(np.abs(a) >= 700.0):
-        raise ValueError("detmath.exp: argument must be finite with |x| < 700")
-    n = np.rint(a * _INV_LN2)
-    r = (a - n * _LN2_HI) - n * _LN2_LO
+    ok = np.abs(a) < 700.0                        # False for NaN and inf too
+    z = np.where(ok, a, 0.0)
+    n = np.rint(z * _INV_LN2)
+    r = (z - n * _LN2_HI) - n * _LN2_LO
     p = np.full_like(r, _EXP_COEF[0])
     for c in _EXP_COEF[1:]:
         p = p * r + c
     out = np.ldexp(p, n.astype(np.int64))
+    if not np.all(ok):
+        with np.errstate(over="ignore", under="ignore"):
+            big = np.where(a > 0, np.ldexp(np.ldexp(1.0, 1000), 100), 0.0)   # inf above, 0 below: the limits
+        out = np.where(ok, out, np.where(np.isnan(a), np.nan, np.where(np.abs(a) < 745.0, _exp_edge(a), big)))
     return out if out.ndim else float(out)
 
 
+def _exp_edge(a: np.ndarray) -> np.ndarray:
+    """e^a for 700 <= |a| < 745 (near overflow/underflow) as e^(a/2)^2, each half inside the main range."""
+    half = np.where(np.abs(a) < 745.0, a / 2.0, 0.0)
+    h = np.asarray(exp(half))
+    with np.errstate(over="ignore", under="ignore"):
+        return h * h
+
+
 def log(x: np.ndarray | float) -> np.ndarray | float:
-    """Natural logarithm, element-wise, from basic operations only (module docstring). ``x`` finite and > 0."""
+    """Natural logarithm, element-wise, from basic operations only (module docstring). Like numpy's, but silent:
+    NaN or x < 0 gives NaN, 0 gives -inf, inf gives inf."""
     a = np.asarray(x, dtype=np.float64)
-    if not np.all(np.isfinite(a)) or np.any(~(a > 0)):
-        raise ValueError("detmath.log: argument must be finite and > 0")
-    m, e = np.frexp(a)                            # a = m 2^e exactly, m in [0.5, 1)
+    ok = np.isfinite(a) & (a > 0)
+    z = np.where(ok, a, 1.0)
+    m, e = np.frexp(z)                            # z = m 2^e exactly, m in [0.5, 1)
     low = m < _SQRT_HALF
     m = np.where(low, m * 2.0, m)                 # m in [sqrt(1/2), sqrt(2)): exact doubling
     e = np.where(low, e - 1, e).astype(np.float64)
@@ -76,11 +90,14 @@ def log(x: np.ndarray | float) -> np.ndarray | float:
     for c in _LOG_COEF[1:]:
         p = p * s2 + c
     out = (e * _LN2_HI + (s * p + e * _LN2_LO))
+    if not np.all(ok):
+        out = np.where(ok, out, np.where(a == 0.0, -np.inf, np.where(a == np.inf, np.inf, np.nan)))
     return out if out.ndim else float(out)
 
 
 def pow_pos(base: np.ndarray | float, y: float) -> np.ndarray | float:
-    """``base ** y`` for ``base`` > 0, as ``exp(y log(base))`` (a few ulps times |y log base|)."""
+    """``base ** y`` for ``base`` > 0, as ``exp(y log(base))`` (a few ulps times |y log base|); NaN for a base
+    below 0 or NaN (as numpy's, silently)."""
     return exp(np.multiply(y, log(base)))
 
 

@@ -78,7 +78,7 @@ class Tasks(SequenceABC):
     def __len__(self) -> int:
         return -(-self.n // self.c)
 
-    def __getitem__(self, i: int) -> dict[str, Any]:   # type: ignore[override]
+    def __getitem__(self, i: int) -> dict[str, Any]:   # type: ignore[override]  # a lazy Sequence of task dicts: Sequence.__getitem__ also takes slices
         if not 0 <= i < len(self):
             raise IndexError(i)
         a = i * self.c
