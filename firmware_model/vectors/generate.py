@@ -322,33 +322,39 @@ def carried_log_cases(out: Path, generated: Sequence[str]) -> list[CarriedCase]:
     for name in _committed_table_order(out):
         if name in done:
             continue
-        rels = (f"cases/{name}.json", f"cases/{name}.h")
-        data = []
-        for rel in rels:
-            try:
-                blob = (out / rel).read_bytes()
-            except OSError:
-                raise UserError(f"vectors: {out / rel}: missing, and the shared logs to regenerate it are absent") \
-                    from None
-            if sha256_bytes(blob) != hashes.get(rel):
-                raise UserError(f"vectors: {out / rel}: does not match {out / 'manifest.json'}, and the shared logs "
-                                "to regenerate it are absent")
-            data.append(blob)
-        doc = json.loads(data[0])
+        case = read_committed_case(out, name, hashes, why="and the shared logs to regenerate it are absent")
+        doc = json.loads(case.rendered[0])
         source = str(doc.get("input", {}).get("provenance", {}).get("source", ""))
         if not source.startswith("../shared/flights/"):
             raise UserError(f"vectors: case {name} in {out} is not generated any more and is not a real-log case: "
                             "regenerate the set with the shared logs present")
-        table: tuple[int, ...] = ()
-        shift = 0
-        if doc.get("alt_table"):
-            table_doc = json.loads((out / doc["alt_table"]["file"]).read_text())
-            table, shift = tuple(int(v) for v in table_doc["nodes"]), int(table_doc["shift"])
-        cfg = BuildConfig.from_dict(doc["build_config"], where=f"{out / rels[0]}: build_config")
-        carried.append(CarriedCase(_CarriedSpec(name, cfg), _CarriedConsts({g: None for g in doc["gains"]}, table,
-                                                                           shift),
-                                   str(doc["generator"]), (data[0], data[1])))
+        carried.append(case)
     return carried
+
+
+def read_committed_case(out: Path, name: str, hashes: dict[str, str] | None = None,
+                        why: str = "") -> CarriedCase:
+    """Case ``name`` of the vector set in ``out`` read back from its files (what :func:`render_set` needs to list it
+    in a case table), each file checked against ``hashes`` (the set's manifest) when given."""
+    rels = (f"cases/{name}.json", f"cases/{name}.h")
+    data = []
+    for rel in rels:
+        try:
+            blob = (out / rel).read_bytes()
+        except OSError:
+            raise UserError(f"vectors: {out / rel}: missing{', ' + why if why else ''}") from None
+        if hashes is not None and sha256_bytes(blob) != hashes.get(rel):
+            raise UserError(f"vectors: {out / rel}: does not match {out / 'manifest.json'}{', ' + why if why else ''}")
+        data.append(blob)
+    doc = json.loads(data[0])
+    table: tuple[int, ...] = ()
+    shift = 0
+    if doc.get("alt_table"):
+        table_doc = json.loads((out / doc["alt_table"]["file"]).read_text())
+        table, shift = tuple(int(v) for v in table_doc["nodes"]), int(table_doc["shift"])
+    cfg = BuildConfig.from_dict(doc["build_config"], where=f"{out / rels[0]}: build_config")
+    return CarriedCase(_CarriedSpec(name, cfg), _CarriedConsts({g: None for g in doc["gains"]}, table, shift),
+                       str(doc["generator"]), (data[0], data[1]))
 
 
 def _in_table_order(out: Path, results: Sequence[Any], carried: Sequence[CarriedCase]) -> list[Any]:
