@@ -98,6 +98,15 @@ class BuildConfig:
         ACC_CLIP, a drag reading at or below this (A_DRAG = g + it, in the program's units) is "drag-low": no
         apogee evidence counts until the drag reading has been low for 2^k samples (recursive) or a 2^(k+1)-sample
         drag-low window has re-based the velocity on the barometer (kalman_accel; docs/firmware-spec.md §5, §6).
+    Physical guards of issue 30 (docs/firmware-spec.md §6 steps 4, 8, 9; Kalman programs):
+      * ``guards``: which are built, a bit mask (default 7, all): 1 **thrust** (kalman_accel: while PHASE is BOOST,
+        i.e. until the raw accelerometer has read below -coast_mps2 for coast_s, the barometer is not fused),
+        2 **gravity** (below zero the velocity bound VB falls by g dt per sample only, and apogee evidence needs
+        X2 >= VB - fall_margin_mps: a falling rocket cannot accelerate downward faster than gravity), 4 **floor**
+        (apogee evidence needs the filtered and the barometric height at least ``floor_m`` above the pad).
+        Switching one off is for ablation and teeth tests, not for flight.
+      * ``floor_m`` (0..10,000 m, default 30): the floor; ``fall_margin_mps`` (default 15 m/s): how far the velocity
+        estimate may lie below the free-fall bound (filter noise and lag) before its evidence is discarded.
       * ``quant_alt_m``: the Kalman design's barometer sigma is at least the barometer's quantization step /
         sqrt(12) in metres at this height above the pad (docs/gain-design.md "Quantization floor").
     """
@@ -143,6 +152,9 @@ class BuildConfig:
     clip_drag_mps2: float = 0.25 * 9.80665
     clip_s: float = 0.25
     quant_alt_m: float = 3000.0
+    guards: int = 7
+    floor_m: float = 30.0
+    fall_margin_mps: float = 15.0
     extra: dict[str, Any] = field(default_factory=dict, compare=False, hash=False)
 
     def __post_init__(self) -> None:
@@ -221,10 +233,16 @@ class BuildConfig:
             raise bad("cal_p", "pad calibration over 2^cal_p samples needs cal_p in 0..8 (or null)")
         for name in ("gate_sigmas", "gate_hold_s", "apogee_hold_s", "baro_rate_mps", "mach_settle_s", "mach_delay_s",
                      "coast_mps2", "coast_s", "drag_mps2", "thrust_mps2", "descent_mps", "quant_alt_m", "clip_drag_mps2",
-                     "clip_s", "accel_model_g"):
+                     "clip_s", "accel_model_g", "floor_m", "fall_margin_mps"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
                 raise bad(name, "must be a finite number >= 0")
+        if isinstance(self.guards, bool) or not isinstance(self.guards, int) or not 0 <= self.guards <= 7:
+            raise bad("guards", "bit mask of the physical guards (1 thrust, 2 gravity, 4 floor) must be 0..7")
+        if self.floor_m > 10_000.0:
+            raise bad("floor_m", "the apogee floor must be at most 10,000 m")
+        if self.fall_margin_mps > 1_000.0:
+            raise bad("fall_margin_mps", "must be at most 1,000 m/s")
         if (isinstance(self.transonic_r_factor, bool) or not isinstance(self.transonic_r_factor, (int, float))
                 or not math.isfinite(self.transonic_r_factor) or self.transonic_r_factor < 1):
             raise bad("transonic_r_factor", "must be a finite number >= 1")
