@@ -306,7 +306,9 @@ static void step_kalman(const fw_consts *c, fw_state *st, int32_t adc, int16_t a
                 st->CLP = 0;
                 st->E0 = 0;
             }
-        } else if ((st->EVENTS & FW_EV_LIFTOFF) && st->X2 > c->MACH_VLO) {
+        } else if ((st->EVENTS & FW_EV_LIFTOFF)
+                   && (st->X2 > c->MACH_VLO || ((c->GUARDS & 1) && st->PHASE == FW_PH_BOOST))) {
+            /* above the Mach threshold, or (thrust guard) still in BOOST: no barometer */
             st->LOCK = (uint16_t)c->MACH_N;
             locked = 1;
         } else if (st->LOCK > 1u) {
@@ -372,7 +374,8 @@ static void step_kalman(const fw_consts *c, fw_state *st, int32_t adc, int16_t a
     }
     /* 8. plausibility bound VB = min(max(X2, VB - DV), VB + DU), exact in int64 (the result is an int32) */
     {
-        int64_t vb = (int64_t)st->VB - (int64_t)c->DV;
+        /* gravity guard: at or below zero VB falls by DG (g dt) only */
+        int64_t vb = (int64_t)st->VB - (int64_t)(((c->GUARDS & 2) && st->VB <= 0) ? c->DG : c->DV);
         int64_t up = (int64_t)st->VB + (int64_t)c->DU;
         if (vb < (int64_t)st->X2) {
             vb = st->X2;
@@ -394,7 +397,11 @@ static void step_kalman(const fw_consts *c, fw_state *st, int32_t adc, int16_t a
         }
     }
     if (st->PHASE == FW_PH_COAST) {
-        if (st->DLY == 0u && st->VB < 0 && !FW_CLIPPED(st->EVENTS)) {
+        /* gravity guard: X2 - VB >= -V_FALL; floor guard: X1 and (valid) h >= GND + H_FLOOR (exact in int64) */
+        const int64_t fl = (int64_t)st->GND + (int64_t)c->H_FLOOR;
+        const int phys = !(c->GUARDS & 2) || (int64_t)st->X2 - (int64_t)st->VB >= -(int64_t)c->V_FALL;
+        const int high = !(c->GUARDS & 4) || ((int64_t)st->X1 >= fl && (!baro_ok || (int64_t)h >= fl));
+        if (st->DLY == 0u && st->VB < 0 && !FW_CLIPPED(st->EVENTS) && phys && high) {
             st->NEG = (uint16_t)(st->NEG + 1u);
             if ((int32_t)st->NEG >= c->APO_N) {
                 st->EVENTS |= FW_EV_APOGEE;
