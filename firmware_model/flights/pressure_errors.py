@@ -20,7 +20,13 @@
      at burnout and at the drogue deployment (unseen logs +-100-300 m);
   5. *ejection spike* at the deployment (apogee + the launch's drogue delay): ``ejection_m`` rising at once and
      decaying over ``ejection_s`` (measured +14..+135 m for 0.1-0.8 s; unseen logs tens to hundreds of m for
-     0.1-0.5 s).
+     0.1-0.5 s);
+  6. *ram error in boost* (issue 30) ``ram_cp * ramp(M) * fade(t) * q``: the port reads a fraction of the
+     dynamic pressure above static from the Mach onset ``ram_mach_on`` (smoothstep over
+     :data:`RAM_ONSET_WIDTH_MACH`) until burnout, fading to nothing over ``ram_fade_s`` after it (the two unseen
+     flights of issue 30: an EasyMega 86.0 -> 95.0 kPa at Mach ~1.5, -790 m apparent, and a TeleMega-class
+     log 1.1 kPa over the pad at Mach ~1.1). Off by default (``ram_cp`` = 0), so the issue-20 scenarios keep
+     their meaning; docs/flights-sim.md, "Ram error in boost", has the law and the arithmetic behind the range.
 
   Parts 3-5 are altitude offsets at the current altitude, turned into pressure through the standard atmosphere.
   The Mach number comes from the simulator (1-DOF: |v|/c; RocketPy: its airspeed Mach), so it works on both.
@@ -160,6 +166,9 @@ class BaroErrorModel:
     burst_s: float = 0.3
     ejection_m: float = 100.0      # ejection-charge spike at the deployment
     ejection_s: float = 0.3
+    ram_cp: float = 0.0            # ram error in boost (issue 30), fraction of q (pressure high); 0 = off
+    ram_mach_on: float = 0.7       # Mach at which it sets in (full RAM_ONSET_WIDTH_MACH above)
+    ram_fade_s: float = 0.2        # after burnout it fades to 0 over this long (0: gone at burnout)
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -169,6 +178,9 @@ class BaroErrorModel:
         for name in ("jump_rise_s", "jump_decay_s", "burst_s", "ejection_s"):
             if getattr(self, name) <= 0:
                 raise UserError(f"barometer error model: {name} must be > 0, got {getattr(self, name)!r}")
+        if self.ram_cp < 0 or self.ram_fade_s < 0 or self.ram_mach_on <= 0:
+            raise UserError("barometer error model: need ram_cp >= 0, ram_fade_s >= 0, ram_mach_on > 0, got "
+                            f"{self.ram_cp!r}, {self.ram_fade_s!r}, {self.ram_mach_on!r}")
         if self.burst_sigma_m < 0:
             raise UserError(f"barometer error model: burst_sigma_m must be >= 0, got {self.burst_sigma_m!r}")
         if not self.dip_mach_on < self.dip_mach_peak < self.dip_mach_off:
@@ -195,19 +207,34 @@ BARO_ERROR_RANGES: dict[str, tuple[float, float]] = {
     "burst_s": (0.1, 0.6),
     "ejection_m": (-300.0, 300.0),   # shared logs +14..+135 m; unseen tens to hundreds of m
     "ejection_s": (0.1, 0.5),
+    # issue 30: the ram error in boost (docs/flights-sim.md, "Ram error in boost": the two unseen flights'
+    # kPa figures need 0.06-0.2 of q; the issue's summary says 0.02-0.05)
+    "ram_cp": (0.01, 0.20),
+    "ram_mach_on": (0.6, 0.9),
+    "ram_fade_s": (0.0, 0.5),
 }
 
+#: The parameters of issue 20's model (drawn for ``draw_error_model(..., ram=False)``: the ram error off, so the
+#: issue-20 scenarios and Monte Carlo specs that draw from the ranges keep their draws).
+ISSUE20_PARAMS: tuple[str, ...] = tuple(BARO_ERROR_RANGES)[:13]
+#: The ram error's parameters (issue 30).
+RAM_PARAMS: tuple[str, ...] = ("ram_cp", "ram_mach_on", "ram_fade_s")
+#: Mach width over which the ram error sets in above ``ram_mach_on`` (smoothstep).
+RAM_ONSET_WIDTH_MACH: float = 0.1
 
-def draw_error_model(rng: np.random.Generator | None = None, u: Any = None) -> BaroErrorModel:
-    """A :class:`BaroErrorModel` with every parameter uniform in :data:`BARO_ERROR_RANGES`: from ``u`` (13 numbers
-    in [0, 1), in the order of the ranges; e.g. drawn by hypothesis) or from ``rng``."""
-    names = list(BARO_ERROR_RANGES)
+
+def draw_error_model(rng: np.random.Generator | None = None, u: Any = None, ram: bool = False) -> BaroErrorModel:
+    """A :class:`BaroErrorModel` with every parameter uniform in :data:`BARO_ERROR_RANGES`: from ``u`` (one number
+    in [0, 1) per parameter, in the order of the ranges; e.g. drawn by hypothesis) or from ``rng``. ``ram``:
+    draw the ram error in boost too (16 numbers), else only issue 20's 13 (:data:`ISSUE20_PARAMS`; ram off), so
+    a generator seeded as before draws the same issue-20 model."""
+    names = list(BARO_ERROR_RANGES) if ram else list(ISSUE20_PARAMS)
     if u is None:
         u = (rng or np.random.default_rng()).random(len(names))
     if len(u) != len(names):
         raise UserError(f"draw_error_model: need {len(names)} unit numbers, got {len(u)}")
-    return BaroErrorModel(**{n: lo + (hi - lo) * float(x)
-                             for n, (lo, hi), x in zip(names, BARO_ERROR_RANGES.values(), u)})
+    return BaroErrorModel(**{n: BARO_ERROR_RANGES[n][0] + (BARO_ERROR_RANGES[n][1] - BARO_ERROR_RANGES[n][0]) * float(x)
+                             for n, x in zip(names, u)})
 
 
 def _smoothstep(x: np.ndarray) -> np.ndarray:
@@ -230,6 +257,21 @@ def pressure_coefficient(mach: np.ndarray, model: BaroErrorModel) -> np.ndarray:
     m = np.asarray(mach, dtype=np.float64)
     sub = 1.0 - _smoothstep((m - model.dip_mach_peak) / (model.dip_mach_off - model.dip_mach_peak))
     return model.cp_port * sub + model.dip_cp * dip_shape(m, model)
+
+
+def ram_coefficient(time_s: np.ndarray, mach: np.ndarray, burnout_s: Any, model: Any) -> np.ndarray:
+    """The ram error in boost as a fraction of ``q`` (issue 30): ``ram_cp * onset(M) * fade(t)``, where onset is a
+    smoothstep from 0 at ``ram_mach_on`` to 1 at ``ram_mach_on + RAM_ONSET_WIDTH_MACH`` and fade is 1 until
+    ``burnout_s`` and falls to 0 over ``ram_fade_s`` after it (a smoothstep; ``ram_fade_s`` 0: a step at
+    burnout). Broadcasts: the Monte Carlo passes (nf, n) arrays and (nf, 1) parameters."""
+    m = np.asarray(mach, dtype=np.float64)
+    onset = _smoothstep((m - model.ram_mach_on) / RAM_ONSET_WIDTH_MACH)
+    after = np.asarray(time_s, dtype=np.float64) - burnout_s
+    fade_s = np.asarray(model.ram_fade_s, dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):     # a tiny fade is a step
+        frac = np.where(fade_s > 0, after / np.where(fade_s > 0, fade_s, 1.0), np.where(after >= 0, 1.0, 0.0))
+    fade = np.where(after < 0, 1.0, 1.0 - _smoothstep(frac))
+    return model.ram_cp * onset * fade
 
 
 def shock_crossings(time_s: np.ndarray, mach: np.ndarray, mach_cross: float, min_gap_s: float = 0.2) -> list[float]:
@@ -263,10 +305,12 @@ def _event_times(record: FlightRecord) -> tuple[float | None, float | None]:
 
 def real_flight_errors(record: FlightRecord, mach: np.ndarray | None = None,
                        model: BaroErrorModel = BaroErrorModel(), seed: int = 0,
-                       burst_times_s: Any = None, deploy_s: float | None = None) -> FlightRecord:
+                       burst_times_s: Any = None, deploy_s: float | None = None,
+                       burnout_s: float | None = None) -> FlightRecord:
     """The record with the barometer errors of real flight (module doc). ``mach``: per sample (default: the
     record's truth, :func:`sim1dof.mach_of`); ``burst_times_s``: where the noise bursts start (default: burnout
-    and the deployment); ``deploy_s``: the ejection charge (default: true apogee + the launch's drogue delay).
+    and the deployment); ``deploy_s``: the ejection charge (default: true apogee + the launch's drogue delay);
+    ``burnout_s``: the end of the ram error (default: the simulator's burnout; needed when ``ram_cp`` > 0).
     ``seed``: the bursts' noise. The effect lists every part's times and its largest altitude error."""
     if mach is None:
         mach = mach_of(record)
@@ -278,10 +322,16 @@ def real_flight_errors(record: FlightRecord, mach: np.ndarray | None = None,
     burn, deploy = _event_times(record)
     if deploy_s is not None:
         deploy = float(deploy_s)
+    ram_end = burn if burnout_s is None else float(burnout_s)
+    if model.ram_cp > 0 and ram_end is None:
+        raise UserError(f"{record.name}: the ram error in boost (ram_cp {model.ram_cp:g}) needs the burnout time: "
+                        "pass burnout_s (the record's provenance has no summary.burnout_s)")
     bursts = [x for x in (burn, deploy) if x is not None] if burst_times_s is None else \
         [float(x) for x in np.atleast_1d(burst_times_s)]
     q = dynamic_pressure_pa(p, mach)
-    p1 = p + pressure_coefficient(mach, model) * q
+    cp = pressure_coefficient(mach, model)
+    ram = ram_coefficient(t, mach, ram_end, model) if model.ram_cp > 0 else np.zeros_like(t)
+    p1 = p + (cp + ram) * q
     offset = np.zeros_like(t)                       # altitude offsets of parts 3-5 (m)
     crossings = shock_crossings(t, mach, model.jump_mach)
     for tc in crossings:
@@ -313,6 +363,19 @@ def real_flight_errors(record: FlightRecord, mach: np.ndarray | None = None,
               "shock_crossings_s": crossings, "burst_times_s": bursts, "deploy_s": deploy,
               "max_dip_m": float(err_m[i_min]), "max_dip_time_s": float(t[i_min]),
               "max_dip_mach": float(mach[i_min]), "peak_mach": float(np.max(mach))}
+    if model.ram_cp > 0:
+        dp = ram * q
+        on = np.nonzero(dp > 0)[0]
+        j = int(np.argmax(dp))
+        # the lowest barometric height above the pad the record reads while the ram error is on
+        h_pad = atm.altitude_m(np.asarray(record.ground_pressure_pa if record.ground_pressure_pa else p[0]))
+        h_read = np.where(dp > 0, np.asarray(atm.altitude_m(np.where(ok, out, 1.0))) - h_pad, np.inf)
+        k = int(np.argmin(h_read))
+        effect["ram"] = {"burnout_s": ram_end, "on_s": float(t[on[0]]) if on.size else None,
+                         "off_s": float(t[on[-1]]) if on.size else None, "max_pa": float(dp[j]),
+                         "max_time_s": float(t[j]), "max_mach": float(mach[j]),
+                         "lowest_height_m": float(h_read[k]) if on.size else None,
+                         "lowest_height_time_s": float(t[k]) if on.size else None}
     return _with_effect(record, out, effect)
 
 

@@ -45,8 +45,11 @@ class Scenario:
     of the pressure-error functions, or None; ``baro_errors``: the barometer errors of real flight
     (:func:`.pressure_errors.real_flight_errors`): ``{"model": {BaroErrorModel fields}, "seed": n}`` (fields not
     named keep their defaults) or ``{"draw": n, "seed": n}`` (every parameter drawn from
-    :data:`.pressure_errors.BARO_ERROR_RANGES` by ``numpy.random.default_rng(draw)``), or None; ``mach_class``: the peak-Mach class it is meant to be in;
-    ``tags``: suggested sensor and k settings for the evaluation."""
+    :data:`.pressure_errors.BARO_ERROR_RANGES` by ``numpy.random.default_rng(draw)``; with ``"ram": true`` the
+    ram error in boost of issue 30 is drawn too, else it stays off), or None; ``mach_class``: the peak-Mach class
+    it is meant to be in; ``tags``: suggested sensor and k settings for the evaluation; ``log_start_s``: the log
+    starts this long after liftoff, already in boost (no pad rows, as an AltosUI export that starts at -0.30 s in
+    state ``boost``; the record then states no ground pressure, as such a log does not), or None (2 s of pad)."""
 
     name: str
     description: str
@@ -59,6 +62,7 @@ class Scenario:
     spikes: dict[str, Any] | None = None
     tags: dict[str, Any] = field(default_factory=dict)
     baro_errors: dict[str, Any] | None = None
+    log_start_s: float | None = None
 
     def build_rocket(self) -> Rocket:
         kw = dict(self.rocket)
@@ -75,7 +79,7 @@ class Scenario:
         """JSON-ready definition."""
         return {"name": self.name, "mach_class": self.mach_class, "rocket": self.rocket, "launch": self.launch,
                 "simulator": self.simulator, "rocketpy": self.rocketpy, "transonic": self.transonic,
-                "spikes": self.spikes, "baro_errors": self.baro_errors}
+                "spikes": self.spikes, "baro_errors": self.baro_errors, "log_start_s": self.log_start_s}
 
     def physics(self) -> dict[str, Any]:
         """The part of the definition the simulator sees (what the cache key hashes)."""
@@ -87,7 +91,8 @@ class Scenario:
         if self.baro_errors is None:
             return None
         if "draw" in self.baro_errors:
-            return draw_error_model(np.random.default_rng(int(self.baro_errors["draw"])))
+            return draw_error_model(np.random.default_rng(int(self.baro_errors["draw"])),
+                                    ram=bool(self.baro_errors.get("ram", False)))
         return BaroErrorModel(**self.baro_errors.get("model", {}))
 
 
@@ -97,6 +102,9 @@ def _s(name, description, mach_class, rocket, tags, **kw) -> Scenario:
 
 _TS = {}  # the step (Kumar-style, not realistic) with the module's default magnitude (+60 m)
 _SPIKES = {"count": 4, "magnitude_pa": 1500.0, "seed": 7}
+#: The barometer errors of real flight with only the ram error in boost (issue 30) left to switch on: the two
+#: unseen flights' signature alone (their other errors are not described in the issue).
+_RAM_ONLY = {"cp_port": 0.0, "dip_cp": 0.0, "jump_m": 0.0, "burst_sigma_m": 0.0, "ejection_m": 0.0}
 
 _CATALOGUE: tuple[Scenario, ...] = (
     # --- subsonic -------------------------------------------------------------------------------------------
@@ -262,6 +270,62 @@ _CATALOGUE: tuple[Scenario, ...] = (
        "supersonic", {"motor": "M6400", "dry_mass_kg": 12.0, "diameter_m": 0.10},
        {"baro": ["analog-10", "analog-16", "ms5607"], "noise": ["noisy"], "k": [5, 6, 7]}, simulator="rocketpy",
        rocketpy={"inclination_deg": 90.0}, baro_errors={"model": {}, "seed": 14}),
+    # --- the ram error in boost (issue 30; pressure_errors part 6, docs/flights-sim.md "Ram error in boost") ------
+    # the port reads ram_cp x q above static from Mach ram_mach_on until burnout (+ ram_fade_s): the barometric
+    # height falls below the pad while the rocket climbs at Mach 1-2. "-boostlog": the log starts in boost (no pad
+    # rows). Every one at k = 5, 6, 7 with 10-16-bit ADCs and the pascal sensor.
+    _s("ram-m1670-m156-easymega-boostlog", "issue 30's EasyMega flight: 5.8 s burn at ~12 g from a 1,350 m site "
+       "to 8.4 km, port +0.17 q from Mach 0.7 to burnout (+0.5 s fade; 86 -> 95 kPa at 4.2 s), log starting in "
+       "boost", "supersonic", {"motor": "M1670", "motor_scale": (1.0, 1.49), "dry_mass_kg": 12.0, "diameter_m": 0.08},
+       {"baro": ["ms5607", "analog-16"], "noise": ["noisy"], "k": [5, 6, 7]}, launch={"site_altitude_m": 1350.0},
+       baro_errors={"model": {**_RAM_ONLY, "ram_cp": 0.17, "ram_mach_on": 0.7, "ram_fade_s": 0.5}, "seed": 30},
+       log_start_s=0.2),
+    _s("ram-l1350-m114-telemega", "issue 30's TeleMega-class flight: 2.8 s burn at ~16 g to 4.5 km, port +0.09 q "
+       "from Mach 0.75 to burnout (1.9 kPa over the pad, -160 m, at Mach 1.1)", "transonic",
+       {"motor": "L1350", "motor_scale": (0.95, 0.85), "dry_mass_kg": 7.0, "diameter_m": 0.075},
+       {"baro": ["ms5607", "analog-12"], "noise": ["noisy"], "k": [5, 6, 7]},
+       baro_errors={"model": {**_RAM_ONLY, "ram_cp": 0.09, "ram_mach_on": 0.75, "ram_fade_s": 0.2}, "seed": 31}),
+    _s("ram-l1350-m137-weak", "light L1350 rocket at Mach ~1.37: default real-flight errors plus the weakest ram "
+       "error (0.02 q from Mach 0.8, gone at burnout)", "supersonic",
+       {"motor": "L1350", "dry_mass_kg": 6.0, "diameter_m": 0.10},
+       {"baro": ["analog-10", "analog-16"], "noise": ["noisy"], "k": [5, 6, 7]},
+       baro_errors={"model": {"ram_cp": 0.02, "ram_mach_on": 0.8, "ram_fade_s": 0.0}, "seed": 32}),
+    _s("ram-m1670-m145-boostlog", "M1670 at Mach ~1.45: default real-flight errors plus a 0.06 q ram error from "
+       "Mach 0.7, log starting in boost", "supersonic", {"motor": "M1670", "dry_mass_kg": 8.0, "diameter_m": 0.10},
+       {"baro": ["analog-12", "ms5607"], "noise": ["noisy"], "k": [5, 6, 7]},
+       baro_errors={"model": {"ram_cp": 0.06, "ram_mach_on": 0.7, "ram_fade_s": 0.2}, "seed": 33}, log_start_s=0.3),
+    _s("ram-m6400-m167-strong", "short-burn M6400 rocket at Mach ~1.67: default real-flight errors plus the "
+       "strongest ram error (0.20 q from Mach 0.6, 0.5 s fade)", "supersonic",
+       {"motor": "M6400", "dry_mass_kg": 12.0, "diameter_m": 0.10},
+       {"baro": ["analog-16", "analog-10"], "noise": ["noisy"], "k": [5, 6, 7]},
+       baro_errors={"model": {"ram_cp": 0.20, "ram_mach_on": 0.6, "ram_fade_s": 0.5}, "seed": 34}),
+    _s("ram-k828-m118-drawn", "light K828FJ rocket at Mach ~1.18, every error drawn from the ranges, ram included",
+       "transonic", {"motor": "K828FJ", "dry_mass_kg": 3.0, "diameter_m": 0.10},
+       {"baro": ["analog-10", "analog-12"], "noise": ["noisy"], "k": [5, 6, 7]},
+       baro_errors={"draw": 301, "ram": True, "seed": 35}),
+    _s("ram-m2245-m17-highsite-drawn-boostlog", "M2245 in 80 mm from a 1,200 m site at Mach ~1.7, every error "
+       "drawn (ram included), log starting in boost", "supersonic",
+       {"motor": "M2245", "dry_mass_kg": 12.0, "diameter_m": 0.08},
+       {"baro": ["analog-16", "ms5607"], "noise": ["noisy"], "k": [5, 6, 7]}, launch={"site_altitude_m": 1200.0},
+       baro_errors={"draw": 302, "ram": True, "seed": 36}, log_start_s=0.15),
+    _s("rp-ram-m2245-m17-wind3-boostlog", "RocketPy: M2245 in 80 mm to ~8.7 km, 3 m/s wind, rail at 88 deg, "
+       "default real-flight errors plus a 0.12 q ram error, log starting in boost", "supersonic",
+       {"motor": "M2245", "dry_mass_kg": 12.0, "diameter_m": 0.08},
+       {"baro": ["ms5607", "analog-16"], "noise": ["noisy"], "k": [5, 6, 7]}, simulator="rocketpy",
+       rocketpy={"wind_u": 3.0, "inclination_deg": 88.0, "heading_deg": 0.0},
+       baro_errors={"model": {"ram_cp": 0.12, "ram_mach_on": 0.7, "ram_fade_s": 0.3}, "seed": 37}, log_start_s=0.2),
+    _s("rp-ram-l1350-m137-windprofile-drawn", "RocketPy: L1350 rocket at Mach ~1.35, wind 2 -> 15 m/s, rail at "
+       "84 deg, every error drawn (ram included)", "supersonic", {"motor": "L1350", "dry_mass_kg": 6.0,
+                                                                 "diameter_m": 0.10},
+       {"baro": ["analog-12", "analog-10"], "noise": ["noisy"], "k": [5, 6, 7]}, simulator="rocketpy",
+       rocketpy={"wind_u": [[0.0, 2.0], [1000.0, 8.0], [6000.0, 15.0]], "inclination_deg": 84.0,
+                 "heading_deg": 270.0}, baro_errors={"draw": 303, "ram": True, "seed": 38}),
+    _s("rp-ram-m1670-m156-easymega", "RocketPy: the EasyMega flight's rocket, rail at 87 deg, 5 m/s wind, "
+       "port +0.17 q from Mach 0.7 to burnout, with pad rows", "supersonic",
+       {"motor": "M1670", "motor_scale": (1.0, 1.49), "dry_mass_kg": 12.0, "diameter_m": 0.08},
+       {"baro": ["analog-16", "analog-10"], "noise": ["noisy"], "k": [5, 6, 7]}, simulator="rocketpy",
+       launch={"site_altitude_m": 1350.0}, rocketpy={"wind_u": 5.0, "inclination_deg": 87.0, "heading_deg": 90.0},
+       baro_errors={"model": {**_RAM_ONLY, "ram_cp": 0.17, "ram_mach_on": 0.7, "ram_fade_s": 0.5}, "seed": 39}),
 )
 
 _BY_NAME: dict[str, Scenario] = {s.name: s for s in _CATALOGUE}
@@ -387,11 +451,46 @@ def _simulate_physics(s: Scenario) -> tuple[FlightRecord, np.ndarray]:
     raise UserError(f"scenario {s.name}: unknown simulator {s.simulator!r}")
 
 
+def start_in_boost(rec: FlightRecord, mach: np.ndarray, after_liftoff_s: float) -> tuple[FlightRecord, np.ndarray]:
+    """The record as a log that starts ``after_liftoff_s`` after liftoff (the simulator's ``summary.liftoff_s``),
+    already in boost: the rows before are dropped (time, pressure, accelerometer, truth and Mach alike) and the
+    ground pressure is no longer stated, so that whatever reads it must take its pad from the first rows, as a
+    reader of such a log does (an AltosUI export starting at -0.30 s in state ``boost`` has no pad rows). The
+    truth keeps the true pad as its zero and the true apogee."""
+    summ = rec.provenance.get("summary") or {}
+    lift = float(summ.get("liftoff_s", 0.0))
+    t = np.asarray(rec.time_s)
+    i0 = int(np.searchsorted(t, lift + float(after_liftoff_s)))
+    if not 0 < i0 < t.size - 2:
+        raise UserError(f"{rec.name}: cannot start the log {after_liftoff_s} s after liftoff ({lift:g} s)")
+    cut = lambda a: None if a is None else np.asarray(a)[i0:].copy()  # noqa: E731
+    truth = Truth(altitude_m=cut(rec.truth.altitude_m), velocity_mps=cut(rec.truth.velocity_mps),
+                  accel_mps2=cut(rec.truth.accel_mps2), apogee_time_s=rec.truth.apogee_time_s,
+                  apogee_altitude_m=rec.truth.apogee_altitude_m)
+    prov = dict(rec.provenance)
+    prov["log_start"] = {"after_liftoff_s": float(after_liftoff_s), "first_row_s": float(t[i0]),
+                         "true_ground_pressure_pa": rec.ground_pressure_pa,
+                         "first_row_height_m": float(rec.truth.altitude_m[i0]),
+                         "first_row_velocity_mps": float(rec.truth.velocity_mps[i0])}
+    out = FlightRecord(**{**rec.__dict__, "time_s": cut(rec.time_s), "pressure_pa": cut(rec.pressure_pa),
+                          "accel_mps2": cut(rec.accel_mps2), "temperature_c": cut(rec.temperature_c),
+                          "ground_pressure_pa": None, "truth": truth, "provenance": prov})
+    return out, cut(mach)
+
+
+def finish_record(s: Scenario, rec: FlightRecord, mach: np.ndarray) -> tuple[FlightRecord, np.ndarray]:
+    """The simulated physics -> the scenario's record and Mach series: the pressure effects, then the late start
+    of a log that starts in boost (``log_start_s``)."""
+    rec = _apply_effects(s, rec, mach)
+    if s.log_start_s is not None:
+        rec, mach = start_in_boost(rec, mach, s.log_start_s)
+    return rec, mach
+
+
 @lru_cache(maxsize=None)
 def _simulate_cached(name: str) -> tuple[FlightRecord, np.ndarray]:
     s = get_scenario(name)
-    rec, mach = _simulate_physics(s)
-    rec = _apply_effects(s, rec, mach)
+    rec, mach = finish_record(s, *_simulate_physics(s))
     # the cached arrays are shared by every caller: make them read-only so nobody changes a later caller's flight
     for a in (rec.time_s, rec.pressure_pa, rec.accel_mps2, mach, rec.truth.altitude_m, rec.truth.velocity_mps,
               rec.truth.accel_mps2):
@@ -412,8 +511,16 @@ def scenario_mach(name: str) -> np.ndarray:
 
 def _effect_label(e: dict[str, Any]) -> str:
     if e["effect"] == "real_flight_errors":
-        return (f"real-flight errors (dip {e['max_dip_m']:.0f} m at Mach {e['max_dip_mach']:.2f}, "
-                f"jump {e['model']['jump_m']:+.0f} m)")
+        ram = e.get("ram")
+        if ram and not any(e["model"][p] for p in ("cp_port", "dip_cp", "jump_m", "burst_sigma_m", "ejection_m")):
+            return (f"ram only ({e['model']['ram_cp']:.2f} q from Mach {e['model']['ram_mach_on']:.2f}: "
+                    f"height {ram['lowest_height_m']:+.0f} m at {ram['lowest_height_time_s']:.1f} s)")
+        out = (f"real-flight errors (dip {e['max_dip_m']:.0f} m at Mach {e['max_dip_mach']:.2f}, "
+               f"jump {e['model']['jump_m']:+.0f} m")
+        if ram:
+            out += (f"; ram {e['model']['ram_cp']:.2f} q from Mach {e['model']['ram_mach_on']:.2f}: "
+                    f"height {ram['lowest_height_m']:+.0f} m at {ram['lowest_height_time_s']:.1f} s")
+        return out + ")"
     if e["effect"] == "transonic_pressure_error":
         return f"step {e['altitude_step_m']:+.0f} m (Kumar-style)"
     return e["effect"].replace("pressure_", "")
@@ -428,6 +535,8 @@ def scenario_table() -> str:
         r = simulate_scenario(n)
         summ = r.provenance["summary"]
         eff = ", ".join(_effect_label(e) for e in r.provenance.get("effects", [])) or "-"
+        if "log_start" in r.provenance:
+            eff += f"; log starts {r.provenance['log_start']['after_liftoff_s']:g} s after liftoff"
         lines.append(f"| {n} | {s.simulator} | {s.mach_class} | {summ['max_mach']:.2f} | "
                      f"{r.truth.apogee_altitude_m:.0f} | {r.truth.apogee_time_s:.2f} | {eff} |")
     return "\n".join(lines)

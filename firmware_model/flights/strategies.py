@@ -23,13 +23,14 @@ import numpy as np
 from hypothesis import assume
 from hypothesis import strategies as st
 
-from firmware_model.flights.pressure_errors import BARO_ERROR_RANGES, draw_error_model, real_flight_errors
+from firmware_model.flights.pressure_errors import (BARO_ERROR_RANGES, ISSUE20_PARAMS, draw_error_model,
+                                                    real_flight_errors)
 from firmware_model.flights.sim1dof import Box, Launch, mach_of, rocket_from_unit, simulate_1dof
 from firmware_model.spec.atmosphere import pressure_pa
 from firmware_model.spec.config import PROGRAMS, ROUNDINGS, BuildConfig
 
 __all__ = ["build_configs", "adc_streams", "accel_streams", "edge_streams", "flight_like_streams", "flights",
-           "supersonic_flights", "pascal_streams", "pascal_flight_streams"]
+           "supersonic_flights", "ram_flights", "pascal_streams", "pascal_flight_streams"]
 
 
 def build_configs(programs: Sequence[str] = PROGRAMS, k: Iterable[int] = range(4, 9),
@@ -223,7 +224,7 @@ def supersonic_flights(mach: tuple[float, float] = (0.95, 2.0),
                        motors: Sequence[str] = ("L1350", "M1670", "M6400", "M2245"),
                        site_altitude_m: tuple[float, float] = (0.0, 1500.0), pad_s: tuple[float, float] = (0.5, 2.0),
                        descent_s: float = 3.0, record_hz: float = 100.0, internal_hz: float = 1000.0,
-                       drogue_delay_s: tuple[float, float] = (0.0, 1.0)):
+                       drogue_delay_s: tuple[float, float] = (0.0, 1.0), ram: bool = False):
     """Fast 1-DOF flights (peak Mach in ``mach``, default 0.95..2: transonic and supersonic) **with the barometer
     errors of real flight** (:func:`firmware_model.flights.pressure_errors.real_flight_errors`): every parameter
     of the error model drawn uniformly from :data:`~firmware_model.flights.pressure_errors.BARO_ERROR_RANGES`
@@ -231,7 +232,8 @@ def supersonic_flights(mach: tuple[float, float] = (0.95, 2.0),
     seeded by the draw, a drogue delay in ``drogue_delay_s``. Rockets as :func:`flights` over ``motors`` (scaled
     in thrust and time). Each example is a :class:`FlightRecord` whose ``truth`` is the error-free flight and
     whose ``provenance["effects"][-1]`` lists the error model and its largest dip; the Mach series is
-    ``sim1dof.mach_of(record)``. About 0.1 s per flight with numba."""
+    ``sim1dof.mach_of(record)``. ``ram``: the ram error in boost of issue 30 drawn too (else off, as in issue
+    20's draws; :func:`ram_flights` draws it alone or with the rest). About 0.1 s per flight with numba."""
     box = Box(motors=tuple(motors), mach=tuple(mach), site_altitude_m=tuple(site_altitude_m))
     unit = st.floats(0.0, 1.0, exclude_max=True, allow_nan=False)
 
@@ -246,9 +248,43 @@ def supersonic_flights(mach: tuple[float, float] = (0.95, 2.0),
         rec = simulate_1dof(rocket, Launch(site_altitude_m=site, pad_s=pad, descent_s=descent_s,
                                            drogue_delay_s=delay, record_hz=record_hz, internal_hz=internal_hz))[0]
         assume(mach[0] <= rec.provenance["summary"]["max_mach"] <= mach[1])
-        model = draw_error_model(u=[draw(unit) for _ in BARO_ERROR_RANGES])
+        model = draw_error_model(u=[draw(unit) for _ in (BARO_ERROR_RANGES if ram else ISSUE20_PARAMS)], ram=ram)
         seed = draw(st.integers(0, 2**32 - 1))
         return real_flight_errors(rec, mach_of(rec), model=model, seed=seed)
+
+    return _flight()
+
+
+def ram_flights(mach: tuple[float, float] = (0.95, 2.0), motors: Sequence[str] = ("L1350", "M1670", "M6400", "M2245"),
+                site_altitude_m: tuple[float, float] = (0.0, 1500.0), descent_s: float = 3.0,
+                record_hz: float = 100.0, others: bool = True):
+    """Fast 1-DOF flights (as :func:`supersonic_flights`) **with the ram error in boost** of issue 30
+    (:func:`firmware_model.flights.pressure_errors.ram_coefficient`): ``ram_cp``, ``ram_mach_on`` and
+    ``ram_fade_s`` drawn uniformly over their :data:`~firmware_model.flights.pressure_errors.BARO_ERROR_RANGES`
+    (0.01-0.20 of q from Mach 0.6-0.9, fading 0-0.5 s after burnout); ``others``: the issue-20 errors drawn too
+    (else off: the ram signature alone). Flights whose peak Mach stays below the drawn onset are rejected (the
+    error would never switch on). Each example is a :class:`FlightRecord` with ``truth`` error-free and
+    ``provenance["effects"][-1]["ram"]`` the error's times, peak and the lowest barometric height it reads."""
+    box = Box(motors=tuple(motors), mach=tuple(mach), site_altitude_m=tuple(site_altitude_m))
+    unit = st.floats(0.0, 1.0, exclude_max=True, allow_nan=False)
+    quiet = {"cp_port": 0.0, "dip_cp": 0.0, "jump_m": 0.0, "burst_sigma_m": 0.0, "ejection_m": 0.0}
+
+    @st.composite
+    def _flight(draw: st.DrawFn):
+        u = [draw(unit) for _ in range(8)]
+        rocket = rocket_from_unit(u, box, name="hypothesis-ram")
+        assume(rocket is not None)
+        site = box.site_altitude_m[0] + (box.site_altitude_m[1] - box.site_altitude_m[0]) * u[7]
+        rec = simulate_1dof(rocket, Launch(site_altitude_m=site, pad_s=1.0, descent_s=descent_s,
+                                           record_hz=record_hz))[0]
+        assume(mach[0] <= rec.provenance["summary"]["max_mach"] <= mach[1])
+        model = draw_error_model(u=[draw(unit) for _ in BARO_ERROR_RANGES], ram=True)
+        if not others:
+            model = type(model)(**{**model.to_dict(), **quiet})
+        m = mach_of(rec)
+        # the error must switch on during the boost
+        assume(float(np.max(m[rec.time_s <= rec.provenance["summary"]["burnout_s"]])) > model.ram_mach_on + 0.1)
+        return real_flight_errors(rec, m, model=model, seed=draw(st.integers(0, 2**32 - 1)))
 
     return _flight()
 

@@ -360,6 +360,67 @@ def test_real_flight_model_matches_the_deterministic_model_of_issue_20():
     assert not np.array_equal(got[1], p)                             # the subsonic flight: its port error only
 
 
+def test_real_flight_ram_model_matches_the_deterministic_model_of_issue_30():
+    """"real_flight_ram" (batched, per-flight parameters and burnouts) equals flights.pressure_errors.real_flight_errors
+    with the ram error in boost flight by flight (noise bursts and ejection off); the ram part reads high by ram_cp q
+    while fully on before burnout and not at all after burnout + fade."""
+    from firmware_model.flights import pressure_errors as pe
+    from firmware_model.flights.record import FlightRecord
+    from firmware_model.spec import atmosphere as atm
+    dt = 1 / 64
+    t = np.arange(0, 20, dt)
+    h = 3000 * np.sin(np.pi * t / 40)
+    p = atm.pressure_pa(h)
+    machs = np.vstack([1.5 * np.sin(np.pi * t / 12), 1.2 * np.sin(np.pi * t / 12)])
+    models = [pe.BaroErrorModel(ram_cp=0.17, ram_mach_on=0.7, ram_fade_s=0.5, burst_sigma_m=0.0, ejection_m=0.0),
+              pe.BaroErrorModel(ram_cp=0.03, ram_mach_on=0.85, ram_fade_s=0.0, jump_m=-150.0, burst_sigma_m=0.0,
+                                ejection_m=0.0)]
+    burnouts = np.array([4.0, 5.3])
+    names = list(spec_mod.PRESSURE_ERROR_PARAMS["real_flight_ram"])
+    prm = {n: np.array([getattr(m, n) for m in models]) for n in names}
+    prm["_dt"] = np.full(2, dt)
+    prm["_burnout_s"] = burnouts
+    got = pipeline.PRESSURE_ERROR_MODELS["real_flight_ram"](np.vstack([p, p]), machs, prm)
+    base = pipeline.PRESSURE_ERROR_MODELS["real_flight"](np.vstack([p, p]), machs,
+                                                         {k: v for k, v in prm.items() if not k.startswith("ram_")})
+    for f, model in enumerate(models):
+        rec = FlightRecord(name=f"f{f}", time_s=t, pressure_pa=p.copy())
+        want = pe.real_flight_errors(rec, machs[f], model, burst_times_s=[], burnout_s=float(burnouts[f])).pressure_pa
+        np.testing.assert_allclose(got[f], want, rtol=1e-12, atol=1e-9)
+        after = t > burnouts[f] + model.ram_fade_s
+        np.testing.assert_array_equal(got[f][after], base[f][after])
+        on = (machs[f] > model.ram_mach_on + 0.1) & (t < burnouts[f])
+        assert on.sum() > 50 and np.all(got[f][on] > base[f][on])
+    # the strong one reads below the pad during the boost
+    assert (atm.altitude_m(got[0]) < 0).any() and not (atm.altitude_m(base[0]) < 0).any()
+
+
+def test_real_flight_ram_spec_draws_the_ram_error_in_the_pipeline():
+    """docs/montecarlo/ram-pressure.toml loads; against the same draws with ram_cp = 0, each flight's barometer
+    reads higher in boost (by up to 0.20 q: kPa), and the same after burnout + fade."""
+    raw = read_spec_file(Path(__file__).resolve().parents[2] / "docs" / "montecarlo" / "ram-pressure.toml")
+    assert set(load_spec(raw)["dispersions"]["baro"]["choice"]) == {"mpx4115_10bit", "mpx4115_12bit",
+                                                                    "mpx4115_16bit", "ms5607"}
+    # one build (kalman_baro, default tuning, one preset) keeps the test short; the draws are the spec's
+    raw = {**raw, "methods": ["kalman_baro"], "tunings": ["default"],
+           "dispersions": {**raw["dispersions"], "baro": "mpx4115_12bit"}}
+    spec = load_spec(raw)
+    assert spec["pressure_error"]["model"] == "real_flight_ram"
+    ids = list(range(6))
+    a = pipeline.sense_chunk(spec, 2, ids)
+    b = pipeline.sense_chunk(load_spec({**raw, "pressure_error": {**raw["pressure_error"], "ram_cp": 0.0}}), 2, ids)
+    dt = 2.0 ** -spec["k"]
+    for i in range(len(ids)):
+        n = int(a.n[i])
+        t = (np.arange(n) + a.offset[i]) * dt
+        d = a.pressure[i, :n] - b.pressure[i, :n]
+        fade = a.params[i]["pressure_error.ram_fade_s"]
+        assert np.all(d[t < a.burnout_s[i]] >= -1e-9) and d.max() > 300.0
+        assert np.array_equal(a.pressure[i, :n][t > a.burnout_s[i] + fade], b.pressure[i, :n][t > a.burnout_s[i] + fade])
+    ps = [prm["pressure_error.ram_cp"] for prm in a.params]
+    assert len(set(ps)) == len(ids) and all(0.01 <= x <= 0.2 for x in ps)
+
+
 def test_rocket_table_preset_choice_and_accel_range():
     """A [rocket] spec, the barometer drawn among an ADC part and a pascal part (one build each), and a clipping
     range below the boost acceleration."""

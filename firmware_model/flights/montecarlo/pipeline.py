@@ -99,16 +99,21 @@ def _real_flight_model(p: np.ndarray, mach: np.ndarray, prm: dict[str, np.ndarra
     issue 20), batched over flights with per-flight parameters: the port error and the transonic dip
     (:func:`~firmware_model.flights.pressure_errors.pressure_coefficient` of the Mach number, times ``q``), and the
     altitude jump at each crossing of ``jump_mach`` (the shock passing the port), rising over ``jump_rise_s`` and
-    relaxing with ``jump_decay_s``. Not here: the noise bursts and the ejection spike of the deterministic model
-    (they need the burnout and deployment times of each flight; the Monte Carlo's spikes stand in for them)."""
+    relaxing with ``jump_decay_s``; with the parameters of "real_flight_ram" also issue 30's ram error in boost
+    (:func:`~firmware_model.flights.pressure_errors.ram_coefficient`, ending at each flight's burnout
+    ``_burnout_s``, on the stream's time axis). Not here: the noise bursts and the ejection spike of the
+    deterministic model (the Monte Carlo's spikes stand in for them)."""
     dt = float(prm["_dt"][0])
     col = {k: v[:, None] for k, v in prm.items() if not k.startswith("_")}
     shape = SimpleNamespace(**col)
-    out = p + pressure_errors.pressure_coefficient(mach, shape) * pressure_errors.dynamic_pressure_pa(p, mach)
+    t = np.arange(p.shape[1]) * dt
+    cp = pressure_errors.pressure_coefficient(mach, shape)
+    if "ram_cp" in col:     # "real_flight_ram": issue 30's ram error in boost, until each flight's own burnout
+        cp = cp + pressure_errors.ram_coefficient(t[None, :], mach, prm["_burnout_s"][:, None], shape)
+    out = p + cp * pressure_errors.dynamic_pressure_pa(p, mach)
     d = mach - col["jump_mach"]
     cross = np.sign(d[:, 1:]) * np.sign(d[:, :-1]) < 0
     if cross.any():
-        t = np.arange(p.shape[1]) * dt
         offset = np.zeros(p.shape)
         for f, j in zip(*np.nonzero(cross)):
             tc = t[j] + dt * d[f, j] / (d[f, j] - d[f, j + 1])
@@ -128,6 +133,7 @@ PRESSURE_ERROR_MODELS: dict[str, Callable[[np.ndarray, np.ndarray, dict[str, np.
     "step": _step_model,
     "transonic_dip": _dip_model,
     "real_flight": _real_flight_model,
+    "real_flight_ram": _real_flight_model,
 }
 
 
@@ -304,6 +310,8 @@ def sense_chunk(spec: dict[str, Any], seed: int, flight_ids: list[int] | tuple[i
     pe = spec["pressure_error"]
     pe_prm = {p: np.array([float(prm[f"pressure_error.{p}"]) for prm in params]) for p in pe["params"]}
     pe_prm["_dt"] = np.full(nf, plan.dt)        # the stream's sample period (time-dependent models)
+    burn = P[:, P_COLS.index("time_scale")] * plan.rocket.motor.burn_time_s      # since ignition
+    pe_prm["_burnout_s"] = burn - offset * plan.dt     # on the stream's axis (stream sample 0 at t = 0)
     pressure = PRESSURE_ERROR_MODELS[pe["model"]](pressure, mach, pe_prm)
     # spikes, then sensor noise, each flight from its own generator at its own length
     nb1 = np.zeros((nf, n_max))
@@ -341,7 +349,6 @@ def sense_chunk(spec: dict[str, Any], seed: int, flight_ids: list[int] | tuple[i
             rg = params[i]["accel_range_g"]
             lo, hi = (AccelSensor.preset(aname, range_g=float(rg)) if rg is not None else accel).count_limits
             acc[i] = np.clip(np.rint(xa[r]), lo, hi).astype(np.int64)
-    burn = P[:, P_COLS.index("time_scale")] * plan.rocket.motor.burn_time_s
     if timing is not None:
         _add(timing, "sim", t0, c0, t1, c1)
         _add(timing, "sensing", t1, c1, time.perf_counter(), time.process_time())

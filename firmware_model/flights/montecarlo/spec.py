@@ -76,7 +76,9 @@ PRESET_PARAMS: dict[str, dict[str, Any]] = {"baro": BARO_PRESETS, "accel": ACCEL
 #: ../shared/flights/README.md): while the airspeed Mach is inside [mach_lo, mach_hi] the barometer reads the
 #: standard pressure of ``dip_m`` lower; "real_flight" is issue 20's model of
 #: what real barometers read near Mach 1 (port error, transonic dip, shock jump; parameters and ranges as
-#: :class:`firmware_model.flights.pressure_errors.BaroErrorModel` and ``BARO_ERROR_RANGES``); "none" is no error. Another model (e.g. a measured transonic signature) is added by declaring its parameters
+#: :class:`firmware_model.flights.pressure_errors.BaroErrorModel` and ``BARO_ERROR_RANGES``); "real_flight_ram" adds
+#: issue 30's ram error in boost (``ram_cp`` q from ``ram_mach_on`` until each flight's burnout, fading over
+#: ``ram_fade_s``); "none" is no error. Another model (e.g. a measured transonic signature) is added by declaring its parameters
 #: here and its function in :data:`firmware_model.flights.montecarlo.pipeline.PRESSURE_ERROR_MODELS`.
 PRESSURE_ERROR_PARAMS: dict[str, dict[str, float]] = {
     "none": {},
@@ -85,6 +87,11 @@ PRESSURE_ERROR_PARAMS: dict[str, dict[str, float]] = {
     # the barometer errors of real flight (issue 20; defaults: pressure_errors.BaroErrorModel)
     "real_flight": {"cp_port": 0.04, "dip_cp": 0.06, "dip_mach_on": 0.8, "dip_mach_peak": 1.0, "dip_mach_off": 1.25,
                     "jump_m": 200.0, "jump_mach": 1.0, "jump_rise_s": 0.1, "jump_decay_s": 0.4},
+    # the same plus issue 30's ram error in boost (a model of its own, so that "real_flight" specs keep their slots
+    # and therefore their draws and noise; defaults: between the issue's two flights, 0.08-0.18 of q)
+    "real_flight_ram": {"cp_port": 0.04, "dip_cp": 0.06, "dip_mach_on": 0.8, "dip_mach_peak": 1.0,
+                        "dip_mach_off": 1.25, "jump_m": 200.0, "jump_mach": 1.0, "jump_rise_s": 0.1,
+                        "jump_decay_s": 0.4, "ram_cp": 0.1, "ram_mach_on": 0.7, "ram_fade_s": 0.2},
 }
 
 #: Integer-model methods (evaluate's METHODS without the float ideal Kalman filter).
