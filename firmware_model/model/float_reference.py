@@ -315,7 +315,8 @@ def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: 
                             ev = ev | _CLIP_CLEAR
                     else:
                         clp, e0 = 0, 0.0
-                elif (ev & _LIFTOFF) != 0 and (x2 > mach_vlo or (thrust_g and phase == 1)):
+                elif ((ev & _LIFTOFF) != 0 and x2 > mach_vlo) or (
+                        thrust_g and (phase == 1 or (phase == 0 and (a - acc0) * acc_g > a_coast))):
                     lock, locked = mach_n, True
                 elif lock > 1:
                     lock, locked = lock - 1, True

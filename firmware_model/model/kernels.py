@@ -583,10 +583,12 @@ def kalman_step(st, adc, acc, c, accel):  # type: ignore[no-untyped-def]
             else:
                 st[CLP] = 0
                 st[E0] = 0
-        elif (ev & LIFTOFF) != 0 and (x2 > c[C_MACH_VLO]
-                                      or ((c[C_GUARDS] & G_THRUST) != 0 and st[PHASE] == PH_BOOST)):
-            # above the Mach threshold, or (thrust guard) still in BOOST: the raw accelerometer has not yet read
-            # below -A_COAST for COAST_N samples, so the motor may be burning and the port reading ram pressure
+        elif ((ev & LIFTOFF) != 0 and x2 > c[C_MACH_VLO]) or (
+                (c[C_GUARDS] & G_THRUST) != 0
+                and (st[PHASE] == PH_BOOST or (st[PHASE] == PH_PAD and a > c[C_A_COAST]))):
+            # above the Mach threshold, or (thrust guard) the motor may be pushing: still in BOOST (the raw
+            # accelerometer has not yet read below -A_COAST for COAST_N samples), or on the pad with the raw
+            # accelerometer reading more than A_COAST above 1 g: the port may read ram pressure
             st[LOCK] = c[C_MACH_N]
             locked = True
         elif st[LOCK] > 1:

@@ -323,7 +323,8 @@ def _run_kalman(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np
             vb = np.where(done, x2, vb)
             ev = np.where(done, ev | _CLIP_CLEAR, ev)
             # above the Mach threshold, or (thrust guard) PHASE still BOOST: the barometer stays out
-            fast = run & ~clipm & ((ev & _LIFTOFF) != 0) & ((x2 > vlo) | (thrust_g & (phase == _PH_BOOST)))
+            fast = run & ~clipm & ((((ev & _LIFTOFF) != 0) & (x2 > vlo))
+                                   | (thrust_g & ((phase == _PH_BOOST) | ((phase == _PH_PAD) & (a > a_coast)))))
             settle = run & ~clipm & ~fast & (lock > 1)
             last = run & ~clipm & ~fast & (lock == 1)
             locked = (clipm & ~done) | fast | settle | (last & ~baro_ok)

@@ -306,9 +306,10 @@ static void step_kalman(const fw_consts *c, fw_state *st, int32_t adc, int16_t a
                 st->CLP = 0;
                 st->E0 = 0;
             }
-        } else if ((st->EVENTS & FW_EV_LIFTOFF)
-                   && (st->X2 > c->MACH_VLO || ((c->GUARDS & 1) && st->PHASE == FW_PH_BOOST))) {
-            /* above the Mach threshold, or (thrust guard) still in BOOST: no barometer */
+        } else if (((st->EVENTS & FW_EV_LIFTOFF) && st->X2 > c->MACH_VLO)
+                   || ((c->GUARDS & 1) && (st->PHASE == FW_PH_BOOST
+                                           || (st->PHASE == FW_PH_PAD && (int64_t)a > (int64_t)c->A_COAST)))) {
+            /* above the Mach threshold, or (thrust guard) BOOST, or the pad with a thrust reading: no barometer */
             st->LOCK = (uint16_t)c->MACH_N;
             locked = 1;
         } else if (st->LOCK > 1u) {
