@@ -376,8 +376,8 @@ def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: 
                     cst = cst + 1
                     if cst >= coast_n:
                         phase = 2
-                else:
-                    cst = 0
+                elif cst > 0:
+                    cst = cst - 1
             if phase == 2:
                 phys = not gravity_g or x2 - vb >= -v_fall
                 high = not floor_g or (x1 >= gnd + h_floor and (not baro_ok or h >= gnd + h_floor))

@@ -691,8 +691,10 @@ def kalman_step(st, adc, acc, c, accel):  # type: ignore[no-untyped-def]
             st[CST] = st[CST] + 1
             if st[CST] >= c[C_COAST_N]:
                 st[PHASE] = PH_COAST
-        else:
-            st[CST] = 0
+        elif st[CST] > 0:
+            # issue 30: a sample at or above -A_COAST takes one back (not all: a noisy accelerometer near the
+            # threshold must still reach COAST)
+            st[CST] = st[CST] - 1
     if st[PHASE] == PH_COAST:
         # gravity guard: the estimate is at most V_FALL below the free-fall bound; floor guard: the filtered and
         # (valid) barometric heights are at least H_FLOOR above the pad (GND + H_FLOOR: |GND| <= 2^30, exact)

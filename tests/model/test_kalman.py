@@ -434,10 +434,15 @@ def test_kalman_accel_transonic_flight_locks_out_the_barometer_and_rebases(k, ro
 
     pred = x2[:-1] + rs(x3[:-1], consts.K, rounding)
     lift = np.flatnonzero(ev & EVENT_BITS["LIFTOFF"]).min()
-    # issue 30, thrust guard: also every sample whose previous sample left PHASE in BOOST
-    boost = tr.column("PHASE")[:-1] == 1
-    fast = np.flatnonzero(((pred > consts.MACH_VLO) | boost) & (np.arange(1, len(x2)) > lift)) + 1
-    assert fast.min() == lift + 1                                 # from the sample after liftoff on
+    # issue 30, thrust guard: also every sample whose previous sample left PHASE in BOOST, and every pad sample
+    # (after the calibration) whose raw accelerometer reads more than A_COAST above 1 g
+    prev = tr.column("PHASE")[:-1]
+    acc0 = tr.column("ACC0")[1:]
+    a = np.array([mulg(int(v) - int(z), consts.gains["ACC_G"], rounding) for v, z in zip(s.acc[1:], acc0)])
+    calibrated = tr.column("CAL")[:-1] == 1 << consts.CAL_P
+    thrust = calibrated & ((prev == 1) | ((prev == 0) & (a > consts.A_COAST)))
+    fast = np.flatnonzero(((pred > consts.MACH_VLO) & (np.arange(1, len(x2)) > lift)) | thrust) + 1
+    assert fast.min() <= lift + 1                                 # from the sample after liftoff on, or before
     want = np.arange(fast.min(), fast.max() + consts.MACH_N)      # the fast samples, then MACH_N - 1 settling
     assert np.array_equal(locked, want), (locked[[0, -1]], want[[0, -1]])
     assert len(np.unique(x2[locked])) > locked.size // 2      # velocity is not frozen

@@ -372,7 +372,7 @@ def _run_kalman(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np
         # 9. phases and apogee
         boost = run & (phase == _PH_BOOST)
         low = x3 < -a_coast
-        cst = np.where(boost, np.where(low, cst + 1, 0), cst)
+        cst = np.where(boost, np.where(low, cst + 1, np.maximum(cst - 1, 0)), cst)   # issue 30: one back
         phase = np.where(boost & low & (cst >= coast_n), _PH_COAST, phase)
         coast = run & (phase == _PH_COAST)
         phys = (x2 - vb >= -v_fall) if gravity_g else np.ones(n_streams, dtype=bool)

@@ -393,8 +393,8 @@ static void step_kalman(const fw_consts *c, fw_state *st, int32_t adc, int16_t a
             if ((int32_t)st->CST >= c->COAST_N) {
                 st->PHASE = FW_PH_COAST;
             }
-        } else {
-            st->CST = 0;
+        } else if (st->CST > 0u) {
+            st->CST = (uint16_t)(st->CST - 1u);   /* issue 30: a sample at or above -A_COAST takes one back */
         }
     }
     if (st->PHASE == FW_PH_COAST) {
