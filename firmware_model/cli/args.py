@@ -43,7 +43,7 @@ def add_flight_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("flights", nargs="*", metavar="FLIGHT",
                    help="flight files (any format the readers take), sim:NAME (a simulated scenario; sim:all: "
                         "every scenario, sensed and sampled by --k/--baro/--accel/--no-noise), "
-                        "set:NAME (an evaluation set: eval, logs, sim, quick, full, realbaro)")
+                        "set:NAME (an evaluation set: eval, logs, sim, quick, full, realbaro, ram)")
     p.add_argument("--simulated", action="store_true", help="add every simulated scenario")
     p.add_argument("--logs", action="store_true", help="add every shared real log (../shared/flights)")
     p.add_argument("--k", type=int, action="append", help="sample period 2^-k s (repeatable; default 7); "

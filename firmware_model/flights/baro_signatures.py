@@ -31,7 +31,10 @@ The CATS computer of the same piccard flight has no usable accelerometer traject
 counts of three sensors); its barometers are compared with the TeleMega's calibrated trajectory after aligning
 the two clocks by the lag that best matches the two barometric altitudes on the coast (12-30 s).
 
-``python -m firmware_model.flights.baro_signatures [--png FILE] [--model-png FILE]`` prints the Markdown table and
+Also per barometer (:func:`boost_port_error`, issue 30): the port's error during the boost as a fraction of the
+dynamic pressure, against the same trajectory, and the lowest barometric height it read in boost.
+
+``python -m firmware_model.flights.baro_signatures [--png FILE] [--model-png FILE]`` prints the Markdown tables and
 writes the figures (the second: the measured residuals beside the model's error on four scenarios).
 AltOS is GPL: this reads the CSV columns (a format fact), nothing of its code.
 """
@@ -323,12 +326,73 @@ def measure(tr: Trace, traj: Trajectory) -> list[Signature]:
     return out
 
 
+#: Mach number above which :func:`boost_port_error` reads the port's pressure coefficient (below it q is too small
+#: for a few pascals of the calibration to matter).
+BOOST_MACH: float = 0.5
+
+
+@dataclass(frozen=True)
+class BoostPortError:
+    """What a barometer read during the boost (issue 30), against the accelerometer trajectory: the port's error
+    as a fraction of the dynamic pressure, ``(p_read - p_static) / q`` with ``p_static`` the standard pressure at
+    the pad + the calibrated trajectory's altitude and ``q = 0.7 p_static M^2``, over the boost samples above
+    :data:`BOOST_MACH` (median and largest), and the lowest barometric height above the pad during the boost."""
+
+    log: str
+    burnout_s: float
+    mach_burnout: float
+    cp_median: float | None
+    cp_max: float | None
+    mach_range: tuple[float, float] | None
+    lowest_m: float
+    lowest_time_s: float
+    lowest_mach: float
+    lowest_true_m: float
+
+
+def boost_port_error(tr: Trace, traj: Trajectory) -> BoostPortError:
+    """:class:`BoostPortError` of one barometer; the boost runs from liftoff (t = 0) to the trajectory's peak speed
+    (burnout, within a sample or two of AltOS's ``coast`` state on these logs)."""
+    t = tr.time_s
+    ok = np.isfinite(tr.baro_m)
+    ib = int(np.argmax(traj.v_mps))
+    boost = (t >= 0) & (t <= t[ib]) & ok
+    if not boost.any():
+        raise UserError(f"{tr.name}: no barometer sample between liftoff and burnout")
+    p_read = np.asarray(atm.pressure_pa(tr.pad_m + np.where(ok, tr.baro_m, 0.0)))
+    p_static = np.asarray(atm.pressure_pa(tr.pad_m + traj.z_m))
+    q = 0.7 * p_static * traj.mach ** 2
+    fast = boost & (traj.mach >= BOOST_MACH)
+    cp = (p_read - p_static)[fast] / q[fast]
+    lo = int(np.argmin(np.where(boost, tr.baro_m, np.inf)))
+    return BoostPortError(tr.name, float(t[ib]), float(traj.mach[ib]),
+                          float(np.median(cp)) if cp.size else None, float(np.max(cp)) if cp.size else None,
+                          (float(traj.mach[fast].min()), float(traj.mach[fast].max())) if cp.size else None,
+                          float(tr.baro_m[lo]), float(t[lo]), float(traj.mach[lo]), float(traj.z_m[lo]))
+
+
+def boost_table(rows: Sequence[BoostPortError]) -> str:
+    """The boost port errors as a Markdown table."""
+    lines = ["| log | burnout s (Mach) | port error / q in boost above Mach 0.5: median, max (Mach range) | "
+             "lowest barometric height in boost m (at s, Mach; true height m) |", "|---|---|---|---|"]
+    for r in rows:
+        cp = "—" if r.cp_median is None else (f"{r.cp_median:+.3f}, {r.cp_max:+.3f} "
+                                              f"({r.mach_range[0]:.2f}-{r.mach_range[1]:.2f})")
+        lines.append(f"| {r.log} | {r.burnout_s:.2f} ({r.mach_burnout:.2f}) | {cp} | {r.lowest_m:+.0f} "
+                     f"({r.lowest_time_s:.2f}, {r.lowest_mach:.2f}; {r.lowest_true_m:.0f}) |")
+    return "\n".join(lines)
+
+
 @dataclass
 class Analysis:
     traces: list[Trace]
     trajectories: dict[str, Trajectory]
     signatures: list[Signature]
     notes: list[str]
+
+    def boost(self) -> list[BoostPortError]:
+        """:func:`boost_port_error` of every trace."""
+        return [boost_port_error(tr, self.trajectories[tr.name]) for tr in self.traces]
 
 
 def analyse(base: Path) -> Analysis:
@@ -475,6 +539,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         raise SystemExit("no shared flights folder (../shared/flights or $FWEMU_SHARED_FLIGHTS)")
     an = analyse(base)
     print(markdown_table(an.signatures))
+    print()
+    print(boost_table(an.boost()))
     print()
     for n in an.notes:
         print("- " + n)

@@ -8,7 +8,7 @@
 * ``set:sim`` the simulated part, ``set:logs`` the logs, ``set:quick`` a few short flights (tests, smoke runs).
 * ``set:full`` (:func:`k_set`): every scenario x each distinct tagged sensing x k = 5, 6, 7, and every shared log
   x k = 5, 6, 7 (issue 20's before/after set); ``set:realbaro`` the same for the scenarios with the barometer
-  errors of real flight only.
+  errors of real flight only; ``set:ram`` the scenarios with issue 30's ram error in boost, no logs.
 
 **Pascal sensor**: the MS5607-like digital barometer reports pascals in a 32-bit word, which the firmware reads
 since issue 9 item 1 (``BuildConfig.baro_kind`` pascal, docs/firmware-spec.md §2). :func:`pascal_supported` (true
@@ -148,16 +148,27 @@ def logs_set(k: int = 7) -> list[FlightSpec]:
     return [FlightSpec(str(p), k=k, noise=False, label=log_label(p)) for p in shared_logs()]
 
 
-def k_set(ks: Sequence[int] = (5, 6, 7), only_real_baro: bool = False) -> tuple[list[FlightSpec], list[str]]:
+def _has_ram(name: str) -> bool:
+    """The scenario carries issue 30's ram error in boost."""
+    model = get_scenario(name).error_model()
+    return model is not None and model.ram_cp > 0
+
+
+def k_set(ks: Sequence[int] = (5, 6, 7), only_real_baro: bool = False, only_ram: bool = False,
+          with_logs: bool = True) -> tuple[list[FlightSpec], list[str]]:
     """Every scenario (``only_real_baro``: only those with the barometer errors of real flight,
-    ``Scenario.baro_errors``) with each distinct sensing its tags suggest (barometer, accelerometer, noise; the
-    tagged k is replaced) at every k of ``ks``, then every shared log at each k. ``set:full`` and
-    ``set:realbaro``: the sets the issue-20 before/after tables are made on. Returns (rows, skipped rows)."""
+    ``Scenario.baro_errors``; ``only_ram``: only those with issue 30's ram error in boost) with each distinct
+    sensing its tags suggest (barometer, accelerometer, noise; the tagged k is replaced) at every k of ``ks``, then
+    (``with_logs``) every shared log at each k. ``set:full`` and ``set:realbaro``: the sets the issue-20
+    before/after tables are made on; ``set:ram`` the issue-30 scenarios alone (no logs). Returns (rows, skipped
+    rows). A scenario keeps its row seeds whichever subset it is listed in."""
     specs: list[FlightSpec] = []
     skipped: list[str] = []
     pascal_ok = pascal_supported()
     for i, n in enumerate(_scenario_names()):
         if only_real_baro and get_scenario(n).baro_errors is None:
+            continue
+        if only_ram and not _has_ram(n):
             continue
         sensings: list[tuple[str, str, bool]] = []
         for v in scenario_variants(n):
@@ -171,7 +182,7 @@ def k_set(ks: Sequence[int] = (5, 6, 7), only_real_baro: bool = False) -> tuple[
                     continue
                 specs.append(FlightSpec(f"sim:{n}", k=k, baro=sensing[0], accel=sensing[1], noise=sensing[2],
                                         seed=100 * i + j, label=_row_label(n, vk)))
-    for k in ks:
+    for k in ks if with_logs else ():
         specs += [replace(s, label=f"{s.label} k{k}") for s in logs_set(k)]
     return specs, skipped
 
@@ -193,7 +204,7 @@ def quick_set() -> list[FlightSpec]:
 
 
 def named_set(name: str) -> list[FlightSpec]:
-    """``eval``, ``sim``, ``logs``, ``quick``, ``full``, ``realbaro`` (:func:`k_set`)."""
+    """``eval``, ``sim``, ``logs``, ``quick``, ``full``, ``realbaro``, ``ram`` (:func:`k_set`)."""
     if name == "eval":
         return evaluation_set()[0]
     if name == "sim":
@@ -206,7 +217,9 @@ def named_set(name: str) -> list[FlightSpec]:
         return k_set()[0]
     if name == "realbaro":
         return k_set(only_real_baro=True)[0]
-    raise UserError(f"set:{name}: unknown evaluation set; known: eval, sim, logs, quick, full, realbaro")
+    if name == "ram":
+        return k_set(only_ram=True, with_logs=False)[0]
+    raise UserError(f"set:{name}: unknown evaluation set; known: eval, sim, logs, quick, full, realbaro, ram")
 
 
 def resolve_flights(items: Iterable[str], simulated: bool = False, logs: bool = False, ks: Sequence[int] = (7,),

@@ -238,7 +238,7 @@ def test_full_set_is_every_sensing_at_k_5_6_7():
         tagged = {v[:3] for v in scenario_variants(n)}
         got = {(x.baro, x.accel, x.noise) for x in sims if x.source == f"sim:{n}"}
         assert got == tagged, n
-    with pytest.raises(UserError, match="known: eval, sim, logs, quick, full, realbaro"):
+    with pytest.raises(UserError, match="known: eval, sim, logs, quick, full, realbaro, ram"):
         named_set("nope")
 
 
@@ -417,6 +417,26 @@ def test_measured_signatures_as_documented(analysis):
     tr = next(t for t in analysis.traces if t.name == "piccard-telemega")
     boost = (tr.time_s > 1.0) & (tr.time_s < 4.0)
     assert tr.baro_m[boost].min() < -50.0
+
+
+def test_boost_port_error_on_the_shared_logs(analysis):
+    """docs/flights.md, "The port error in boost" (issue 30): during the boost, above Mach 0.5, the ports read
+    0.06 of q high on both prometheus computers and 0.13-0.15 on all four piccard barometers (which read below the
+    pad at Mach ~0.9 while 540-560 m up); the boost ends within 0.4 s of AltOS's own coast state."""
+    rows = {r.log: r for r in analysis.boost()}
+    assert len(rows) == len(analysis.traces)
+    for log in ("prometheus-2022-06-24-telemega", "prometheus-2022-06-24-telemetrum"):
+        r = rows[log]
+        assert 0.05 < r.cp_median < 0.07 and r.cp_max < 0.08 and r.lowest_m > -10.0
+    for log in ("piccard-telemega", "piccard-cats-BARO0", "piccard-cats-BARO1", "piccard-cats-BARO2"):
+        r = rows[log]
+        assert 0.12 < r.cp_median < 0.15 and r.cp_max < 0.16
+        assert -100.0 < r.lowest_m < -60.0 and 0.8 < r.lowest_mach < 0.95 and r.lowest_true_m > 500.0
+    for tr in analysis.traces:
+        if "coast" in tr.events:
+            assert abs(rows[tr.name].burnout_s - tr.events["coast"]) < 0.4
+    table = bs.boost_table(analysis.boost()).splitlines()
+    assert len(table) == 2 + len(rows) and table[0].startswith("| log | burnout s (Mach) |")
 
 
 def test_signature_figure_and_table(analysis):

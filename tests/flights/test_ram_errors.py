@@ -181,3 +181,10 @@ def test_ram_flights_strategy(rec):
     assert np.all(err <= 1e-6)                               # the ram error only reads high (height low)
     assert np.all(np.abs(err[rec.time_s > burn + model["ram_fade_s"] + 1e-9]) < 1e-6)
     assert err.min() < -20.0
+
+
+def test_ram_set_is_the_ram_scenarios_of_the_full_set():
+    ram = named_set("ram")
+    full = named_set("full")
+    assert {x.source[4:] for x in ram} == set(RAM) and all(x.source.startswith("sim:") for x in ram)
+    assert [x for x in full if x.source[4:] in RAM] == ram          # the same rows, seeds and labels
