@@ -166,7 +166,7 @@ def build_constants(cfg: BuildConfig) -> FirmwareConstants:
                           where),
         CLIP_N=samples("CLIP_N", cfg.clip_s, 1))
     if not recursive:
-        phases.update(DLY_N=samples("DLY_N", cfg.mach_delay_s, 0), MACH_N=samples("MACH_N", cfg.mach_settle_s, 1),
+        phases.update(DLY_N=samples("DLY_N", cfg.mach_delay, 0), MACH_N=samples("MACH_N", cfg.mach_settle_s, 1),
                       DV=max(1, _round_int("DV", (G0 + cfg.drag_mps2) * kalman_v * cfg.dt, where)),
                       DU=max(1, _round_int("DU", cfg.thrust_mps2 * kalman_v * cfg.dt, where)),
                       # issue 30: the physical guards (docs/firmware-spec.md §6 steps 4, 8, 9)

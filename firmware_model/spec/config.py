@@ -37,6 +37,11 @@ PA_DEFAULT_RANGE: tuple[int, int] = (1000, 120000)
 PA_DEFAULT_ALT_SHIFT: int = 7
 
 
+#: kalman_baro's default Mach delay (s, issue 30; docs/evaluation.md "Issue 30"): no apogee until this long after
+#: liftoff, longer than the burns of the supersonic flights whose port reads ram pressure (up to 6 s).
+BARO_MACH_DELAY_S: float = 8.0
+
+
 @dataclass(frozen=True)
 class BuildConfig:
     """One firmware build.
@@ -83,7 +88,10 @@ class BuildConfig:
         driven velocity) the barometer is not used; ``mach_settle_s``: it stays unused this long after the speed
         falls back below (MACH_N = max(1, round(mach_settle_s * 2^k))), then X1 is re-based on the barometer.
       * ``mach_delay_s``: Kalman programs declare no apogee until this long after liftoff (the "Mach delay" of
-        barometric altimeters; DLY_N = round(mach_delay_s * 2^k)).
+        barometric altimeters; DLY_N = round(mach_delay_s * 2^k)); ``None`` (default) = the program's own:
+        :data:`BARO_MACH_DELAY_S` for kalman_baro (issue 30: a barometer alone cannot see a port reading ram
+        pressure in boost while the height it reports stays above the floor and falls no faster than gravity
+        allows), 0 for kalman_accel (its thrust guard sees the boost).
       * ``drag_mps2``: the drag deceleration bound; the velocity bound VB falls by at most (g + drag_mps2) * dt per
         sample (DV), and apogee needs VB < 0 (a reversal faster than that is a sensor error); ``thrust_mps2``: VB
         rises by at most thrust_mps2 * dt per sample (DU), so a velocity spike of the estimate cannot hold apogee off.
@@ -143,7 +151,7 @@ class BuildConfig:
     baro_kind: str = "adc"
     baro_rate_mps: float = 400.0
     mach_settle_s: float = 0.5
-    mach_delay_s: float = 0.0
+    mach_delay_s: float | None = None
     coast_mps2: float = 9.80665 / 2.0
     coast_s: float = 1.0
     drag_mps2: float = 5.0 * 9.80665
@@ -231,7 +239,11 @@ class BuildConfig:
         if self.cal_p is not None and (isinstance(self.cal_p, bool) or not isinstance(self.cal_p, int)
                                        or not 0 <= self.cal_p <= 8):
             raise bad("cal_p", "pad calibration over 2^cal_p samples needs cal_p in 0..8 (or null)")
-        for name in ("gate_sigmas", "gate_hold_s", "apogee_hold_s", "baro_rate_mps", "mach_settle_s", "mach_delay_s",
+        if self.mach_delay_s is not None and (isinstance(self.mach_delay_s, bool)
+                                              or not isinstance(self.mach_delay_s, (int, float))
+                                              or not math.isfinite(self.mach_delay_s) or self.mach_delay_s < 0):
+            raise bad("mach_delay_s", "must be a finite number >= 0 (s) or null (the program's default)")
+        for name in ("gate_sigmas", "gate_hold_s", "apogee_hold_s", "baro_rate_mps", "mach_settle_s",
                      "coast_mps2", "coast_s", "drag_mps2", "thrust_mps2", "descent_mps", "quant_alt_m", "clip_drag_mps2",
                      "clip_s", "accel_model_g", "floor_m", "fall_margin_mps"):
             value = getattr(self, name)
@@ -253,6 +265,13 @@ class BuildConfig:
                                   f"[0, {full}]")
 
     # ------------------------------------------------------------------ derived
+    @property
+    def mach_delay(self) -> float:
+        """The Mach delay in seconds: ``mach_delay_s``, or the program's default when it is ``None``."""
+        if self.mach_delay_s is not None:
+            return float(self.mach_delay_s)
+        return BARO_MACH_DELAY_S if self.program == "kalman_baro" else 0.0
+
     @property
     def dt(self) -> float:
         """Sample period in seconds (2^-k)."""

@@ -118,8 +118,13 @@ def test_cpu_equals_model_random_and_edge_streams(program: str, k: int, rounding
 @given(data=st.data())
 def test_cpu_equals_model_quick_flights(program: str, k: int, rounding: str, data: st.DataObject) -> None:
     """Flight-shaped streams (pad, boost, coast, apogee, descent + noise) of 35-72 s (:func:`flight_lengths`):
-    liftoff and apogee at every k (asserted, so the flight logic is compared, not only the filter's pad)."""
-    cfg = _cfg(program, k, rounding)
+    liftoff and apogee at every k (asserted, so the flight logic is compared, not only the filter's pad).
+
+    The Kalman builds leave the gravity guard of issue 30 out (guards = 5): these shapes' barometer is linear in
+    counts per metre, not the altitude table's atmosphere, so a flight to several km reads, in table metres, a
+    descent accelerating at up to 6 g, which the guard rightly refuses as faster than free fall; the guards are
+    compared on physical flights below (the ram-pressure scenarios, the dip flights)."""
+    cfg = _cfg(program, k, rounding, **({"guards": 5} if program in KALMAN else {}))
     lo, hi = flight_lengths(cfg)
     adc, acc = data.draw(fst.flight_like_streams(cfg, min_len=lo, max_len=hi), label="flight")
     assert_reaches_apogee(assert_same(cfg, adc, acc), cfg)
