@@ -326,6 +326,15 @@ _CATALOGUE: tuple[Scenario, ...] = (
        {"baro": ["analog-16", "analog-10"], "noise": ["noisy"], "k": [5, 6, 7]}, simulator="rocketpy",
        launch={"site_altitude_m": 1350.0}, rocketpy={"wind_u": 5.0, "inclination_deg": 87.0, "heading_deg": 90.0},
        baro_errors={"model": {**_RAM_ONLY, "ram_cp": 0.17, "ram_mach_on": 0.7, "ram_fade_s": 0.5}, "seed": 39}),
+    # appended last so that every earlier scenario keeps its row seeds (evalset: 100 x catalogue index): the
+    # parameters shared by the ram-pressure Monte Carlo's flights on which kalman_baro still fired in boost with
+    # the guards of issue 30 at the default tuning (docs/evaluation.md, "Issue 30")
+    _s("ram-m1670-m156-moderate", "the EasyMega flight's rocket from a 950 m site: a moderate ram error (0.09 q "
+       "from Mach 0.8, 0.2 s fade) under weak issue-20 errors (no port error, 0.03 q dip)", "supersonic",
+       {"motor": "M1670", "motor_scale": (1.0, 1.49), "dry_mass_kg": 12.0, "diameter_m": 0.08},
+       {"baro": ["analog-12", "ms5607"], "noise": ["noisy"], "k": [5, 6, 7]}, launch={"site_altitude_m": 950.0},
+       baro_errors={"model": {"ram_cp": 0.09, "ram_mach_on": 0.8, "ram_fade_s": 0.2, "cp_port": 0.0,
+                              "dip_cp": 0.03}, "seed": 40}),
 )
 
 _BY_NAME: dict[str, Scenario] = {s.name: s for s in _CATALOGUE}
