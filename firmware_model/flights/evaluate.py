@@ -2,9 +2,12 @@
 Tables 1-2). docs/evaluation.md has the decisions and the findings.
 
 A **method** is a firmware program with its tuning (:data:`METHODS`): the recursive filter at 1/2, 1/4 and 1/8 LSB
-(``threshold_q8`` 128 / 64 / 32), ``kalman_baro``, ``kalman_accel``, and the float ideal Kalman filter
-(:func:`firmware_model.model.float_reference.ideal_kalman`, barometer only, time-varying gains from the pad covariance, the same
-apogee rule as the firmware: velocity below zero after liftoff). Each method's :class:`BuildConfig` is the flight's
+(``threshold_q8`` 128 / 64 / 32), ``kalman_baro``, ``kalman_accel``, and the ideal float Kalman filter (since issue
+30 the float64 mirror of kalman_baro, :func:`firmware_model.model.float_reference.mirror` with the unquantized design
+gains: no rounding, no gain quantization, the same altitude table interpolated in float and the same flight logic
+and physical guards, so that its row measures what quantization costs, not a missing guard; until issue 30 it was
+:func:`~firmware_model.model.float_reference.ideal_kalman` with "X2 < 0 after liftoff" and no phase logic, which
+fired in boost wherever the barometer lied). Each method's :class:`BuildConfig` is the flight's
 sensor description (``FirmwareInputs.config_overrides()``: ADC width, counts per metre, noise, accelerometer
 scale) plus the method's tuning plus any user overrides.
 
@@ -48,7 +51,7 @@ from firmware_model.flights.reconstruct.reference import smoother_reference
 from firmware_model.flights.scenarios import scenario_mach, simulate_scenario
 from firmware_model.flights.sensors import AccelSensor, BaroSensor
 from firmware_model.flights.sim1dof import mach_of
-from firmware_model.model.float_reference import ideal_kalman
+from firmware_model.model.float_reference import mirror
 from firmware_model.model.run import run_model
 from firmware_model.model.trace import EVENT_BITS
 from firmware_model.runtime import markdown as md
@@ -72,7 +75,7 @@ class Method:
     label: str
     program: str
     tuning: tuple[tuple[str, Any], ...] = ()
-    engine: str = "model"      # "model": run_model (bit-exact integer); "ideal": reference.ideal_kalman
+    engine: str = "model"      # "model": run_model (bit-exact integer); "ideal": float mirror, design gains
 
     def config(self, k: int, sensor: dict[str, Any] | None = None, **overrides: Any) -> BuildConfig:
         """The method's BuildConfig at ``k``: the sensor description, then the tuning, then ``overrides``."""
@@ -159,8 +162,8 @@ def run_method(method: Method, cfg: BuildConfig, adc: np.ndarray, acc: np.ndarra
     ``time_s[i]``) and read its apogee. Firmware methods run the bit-exact integer model."""
     if method.engine == "ideal":
 
-        trace = ideal_kalman(cfg, adc, acc)
-        return detect_from_events(method.name, trace.column("EVENTS"), time_s, cfg.dt)
+        trace = mirror(build_constants(cfg), adc, acc, gains="design")
+        return detect_from_events(method.name, trace.column("EVENTS"), time_s, cfg.dt, trace.column("APFRAC"))
 
     trace = run_model(build_constants(cfg), adc, acc)
     apfrac = trace.column("APFRAC") if "APFRAC" in trace.names else None

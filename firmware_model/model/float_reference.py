@@ -263,6 +263,9 @@ def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: 
     mach_n, dly_n, dv, du = int(consts.MACH_N), int(consts.DLY_N), float(consts.DV), float(consts.DU)
     a_coast, coast_n, v_desc = float(consts.A_COAST), int(consts.COAST_N), float(consts.V_DESC)
     a_drag, clip_n = float(consts.A_DRAG), int(consts.CLIP_N)
+    guards = int(consts.GUARDS)
+    thrust_g, gravity_g, floor_g = bool(guards & 1), bool(guards & 2), bool(guards & 4)
+    dg, v_fall, h_floor = float(consts.DG), float(consts.V_FALL), float(consts.H_FLOOR)
     half_n, win_n = 1 << int(consts.K), 2 << int(consts.K)
     acc_g = g["ACC_G"] if accel else 0.0
     g11, g21, g31 = (float(g[n]) for n in ("G11", "G21", "G31"))
@@ -312,7 +315,8 @@ def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: 
                             ev = ev | _CLIP_CLEAR
                     else:
                         clp, e0 = 0, 0.0
-                elif (ev & _LIFTOFF) != 0 and x2 > mach_vlo:
+                elif ((ev & _LIFTOFF) != 0 and x2 > mach_vlo) or (
+                        thrust_g and (phase == 1 or (phase == 0 and (a - acc0) * acc_g > a_coast))):
                     lock, locked = mach_n, True
                 elif lock > 1:
                     lock, locked = lock - 1, True
@@ -365,17 +369,19 @@ def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: 
                 else:
                     clp = 0
             # 8. plausibility bound
-            vb = min(max(x2, vb - dv), vb + du)
+            vb = min(max(x2, vb - (dg if gravity_g and vb <= 0 else dv)), vb + du)
             # 9. phases and apogee
             if phase == 1:
                 if x3 < -a_coast:
                     cst = cst + 1
                     if cst >= coast_n:
                         phase = 2
-                else:
-                    cst = 0
+                elif cst > 0:
+                    cst = cst - 1
             if phase == 2:
-                if dly == 0 and vb < 0 and not _clipped(ev):
+                phys = not gravity_g or x2 - vb >= -v_fall
+                high = not floor_g or (x1 >= gnd + h_floor and (not baro_ok or h >= gnd + h_floor))
+                if dly == 0 and vb < 0 and not _clipped(ev) and phys and high:
                     neg = neg + 1
                     if neg >= apo_n:
                         ev = ev | _APOGEE

@@ -189,14 +189,18 @@ C_V_DESC = 42
 C_DU = 43
 C_A_DRAG = 44
 C_CLIP_N = 45
+C_GUARDS = 46
+C_DG = 47
+C_V_FALL = 48
+C_H_FLOOR = 49
 #: The altitude table's nodes follow the scalars: c[C_ALT + j] is node j (docs/firmware-spec.md §2a).
-C_ALT = 46
-N_CONST = 46
+C_ALT = 50
+N_CONST = 50
 _SCALARS = ("K", "ROUND", "BARO_SIGN", "S", "THR", "V_LIFT", "V_GATE", "MACH_VLO", "MACH_VHI", "MACH_E",
             "BARO_MIN", "BARO_MAX")
 _GAINS = ("G11", "G21", "G31", "G12", "G22", "G32", "ACC_G", "G11T", "G21T", "G31T")
 _SCALARS2 = ("ALT_SHIFT", "CAL_P", "E_GATE", "GATE_N", "APO_N", "MACH_N", "DLY_N", "DV", "A_COAST", "COAST_N",
-             "V_DESC", "DU", "A_DRAG", "CLIP_N")
+             "V_DESC", "DU", "A_DRAG", "CLIP_N", "GUARDS", "DG", "V_FALL", "H_FLOOR")
 
 #: Wrap ids returned by the steps: the name of the quantity (as firmware_model.model.run.ModelTrace.wrap_word).
 WRAP_NAMES: tuple[str, ...] = ("", "EST", "VEL", "X1", "X2", "X3", "e1", "e2", "mulg(acc,ACC_G)",
@@ -238,6 +242,11 @@ BARO_REJECT = 128
 ACC_CLIP = 256
 CLIP_CLEAR = 512
 LATCHED = LIFTOFF | ARMED | APOGEE | APOGEE_PREDICTED | GATE_HIGH | ACC_CLIP | CLIP_CLEAR
+
+#: GUARDS bits (docs/firmware-spec.md §3, §6): the physical guards of issue 30.
+G_THRUST = 1
+G_GRAVITY = 2
+G_FLOOR = 4
 
 INT32_MIN = -2147483648
 INT32_MAX = 2147483647
@@ -574,7 +583,12 @@ def kalman_step(st, adc, acc, c, accel):  # type: ignore[no-untyped-def]
             else:
                 st[CLP] = 0
                 st[E0] = 0
-        elif (ev & LIFTOFF) != 0 and x2 > c[C_MACH_VLO]:
+        elif ((ev & LIFTOFF) != 0 and x2 > c[C_MACH_VLO]) or (
+                (c[C_GUARDS] & G_THRUST) != 0
+                and (st[PHASE] == PH_BOOST or (st[PHASE] == PH_PAD and a > c[C_A_COAST]))):
+            # above the Mach threshold, or (thrust guard) the motor may be pushing: still in BOOST (the raw
+            # accelerometer has not yet read below -A_COAST for COAST_N samples), or on the pad with the raw
+            # accelerometer reading more than A_COAST above 1 g: the port may read ram pressure
             st[LOCK] = c[C_MACH_N]
             locked = True
         elif st[LOCK] > 1:
@@ -660,8 +674,12 @@ def kalman_step(st, adc, acc, c, accel):  # type: ignore[no-untyped-def]
     # 7b. accelerometer at its rail for CLIP_N samples in boost: the integral underestimates the speed from now on
     if accel:
         ev = _rail_count(st, CLP, st[PHASE], ev, acc, c[C_CLIP_N])
-    # 8. plausibility bound: VB follows X2, falling by at most DV and rising by at most DU per sample
-    vb = st[VB] - c[C_DV]
+    # 8. plausibility bound: VB follows X2, falling by at most DV (gravity guard: DG once VB <= 0) and rising by
+    #    at most DU per sample
+    if (c[C_GUARDS] & G_GRAVITY) != 0 and st[VB] <= 0:
+        vb = st[VB] - c[C_DG]
+    else:
+        vb = st[VB] - c[C_DV]
     if vb < x2:
         vb = x2
     if vb > st[VB] + c[C_DU]:
@@ -673,10 +691,17 @@ def kalman_step(st, adc, acc, c, accel):  # type: ignore[no-untyped-def]
             st[CST] = st[CST] + 1
             if st[CST] >= c[C_COAST_N]:
                 st[PHASE] = PH_COAST
-        else:
-            st[CST] = 0
+        elif st[CST] > 0:
+            # issue 30: a sample at or above -A_COAST takes one back (not all: a noisy accelerometer near the
+            # threshold must still reach COAST)
+            st[CST] = st[CST] - 1
     if st[PHASE] == PH_COAST:
-        if st[DLY] == 0 and vb < 0 and not _clipped(ev):
+        # gravity guard: the estimate is at most V_FALL below the free-fall bound; floor guard: the filtered and
+        # (valid) barometric heights are at least H_FLOOR above the pad (GND + H_FLOOR: |GND| <= 2^30, exact)
+        phys = (c[C_GUARDS] & G_GRAVITY) == 0 or x2 - vb >= -c[C_V_FALL]
+        fl = st[GND] + c[C_H_FLOOR]
+        high = (c[C_GUARDS] & G_FLOOR) == 0 or (x1 >= fl and (not baro_ok or h >= fl))
+        if st[DLY] == 0 and vb < 0 and not _clipped(ev) and phys and high:
             st[NEG] = st[NEG] + 1
             if st[NEG] >= c[C_APO_N]:
                 ev |= APOGEE

@@ -80,6 +80,10 @@ class FirmwareConstants:
     DU: int = 1
     A_DRAG: int = 0
     CLIP_N: int = 1
+    GUARDS: int = 0
+    DG: int = 1
+    V_FALL: int = 0
+    H_FLOOR: int = 0
 
     @property
     def ALT_N(self) -> int:
@@ -107,13 +111,14 @@ class FirmwareConstants:
     def equates(self) -> dict[str, int]:
         """Assembler symbols (all int32): K ROUND BARO_SIGN S THR V_LIFT V_GATE MACH_VLO MACH_VHI MACH_E BARO_MIN
         BARO_MAX ALT_SHIFT ALT_N CAL_P E_GATE GATE_N APO_N PASCAL (1: the barometer is the 32-bit pascal word
-        ``BARO_PA``) MACH_N DLY_N DV A_COAST COAST_N V_DESC DU A_DRAG CLIP_N (issue 20's flight logic) and, per gain,
-        ``<NAME>_M`` and ``<NAME>_S``. (The
+        ``BARO_PA``) MACH_N DLY_N DV A_COAST COAST_N V_DESC DU A_DRAG CLIP_N (issue 20's flight logic) GUARDS DG
+        V_FALL H_FLOOR (issue 30's physical guards) and, per gain, ``<NAME>_M`` and ``<NAME>_S``. (The
         table nodes themselves are ROM data: :meth:`data_source`.)"""
         eq = {name: int(getattr(self, name)) for name in
               ("K", "ROUND", "BARO_SIGN", "S", "THR", "V_LIFT", "V_GATE", "MACH_VLO", "MACH_VHI", "MACH_E",
                "BARO_MIN", "BARO_MAX", "ALT_SHIFT", "ALT_N", "CAL_P", "E_GATE", "GATE_N", "APO_N", "PASCAL",
-               "MACH_N", "DLY_N", "DV", "A_COAST", "COAST_N", "V_DESC", "DU", "A_DRAG", "CLIP_N")}
+               "MACH_N", "DLY_N", "DV", "A_COAST", "COAST_N", "V_DESC", "DU", "A_DRAG", "CLIP_N",
+               "GUARDS", "DG", "V_FALL", "H_FLOOR")}
         for name, g in self.gains.items():
             eq[f"{name}_M"] = int(g.m)
             eq[f"{name}_S"] = int(g.s)
@@ -171,9 +176,14 @@ def _build_constants(cfg: BuildConfig) -> FirmwareConstants:
                           where),
         CLIP_N=samples("CLIP_N", cfg.clip_s, 1))
     if not recursive:
-        phases.update(DLY_N=samples("DLY_N", cfg.mach_delay_s, 0), MACH_N=samples("MACH_N", cfg.mach_settle_s, 1),
+        phases.update(DLY_N=samples("DLY_N", cfg.mach_delay, 0), MACH_N=samples("MACH_N", cfg.mach_settle_s, 1),
                       DV=max(1, _round_int("DV", (G0 + cfg.drag_mps2) * kalman_v * cfg.dt, where)),
-                      DU=max(1, _round_int("DU", cfg.thrust_mps2 * kalman_v * cfg.dt, where)))
+                      DU=max(1, _round_int("DU", cfg.thrust_mps2 * kalman_v * cfg.dt, where)),
+                      # issue 30: the physical guards (docs/firmware-spec.md §6 steps 4, 8, 9)
+                      GUARDS=cfg.guards,
+                      DG=max(1, _round_int("DG", G0 * kalman_v * cfg.dt, where)),
+                      V_FALL=_round_int("V_FALL", cfg.fall_margin_mps * kalman_v, where),
+                      H_FLOOR=_round_int("H_FLOOR", cfg.floor_m * 256.0, where))
     if cfg.program == "recursive":
         # §5 steps 1, 5, 6: pad calibration of ACC0, the barometer rate gate (raw counts per sample), the apogee
         # evidence after an accelerometer clip

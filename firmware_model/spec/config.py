@@ -173,7 +173,7 @@ FIELDS: dict[str, Rule] = {
     "transonic_r_factor": Rule("number", 1.0, 1e6),
     "baro_rate_mps": _SPEED,
     "mach_settle_s": _SECONDS,
-    "mach_delay_s": _SECONDS,
+    "mach_delay_s": Rule("number", 0.0, MAX_SECONDS, null=True, unit="s", why="null: the program's default"),
     "coast_mps2": _ACCEL,
     "coast_s": _SECONDS,
     "drag_mps2": _ACCEL,
@@ -182,7 +182,14 @@ FIELDS: dict[str, Rule] = {
     "clip_drag_mps2": _ACCEL,
     "clip_s": _SECONDS,
     "quant_alt_m": Rule("number", 0.0, MAX_QUANT_ALT_M, unit="m", why="above the pad; the table ends near 31 km"),
+    "guards": Rule("int", 0, 7, why="bit mask of the physical guards: 1 thrust, 2 gravity, 4 floor"),
+    "floor_m": Rule("number", 0.0, 10000.0, unit="m", why="the apogee floor above the pad"),
+    "fall_margin_mps": Rule("number", 0.0, 1000.0, unit="m/s"),
 }
+
+#: kalman_baro's default Mach delay (s, issue 30; docs/evaluation.md "Issue 30"): no apogee until this long after
+#: liftoff, longer than the burns of the supersonic flights whose port reads ram pressure (up to 6 s).
+BARO_MACH_DELAY_S: float = 8.0
 
 
 @dataclass(frozen=True)
@@ -231,7 +238,10 @@ class BuildConfig:
         driven velocity) the barometer is not used; ``mach_settle_s``: it stays unused this long after the speed
         falls back below (MACH_N = max(1, round(mach_settle_s * 2^k))), then X1 is re-based on the barometer.
       * ``mach_delay_s``: Kalman programs declare no apogee until this long after liftoff (the "Mach delay" of
-        barometric altimeters; DLY_N = round(mach_delay_s * 2^k)).
+        barometric altimeters; DLY_N = round(mach_delay_s * 2^k)); ``None`` (default) = the program's own:
+        :data:`BARO_MACH_DELAY_S` for kalman_baro (issue 30: a barometer alone cannot see a port reading ram
+        pressure in boost while the height it reports stays above the floor and falls no faster than gravity
+        allows), 0 for kalman_accel (its thrust guard sees the boost).
       * ``drag_mps2``: the drag deceleration bound; the velocity bound VB falls by at most (g + drag_mps2) * dt per
         sample (DV), and apogee needs VB < 0 (a reversal faster than that is a sensor error); ``thrust_mps2``: VB
         rises by at most thrust_mps2 * dt per sample (DU), so a velocity spike of the estimate cannot hold apogee off.
@@ -246,6 +256,15 @@ class BuildConfig:
         ACC_CLIP, a drag reading at or below this (A_DRAG = g + it, in the program's units) is "drag-low": no
         apogee evidence counts until the drag reading has been low for 2^k samples (recursive) or a 2^(k+1)-sample
         drag-low window has re-based the velocity on the barometer (kalman_accel; docs/firmware-spec.md §5, §6).
+    Physical guards of issue 30 (docs/firmware-spec.md §6 steps 4, 8, 9; Kalman programs):
+      * ``guards``: which are built, a bit mask (default 7, all): 1 **thrust** (kalman_accel: while PHASE is BOOST,
+        i.e. until the raw accelerometer has read below -coast_mps2 for coast_s, the barometer is not fused),
+        2 **gravity** (below zero the velocity bound VB falls by g dt per sample only, and apogee evidence needs
+        X2 >= VB - fall_margin_mps: a falling rocket cannot accelerate downward faster than gravity), 4 **floor**
+        (apogee evidence needs the filtered and the barometric height at least ``floor_m`` above the pad).
+        Switching one off is for ablation and teeth tests, not for flight.
+      * ``floor_m`` (0..10,000 m, default 30): the floor; ``fall_margin_mps`` (default 15 m/s): how far the velocity
+        estimate may lie below the free-fall bound (filter noise and lag) before its evidence is discarded.
       * ``quant_alt_m``: the Kalman design's barometer sigma is at least the barometer's quantization step /
         sqrt(12) in metres at this height above the pad (docs/gain-design.md "Quantization floor").
     """
@@ -282,7 +301,7 @@ class BuildConfig:
     baro_kind: str = "adc"
     baro_rate_mps: float = 400.0
     mach_settle_s: float = 0.5
-    mach_delay_s: float = 0.0
+    mach_delay_s: float | None = None
     coast_mps2: float = 9.80665 / 2.0
     coast_s: float = 1.0
     drag_mps2: float = 5.0 * 9.80665
@@ -291,6 +310,9 @@ class BuildConfig:
     clip_drag_mps2: float = 0.25 * 9.80665
     clip_s: float = 0.25
     quant_alt_m: float = 3000.0
+    guards: int = 7
+    floor_m: float = 30.0
+    fall_margin_mps: float = 15.0
     extra: dict[str, Any] = field(default_factory=dict, compare=False, hash=False)
     #: where the config came from (its file), for messages; not a setting (not in :meth:`to_dict`)
     source: str | None = field(default=None, compare=False, hash=False, repr=False)
@@ -369,6 +391,13 @@ class BuildConfig:
                                   self.source)
 
     # ------------------------------------------------------------------ derived
+    @property
+    def mach_delay(self) -> float:
+        """The Mach delay in seconds: ``mach_delay_s``, or the program's default when it is ``None``."""
+        if self.mach_delay_s is not None:
+            return float(self.mach_delay_s)
+        return BARO_MACH_DELAY_S if self.program == "kalman_baro" else 0.0
+
     @property
     def dt(self) -> float:
         """Sample period in seconds (2^-k)."""

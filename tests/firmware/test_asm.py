@@ -280,7 +280,8 @@ def spec_kalman_step(c: object, st: dict[str, int], adc: int, acc: int) -> dict[
                     locked, rebase = False, True
             else:
                 st["CLP"] = st["E0"] = 0
-        elif ev & LIFTOFF and x2 > c.MACH_VLO:
+        elif (ev & LIFTOFF and x2 > c.MACH_VLO) or (
+                c.GUARDS & 1 and (st["PHASE"] == 1 or (st["PHASE"] == 0 and a > c.A_COAST))):   # issue 30: thrust
             st["LOCK"], locked = c.MACH_N, True
         elif st["LOCK"] > 1:
             st["LOCK"], locked = st["LOCK"] - 1, True
@@ -330,16 +331,20 @@ def spec_kalman_step(c: object, st: dict[str, int], adc: int, acc: int) -> dict[
                 st["CLP"] = 0
         else:
             st["CLP"] = 0
-    st["VB"] = min(max(x2, st["VB"] - c.DV), st["VB"] + c.DU)         # 8. plausibility bound
+    fall = c.DG if c.GUARDS & 2 and st["VB"] <= 0 else c.DV           # issue 30: gravity
+    st["VB"] = min(max(x2, st["VB"] - fall), st["VB"] + c.DU)         # 8. plausibility bound
     if st["PHASE"] == 1:                                              # 9. phases and apogee
         if x3 < -c.A_COAST:
             st["CST"] += 1
             if st["CST"] >= c.COAST_N:
                 st["PHASE"] = 2
-        else:
-            st["CST"] = 0
+        elif st["CST"] > 0:                                           # issue 30: one count back
+            st["CST"] -= 1
     if st["PHASE"] == 2:
-        if st["DLY"] == 0 and st["VB"] < 0 and (not ev & CLIP or ev & CLEAR):
+        phys = not c.GUARDS & 2 or x2 - st["VB"] >= -c.V_FALL          # issue 30: gravity
+        floor = st["GND"] + c.H_FLOOR                                   # issue 30: floor
+        high = not c.GUARDS & 4 or (x1 >= floor and (not ok or hh >= floor))
+        if st["DLY"] == 0 and st["VB"] < 0 and (not ev & CLIP or ev & CLEAR) and phys and high:
             st["NEG"] += 1
             if st["NEG"] >= c.APO_N:
                 ev |= APOGEE

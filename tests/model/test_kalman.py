@@ -416,8 +416,9 @@ def test_kalman_baro_transonic_flight_declares_apogee_without_lockout(k, roundin
 @pytest.mark.parametrize("rounding", ["floor", "half_up"])
 @pytest.mark.parametrize("k", [5, 6, 7, 8])
 def test_kalman_accel_transonic_flight_locks_out_the_barometer_and_rebases(k, rounding):
-    """Spec §6 step 4 (issue 20): kalman_accel does not use the barometer (MACH_LOCKOUT) on exactly the samples
-    after liftoff whose predicted X2 exceeds MACH_VLO and the MACH_N settling samples after the last of them (one
+    """Spec §6 step 4 (issue 20, issue 30): kalman_accel does not use the barometer (MACH_LOCKOUT) on exactly the
+    samples after liftoff whose predicted X2 exceeds MACH_VLO or whose previous sample left PHASE in BOOST (the
+    thrust guard) and the MACH_N settling samples after the last of them (one
     contiguous run covering the transonic band); meanwhile the filter integrates the accelerometer (X2 keeps
     changing); on the next sample X1 is re-based on the barometer's altitude (X1 = alt(adc) + the accelerometer
     correction) with no velocity step; apogee comes after, within 0.25 s of the true apogee and within 0.05 s of
@@ -433,7 +434,15 @@ def test_kalman_accel_transonic_flight_locks_out_the_barometer_and_rebases(k, ro
 
     pred = x2[:-1] + rs(x3[:-1], consts.K, rounding)
     lift = np.flatnonzero(ev & EVENT_BITS["LIFTOFF"]).min()
-    fast = np.flatnonzero((pred > consts.MACH_VLO) & (np.arange(1, len(x2)) > lift)) + 1
+    # issue 30, thrust guard: also every sample whose previous sample left PHASE in BOOST, and every pad sample
+    # (after the calibration) whose raw accelerometer reads more than A_COAST above 1 g
+    prev = tr.column("PHASE")[:-1]
+    acc0 = tr.column("ACC0")[1:]
+    a = np.array([mulg(int(v) - int(z), consts.gains["ACC_G"], rounding) for v, z in zip(s.acc[1:], acc0)])
+    calibrated = tr.column("CAL")[:-1] == 1 << consts.CAL_P
+    thrust = calibrated & ((prev == 1) | ((prev == 0) & (a > consts.A_COAST)))
+    fast = np.flatnonzero(((pred > consts.MACH_VLO) & (np.arange(1, len(x2)) > lift)) | thrust) + 1
+    assert fast.min() <= lift + 1                                 # from the sample after liftoff on, or before
     want = np.arange(fast.min(), fast.max() + consts.MACH_N)      # the fast samples, then MACH_N - 1 settling
     assert np.array_equal(locked, want), (locked[[0, -1]], want[[0, -1]])
     assert len(np.unique(x2[locked])) > locked.size // 2      # velocity is not frozen

@@ -432,8 +432,10 @@ def test_out_buffer_gives_the_same_trace_and_is_the_words(engine):
     """run_model(..., out=buf) writes the words into buf (returned as trace.words, the same object) and gives
     the same words, init words and wrap report as a fresh call, for one stream and many, serial and parallel
     driver sizes, a buffer reused over calls (stale words from the previous call overwritten) and the Python
-    path; on a design that wraps, so the wrap report is compared where it says something."""
-    consts = _hot("kalman_accel", 11)
+    path; on a design that wraps, so the wrap report is compared where it says something (without the thrust
+    guard of issue 30, which on these streams' full-scale accelerometer keeps the barometer, and so its gain
+    products, out of most of the 50 samples)."""
+    consts = dataclasses.replace(_hot("kalman_accel", 11), GUARDS=6)
     sizes = [(3, 50)] if engine == "python" else [(3, 50), (6, 4_000)]
     for n_streams, n in sizes:
         adc, acc = _wrapping_streams(n_streams, n, 3)

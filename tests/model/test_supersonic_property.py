@@ -86,8 +86,10 @@ TEETH_FLIGHT = DipFlight(k=6, boost_g=14.0, burn_s=4.5, drag_per_m=0.0001, dip_m
 
 def _switched_off(consts):
     """The build with the issue-20 apogee logic disabled through its constants: coast from the first sample after
-    liftoff (A_COAST far negative, COAST_N = 1), VB = X2 (DV huge), no Mach lockout (MACH_VLO = INT32_MAX)."""
-    return dataclasses.replace(consts, A_COAST=-(2**31) + 1, COAST_N=1, DV=2**30, MACH_VLO=2**31 - 1)
+    liftoff (A_COAST far negative, COAST_N = 1), VB = X2 (DV huge), no Mach lockout (MACH_VLO = INT32_MAX), and
+    the physical guards of issue 30 off (GUARDS = 0: with them on, the floor and gravity guards alone keep this
+    flight's kalman_baro from firing: test_issue30_guards.py)."""
+    return dataclasses.replace(consts, A_COAST=-(2**31) + 1, COAST_N=1, DV=2**30, MACH_VLO=2**31 - 1, GUARDS=0)
 
 
 def test_property_has_teeth_without_the_new_logic_kalman_baro_fires_early() -> None:

@@ -135,7 +135,8 @@ def test_equates_are_int32_and_complete(program: str, k: int, rounding: str) -> 
     eq = c.equates()
     base = {"K", "ROUND", "BARO_SIGN", "S", "THR", "V_LIFT", "V_GATE", "MACH_VLO", "MACH_VHI", "MACH_E",
             "BARO_MIN", "BARO_MAX", "ALT_SHIFT", "ALT_N", "CAL_P", "E_GATE", "GATE_N", "APO_N", "PASCAL",
-            "MACH_N", "DLY_N", "DV", "A_COAST", "COAST_N", "V_DESC", "DU", "A_DRAG", "CLIP_N"}
+            "MACH_N", "DLY_N", "DV", "A_COAST", "COAST_N", "V_DESC", "DU", "A_DRAG", "CLIP_N", "GUARDS", "DG", "V_FALL",
+            "H_FLOOR"}
     gain_keys = {f"{n}_{p}" for n in c.gains for p in ("M", "S")}
     assert set(eq) == base | gain_keys
     for name, value in eq.items():

@@ -273,6 +273,9 @@ def _run_kalman(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np
     a_coast, coast_n, v_desc = np.int64(consts.A_COAST), np.int64(consts.COAST_N), np.int64(consts.V_DESC)
     a_drag, clip_n = np.int64(consts.A_DRAG), np.int64(consts.CLIP_N)
     half_n, win_n = np.int64(1 << K), np.int64(2 << K)
+    guards = int(consts.GUARDS)
+    thrust_g, gravity_g, floor_g = bool(guards & 1), bool(guards & 2), bool(guards & 4)
+    dg, v_fall, h_floor = np.int64(consts.DG), np.int64(consts.V_FALL), np.int64(consts.H_FLOOR)
     for i in range(n):
         ev = ev & LATCHED_EVENTS
         baro_ok = baro_ok_all[:, i]
@@ -319,7 +322,9 @@ def _run_kalman(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np
                 x2 = np.where(done, tr.w32(np.where(done, x2 + rs(e0, K, mode), 0), i, "X2"), x2)
             vb = np.where(done, x2, vb)
             ev = np.where(done, ev | _CLIP_CLEAR, ev)
-            fast = run & ~clipm & ((ev & _LIFTOFF) != 0) & (x2 > vlo)
+            # above the Mach threshold, or (thrust guard) PHASE still BOOST: the barometer stays out
+            fast = run & ~clipm & ((((ev & _LIFTOFF) != 0) & (x2 > vlo))
+                                   | (thrust_g & ((phase == _PH_BOOST) | ((phase == _PH_PAD) & (a > a_coast)))))
             settle = run & ~clipm & ~fast & (lock > 1)
             last = run & ~clipm & ~fast & (lock == 1)
             locked = (clipm & ~done) | fast | settle | (last & ~baro_ok)
@@ -362,14 +367,18 @@ def _run_kalman(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np
         if accel:
             ev, clp = _rail_count(run & (phase == _PH_BOOST) & ((ev & _ACC_CLIP) == 0), acc[:, i], ev, clp, clip_n)
         # 8. plausibility bound
-        vb = np.where(run, np.minimum(np.maximum(x2, vb - dv), vb + du), vb)
+        fall = np.where(gravity_g & (vb <= 0), dg, dv)      # gravity guard: below zero VB falls at g only
+        vb = np.where(run, np.minimum(np.maximum(x2, vb - fall), vb + du), vb)
         # 9. phases and apogee
         boost = run & (phase == _PH_BOOST)
         low = x3 < -a_coast
-        cst = np.where(boost, np.where(low, cst + 1, 0), cst)
+        cst = np.where(boost, np.where(low, cst + 1, np.maximum(cst - 1, 0)), cst)   # issue 30: one back
         phase = np.where(boost & low & (cst >= coast_n), _PH_COAST, phase)
         coast = run & (phase == _PH_COAST)
-        evid = coast & (dly == 0) & (vb < 0) & ~_clipped(ev)
+        phys = (x2 - vb >= -v_fall) if gravity_g else np.ones(n_streams, dtype=bool)
+        fl_h = gnd + h_floor
+        high = ((x1 >= fl_h) & (~baro_ok | (h >= fl_h))) if floor_g else np.ones(n_streams, dtype=bool)
+        evid = coast & (dly == 0) & (vb < 0) & ~_clipped(ev) & phys & high
         neg = np.where(coast, np.where(evid, neg + 1, 0), neg)
         fire = evid & (neg >= apo_n)
         ev = np.where(fire, ev | _APOGEE, ev)

@@ -306,7 +306,10 @@ static void step_kalman(const fw_consts *c, fw_state *st, int32_t adc, int16_t a
                 st->CLP = 0;
                 st->E0 = 0;
             }
-        } else if ((st->EVENTS & FW_EV_LIFTOFF) && st->X2 > c->MACH_VLO) {
+        } else if (((st->EVENTS & FW_EV_LIFTOFF) && st->X2 > c->MACH_VLO)
+                   || ((c->GUARDS & 1) && (st->PHASE == FW_PH_BOOST
+                                           || (st->PHASE == FW_PH_PAD && (int64_t)a > (int64_t)c->A_COAST)))) {
+            /* above the Mach threshold, or (thrust guard) BOOST, or the pad with a thrust reading: no barometer */
             st->LOCK = (uint16_t)c->MACH_N;
             locked = 1;
         } else if (st->LOCK > 1u) {
@@ -372,7 +375,8 @@ static void step_kalman(const fw_consts *c, fw_state *st, int32_t adc, int16_t a
     }
     /* 8. plausibility bound VB = min(max(X2, VB - DV), VB + DU), exact in int64 (the result is an int32) */
     {
-        int64_t vb = (int64_t)st->VB - (int64_t)c->DV;
+        /* gravity guard: at or below zero VB falls by DG (g dt) only */
+        int64_t vb = (int64_t)st->VB - (int64_t)(((c->GUARDS & 2) && st->VB <= 0) ? c->DG : c->DV);
         int64_t up = (int64_t)st->VB + (int64_t)c->DU;
         if (vb < (int64_t)st->X2) {
             vb = st->X2;
@@ -389,12 +393,16 @@ static void step_kalman(const fw_consts *c, fw_state *st, int32_t adc, int16_t a
             if ((int32_t)st->CST >= c->COAST_N) {
                 st->PHASE = FW_PH_COAST;
             }
-        } else {
-            st->CST = 0;
+        } else if (st->CST > 0u) {
+            st->CST = (uint16_t)(st->CST - 1u);   /* issue 30: a sample at or above -A_COAST takes one back */
         }
     }
     if (st->PHASE == FW_PH_COAST) {
-        if (st->DLY == 0u && st->VB < 0 && !FW_CLIPPED(st->EVENTS)) {
+        /* gravity guard: X2 - VB >= -V_FALL; floor guard: X1 and (valid) h >= GND + H_FLOOR (exact in int64) */
+        const int64_t fl = (int64_t)st->GND + (int64_t)c->H_FLOOR;
+        const int phys = !(c->GUARDS & 2) || (int64_t)st->X2 - (int64_t)st->VB >= -(int64_t)c->V_FALL;
+        const int high = !(c->GUARDS & 4) || ((int64_t)st->X1 >= fl && (!baro_ok || (int64_t)h >= fl));
+        if (st->DLY == 0u && st->VB < 0 && !FW_CLIPPED(st->EVENTS) && phys && high) {
             st->NEG = (uint16_t)(st->NEG + 1u);
             if ((int32_t)st->NEG >= c->APO_N) {
                 st->EVENTS |= FW_EV_APOGEE;

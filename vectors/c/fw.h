@@ -85,6 +85,12 @@ typedef struct {
     int32_t A_DRAG;     /* clip clear: drag reading at or above -A_DRAG (recursive acc - ACC0, counts; kalman_accel
                            the accelerometer reading a, Q24.8 m/s^2) */
     int32_t CLIP_N;     /* ACC_CLIP after CLIP_N rail samples (acc = 32767) in a row in boost */
+    int32_t GUARDS;     /* Kalman: physical guards of issue 30, bit mask: 1 thrust (kalman_accel: no barometer in
+                           BOOST), 2 gravity (VB falls by DG at or below 0; evidence needs X2 >= VB - V_FALL), 4 floor
+                           (evidence needs X1 and h >= GND + H_FLOOR) */
+    int32_t DG;         /* Kalman gravity guard: VB falls by at most DG = g dt per sample at or below 0, Q24.8 m/s */
+    int32_t V_FALL;     /* Kalman gravity guard: evidence needs X2 - VB >= -V_FALL, Q24.8 m/s */
+    int32_t H_FLOOR;    /* Kalman floor guard: evidence needs X1 and h at least H_FLOOR above GND, Q24.8 m */
     const int32_t *ALT; /* [ALT_N] table nodes, Q24.8 m (FW_ALT_READ) */
 } fw_consts;
 
