@@ -128,5 +128,5 @@ def test_budget_cli_bad_config_is_one_line(tmp_path: Path, capsys: pytest.Captur
     cfg.write_text('{"k": 11}')
     assert main(["budget", "--config", str(cfg), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
-    assert "k=11" in err and "Traceback" not in err
+    assert "k: 11" in err and "c.json" in err and "Traceback" not in err
     assert not (tmp_path / "o").exists()

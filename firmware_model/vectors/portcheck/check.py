@@ -134,6 +134,42 @@ def mismatch_of(port: Port, cfg: BuildConfig, consts: Any, adc: np.ndarray, acc:
                     first_len=first_len or len(adc), shrunk_len=shrunk_len or len(adc))
 
 
+#: At most this many seconds and port runs for :func:`cut_chunks` after hypothesis's shrink.
+CUT_CHUNKS_S: float = 10.0
+CUT_CHUNKS_TRIES: int = 400
+
+
+def cut_chunks(port: Port, cfg: BuildConfig, consts: Any, adc: np.ndarray, acc: np.ndarray,
+               seconds: float = CUT_CHUNKS_S, tries: int = CUT_CHUNKS_TRIES) -> tuple[np.ndarray, np.ndarray]:
+    """A shorter stream on which the port still differs from the model: hypothesis shrinks the draws of the
+    stream strategy, which can stall on a long stream whose difference needs a long history (a gate's reject
+    counter after hundreds of samples); this pass removes whole runs of samples, halves first, then quarters and
+    so on down to single samples (the delta-debugging idea of Zeller & Hildebrandt 2002), keeping each removal
+    after which a difference remains, within ``seconds`` and ``tries`` port runs. A removal that makes the port
+    crash is not kept (that is another failure)."""
+    a, c = np.asarray(adc, dtype=np.int64), np.asarray(acc, dtype=np.int64)
+    t0, n_runs = time.perf_counter(), 0
+    size = len(a) // 2
+    while size >= 1:
+        i = 0
+        while i < len(a) and len(a) > 1:
+            if time.perf_counter() - t0 > seconds or n_runs >= tries:
+                return a, c
+            a2, c2 = np.concatenate([a[:i], a[i + size:]]), np.concatenate([c[:i], c[i + size:]])
+            n_runs += 1
+            try:
+                diff, _ = compare(port, cfg, consts, a2, c2) if len(a2) else (None, None)
+            except PortCrash:
+                diff = None
+            if diff is not None:
+                cut = diff.sample + 1 if diff.sample >= 0 else 1
+                a, c = a2[:cut], c2[:cut]
+            else:
+                i += size
+        size //= 2
+    return a, c
+
+
 #: Seconds hypothesis may spend shrinking a crash (a hang: this many stream time-outs, each a killed child).
 CRASH_SHRINK_S: float = 20.0
 HANG_SHRINK_TRIES: int = 3
@@ -264,8 +300,11 @@ def check_port(port: Port, cfg: BuildConfig, *, examples: int | None = 1000, sec
             if state["crash"] is not None:
                 res.mismatch = crash_of(port, cfg, consts, adc, acc, state["crash"], state["first_len"], len(adc))
             else:
+                shrunk_len = len(adc)
+                adc, acc = cut_chunks(port, cfg, consts, adc, acc, seconds=CUT_CHUNKS_S if seconds is None else
+                                      min(CUT_CHUNKS_S, max(0.0, seconds - (time.perf_counter() - t0))))
                 try:
-                    res.mismatch = mismatch_of(port, cfg, consts, adc, acc, state["first_len"], len(adc))
+                    res.mismatch = mismatch_of(port, cfg, consts, adc, acc, state["first_len"], shrunk_len)
                 except PortCrash as crash:
                     res.mismatch = crash_of(port, cfg, consts, adc, acc, crash, state["first_len"], len(adc))
             res.shrink_seconds = time.perf_counter() - t_fail
@@ -278,5 +317,5 @@ def check_port(port: Port, cfg: BuildConfig, *, examples: int | None = 1000, sec
     return res
 
 
-__all__ = ["CheckResult", "Difference", "Mismatch", "check_port", "compare", "crash_of", "first_difference",
+__all__ = ["CheckResult", "Difference", "Mismatch", "check_port", "compare", "crash_of", "cut_chunks", "first_difference",
            "mismatch_of"]
