@@ -23,6 +23,7 @@ from firmware_model.flights.readers._common import read_text
 from firmware_model.flights.readers.eeprom import ms5607_pressure
 from firmware_model.runtime.errors import UserError
 from firmware_model.spec.atmosphere import G0
+from tests.support.mutate import damaged
 from tests.support.profiles import examples
 
 SHARED = Path(os.environ.get("FWEMU_SHARED_FLIGHTS")
@@ -271,21 +272,7 @@ SEEDS = {
 def test_fuzz_no_traceback(style: str, data: st.DataObject) -> None:
     """Damage to a valid text-style or JSON-style file is read or refused with one UserError naming the file."""
     text = SEEDS[style]
-    for _ in range(data.draw(st.integers(1, 4))):
-        op = data.draw(st.sampled_from(["replace", "insert", "delete", "cut", "dup"]))
-        i = data.draw(st.integers(0, max(0, len(text) - 1)))
-        if op == "replace":
-            text = text[:i] + data.draw(st.sampled_from(list("0f9 \nAFSz:{}\"-"))) + text[i + 1:]
-        elif op == "insert":
-            text = text[:i] + data.draw(st.text("0123456789abcdefAFS :\n-", max_size=6)) + text[i:]
-        elif op == "delete":
-            text = text[:i] + text[i + data.draw(st.integers(1, 30)):]
-        elif op == "cut":
-            text = text[:i]
-        else:
-            lines = text.splitlines(keepends=True)
-            j = data.draw(st.integers(0, max(0, len(lines) - 1)))
-            text = "".join(lines[:j + 1] + lines[j:])
+    text = damaged(data, text, "0f9 \nAFSz:{}\"", "0123456789abcdefAFS :\n-")
     with tempfile.TemporaryDirectory() as d:
         p = Path(d) / "f.eeprom"
         p.write_text(text)

@@ -29,6 +29,7 @@ from firmware_model.flights.readers.eeprom import ms5607_pressure
 from firmware_model.flights.sensors import BaroSensor
 from firmware_model.runtime.errors import UserError
 from firmware_model.spec.atmosphere import G0, altitude_m
+from tests.support.mutate import damaged
 from tests.support.profiles import examples
 
 SHARED = Path(os.environ.get("FWEMU_SHARED_FLIGHTS")
@@ -463,21 +464,7 @@ def test_fuzz_no_traceback(fmt: str, data: st.DataObject) -> None:
     """Any damage to a valid file of each format (characters replaced, inserted, deleted, lines cut or
     duplicated) is read or refused with one UserError naming the file; never another exception."""
     text = VALID[fmt]
-    for _ in range(data.draw(st.integers(1, 4))):
-        op = data.draw(st.sampled_from(["replace", "insert", "delete", "cut", "dup"]))
-        i = data.draw(st.integers(0, max(0, len(text) - 1)))
-        if op == "replace":
-            text = text[:i] + data.draw(st.sampled_from(list(";,.-e\n x0G\t\"{}"))) + text[i + 1:]
-        elif op == "insert":
-            text = text[:i] + data.draw(st.text(";,.-0123456789eE\n naAfi", max_size=6)) + text[i:]
-        elif op == "delete":
-            text = text[:i] + text[i + data.draw(st.integers(1, 30)):]
-        elif op == "cut":
-            text = text[:i]
-        else:
-            lines = text.splitlines(keepends=True)
-            j = data.draw(st.integers(0, max(0, len(lines) - 1)))
-            text = "".join(lines[:j + 1] + lines[j:])
+    text = damaged(data, text, ";,.-e\n x0G\t\"{}", ";,.-0123456789eE\n naAfi")
     with tempfile.TemporaryDirectory() as d:
         p = Path(d) / ("f-baro_raw.csv" if fmt == "cats_raw" else f"f-{fmt}.csv")
         p.write_text(text)

@@ -21,6 +21,7 @@ from firmware_model.flights.readers import _matches, detect_format, read_flight
 from firmware_model.flights.readers._common import read_text
 from firmware_model.runtime.errors import UserError
 from firmware_model.spec.atmosphere import altitude_m, pressure_pa
+from tests.support.mutate import damaged
 from tests.support.profiles import examples
 
 SHARED = Path(os.environ.get("FWEMU_SHARED_FLIGHTS")
@@ -312,21 +313,7 @@ def test_cli_bad_file_exits_2_and_writes_nothing(tmp_path: Path, capsys: pytest.
 def test_fuzz_no_traceback(fmt: str, data: st.DataObject) -> None:
     """Any damage to a valid file of each new format is read or refused with one UserError naming the file."""
     name, text = VALID[fmt]
-    for _ in range(data.draw(st.integers(1, 4))):
-        op = data.draw(st.sampled_from(["replace", "insert", "delete", "cut", "dup"]))
-        i = data.draw(st.integers(0, max(0, len(text) - 1)))
-        if op == "replace":
-            text = text[:i] + data.draw(st.sampled_from(list(";,.-e\n x0G\t\"():'F"))) + text[i + 1:]
-        elif op == "insert":
-            text = text[:i] + data.draw(st.text(";,.-0123456789eE\n naAfi:()", max_size=6)) + text[i:]
-        elif op == "delete":
-            text = text[:i] + text[i + data.draw(st.integers(1, 30)):]
-        elif op == "cut":
-            text = text[:i]
-        else:
-            lines = text.splitlines(keepends=True)
-            j = data.draw(st.integers(0, max(0, len(lines) - 1)))
-            text = "".join(lines[:j + 1] + lines[j:])
+    text = damaged(data, text, ";,.-e\n x0G\t\"():'F", ";,.-0123456789eE\n naAfi:()")
     with tempfile.TemporaryDirectory() as d:
         p = Path(d) / name
         p.write_text(text)
