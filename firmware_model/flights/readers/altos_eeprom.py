@@ -183,18 +183,8 @@ def _json_style(path: Path, text: str) -> Parsed:
         raise fail(path, 1, f"log_format {fmt!r} ({cfg.get('product', '?')}): not a flight log format this reader "
                             f"knows ({', '.join(str(k) for k in sorted(FAMILIES))})")
     size = FAMILIES[fmt].size
-    out = bytearray()
-    ends: list[int] = []          # cumulative byte count at the end of each line
+    out, ends = eeprom.hex_bytes(path, text[end:], body_line)   # ends: cumulative byte count at each line's end
     first = body_line
-    for number, line in enumerate(text[end:].splitlines(), start=body_line):
-        for tok in line.split():
-            if len(tok) != 2:
-                raise fail(path, number, f"{tok!r} is not a hex byte")
-            try:
-                out.append(int(tok, 16))
-            except ValueError:
-                raise fail(path, number, f"{tok!r} is not a hex byte") from None
-        ends.append(len(out))
     notes: list[str] = []
     n = len(out) // size
     if n == 0:

@@ -82,8 +82,12 @@ def _config(path: Path, text: str) -> tuple[dict, str, int]:
     return cfg, text[end:], text[:end].count("\n") + 1
 
 
-def _bytes(path: Path, body: str, first_line: int) -> bytes:
+def hex_bytes(path: Path, body: str, first_line: int) -> tuple[bytes, list[int]]:
+    """The bytes of the hex-byte lines of ``body`` (line ``first_line`` of ``path`` onwards) and the cumulative byte
+    count at the end of each line (which record a line holds); a token that is not a hex byte is a ``file:line``
+    error."""
     out = bytearray()
+    ends: list[int] = []
     for number, line in enumerate(body.splitlines(), start=first_line):
         for tok in line.split():
             if len(tok) != 2:
@@ -92,7 +96,12 @@ def _bytes(path: Path, body: str, first_line: int) -> bytes:
                 out.append(int(tok, 16))
             except ValueError:
                 raise fail(path, number, f"{tok!r} is not a hex byte") from None
-    return bytes(out)
+        ends.append(len(out))
+    return bytes(out), ends
+
+
+def _bytes(path: Path, body: str, first_line: int) -> bytes:
+    return hex_bytes(path, body, first_line)[0]
 
 
 def read(path: Path, flight: int | None = None) -> FlightRecord:  # noqa: C901 - the .eeprom's JSON header, flight selection and record kinds, each checked with its own message
