@@ -30,17 +30,21 @@
      the standard to the real temperature; Gaussian prior, so a long two-sided window follows the data and a short
      one-sided window, a flat noisy top just before the charge, leans on physics). The vertex's standard error comes
      from the posterior covariance, its residual scale inflated by sqrt((1 + rho) / (1 - rho)) for residuals
-     correlated at lag 1 (rho > 0: a real barometer's noise is not white). Half-width u = max(2 standard errors,
-     the spread over the windows, half the log's interval). Then, with the vertex tv:
+     correlated (:func:`_correlation_inflation`: a real barometer's noise is not white). Half-width u = max(2 standard
+     errors, the spread over the windows, half the log's interval, the distance from the vertex of the same fit with
+     its curvature pinned at -g: the model's own error on a one-sided window). The windows are symmetric about their
+     centre (the running-median peak, then the nominal vertex, iterated) when the charge leaves 0.5 s after it,
+     else one-sided up to the charge. Then, with the vertex tv:
 
      * tv + u <= t_c: a point, tv +- u;
-     * tv > t_c and the fitted velocity at the charge is above twice its standard error: the flight was still rising
-       at the charge:
+     * tv > t_c, the vertex with the curvature pinned at -g too, and the fitted velocity at the charge is above twice
+       its standard error: the flight was still rising at the charge:
        the charge fired before apogee; the point tv +- u lies after the charge and the notes say why
        (``after_charge``);
      * otherwise (the usual case of a flat, noisy top that ends at the charge): **an interval** [tv - u, t_c]
-       (at least the log's interval wide):
-       a computer that fires at apogee fires at or after the apogee it sees; ``time_s`` is its middle.
+       (its lower end the lowest of tv - u, the pinned vertex - u and the charge minus the log's interval):
+       a computer that fires at apogee fires at or after the apogee it sees; ``time_s`` is the median of the vertex's
+       normal distribution (sigma u / 2) cut at the charge, ``uncertainty_s`` the interval's half-width.
 
      When the samples before the charge hold no top (fewer than 8 in the window, or no fit: a charge long before
      the barometric peak, such as a motor that failed in boost) rules 3-4 are applied to the whole log and the
@@ -50,6 +54,7 @@
 from __future__ import annotations
 
 import math
+from statistics import NormalDist
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -72,6 +77,12 @@ MEDIAN_HALF: int = 3
 CURVATURE_PRIOR_FRACTION: float = 0.15
 CHARGE_GUARD_S: float = 0.02
 MAX_INFLATION: float = 5.0
+CORRELATION_S: float = 0.5
+#: ... and at least sqrt(INDEPENDENT_S / interval): a real barometer's samples are taken as independent at most
+#: every 0.1 s (its filtering, the port's airflow), whatever the estimate from the residuals of one window says.
+INDEPENDENT_S: float = 0.1
+#: Rule 5's windows are symmetric about their centre when the charge is at least this far (s) after it.
+MIN_SYMMETRIC_S: float = 0.5
 
 
 @dataclass(frozen=True)
@@ -277,14 +288,37 @@ def _fit_prior(t: np.ndarray, h: np.ndarray, w: np.ndarray, tp: float, lo: float
     tv = -c1 / (2.0 * c2)
     if tv + tp > float(t[sel][-1]) + (hi - lo) or tv + tp < lo:
         return None
-    rr = r[keep]
-    rho = float(np.corrcoef(rr[:-1], rr[1:])[0, 1]) if rr.size > 4 and np.std(rr) > 0 else 0.0
-    infl = min(math.sqrt((1.0 + rho) / (1.0 - rho)), MAX_INFLATION) if 0.0 < rho < 1.0 else 1.0
+    infl = _correlation_inflation(x[keep], r[keep])
     cov = np.linalg.inv(m) * infl ** 2
     g = np.array([0.0, -1.0 / (2 * c2), c1 / (2 * c2 * c2)])
+    # the same samples with the curvature pinned at -g: how far the vertex moves with the curvature is the model's
+    # own error on a one-sided or short window (drag decelerates the ascent beyond g; the day's temperature scales
+    # the barometric height); on a long symmetric window it is small
+    a = np.vstack([np.ones(keep.sum()), x[keep]]).T
+    b0 = np.linalg.solve((a.T * ww[keep]) @ a, (a.T * ww[keep]) @ (y[keep] - c20 * x[keep] ** 2))
+    pinned = -float(b0[1]) / (2.0 * c20)
     return {"time_s": tp + tv, "altitude_m": c0 + c1 * tv + c2 * tv * tv, "se_s": float(math.sqrt(max(g @ cov @ g,
             0.0))), "curvature_mps2": 2.0 * c2, "used": int(keep.sum()), "rejected": int((~keep).sum()),
-            "inflation": infl, "tp": tp, "c1": c1, "c2": c2, "cov": cov}
+            "inflation": infl, "tp": tp, "c1": c1, "c2": c2, "cov": cov, "pinned_s": tp + pinned,
+            "model_s": abs(pinned - tv)}
+
+
+def _correlation_inflation(x: np.ndarray, r: np.ndarray) -> float:
+    """sqrt(1 + 2 sum_k (1 - k/K) rho_k) over the lags k < K spanning CORRELATION_S of residuals ``r`` at times
+    ``x`` (Bartlett's weights; a real barometer's noise is correlated over tenths of a second), at least
+    sqrt(INDEPENDENT_S / interval), at most MAX_INFLATION."""
+    if r.size < 8 or not np.std(r) > 0:
+        return 1.0
+    dt = float(np.median(np.diff(x))) if x.size > 1 else 0.0
+    kmax = int(min(max(CORRELATION_S / dt, 1.0) if dt > 0 else 1, r.size // 4))
+    rc = r - r.mean()
+    var = float(rc @ rc) / rc.size
+    total = 1.0
+    for k in range(1, kmax + 1):
+        rho = float(rc[:-k] @ rc[k:]) / (rc.size * var)
+        total += 2.0 * (1.0 - k / (kmax + 1)) * rho
+    floor = math.sqrt(max(INDEPENDENT_S / dt, 1.0)) if dt > 0 else 1.0
+    return float(min(max(math.sqrt(max(total, 0.0)), floor), MAX_INFLATION))
 
 
 def _velocity_at(fit: dict[str, Any], tc: float) -> tuple[float, float]:
@@ -311,45 +345,66 @@ def _pre_charge_reference(t: np.ndarray, h: np.ndarray, noise: float, charge: Re
     ip = int(np.argmax(_running_median(h_c, MEDIAN_HALF)))
     tp = float(t_c[ip])
     w = _weights(t_c)
+
+    def window(centre: float, half: float) -> tuple[float, float]:
+        # symmetric about the centre when the charge leaves room (a symmetric window cancels the ascent/descent
+        # asymmetry of drag to first order), else one-sided up to the charge
+        room = tc - centre
+        if room >= MIN_SYMMETRIC_S:
+            half = min(half, room)
+            return centre - half, centre + half
+        return centre - half, tc
+
     fits: dict[str, dict[str, Any]] = {}
-    for win in WINDOWS_S:
-        f = _fit_prior(t_c, h_c, w, tp, tp - win, min(tp + win, tc))
-        if f is not None:
-            fits[f"+-{win:g}"] = f
-    for sh in SHIFTS_S:
-        f = _fit_prior(t_c, h_c, w, tp, tp + sh - NOMINAL_WINDOW_S, min(tp + sh + NOMINAL_WINDOW_S, tc))
-        if f is not None:
-            fits[f"+-{NOMINAL_WINDOW_S:g} shifted {sh:+g}"] = f
-    if not fits:
-        return None
-    nominal = fits.get(f"+-{NOMINAL_WINDOW_S:g}") or min(fits.values(), key=lambda f: abs(f["time_s"] - tp))
+    centre = tp
+    for _ in range(3):          # the running-median peak, then the nominal vertex (a noisy top's peak wanders)
+        fits = {}
+        for win in WINDOWS_S:
+            f = _fit_prior(t_c, h_c, w, centre, *window(centre, win))
+            if f is not None:
+                fits[f"+-{win:g}"] = f
+        for sh in SHIFTS_S:
+            f = _fit_prior(t_c, h_c, w, centre, *window(centre + sh, NOMINAL_WINDOW_S))
+            if f is not None:
+                fits[f"+-{NOMINAL_WINDOW_S:g} shifted {sh:+g}"] = f
+        if not fits:
+            return None
+        nominal = fits.get(f"+-{NOMINAL_WINDOW_S:g}") or min(fits.values(), key=lambda f: abs(f["time_s"] - centre))
+        new = min(nominal["time_s"], tc)
+        if abs(new - centre) < 0.01:
+            break
+        centre = new
     near = (t_c > tp - NOMINAL_WINDOW_S) & (t_c < tp + NOMINAL_WINDOW_S)
     resolution = 0.5 * float(np.median(np.diff(t_c[near]))) if near.sum() > 2 else 0.0
     spread = max(abs(f["time_s"] - nominal["time_s"]) for f in fits.values())
     tv = nominal["time_s"]
-    u = max(2.0 * nominal["se_s"], spread, resolution)
+    u = max(2.0 * nominal["se_s"], spread, resolution, nominal["model_s"])
     v, sv = _velocity_at(nominal, tc)
     notes = dict(base)
     notes.update({
         "peak_sample_s": tp, "peak_sample_m": float(h_c[ip]), "spikes_rejected": int(spike.sum()),
         "spike_times_s": [float(x) for x in t[spike][:20]],
         "fits": {k: {key: f[key] for key in ("time_s", "altitude_m", "se_s", "used", "rejected", "curvature_mps2",
-                                            "inflation")} for k, f in fits.items()},
+                                            "inflation", "pinned_s")} for k, f in fits.items()},
         "curvature_mps2": nominal["curvature_mps2"], "resolution_s": resolution, "vertex_s": tv,
-        "vertex_se_s": nominal["se_s"], "velocity_at_charge_mps": v, "velocity_at_charge_se_mps": sv,
+        "vertex_se_s": nominal["se_s"], "vertex_pinned_s": nominal["pinned_s"], "velocity_at_charge_mps": v, "velocity_at_charge_se_mps": sv,
         "deployment_cut": True,
     })
     interval = None
     if tv + u <= tc:
         time_s, source = tv, "baro_parabola"
-    elif tv > tc and v > 2.0 * sv:
+    elif min(tv, nominal["pinned_s"]) > tc and v > 2.0 * sv:
         time_s, source = tv, "baro_parabola"
         notes["after_charge"] = (f"later than the charge at {tc:.2f} s: the flight before it was still rising at "
                                  f"{v:.1f} +- {sv:.1f} m/s (the charge fired before apogee; vertex extrapolated "
                                  f"{tv - tc:.2f} s past it)")
     else:
-        interval = (min(tv - u, tc - 2.0 * resolution), tc)
-        time_s, u, source = 0.5 * (interval[0] + interval[1]), 0.5 * (interval[1] - interval[0]), "baro_interval"
+        interval = (min(tv - u, nominal["pinned_s"] - u, tc - 2.0 * resolution), tc)
+        # the point inside it: the median of the vertex's normal distribution (sigma u/2) cut at the charge
+        sd = max(0.5 * u, 1e-6)
+        nd = NormalDist(tv, sd)
+        time_s = min(max(nd.inv_cdf(max(0.5 * nd.cdf(tc), 1e-12)), interval[0]), interval[1])
+        u, source = 0.5 * (interval[1] - interval[0]), "baro_interval"
         notes["interval"] = (f"apogee in [{interval[0]:.2f}, {tc:.2f}] s: the pre-charge vertex {tv:.2f} +- "
                              f"{nominal['se_s'] * 2:.2f} s does not lie before the charge; a computer fires at or "
                              "after the apogee it sees")

@@ -13,7 +13,10 @@
    single sample counts: at the 5-10 samples/s a log drops to at apogee, a charge is one row. A shock before the
    log's own event is taken instead of it (another computer's charge, or a separation: the flight after it is not
    free either).
-3. **The ejection's pressure signature** (``pressure``), only without 1 or 2: in the flight's top, the first
+3. **The log's rate dropping** (``rate``) by :data:`RATE_DROP` times or more in the flight's top, without 1 (or
+   a shock before it): AltOS logs at 100 (or 50) samples/s up to its apogee state and at 10 or 5 after it (the
+   shared README), so the drop is its decision even where the CSV has no state column. A shock before it wins.
+4. **The ejection's pressure signature** (``pressure``), only without 1-3: in the flight's top, the first
    barometric-altitude sample that, with the next ones for at least :data:`PULSE_MIN_S` and two samples,
    differs in the same direction from the line through the
    samples in the :data:`PULSE_BEFORE_S` before it (at least three; the flight's own climb or fall) by more than max(:data:`PULSE_SIGMAS` x the
@@ -52,13 +55,14 @@ PULSE_SIGMAS: float = 10.0
 PULSE_MIN_M: float = 15.0
 TOP_FRACTION: float = 0.1
 TOP_MIN_M: float = 30.0
-TOP_GAP_S: float = 0.5
+TOP_GAP_S: float = 1.0
+RATE_DROP: float = 3.0
 MEDIAN_HALF: int = 3
 
 
 @dataclass(frozen=True)
 class RecoveryCharge:
-    """``time_s`` on the record's axis; ``evidence``: ``state`` / ``accelerometer`` / ``pressure``; ``detail``:
+    """``time_s`` on the record's axis; ``evidence``: ``state`` / ``accelerometer`` / ``rate`` / ``pressure``; ``detail``:
     readable (which event or how big a shock); ``rate_hz``: the log's sample rate just after it; ``own``: the
     log's own computer's event (else inferred from the data)."""
 
@@ -126,7 +130,7 @@ def accelerometer_shock(t: np.ndarray, f: np.ndarray | None, start_s: float, end
 
 
 def pressure_pulse(t: np.ndarray, h: np.ndarray, start_s: float, end_s: float) -> tuple[float, float] | None:
-    """(time, size in m) of the first pressure pulse (rule 3) with start_s <= t <= end_s, or None."""
+    """(time, size in m) of the first pressure pulse (rule 4) with start_s <= t <= end_s, or None."""
     ok = np.isfinite(h)
     tt, hh = t[ok], h[ok]
     sel = np.nonzero((tt >= start_s) & (tt <= end_s))[0]
@@ -159,6 +163,24 @@ def pressure_pulse(t: np.ndarray, h: np.ndarray, start_s: float, end_s: float) -
     return None
 
 
+def rate_drop(t: np.ndarray, start_s: float, end_s: float) -> tuple[float, float, float] | None:
+    """(time, rate before, rate after) of the first drop of the log's rate by :data:`RATE_DROP` times or more inside
+    [start_s, end_s] (rule 3): the median interval of the 10 rows after a row against that of the 10 before. The
+    time is one fast interval after the last fast row: the state changed between it and the first slow one, and
+    nothing after the change is used."""
+    sel = np.nonzero((t >= start_s) & (t <= end_s))[0]
+    d = np.diff(t)
+    for i in sel:
+        if i < 10 or i + 10 >= t.size:
+            continue
+        if d[i] < RATE_DROP * float(np.median(d[i - 10:i])):
+            continue
+        fast, slow = float(np.median(d[i - 10:i])), float(np.median(d[i:i + 10]))
+        if slow >= RATE_DROP * fast:
+            return float(t[i]) + fast, 1.0 / fast, 1.0 / slow
+    return None
+
+
 def _baro_height(record: FlightRecord) -> np.ndarray:
     p = np.asarray(record.pressure_pa, dtype=np.float64)
     h = np.full(p.shape, np.nan)
@@ -178,14 +200,19 @@ def recovery_charge(record: FlightRecord) -> RecoveryCharge | None:
     shock = None
     if top is not None:
         shock = accelerometer_shock(t, record.specific_force_mps2(), top[0], top[1])
-    if shock is not None and (state is None or shock[0] < state[0]):
-        detail = f"accelerometer shock {shock[1]:.1f} g"
-        if state is not None:
-            detail += f", before the log's own {state[1]} at {state[0]:.2f} s"
-        return RecoveryCharge(shock[0], "accelerometer", detail, _rate_after(t, shock[0]), False)
+    if shock is not None and state is not None and shock[0] < state[0]:
+        return RecoveryCharge(shock[0], "accelerometer", f"accelerometer shock {shock[1]:.1f} g, before the log's "
+                              f"own {state[1]} at {state[0]:.2f} s", _rate_after(t, shock[0]), False)
     if state is not None:
         who = record.provenance.get("own_computer", "AltOS" if state[1].startswith("altos_") else "own computer")
         return RecoveryCharge(state[0], "state", f"{who} {state[1]}", _rate_after(t, state[0]), True)
+    drop = None if top is None else rate_drop(t, top[0], top[1])
+    if drop is not None and (shock is None or drop[0] < shock[0]):
+        return RecoveryCharge(drop[0], "rate", f"log rate {drop[1]:.0f} -> {drop[2]:.0f} samples/s (the computer's "
+                              "apogee state: AltOS logs slower from it on)", drop[2], False)
+    if shock is not None:
+        return RecoveryCharge(shock[0], "accelerometer", f"accelerometer shock {shock[1]:.1f} g",
+                              _rate_after(t, shock[0]), False)
     if top is not None:
         pulse = pressure_pulse(t, h, top[0], top[1])
         if pulse is not None:
