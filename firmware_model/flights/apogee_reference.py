@@ -20,22 +20,47 @@
   4. Nominal window w = 1.5 s; the uncertainty is the largest distance of the vertex time from the nominal one over
      the windows w = 1.0, 1.25, 1.5, 2.0, 2.5 s and the nominal window shifted by +-0.25 s (all that give a valid
      fit), at least half the log's median interval near the peak (the time resolution of the data).
-  5. Deployment: when the log says its own computer fired a recovery charge (:data:`DEPLOY_EVENTS`, the earliest)
-     and the samples up to that moment hold the vertex, only they are fitted: windows [t_d - 2w, t_d] for the
-     same w (nominal 1.5 s), the uncertainty the larger of their spread and twice the vertex's standard error. After a charge the flight is no longer free (a
-     parachute opens) and the ejection disturbs the pressure for seconds, so samples after it bias the vertex
-     (measured: 2012-10-20 serial 068, whose whole-window fit sat 0.6 s after the deployment with a curvature of
-     -20 m/s^2). When they do not hold it (the charge fired before apogee) rules 3-4 stand as they are.
+  5. The log's recovery charge (:func:`firmware_model.flights.charge.recovery_charge`: its own computer's
+     event, else an accelerometer shock or the ejection's pressure pulse in the flight's top): after it the flight is
+     not free (separation, a parachute) and the ejection disturbs the pressure for seconds, so **only the samples
+     before it are used** (:func:`_pre_charge_reference`, issue 31). Spikes and the running-median peak as in 1-2 on
+     those samples; windows [tp - w, min(tp + w, t_c)] for the w of rule 4 (and the nominal one shifted by
+     +-0.25 s), each a robust weighted parabola **with a prior on its curvature**, -g +- 15 % (near apogee the
+     vertical velocity is small and so is the vertical drag: the barometric height falls at g times the ratio of
+     the standard to the real temperature; Gaussian prior, so a long two-sided window follows the data and a short
+     one-sided window, a flat noisy top just before the charge, leans on physics). The vertex's standard error comes
+     from the posterior covariance, its residual scale inflated by sqrt((1 + rho) / (1 - rho)) for residuals
+     correlated (:func:`_correlation_inflation`: a real barometer's noise is not white). Half-width u = max(2 standard
+     errors, the spread over the windows, half the log's interval, the distance from the vertex of the same fit with
+     its curvature pinned at -g: the model's own error on a one-sided window). The windows are symmetric about their
+     centre (the running-median peak, then the nominal vertex, iterated) when the charge leaves 0.5 s after it,
+     else one-sided up to the charge. Then, with the vertex tv:
+
+     * tv + u <= t_c: a point, tv +- u;
+     * tv > t_c, the vertex with the curvature pinned at -g too, and the fitted velocity at the charge is above twice
+       its standard error: the flight was still rising at the charge:
+       the charge fired before apogee; the point tv +- u lies after the charge and the notes say why
+       (``after_charge``);
+     * otherwise (the usual case of a flat, noisy top that ends at the charge): **an interval** [tv - u, t_c]
+       (its lower end the lowest of tv - u, the pinned vertex - u and the charge minus the log's interval):
+       a computer that fires at apogee fires at or after the apogee it sees; ``time_s`` is the median of the vertex's
+       normal distribution (sigma u / 2) cut at the charge, ``uncertainty_s`` the interval's half-width.
+
+     When the samples before the charge hold no top (fewer than 8 in the window, or no fit: a charge long before
+     the barometric peak, such as a motor that failed in boost) rules 3-4 are applied to the whole log and the
+     reference carries a warning (its data run past the charge).
 """
 
 from __future__ import annotations
 
 import math
+from statistics import NormalDist
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
 
+from firmware_model.flights.charge import RecoveryCharge, recovery_charge
 from firmware_model.flights.readers import read_flight
 from firmware_model.flights.record import FlightRecord
 from firmware_model.runtime.errors import UserError
@@ -47,15 +72,26 @@ SHIFTS_S: tuple[float, ...] = (-0.25, 0.25)
 SPIKE_MIN_M: float = 3.0
 SPIKE_SIGMAS: float = 6.0
 MEDIAN_HALF: int = 3
-#: Events a reader sets where the log's own computer fired a recovery charge (rule 5).
-DEPLOY_EVENTS: tuple[str, ...] = ("altos_apogee", "altos_drogue", "altos_main")
+#: Rule 5: the curvature prior (a fraction of -g, 1 sigma), the samples left out just before the charge (s: the
+#: charge's pressure pulse can show one sample before the event row), the largest residual-correlation inflation.
+CURVATURE_PRIOR_FRACTION: float = 0.15
+CHARGE_GUARD_S: float = 0.02
+MAX_INFLATION: float = 5.0
+CORRELATION_S: float = 0.5
+#: ... and at least sqrt(INDEPENDENT_S / interval): a real barometer's samples are taken as independent at most
+#: every 0.1 s (its filtering, the port's airflow), whatever the estimate from the residuals of one window says.
+INDEPENDENT_S: float = 0.1
+#: Rule 5's windows are symmetric about their centre when the charge is at least this far (s) after it.
+MIN_SYMMETRIC_S: float = 0.5
 
 
 @dataclass(frozen=True)
 class ReferenceApogee:
-    """The reference apogee: ``time_s`` on the record's axis, ``altitude_m`` above the pad, ``uncertainty_s``,
-    ``source`` (``truth`` / ``baro_parabola``), ``window_s`` (the nominal fit half-width; 0 for truth), ``notes``
-    (per-window vertices, spikes rejected ...)."""
+    """The reference apogee: ``time_s`` on the record's axis, ``altitude_m`` above the pad, ``uncertainty_s``
+    (the half-width: 2 sigma, or the interval's half), ``source`` (``truth`` / ``baro_parabola`` /
+    ``baro_interval``), ``window_s`` (the nominal fit half-width; 0 for truth), ``notes`` (per-window vertices,
+    spikes rejected, the charge ...); ``interval_s``: (a, b) when the reference is "apogee lies in [a, b]" (rule 5),
+    else None."""
 
     time_s: float
     altitude_m: float
@@ -63,6 +99,7 @@ class ReferenceApogee:
     source: str
     window_s: float
     notes: dict[str, Any] = field(default_factory=dict)
+    interval_s: tuple[float, float] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -209,44 +246,173 @@ def _fit(t: np.ndarray, h: np.ndarray, w: np.ndarray, tp: float, lo: float, hi: 
     return float(tp + tv), float(c0 + c1 * tv + c2 * tv * tv), int(keep.sum()), int((~keep).sum()), float(2 * c2)
 
 
-def deployment_time(record: FlightRecord) -> float | None:
-    """The first time the log's own flight computer fired a recovery charge (the earliest of the reader's
-    :data:`DEPLOY_EVENTS`), or None."""
-    times = [float(record.events[k]) for k in DEPLOY_EVENTS if record.events.get(k) is not None]
-    return min(times) if times else None
-
-
-def _deployment_cut_fits(t: np.ndarray, h: np.ndarray, w: np.ndarray, deploy: float
-                         ) -> dict[str, tuple[float, float, int, int, float]]:
-    """Rule 5: fits over the samples up to the deployment only, windows [deploy - 2 w, deploy] keyed like the
-    symmetric ones (``+-w``), or {} when the nominal one has no vertex there (the charge fired before apogee)."""
-    sel = t <= deploy
-    ts, hs, ws = t[sel], h[sel], w[sel]
-    fits = {}
-    for win in WINDOWS_S:
-        f = _fit(ts, hs, ws, deploy - win, deploy - 2.0 * win, deploy)
-        if f is not None:
-            fits[f"+-{win:g}"] = f
-    return fits if f"+-{NOMINAL_WINDOW_S:g}" in fits else {}
-
-
-def _vertex_standard_error(t: np.ndarray, h: np.ndarray, lo: float, hi: float, tv: float) -> float:
-    """Standard error (s) of the vertex time of a parabola over lo <= t <= hi, from the residual scale and the
-    least-squares covariance (delta method): a fit that sees few samples past its vertex (a deployment just after
-    apogee) is a near extrapolation, which the window spread alone understates. Unweighted and untrimmed (every
-    sample of the window, outliers too: a conservative scale); the pre-deployment samples are evenly spaced."""
+def _fit_prior(t: np.ndarray, h: np.ndarray, w: np.ndarray, tp: float, lo: float, hi: float
+               ) -> dict[str, float] | None:
+    """Rule 5's fit over lo <= t <= hi: a robust weighted parabola about ``tp`` with the curvature prior, or None
+    (fewer than 8 samples, no maximum, or a vertex further than the window's length beyond its last sample).
+    Returns the vertex time and altitude, its standard error, the curvature, the counts, and the coefficients with
+    their covariance (for the velocity at the charge)."""
     sel = (t >= lo) & (t <= hi)
-    ts, hs = t[sel] - tv, h[sel]
-    a = np.vstack([np.ones(ts.size), ts, ts ** 2]).T
-    coef, *_ = np.linalg.lstsq(a, hs, rcond=None)
-    r = hs - a @ coef
-    sigma2 = float(r @ r) / max(ts.size - 3, 1)
-    cov = sigma2 * np.linalg.inv(a.T @ a)
-    c1, c2 = coef[1], coef[2]
+    x, y, ww = t[sel] - tp, h[sel], w[sel]
+    if x.size < 8:
+        return None
+    ww = ww / float(np.mean(ww))
+    c20 = -0.5 * G0
+    prior = 1.0 / (CURVATURE_PRIOR_FRACTION * 0.5 * G0) ** 2
+    d = np.diff(y)
+    s = max(1.4826 * float(np.median(np.abs(d - np.median(d)))) / math.sqrt(2.0), 0.25)
+    keep = np.ones(x.size, dtype=bool)
+    for _ in range(10):
+        if keep.sum() < 8:
+            return None
+        a = np.vstack([np.ones(keep.sum()), x[keep], x[keep] ** 2]).T
+        wk = ww[keep]
+        m = (a.T * wk) @ a / s ** 2
+        m[2, 2] += prior
+        rhs = (a.T * wk) @ y[keep] / s ** 2
+        rhs[2] += prior * c20
+        coef = np.linalg.solve(m, rhs)
+        r = y - (coef[0] + coef[1] * x + coef[2] * x ** 2)
+        rk = np.abs(r[keep])
+        order = np.argsort(rk)
+        cw = np.cumsum(wk[order])
+        s_new = max(1.4826 * float(rk[order][np.searchsorted(cw, 0.5 * cw[-1])]), 0.25)
+        new = np.abs(r) <= 3.0 * s_new
+        if np.array_equal(new, keep) and abs(s_new - s) <= 0.01 * s:
+            s = s_new
+            break
+        keep, s = new, s_new
+    c0, c1, c2 = (float(v) for v in coef)
     if not c2 < 0:
-        return math.inf
-    g = np.array([0.0, -1.0 / (2 * c2), c1 / (2 * c2 * c2)])       # d(vertex)/d(c0, c1, c2) about tv
-    return float(math.sqrt(max(g @ cov @ g, 0.0)))
+        return None
+    tv = -c1 / (2.0 * c2)
+    if tv + tp > float(t[sel][-1]) + (hi - lo) or tv + tp < lo:
+        return None
+    infl = _correlation_inflation(x[keep], r[keep])
+    cov = np.linalg.inv(m) * infl ** 2
+    g = np.array([0.0, -1.0 / (2 * c2), c1 / (2 * c2 * c2)])
+    # the same samples with the curvature pinned at -g: how far the vertex moves with the curvature is the model's
+    # own error on a one-sided or short window (drag decelerates the ascent beyond g; the day's temperature scales
+    # the barometric height); on a long symmetric window it is small
+    a = np.vstack([np.ones(keep.sum()), x[keep]]).T
+    b0 = np.linalg.solve((a.T * ww[keep]) @ a, (a.T * ww[keep]) @ (y[keep] - c20 * x[keep] ** 2))
+    pinned = -float(b0[1]) / (2.0 * c20)
+    return {"time_s": tp + tv, "altitude_m": c0 + c1 * tv + c2 * tv * tv, "se_s": float(math.sqrt(max(g @ cov @ g,
+            0.0))), "curvature_mps2": 2.0 * c2, "used": int(keep.sum()), "rejected": int((~keep).sum()),
+            "inflation": infl, "tp": tp, "c1": c1, "c2": c2, "cov": cov, "pinned_s": tp + pinned,
+            "model_s": abs(pinned - tv)}
+
+
+def _correlation_inflation(x: np.ndarray, r: np.ndarray) -> float:
+    """sqrt(1 + 2 sum_k (1 - k/K) rho_k) over the lags k < K spanning CORRELATION_S of residuals ``r`` at times
+    ``x`` (Bartlett's weights; a real barometer's noise is correlated over tenths of a second), at least
+    sqrt(INDEPENDENT_S / interval), at most MAX_INFLATION."""
+    if r.size < 8 or not np.std(r) > 0:
+        return 1.0
+    dt = float(np.median(np.diff(x))) if x.size > 1 else 0.0
+    kmax = int(min(max(CORRELATION_S / dt, 1.0) if dt > 0 else 1, r.size // 4))
+    rc = r - r.mean()
+    var = float(rc @ rc) / rc.size
+    total = 1.0
+    for k in range(1, kmax + 1):
+        rho = float(rc[:-k] @ rc[k:]) / (rc.size * var)
+        total += 2.0 * (1.0 - k / (kmax + 1)) * rho
+    floor = math.sqrt(max(INDEPENDENT_S / dt, 1.0)) if dt > 0 else 1.0
+    return float(min(max(math.sqrt(max(total, 0.0)), floor), MAX_INFLATION))
+
+
+def _velocity_at(fit: dict[str, Any], tc: float) -> tuple[float, float]:
+    """The fitted vertical velocity (m/s) at ``tc`` and its standard error."""
+    dx = tc - fit["tp"]
+    j = np.array([0.0, 1.0, 2.0 * dx])
+    return fit["c1"] + 2.0 * fit["c2"] * dx, float(math.sqrt(max(j @ fit["cov"] @ j, 0.0)))
+
+
+def _pre_charge_reference(t: np.ndarray, h: np.ndarray, noise: float, charge: RecoveryCharge, base: dict[str, Any]
+                          ) -> ReferenceApogee | None:
+    """Rule 5 on the finite samples (t, h) of a log whose recovery charge is ``charge``; None when the samples
+    before it hold no top (the caller falls back to rules 3-4, flagged)."""
+    tc = charge.time_s
+    pre = t < tc - CHARGE_GUARD_S
+    t, h = t[pre], h[pre]
+    if t.size < 20:
+        return None
+    tp0 = float(t[int(np.argmax(_running_median(h, MEDIAN_HALF)))])
+    region = np.abs(t - tp0) <= max(WINDOWS_S) + max(abs(x) for x in SHIFTS_S) + 1.0
+    spike = np.zeros(t.shape, dtype=bool)
+    spike[region] = spikes(h[region], noise)
+    t_c, h_c = t[~spike], h[~spike]
+    ip = int(np.argmax(_running_median(h_c, MEDIAN_HALF)))
+    tp = float(t_c[ip])
+    w = _weights(t_c)
+
+    def window(centre: float, half: float) -> tuple[float, float]:
+        # symmetric about the centre when the charge leaves room (a symmetric window cancels the ascent/descent
+        # asymmetry of drag to first order), else one-sided up to the charge
+        room = tc - centre
+        if room >= MIN_SYMMETRIC_S:
+            half = min(half, room)
+            return centre - half, centre + half
+        return centre - half, tc
+
+    fits: dict[str, dict[str, Any]] = {}
+    centre = tp
+    for _ in range(3):          # the running-median peak, then the nominal vertex (a noisy top's peak wanders)
+        fits = {}
+        for win in WINDOWS_S:
+            f = _fit_prior(t_c, h_c, w, centre, *window(centre, win))
+            if f is not None:
+                fits[f"+-{win:g}"] = f
+        for sh in SHIFTS_S:
+            f = _fit_prior(t_c, h_c, w, centre, *window(centre + sh, NOMINAL_WINDOW_S))
+            if f is not None:
+                fits[f"+-{NOMINAL_WINDOW_S:g} shifted {sh:+g}"] = f
+        if not fits:
+            return None
+        nominal = fits.get(f"+-{NOMINAL_WINDOW_S:g}") or min(fits.values(), key=lambda f: abs(f["time_s"] - centre))
+        new = min(nominal["time_s"], tc)
+        if abs(new - centre) < 0.01:
+            break
+        centre = new
+    near = (t_c > tp - NOMINAL_WINDOW_S) & (t_c < tp + NOMINAL_WINDOW_S)
+    resolution = 0.5 * float(np.median(np.diff(t_c[near]))) if near.sum() > 2 else 0.0
+    spread = max(abs(f["time_s"] - nominal["time_s"]) for f in fits.values())
+    tv = nominal["time_s"]
+    u = max(2.0 * nominal["se_s"], spread, resolution, nominal["model_s"])
+    v, sv = _velocity_at(nominal, tc)
+    notes = dict(base)
+    notes.update({
+        "peak_sample_s": tp, "peak_sample_m": float(h_c[ip]), "spikes_rejected": int(spike.sum()),
+        "spike_times_s": [float(x) for x in t[spike][:20]],
+        "fits": {k: {key: f[key] for key in ("time_s", "altitude_m", "se_s", "used", "rejected", "curvature_mps2",
+                                            "inflation", "pinned_s")} for k, f in fits.items()},
+        "curvature_mps2": nominal["curvature_mps2"], "resolution_s": resolution, "vertex_s": tv,
+        "vertex_se_s": nominal["se_s"], "vertex_pinned_s": nominal["pinned_s"], "velocity_at_charge_mps": v, "velocity_at_charge_se_mps": sv,
+        "deployment_cut": True,
+    })
+    interval = None
+    if tv + u <= tc:
+        time_s, source = tv, "baro_parabola"
+    elif min(tv, nominal["pinned_s"]) > tc and v > 2.0 * sv:
+        time_s, source = tv, "baro_parabola"
+        notes["after_charge"] = (f"later than the charge at {tc:.2f} s: the flight before it was still rising at "
+                                 f"{v:.1f} +- {sv:.1f} m/s (the charge fired before apogee; vertex extrapolated "
+                                 f"{tv - tc:.2f} s past it)")
+    else:
+        interval = (min(tv - u, nominal["pinned_s"] - u, tc - 2.0 * resolution), tc)
+        # the point inside it: the median of the vertex's normal distribution (sigma u/2) cut at the charge
+        sd = max(0.5 * u, 1e-6)
+        nd = NormalDist(tv, sd)
+        time_s = min(max(nd.inv_cdf(max(0.5 * nd.cdf(tc), 1e-12)), interval[0]), interval[1])
+        u, source = 0.5 * (interval[1] - interval[0]), "baro_interval"
+        notes["interval"] = (f"apogee in [{interval[0]:.2f}, {tc:.2f}] s: the pre-charge vertex {tv:.2f} +- "
+                             f"{nominal['se_s'] * 2:.2f} s does not lie before the charge; a computer fires at or "
+                             "after the apogee it sees")
+    if not -2.0 * G0 <= nominal["curvature_mps2"] <= -0.25 * G0:
+        notes["warning"] = (f"fitted curvature {nominal['curvature_mps2']:.2f} m/s^2 is far from -g: the flight is "
+                            "not ballistic before its charge; treat this reference with care")
+    return ReferenceApogee(time_s=time_s, altitude_m=nominal["altitude_m"], uncertainty_s=u, source=source,
+                           window_s=NOMINAL_WINDOW_S, notes=notes, interval_s=interval)
 
 
 def reference_apogee(record: FlightRecord) -> ReferenceApogee:
@@ -267,6 +433,14 @@ def reference_apogee(record: FlightRecord) -> ReferenceApogee:
         raise UserError(f"{where}: too few barometer samples ({t.size}) for a reference apogee")
     pad = t < liftoff_time(record)
     noise = noise_scale(h, pad)
+    charge = recovery_charge(record)
+    base = {"noise_m": noise, "ground_pressure_pa": ground_pressure(record),
+            "deployment_s": None if charge is None else charge.time_s,
+            "charge": None if charge is None else charge.to_dict()}
+    if charge is not None:
+        ref = _pre_charge_reference(t, h, noise, charge, base)
+        if ref is not None:
+            return ref
     # the peak of the running median (robust to up to 3 consecutive outliers), then spikes near it only: far
     # from the peak a fast, irregularly sampled descent differs from its running median without being a spike
     tp0 = float(t[int(np.argmax(_running_median(h, MEDIAN_HALF)))])
@@ -278,47 +452,44 @@ def reference_apogee(record: FlightRecord) -> ReferenceApogee:
     ip = int(np.argmax(smooth))
     tp = float(t_c[ip])
     w = _weights(t_c)
-    deploy = deployment_time(record)
-    cut = {} if deploy is None else _deployment_cut_fits(t_c, h_c, w, deploy)
-    fits: dict[str, tuple[float, float, int, int, float]] = dict(cut)
-    if not cut:
-        for win in WINDOWS_S:
-            f = _fit(t_c, h_c, w, tp, tp - win, tp + win)
-            if f is not None:
-                fits[f"+-{win:g}"] = f
-        for sh in SHIFTS_S:
-            f = _fit(t_c, h_c, w, tp, tp + sh - NOMINAL_WINDOW_S, tp + sh + NOMINAL_WINDOW_S)
-            if f is not None:
-                fits[f"+-{NOMINAL_WINDOW_S:g} shifted {sh:+g}"] = f
+    fits: dict[str, tuple[float, float, int, int, float]] = {}
+    for win in WINDOWS_S:
+        f = _fit(t_c, h_c, w, tp, tp - win, tp + win)
+        if f is not None:
+            fits[f"+-{win:g}"] = f
+    for sh in SHIFTS_S:
+        f = _fit(t_c, h_c, w, tp, tp + sh - NOMINAL_WINDOW_S, tp + sh + NOMINAL_WINDOW_S)
+        if f is not None:
+            fits[f"+-{NOMINAL_WINDOW_S:g} shifted {sh:+g}"] = f
     nominal = fits.get(f"+-{NOMINAL_WINDOW_S:g}")
     if nominal is None:
         if not fits:
             raise UserError(f"{where}: no parabola fits the barometric altitude near its peak "
                             f"(t = {tp:.3f} s, {h_c[ip]:.1f} m): is there an apogee in this log?")
         nominal = min(fits.values(), key=lambda f: abs(f[0] - tp))
-    if cut:
-        near = (t_c >= deploy - 2.0 * NOMINAL_WINDOW_S) & (t_c <= deploy)
-    else:
-        near = (t_c > tp - NOMINAL_WINDOW_S) & (t_c < tp + NOMINAL_WINDOW_S)
+    near = (t_c > tp - NOMINAL_WINDOW_S) & (t_c < tp + NOMINAL_WINDOW_S)
     resolution = 0.5 * float(np.median(np.diff(t_c[near]))) if near.sum() > 2 else 0.0
     spread = max(abs(f[0] - nominal[0]) for f in fits.values())
-    if cut:
-        se = _vertex_standard_error(t_c, h_c, deploy - 2.0 * NOMINAL_WINDOW_S, deploy, nominal[0])
-        spread = max(spread, 2.0 * se)
-    notes = {
+    notes = dict(base)
+    notes.update({
         "peak_sample_s": tp, "peak_sample_m": float(h_c[ip]), "spikes_rejected": int(spike.sum()),
-        "spike_times_s": [float(x) for x in t[spike][:20]], "noise_m": noise,
-        "ground_pressure_pa": ground_pressure(record),
+        "spike_times_s": [float(x) for x in t[spike][:20]],
         "fits": {k: {"time_s": v[0], "altitude_m": v[1], "used": v[2], "rejected": v[3], "curvature_mps2": v[4]}
                  for k, v in fits.items()},
         "curvature_mps2": nominal[4],
         "resolution_s": resolution,
-        "deployment_s": deploy,
-        "deployment_cut": bool(cut),
-    }
+        "deployment_cut": False,
+    })
+    warnings = []
+    if charge is not None:
+        warnings.append(f"the samples before the log's charge at {charge.time_s:.2f} s ({charge.evidence}) hold no "
+                        "top: this reference is fitted across the charge (the charge fired long before apogee, or "
+                        "the log has no free flight near its peak)")
     if not -2.0 * G0 <= nominal[4] <= -0.25 * G0:
-        notes["warning"] = (f"fitted curvature {nominal[4]:.2f} m/s^2 is far from -g: the flight is not ballistic "
-                            "near its peak (early deployment?); treat this reference with care")
+        warnings.append(f"fitted curvature {nominal[4]:.2f} m/s^2 is far from -g: the flight is not ballistic near "
+                        "its peak (early deployment?); treat this reference with care")
+    if warnings:
+        notes["warning"] = "; ".join(warnings)
     return ReferenceApogee(time_s=nominal[0], altitude_m=nominal[1], uncertainty_s=max(spread, resolution),
                            source="baro_parabola", window_s=NOMINAL_WINDOW_S, notes=notes)
 

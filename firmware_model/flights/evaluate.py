@@ -43,6 +43,7 @@ from typing import Any, Callable, Iterable, Sequence
 import numpy as np
 
 from firmware_model.flights.apogee_reference import reference_apogee
+from firmware_model.flights.charge import recovery_charge
 from firmware_model.flights.firmware_inputs import firmware_inputs
 from firmware_model.flights.readers import read_flight
 from firmware_model.flights.record import FlightRecord
@@ -183,6 +184,17 @@ class Reference:
     notes: str = ""             # the rule's warning and how the fit was made, readable
     usable: bool = True         # False when the reference carries a warning (not a free flight near its peak)
     disagree: bool = False      # the smoother's and the parabola's apogees differ beyond their uncertainties
+    lower_s: float | None = None    # "apogee lies in [lower_s, upper_s]" (an interval reference), else None
+    upper_s: float | None = None
+    charge_s: float | None = None   # the log's recovery charge (flights.charge): later detections are censored
+    charge: str = ""                # its evidence, readable
+
+    def judge(self, t: float) -> float:
+        """Error of a detection at ``t``: t - time_s, or against the interval (0 inside it, else the distance to
+        the nearer end, signed)."""
+        if self.lower_s is None or self.upper_s is None:
+            return t - self.time_s
+        return t - self.lower_s if t < self.lower_s else (t - self.upper_s if t > self.upper_s else 0.0)
 
 
 def reference_for(record: FlightRecord, mode: str = "parabola") -> Reference:
@@ -195,11 +207,13 @@ def reference_for(record: FlightRecord, mode: str = "parabola") -> Reference:
                          else float(truth.apogee_altitude_m), 0.0, "truth")
     if mode not in SMOOTHER_MODES:
         raise UserError(f"--reference {mode!r}: known: {', '.join(SMOOTHER_MODES)}")
+    charge = recovery_charge(record)
+    censor = {} if charge is None else {"charge_s": charge.time_s, "charge": f"{charge.evidence}: {charge.detail}"}
     if mode == "smoother" or (mode == "auto" and record.has_accel):
         try:
             sm = smoother_reference(record)
             return Reference(sm.time_s, sm.altitude_m, sm.uncertainty_s, f"smoother {sm.mode}", sm.note,
-                             True, sm.disagree)
+                             True, sm.disagree, **censor)
         except UserError:
             if mode == "smoother":
                 raise
@@ -207,11 +221,14 @@ def reference_for(record: FlightRecord, mode: str = "parabola") -> Reference:
     ref = reference_apogee(record)
     parts = []
     if ref.notes.get("deployment_cut"):
-        parts.append(f"fitted up to the log's deployment at {ref.notes['deployment_s']:.2f} s")
-    if "warning" in ref.notes:
-        parts.append(str(ref.notes["warning"]))
+        parts.append(f"fitted up to the log's recovery charge at {ref.notes['deployment_s']:.2f} s "
+                     f"({censor.get('charge', '')})")
+    for key in ("interval", "after_charge", "warning"):
+        if key in ref.notes:
+            parts.append(str(ref.notes[key]))
+    lo, hi = ref.interval_s if ref.interval_s is not None else (None, None)
     return Reference(float(ref.time_s), float(ref.altitude_m), float(ref.uncertainty_s), str(ref.source),
-                     "; ".join(parts), "warning" not in ref.notes)
+                     "; ".join(parts), "warning" not in ref.notes, lower_s=lo, upper_s=hi, **censor)
 
 
 # ---------------------------------------------------------------------------------------------------- one flight
@@ -436,18 +453,39 @@ class FlightResult:
     mach_source: str = ""                                        # "truth" / "accelerometer estimate" / ...
 
     def error(self, method: str) -> float | None:
-        """Detection time - reference time (s, late positive) of ``method`` (``"altos"`` for AltOS), or None."""
+        """Detection time - reference time (s, late positive) of ``method`` (``"altos"`` for AltOS; against an
+        interval reference: :meth:`Reference.judge`), or None (no detection, or :meth:`censored`)."""
         t = self.altos_s if method == "altos" else (self.detections[method].time_s if method in self.detections
                                                      else None)
-        return None if t is None else t - self.reference.time_s
+        return None if t is None or self.censored(method) else self.reference.judge(t)
+
+    def censored(self, method: str) -> bool:
+        """True when ``method`` ran but had not fired by the log's recovery charge (fired after it, or never): what
+        it read after the charge would not exist had it been the computer in the rocket. Its error is then only
+        bounded below (:meth:`error_bound`): "later than the log's computer"."""
+        charge = self.reference.charge_s
+        if charge is None:
+            return False
+        if method == "altos":
+            return self.altos_s is not None and self.altos_s > charge
+        d = self.detections.get(method)
+        return d is not None and not d.failed and (d.time_s is None or d.time_s > charge)
+
+    def error_bound(self, method: str) -> float | None:
+        """A censored method's lower bound on its error: the charge judged as a detection; None otherwise."""
+        if not self.censored(method) or self.reference.charge_s is None:
+            return None
+        return self.reference.judge(self.reference.charge_s)
 
     def to_dict(self) -> dict[str, Any]:
         ref = asdict(self.reference)
         return {"name": self.name, "source": self.source, "k": self.k, "sensor": self.sensor,
                 "n_samples": self.n_samples, "reference": ref,
                 "altos": None if self.altos_s is None else {"time_s": self.altos_s, "error_s": self.error("altos"),
-                                                            "computer": self.own_computer},
-                "methods": {m: dict(asdict(d), error_s=self.error(m)) for m, d in self.detections.items()},
+                                                            "computer": self.own_computer,
+                                                            "censored": self.censored("altos")},
+                "methods": {m: dict(asdict(d), error_s=self.error(m), censored=self.censored(m),
+                                    error_lower_bound_s=self.error_bound(m)) for m, d in self.detections.items()},
                 "report": self.report, "notes": self.notes, "burnout_s": self.burnout_s,
                 "mach_at_detection": self.mach_at, "mach_source": self.mach_source,
                 "flags": {m: self.flags(m) for m in list(self.detections) + (["altos"] if self.altos_s is not None
@@ -626,6 +664,9 @@ class MethodSummary:
     before_burnout: int = 0                    # detections at or before burnout (truth or estimate)
     fast: int = 0                              # detections at Mach >= FAST_MACH
     burnout_known: int = 0                     # flights (that ran) whose burnout is known
+    censored: int = 0                          # not fired by the log's recovery charge (error only bounded below)
+    median_abs_bound_s: float | None = None    # median |error| with the censored rows at their bounds (a lower
+                                               # bound of the true median); None without censored rows
 
 
 def summarize(results: Sequence[FlightResult], method: str, label: str) -> MethodSummary:
@@ -645,6 +686,11 @@ def summarize(results: Sequence[FlightResult], method: str, label: str) -> Metho
               "before_burnout": sum(1 for r in ran if r.flags(method)["before_burnout"]),
               "fast": sum(1 for r in ran if r.flags(method)["fast"]),
               "burnout_known": sum(1 for r in ran if r.burnout_s is not None)}
+    bounds = [r.error_bound(method) for r in ran if r.censored(method)]
+    danger["censored"] = len(bounds)
+    if bounds:
+        danger["median_abs_bound_s"] = float(np.median([abs(e) for e, _ in got] + [max(b or 0.0, 0.0)
+                                                                                    for b in bounds]))
     if not got:
         return MethodSummary(method, label, len(ran), 0, None, None, None, None, 0, 0, **danger)
     a = np.array([abs(e) for e, _ in got])
@@ -679,6 +725,11 @@ def _fmt_err(x: float | None) -> str:
     return "miss" if x is None else f"{x:+.3f}"
 
 
+def _fmt_censored(r: FlightResult, method: str) -> str:
+    b = r.error_bound(method)
+    return "(later than the log's computer" + ("" if b is None else f": ≥ {b:+.3f}") + ")"
+
+
 def _danger_marks(r: FlightResult, method: str) -> str:
     f = r.flags(method)
     marks = []
@@ -700,21 +751,27 @@ def render_markdown(results: Sequence[FlightResult], command: str | None = None)
     lines = md.header(head)
     for r in results:
         ref = r.reference
+        when = (f"[{ref.lower_s:.3f}, {ref.upper_s:.3f}]" if ref.lower_s is not None and ref.upper_s is not None
+                else f"{ref.time_s:.3f} ±{ref.uncertainty_s:.3f}")
         cells = [r.name, str(r.k), r.sensor,
-                 f"{ref.time_s:.3f} ±{ref.uncertainty_s:.3f} ({ref.source}){'' if ref.usable else ' ⚠'}"
-                 f"{' ≠ parabola' if ref.disagree else ''}",
+                 f"{when} ({ref.source}){'' if ref.usable else ' ⚠'}"
+                 f"{' ≠ parabola' if ref.disagree else ''}"
+                 + ("" if ref.charge_s is None else f"; charge {ref.charge_s:.2f} ({ref.charge.split(':')[0]})"),
                  _fmt(ref.altitude_m, 0)]
         for m, _ in cols:
             if m == "altos":
                 cells.append("—" if r.altos_s is None else
                              f"{r.own_computer} {r.altos_s:.2f} ({_fmt_err(r.error('altos'))})"
-                             f"{_danger_marks(r, 'altos')}")
+                             f"{_danger_marks(r, 'altos')}" if not r.censored("altos") else
+                             f"{r.own_computer} {r.altos_s:.2f} {_fmt_censored(r, 'altos')}")
             elif m not in r.detections:
                 cells.append("—")
             else:
                 d = r.detections[m]
                 if d.failed:
                     cells.append("n/a")
+                elif r.censored(m):
+                    cells.append(("miss" if d.time_s is None else f"{d.time_s:.3f}") + f" {_fmt_censored(r, m)}")
                 else:
                     cells.append("miss" if d.time_s is None else
                                  f"{d.time_s:.3f} ({_fmt_err(r.error(m))}){_danger_marks(r, m)}")
@@ -726,16 +783,21 @@ def render_markdown(results: Sequence[FlightResult], command: str | None = None)
            f"{EARLY_S:g} s early; boost: at or before burnout; M: Mach at the detection when >= {FAST_MACH:g} "
            "(burnout and Mach: truth for simulated flights, estimated on logs). ⚠: the reference "
            "carries a warning (the fit is not a free flight near its peak, docs/flights.md); such rows are left out "
-           "of the summary's last column and of its first count." + (" ≠ parabola: the smoother's and the "
+           "of the summary's last column and of its first count. [a, b]: the reference is an interval (0 error "
+           "inside it, else the distance to its nearer end). charge: the log's recovery charge "
+           "(docs/evaluation.md, \"The reference apogee and the log's own charge\"); a method that had not fired "
+           "by then is \"later than the log's computer\": censored, its error only bounded below (≥), left out of "
+           "the medians and counted apart." + (" ≠ parabola: the smoother's and the "
            "parabola's apogees differ by more than their uncertainties (the reference's notes in apogee.json give "
            "both)." if any(r.reference.disagree for r in results) else ""), ""] + lines
     out += [""] + md.header(["method", f"> {EARLY_S:g} s early (flight)", "before burnout",
-                             f"above Mach {FAST_MACH:g}", "flights", "detected", "median abs error s",
+                             f"above Mach {FAST_MACH:g}", "flights", "detected", "censored (later than the charge)",
+                             "median abs error s",
                              "worst abs error s (flight)", "median error s", "early / late", "most early s (flight)",
                              "worst abs error s, usable references"])
     for (m, label), (_, s) in zip(cols, sums):
         worst = "—" if s.worst_abs_s is None else f"{s.worst_abs_s:.3f} ({s.worst_flight})"
-        miss = s.n - s.detected
+        miss = s.n - s.detected - s.censored
         worst += f"; {miss} missed" if miss else ""
         skipped = sum(1 for r in results if m in r.detections and r.detections[m].failed)
         worst += f"; {skipped} n/a" if skipped else ""
@@ -745,7 +807,9 @@ def render_markdown(results: Sequence[FlightResult], command: str | None = None)
         early = f"{s.early_1s}" + (f" ({s.most_early_1s_flight})" if s.most_early_1s_flight else "")
         early += f"; +{s.early_1s_flagged} flagged" if s.early_1s_flagged else ""
         burn = f"{s.before_burnout}" + (f" of {s.burnout_known} known" if s.burnout_known < s.n else "")
-        out.append(md.row([label, early, burn, s.fast, s.n, s.detected, _fmt(s.median_abs_s), worst,
+        med = _fmt(s.median_abs_s) + ("" if s.median_abs_bound_s is None else
+                                      f" (≥ {s.median_abs_bound_s:.3f} with the censored at their bounds)")
+        out.append(md.row([label, early, burn, s.fast, s.n, s.detected, s.censored, med, worst,
                            _fmt(s.median_s), f"{s.early} / {s.late}", most_early, usable]))
     if command:
         out += ["", f"Regenerate: `{command}`"]
@@ -758,10 +822,11 @@ def render_csv(results: Sequence[FlightResult]) -> str:
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     head = ["flight", "source", "k", "sensor", "n_samples", "ref_time_s", "ref_altitude_m", "ref_uncertainty_s",
-            "ref_source"]
+            "ref_source", "ref_lower_s", "ref_upper_s", "charge_s"]
     for m, _ in cols:
         head += [f"{m}_time_s", f"{m}_error_s"]
     head += ["burnout_s", "mach_source"] + [f"{m}_mach" for m, _ in cols] + [f"{m}_early_1s" for m, _ in cols]
+    head += [f"{m}_censored" for m, _ in cols]
     w.writerow(head)
 
     def num(x: float | None) -> str:
@@ -769,12 +834,14 @@ def render_csv(results: Sequence[FlightResult]) -> str:
 
     for r in results:
         row = [r.name, r.source, r.k, r.sensor, r.n_samples, num(r.reference.time_s), num(r.reference.altitude_m),
-               num(r.reference.uncertainty_s), r.reference.source]
+               num(r.reference.uncertainty_s), r.reference.source, num(r.reference.lower_s),
+               num(r.reference.upper_s), num(r.reference.charge_s)]
         for m, _ in cols:
             t = r.altos_s if m == "altos" else (r.detections[m].time_s if m in r.detections else None)
             row += [num(t), num(r.error(m))]
         row += [num(r.burnout_s), r.mach_source] + [num(r.mach_at.get(m)) for m, _ in cols]
         row += [int(r.flags(m)["early_1s"]) for m, _ in cols]
+        row += [int(r.censored(m)) for m, _ in cols]
         w.writerow(row)
     return buf.getvalue()
 
@@ -787,6 +854,9 @@ def render_json(results: Sequence[FlightResult], command: str | None = None) -> 
                                  "reported as predicted_s)",
                     "error": "detection time - reference time, s (positive = late)",
                     "early_1s": f"error < -{EARLY_S:g} s", "before_burnout": "detection time <= burnout_s",
+                    "censored": "a real log's method that had not fired by the log's recovery charge "
+                                "(reference.charge_s): error None, error_lower_bound_s its bound",
+                    "interval": "reference.lower_s..upper_s set: error 0 inside, else to the nearer end",
                     "fast": f"Mach at the detection >= {FAST_MACH:g}"},
            "flights": [r.to_dict() for r in results],
            "summary": {m: asdict(summarize(results, m, label)) for m, label in cols}}

@@ -37,7 +37,8 @@ def _ballistic(ta: float, v0: float, pad_alt: float, noise_m: float, quant_pa: f
     p = np.asarray(pressure_pa(pad_alt + hn))
     if quant_pa:
         p = np.round(p / quant_pa) * quant_pa
-    where = rng.choice(np.nonzero(np.abs(t - ta) < 1.5)[0], size=spikes, replace=False)
+    near = np.nonzero(np.abs(t - ta) < 1.5)[0]
+    where = near[3 * rng.choice(near.size // 3, size=spikes, replace=False)]     # isolated: 3 samples apart at least
     p[where] -= rng.choice([-1, 1], spikes) * rng.uniform(300, 3000, spikes)   # single-sample pressure spikes
     f = np.where((t >= 0) & (t < tb), 60.0 + G0, np.where(t < 0, G0, 0.0))
     rec = FlightRecord(name="ballistic", time_s=t, pressure_pa=p, accel_mps2=f, provenance={"source": "test"})
@@ -50,12 +51,15 @@ def _ballistic(ta: float, v0: float, pad_alt: float, noise_m: float, quant_pa: f
 def test_parabola_finds_the_vertex(ta, pad_alt, noise, quant, spikes, seed, rate_change) -> None:
     rec, t_true, h_true = _ballistic(ta, 0, pad_alt, noise, quant, spikes, seed, rate_change)
     ref = reference_apogee(rec)
-    assert ref.source == "baro_parabola" and ref.window_s == 1.5
+    # with rate_change the log drops to 10/s at apogee as AltOS does: that drop is the computer's apogee state
+    # (flights/charge.py), so the reference may be the interval [a, drop] (issue 31)
+    assert ref.source in ("baro_parabola", "baro_interval") and ref.window_s == 1.5
+    assert rate_change or ref.notes.get("charge") is None
     # stated tolerance: 0.15 s + the reference's own uncertainty, for noise up to 2 m rms and 13.6 Pa steps
     assert abs(ref.time_s - t_true) <= 0.15 + ref.uncertainty_s, ref
     assert ref.uncertainty_s < 0.5
     assert abs(ref.altitude_m - h_true) < 3.0 + 3 * noise
-    assert ref.notes["spikes_rejected"] >= spikes
+    assert ref.notes["spikes_rejected"] >= (spikes if ref.notes.get("charge") is None else 0)
     assert abs(liftoff_time(rec)) <= 0.011
 
 
@@ -109,7 +113,15 @@ def test_shared_logs_have_a_reference(path: str) -> None:
     from firmware_model.flights.readers import read_flight
 
     ref = reference_apogee(read_flight(SHARED / path))
-    assert ref.source == "baro_parabola" and 0 < ref.uncertainty_s < 0.5
+    assert ref.source in ("baro_parabola", "baro_interval") and 0 < ref.uncertainty_s < 1.5
+    # issue 31: nothing after the log's recovery charge unless justified (the flight still rising at it) or flagged
+    charge = ref.notes.get("charge")
+    if charge is not None and "warning" not in ref.notes:
+        if ref.time_s > charge["time_s"]:
+            assert "after_charge" in ref.notes
+            assert ref.notes["velocity_at_charge_mps"] > 2 * ref.notes["velocity_at_charge_se_mps"]
+        if ref.interval_s is not None:
+            assert ref.interval_s[1] == charge["time_s"]
 
 
 # ------------------------------------------------------------------ against simulated truth (an independent oracle)
@@ -187,13 +199,12 @@ _DEPLOY_CASES = [(n, d) for n in ("sub-k400-300m", "sub-k828-1400m", "trans-k828
                                   "sub-l1350-1900m-delay") for d in (0.1, 0.5, 1.5)]
 
 
-@pytest.mark.parametrize("name,d", [
-    pytest.param(n, d, marks=pytest.mark.xfail(strict=True, reason="measured miss: +0.095 s against 0.053 + 0.03 s "
-                                               "(a one-sided fit of a draggy ascent; docs/flights.md)"))
-    if (n, d) == ("sub-l1350-1900m-delay", 0.1) else (n, d) for n, d in _DEPLOY_CASES])
+@pytest.mark.parametrize("name,d", _DEPLOY_CASES)
 def test_deployment_cut_against_truth(name: str, d: float) -> None:
     """With the computer's deployment 0.1-1.5 s after apogee and the pressure disturbed after it, rule 5 fits only
-    the samples before the charge and lands within its uncertainty + 0.03 s of the true apogee."""
+    the samples before the charge and lands within its uncertainty + 0.03 s of the true apogee (an interval
+    reference: the truth inside it, +-0.03 s). sub-l1350-1900m-delay at 0.1 s, a measured miss of the unconstrained
+    one-sided fit (+0.095 s against 0.053 s), is inside since the fit has its curvature prior (issue 31)."""
     from firmware_model.flights.scenarios import simulate_scenario
 
     rec = simulate_scenario(name)
@@ -201,20 +212,45 @@ def test_deployment_cut_against_truth(name: str, d: float) -> None:
     assert ref.notes["deployment_cut"] and ref.time_s <= ref.notes["deployment_s"]
     err = ref.time_s - rec.truth.apogee_time_s
     assert abs(err) <= ref.uncertainty_s + 0.03, (err, ref.uncertainty_s)
+    if ref.interval_s is not None:
+        assert ref.interval_s[0] - 0.03 <= rec.truth.apogee_time_s <= ref.interval_s[1] + 0.03
 
 
-def test_deployment_before_apogee_keeps_the_window() -> None:
-    """A charge fired before apogee leaves no vertex before it: rules 3-4 stand (the same answer as without the
-    event)."""
+@pytest.mark.parametrize("early", [0.6, pytest.param(0.3, marks=pytest.mark.xfail(strict=True, reason=(
+    "measured: a charge 0.3 s before apogee on this 10 Pa log gives the interval [-0.52, -0.30] s about the truth: "
+    "the vertex with the curvature pinned at -g does not lie clearly after the charge, so the rule assumes the "
+    "computer fired at or after apogee (issue 31 report)")))])
+def test_charge_before_apogee_is_justified(early: float) -> None:
+    """A charge fired 0.3-0.6 s before apogee: the flight before it is still rising (its fitted velocity at the
+    charge is above twice its standard error), so the reference lies after the charge, says why, and holds the
+    truth within its uncertainty + 0.03 s."""
     import dataclasses
 
     from firmware_model.flights.scenarios import simulate_scenario
 
-    lg = _as_log(simulate_scenario("sub-k828-1400m"), 10.0, 1)
-    ta = float(simulate_scenario("sub-k828-1400m").truth.apogee_time_s)
-    early = dataclasses.replace(lg, events={"altos_apogee": ta - 0.3})
-    a, b = reference_apogee(early), reference_apogee(lg)
-    assert not a.notes["deployment_cut"] and (a.time_s, a.uncertainty_s) == (b.time_s, b.uncertainty_s)
+    rec = simulate_scenario("sub-k828-1400m")
+    ta = float(rec.truth.apogee_time_s)
+    ref = reference_apogee(dataclasses.replace(_as_log(rec, 10.0, 1), events={"altos_apogee": ta - early}))
+    assert ref.time_s > ta - early and "after_charge" in ref.notes and ref.interval_s is None
+    assert ref.notes["velocity_at_charge_mps"] > 2 * ref.notes["velocity_at_charge_se_mps"]
+    assert abs(ref.time_s - ta) <= ref.uncertainty_s + 0.03
+
+
+def test_flat_top_before_the_charge_is_an_interval() -> None:
+    """A charge 0-0.1 s after apogee on a noisy log: the pre-charge vertex does not lie clearly before it, so the
+    reference is the interval [vertex - u, charge], which holds the truth (the old rule dropped the cut and fitted
+    across the ejection)."""
+    import dataclasses
+
+    from firmware_model.flights.scenarios import simulate_scenario
+
+    rec = simulate_scenario("sub-k828-1400m")
+    ta = float(rec.truth.apogee_time_s)
+    for d in (0.0, 0.1):
+        ref = reference_apogee(dataclasses.replace(_as_log(rec, 10.0, 1), events={"altos_apogee": ta + d}))
+        assert ref.source == "baro_interval" and ref.interval_s is not None
+        assert ref.interval_s[1] == pytest.approx(ta + d)
+        assert ref.interval_s[0] <= ta <= ref.interval_s[1]
 
 
 @needs_shared

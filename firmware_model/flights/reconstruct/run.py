@@ -35,7 +35,8 @@ from firmware_model.flights.reconstruct.flightset import case_named, flight_set
 from firmware_model.flights.reconstruct.ukf import FilterNoise, Measurements, align, run_ukf, unflat
 from firmware_model.flights.reconstruct.vertical import run_vertical
 from firmware_model.flights.pressure_errors import BARO_ERROR_RANGES
-from firmware_model.flights.apogee_reference import deployment_time, ground_pressure, liftoff_time, noise_scale
+from firmware_model.flights.apogee_reference import ground_pressure, liftoff_time, noise_scale
+from firmware_model.flights.charge import accelerometer_shock, recovery_charge
 from firmware_model.spec import atmosphere as atm
 
 G = 9.80665
@@ -55,10 +56,6 @@ TAIL_S: float = 10.0
 #: points (+-sqrt(21) sigma) inside +-180 deg, where the rotation-vector error wraps: 60 deg put them at +-275 deg.
 #: On the logs here that moved the apogees by at most 7 ms (hedy, Piccard's TeleMega and CATS).
 HEADING_SIGMA_DEG: float = 10.0
-#: An accelerometer shock (:func:`first_shock`): above 8 g and 4 times its neighbourhood's median.
-SHOCK_G: float = 8.0
-SHOCK_RATIO: float = 4.0
-
 
 @dataclass
 class Reconstruction:
@@ -168,20 +165,13 @@ def _end_at_gap(t: np.ndarray, lift_s: float) -> int:
     return int(gaps[0]) + 1 if gaps.size else int(t.size)
 
 
-def first_shock(t: np.ndarray, f: np.ndarray | None, after_s: float, half_s: float = 0.1) -> float | None:
-    """The first accelerometer shock after ``after_s``: a sample above ``SHOCK_G`` g and ``SHOCK_RATIO`` times the
-    median |f| within ``half_s`` of it (an ejection charge, a separation or a break-up, seen as a spike; a burn's
-    peak is as high as its neighbours). None without one, or without an accelerometer."""
-    if f is None:
-        return None
-    a = np.abs(np.where(np.isfinite(f), f, 0.0))
-    cand = np.nonzero((a > SHOCK_G * G) & (t > after_s))[0]
-    lo = np.searchsorted(t, t[cand] - half_s, side="left")
-    hi = np.searchsorted(t, t[cand] + half_s, side="right")
-    for i, j0, j1 in zip(cand, lo, hi):
-        if a[i] > SHOCK_RATIO * float(np.median(a[j0:j1])):
-            return float(t[i])
-    return None
+def first_shock(t: np.ndarray, f: np.ndarray | None, after_s: float) -> float | None:
+    """The first accelerometer shock after ``after_s`` (:func:`firmware_model.flights.charge.accelerometer_shock`:
+    above 8 g and 4 times the median |f| of its neighbours, at least two on each side, so that a single sample at a
+    5 samples/s tail counts): an ejection charge, a separation or a break-up. None without one, or without an
+    accelerometer."""
+    shock = accelerometer_shock(t, f, after_s)
+    return None if shock is None else shock[0]
 
 
 def _first_apogee(t: np.ndarray, z: np.ndarray, vz: np.ndarray, where: str, before_s: float | None) -> float:
@@ -266,11 +256,12 @@ def reconstruct_log(path: str | Path, format: str | None = None,
     notes = list(log.notes) + gap_note + [f"barometer sigma {noise_m:.2f} m (pad noise, at least 0.3 m); liftoff "
                                           f"{lift:.2f} s"]
     n_pad = int(pad.sum())
-    deploy = deploy_s if deploy_s is not None else deployment_time(rec)
+    charge = None if deploy_s is not None else recovery_charge(rec)
+    deploy = deploy_s if deploy_s is not None else (None if charge is None else charge.time_s)
     extra = np.zeros(t.size)
     if deploy is not None:
         extra[t > deploy] = AFTER_DEPLOY_SIGMA
-        whence = "given" if deploy_s is not None else "the log's own event"
+        whence = "given" if charge is None else f"{charge.evidence}: {charge.detail}, log at {charge.rate_hz:.0f}/s"
         notes.append(f"recovery charge at {deploy:.2f} s ({whence}): accelerometer trusted to "
                      f"+-{AFTER_DEPLOY_SIGMA:g} m/s^2 only after it (ejection, parachute, tumbling)")
     else:
