@@ -80,7 +80,7 @@ def table(rows: list[dict]) -> str:
         if not rs:
             continue
         s = summary(rs)
-        fmt = lambda x: "—" if x is None else f"{x:.3f}"  # noqa: E731
+        fmt = lambda x: "—" if x is None else f"{x:.3f}"
         out.append(f"| {name} | {s['n']} | {s['charge_found']} | {fmt(s['median_abs_s'])} | {fmt(s['worst_abs_s'])} "
                    f"| {s['covered']} ({100 * s['covered'] / s['n']:.0f} %) | {s['intervals']} "
                    f"| {fmt(s['median_half_width_s'])} | {s['later_than_charge']} |")
