@@ -53,7 +53,9 @@ def test_rescore_recomputes_a_logs_reference() -> None:
     f["reference"]["source"] = "baro_parabola"
     sim = _flight("s", 7, 5.0, {"kalman_baro": 5.1})
     out = rescore([f, sim])
-    assert out[0]["reference"]["time_s"] == pytest.approx(18.246, abs=0.01) and out[0]["reference"]["usable"]
+    # recomputed (not the stale 18.826): since issue 31 the reference of serial-068 is the interval before its own
+    # charge at 18.28 s, [18.04, 18.28] (docs/evaluation.md, "Per shared log with its charge"), its point inside
+    assert 18.04 <= out[0]["reference"]["time_s"] <= 18.28 and out[0]["reference"]["usable"]
     assert out[0]["methods"]["kalman_baro"]["error_s"] == pytest.approx(18.2 - out[0]["reference"]["time_s"])
     assert out[1] == json.loads(json.dumps(sim))                          # truth is kept
 
