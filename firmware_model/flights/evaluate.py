@@ -560,8 +560,10 @@ TUNINGS: tuple[str, ...] = TUNING_NAMES
 
 
 def tuning_overrides(method: Method, k: int, tuning: str = "default") -> dict[str, Any]:
-    """BuildConfig fields ``tuning`` sets for ``method`` at ``k`` (empty for ``default``)."""
-    return tuning_fields(method.program, k, tuning)
+    """BuildConfig fields ``tuning`` sets for ``method`` at ``k`` (empty for ``default``), less the fields that
+    define the method (its own threshold: ``rec_quarter`` stays at 1/4 LSB under a tuning that recommends 1/2)."""
+    own = dict(method.tuning)
+    return {key: value for key, value in tuning_fields(method.program, k, tuning).items() if key not in own}
 
 
 def evaluate_inputs(record: FlightRecord, inputs: Any, spec: FlightSpec, methods: Sequence[Method],

@@ -237,8 +237,8 @@ def _mirror_kalman(consts: "FirmwareConstants", g: dict[str, float], adc: np.nda
     x1 = h_all[:, 0]
     # the state before the first sample: X1 = GND = the first sample's altitude, ACC0 = the first acc, the rest 0
     cols = [x1, zeros, zeros] + ([acc[:, 0]] if accel else []) + [zeros, zeros, x1, zeros]
-    init = np.stack(cols + ([zeros] if accel else []) + [zeros, zeros, zeros] + [zeros] * (7 if accel else 4),
-                    axis=-1)
+    init = np.stack(cols + ([zeros] if accel else []) + [zeros, zeros, zeros] + [zeros] * (7 if accel else 4)
+                    + [x1, zeros], axis=-1)   # HMAX = X1, HT = 0
     out = np.empty((n_streams, n, init.shape[-1]))
     for s in range(n_streams):
         out[s] = _mirror_kalman_one(consts, g, accel, h_all[s], baro_ok_all[s], acc[s])
@@ -264,14 +264,16 @@ def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: 
     a_coast, coast_n, v_desc = float(consts.A_COAST), int(consts.COAST_N), float(consts.V_DESC)
     a_drag, clip_n = float(consts.A_DRAG), int(consts.CLIP_N)
     guards = int(consts.GUARDS)
-    thrust_g, gravity_g, floor_g = bool(guards & 1), bool(guards & 2), bool(guards & 4)
+    thrust_g, gravity_g, floor_g, descent_g = (bool(guards & b) for b in (1, 2, 4, 8))
     dg, v_fall, h_floor = float(consts.DG), float(consts.V_FALL), float(consts.H_FLOOR)
+    desc_n = int(consts.DESC_N)
     half_n, win_n = 1 << int(consts.K), 2 << int(consts.K)
     acc_g = g["ACC_G"] if accel else 0.0
     g11, g21, g31 = (float(g[n]) for n in ("G11", "G21", "G31"))
     g12, g22, g32 = (float(g[n]) for n in ("G12", "G22", "G32")) if accel else (0.0, 0.0, 0.0)
     hs, oks, accs = h_all.tolist(), baro_ok_all.tolist(), acc.tolist()
-    x1 = gnd = hs[0]
+    x1 = gnd = hmax = hs[0]
+    ht = 0
     x2 = x3 = sumz = suma = apfrac = vb = 0.0
     acc0 = accs[0]
     cal = rej = neg = ev = phase = cst = dly = lock = clp = 0
@@ -289,7 +291,7 @@ def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: 
             cal = cal + 1
             if cal == ncal:
                 gnd = sumz / ncal
-                x1 = gnd
+                x1 = hmax = gnd
                 if accel:
                     acc0 = suma / ncal
         if not calib:
@@ -370,6 +372,12 @@ def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: 
                     clp = 0
             # 8. plausibility bound
             vb = min(max(x2, vb - (dg if gravity_g and vb <= 0 else dv)), vb + du)
+            # 8b. descent record (valid samples)
+            if baro_ok:
+                if h > hmax:
+                    hmax, ht = h, 0
+                elif ht < desc_n:
+                    ht = ht + 1
             # 9. phases and apogee
             if phase == 1:
                 if x3 < -a_coast:
@@ -381,7 +389,8 @@ def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: 
             if phase == 2:
                 phys = not gravity_g or x2 - vb >= -v_fall
                 high = not floor_g or (x1 >= gnd + h_floor and (not baro_ok or h >= gnd + h_floor))
-                if dly == 0 and vb < 0 and not _clipped(ev) and phys and high:
+                down = not descent_g or not baro_ok or h < hmax or ht >= desc_n
+                if dly == 0 and vb < 0 and not _clipped(ev) and phys and high and down:
                     neg = neg + 1
                     if neg >= apo_n:
                         ev = ev | _APOGEE
@@ -397,9 +406,9 @@ def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: 
                 ev = ev | _PREDICTED
         if accel:
             rows.append((x1, x2, x3, acc0, ev, apfrac, gnd, sumz, suma, cal, rej, neg, phase, cst, dly, vb, lock,
-                         clp, e0))
+                         clp, e0, hmax, ht))
         else:
-            rows.append((x1, x2, x3, ev, apfrac, gnd, sumz, cal, rej, neg, phase, cst, dly, vb))
+            rows.append((x1, x2, x3, ev, apfrac, gnd, sumz, cal, rej, neg, phase, cst, dly, vb, hmax, ht))
     return rows
 
 

@@ -123,8 +123,10 @@ VB = 15
 LOCK = 16
 CLP = 17
 E0 = 18
+HMAX = 19
+HT = 20
 #: Length of the per-stream state array (the largest program's).
-N_STATE = 19
+N_STATE = 21
 
 #: PHASE values (docs/firmware-spec.md §4a; equal to firmware_model.trace.PHASES' indices, checked by a test).
 PH_PAD = 0
@@ -137,9 +139,9 @@ PH_DESCENT = 4
 OUT_COLS: dict[str, tuple[int, ...]] = {
     "recursive": (EST, EXT, VEL, ACC0_R, EVENTS_R, ZL_R, SUMA_R, CAL_R, REJ_R, NEG_R, PHASE_R, CST_R, CLP_R),
     "recursive_seed_literal": (EST,),
-    "kalman_baro": (X1, X2, X3, EVENTS, APFRAC, GND, SUMZ, CAL, REJ, NEG, PHASE, CST, DLY, VB),
+    "kalman_baro": (X1, X2, X3, EVENTS, APFRAC, GND, SUMZ, CAL, REJ, NEG, PHASE, CST, DLY, VB, HMAX, HT),
     "kalman_accel": (X1, X2, X3, ACC0, EVENTS, APFRAC, GND, SUMZ, SUMA, CAL, REJ, NEG, PHASE, CST, DLY, VB, LOCK,
-                     CLP, E0),
+                     CLP, E0, HMAX, HT),
 }
 
 #: Constant indices (docs/firmware-spec.md §3); gains as (mantissa, shift) pairs.
@@ -193,14 +195,16 @@ C_GUARDS = 46
 C_DG = 47
 C_V_FALL = 48
 C_H_FLOOR = 49
+C_DESC_N = 50
 #: The altitude table's nodes follow the scalars: c[C_ALT + j] is node j (docs/firmware-spec.md §2a).
-C_ALT = 50
-N_CONST = 50
+C_ALT = 51
+N_CONST = 51
 _SCALARS = ("K", "ROUND", "BARO_SIGN", "S", "THR", "V_LIFT", "V_GATE", "MACH_VLO", "MACH_VHI", "MACH_E",
             "BARO_MIN", "BARO_MAX")
 _GAINS = ("G11", "G21", "G31", "G12", "G22", "G32", "ACC_G", "G11T", "G21T", "G31T")
 _SCALARS2 = ("ALT_SHIFT", "CAL_P", "E_GATE", "GATE_N", "APO_N", "MACH_N", "DLY_N", "DV", "A_COAST", "COAST_N",
-             "V_DESC", "DU", "A_DRAG", "CLIP_N", "GUARDS", "DG", "V_FALL", "H_FLOOR")
+             "V_DESC", "DU", "A_DRAG", "CLIP_N", "GUARDS", "DG", "V_FALL", "H_FLOOR",
+             "DESC_N")
 
 #: Wrap ids returned by the steps: the name of the quantity (as firmware_model.model.run.ModelTrace.wrap_word).
 WRAP_NAMES: tuple[str, ...] = ("", "EST", "VEL", "X1", "X2", "X3", "e1", "e2", "mulg(acc,ACC_G)",
@@ -247,6 +251,7 @@ LATCHED = LIFTOFF | ARMED | APOGEE | APOGEE_PREDICTED | GATE_HIGH | ACC_CLIP | C
 G_THRUST = 1
 G_GRAVITY = 2
 G_FLOOR = 4
+G_DESCENT = 8
 
 INT32_MIN = -2147483648
 INT32_MAX = 2147483647
@@ -472,6 +477,8 @@ def kalman_init(st, adc, acc, c):  # type: ignore[no-untyped-def]
         h = _alt(adc, c, c[C_ROUND])
     st[X1] = h
     st[GND] = h
+    st[HMAX] = h
+    st[HT] = 0
     st[X2] = 0
     st[X3] = 0
     st[ACC0] = acc
@@ -525,6 +532,7 @@ def kalman_step(st, adc, acc, c, accel):  # type: ignore[no-untyped-def]
             if st[CAL] == ncal:
                 st[GND] = rs(st[SUMZ], c[C_CAL_P], rnd)
                 st[X1] = st[GND]
+                st[HMAX] = st[GND]
                 if accel:
                     st[ACC0] = rs(st[SUMA], c[C_CAL_P], rnd)
         st[EVENTS] = ev
@@ -685,6 +693,13 @@ def kalman_step(st, adc, acc, c, accel):  # type: ignore[no-untyped-def]
     if vb > st[VB] + c[C_DU]:
         vb = st[VB] + c[C_DU]
     st[VB] = vb
+    # 8b. descent record: the highest valid barometric altitude and how many valid samples it is old
+    if baro_ok:
+        if h > st[HMAX]:
+            st[HMAX] = h
+            st[HT] = 0
+        elif st[HT] < c[C_DESC_N]:
+            st[HT] = st[HT] + 1
     # 9. phases and apogee
     if st[PHASE] == PH_BOOST:
         if x3 < -c[C_A_COAST]:
@@ -701,7 +716,9 @@ def kalman_step(st, adc, acc, c, accel):  # type: ignore[no-untyped-def]
         phys = (c[C_GUARDS] & G_GRAVITY) == 0 or x2 - vb >= -c[C_V_FALL]
         fl = st[GND] + c[C_H_FLOOR]
         high = (c[C_GUARDS] & G_FLOOR) == 0 or (x1 >= fl and (not baro_ok or h >= fl))
-        if st[DLY] == 0 and vb < 0 and not _clipped(ev) and phys and high:
+        # descent guard: the barometer reads below its highest, or that reading is DESC_N valid samples old
+        down = (c[C_GUARDS] & G_DESCENT) == 0 or not baro_ok or h < st[HMAX] or st[HT] >= c[C_DESC_N]
+        if st[DLY] == 0 and vb < 0 and not _clipped(ev) and phys and high and down:
             st[NEG] = st[NEG] + 1
             if st[NEG] >= c[C_APO_N]:
                 ev |= APOGEE

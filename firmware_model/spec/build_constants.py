@@ -84,6 +84,7 @@ class FirmwareConstants:
     DG: int = 1
     V_FALL: int = 0
     H_FLOOR: int = 0
+    DESC_N: int = 0
 
     @property
     def ALT_N(self) -> int:
@@ -112,13 +113,13 @@ class FirmwareConstants:
         """Assembler symbols (all int32): K ROUND BARO_SIGN S THR V_LIFT V_GATE MACH_VLO MACH_VHI MACH_E BARO_MIN
         BARO_MAX ALT_SHIFT ALT_N CAL_P E_GATE GATE_N APO_N PASCAL (1: the barometer is the 32-bit pascal word
         ``BARO_PA``) MACH_N DLY_N DV A_COAST COAST_N V_DESC DU A_DRAG CLIP_N (issue 20's flight logic) GUARDS DG
-        V_FALL H_FLOOR (issue 30's physical guards) and, per gain, ``<NAME>_M`` and ``<NAME>_S``. (The
+        V_FALL H_FLOOR DESC_N (issue 30's physical guards) and, per gain, ``<NAME>_M`` and ``<NAME>_S``. (The
         table nodes themselves are ROM data: :meth:`data_source`.)"""
         eq = {name: int(getattr(self, name)) for name in
               ("K", "ROUND", "BARO_SIGN", "S", "THR", "V_LIFT", "V_GATE", "MACH_VLO", "MACH_VHI", "MACH_E",
                "BARO_MIN", "BARO_MAX", "ALT_SHIFT", "ALT_N", "CAL_P", "E_GATE", "GATE_N", "APO_N", "PASCAL",
                "MACH_N", "DLY_N", "DV", "A_COAST", "COAST_N", "V_DESC", "DU", "A_DRAG", "CLIP_N",
-               "GUARDS", "DG", "V_FALL", "H_FLOOR")}
+               "GUARDS", "DG", "V_FALL", "H_FLOOR", "DESC_N")}
         for name, g in self.gains.items():
             eq[f"{name}_M"] = int(g.m)
             eq[f"{name}_S"] = int(g.s)
@@ -183,7 +184,8 @@ def _build_constants(cfg: BuildConfig) -> FirmwareConstants:
                       GUARDS=cfg.guards,
                       DG=max(1, _round_int("DG", G0 * kalman_v * cfg.dt, where)),
                       V_FALL=_round_int("V_FALL", cfg.fall_margin_mps * kalman_v, where),
-                      H_FLOOR=_round_int("H_FLOOR", cfg.floor_m * 256.0, where))
+                      H_FLOOR=_round_int("H_FLOOR", cfg.floor_m * 256.0, where),
+                      DESC_N=min(65535, _round_int("DESC_N", cfg.descent_hold_s * 2.0**cfg.k, where)))
     if cfg.program == "recursive":
         # §5 steps 1, 5, 6: pad calibration of ACC0, the barometer rate gate (raw counts per sample), the apogee
         # evidence after an accelerometer clip

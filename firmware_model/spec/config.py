@@ -182,14 +182,28 @@ FIELDS: dict[str, Rule] = {
     "clip_drag_mps2": _ACCEL,
     "clip_s": _SECONDS,
     "quant_alt_m": Rule("number", 0.0, MAX_QUANT_ALT_M, unit="m", why="above the pad; the table ends near 31 km"),
-    "guards": Rule("int", 0, 7, why="bit mask of the physical guards: 1 thrust, 2 gravity, 4 floor"),
+    "guards": Rule("int", 0, 15, why="bit mask of the physical guards: 1 thrust, 2 gravity, 4 floor, 8 descent"),
     "floor_m": Rule("number", 0.0, 10000.0, unit="m", why="the apogee floor above the pad"),
     "fall_margin_mps": Rule("number", 0.0, 1000.0, unit="m/s"),
+    "descent_hold_s": Rule("number", 0.0, 60.0, unit="s", why="the descent guard's bound on the wait"),
 }
 
 #: kalman_baro's default Mach delay (s, issue 30; docs/evaluation.md "Issue 30"): no apogee until this long after
 #: liftoff, longer than the burns of the supersonic flights whose port reads ram pressure (up to 6 s).
 BARO_MACH_DELAY_S: float = 8.0
+
+#: The defaults that depend on the program (issue 30: "a default a user gets without asking must be safe"): a field
+#: left ``None`` (not given, or ``null`` in a file) takes its program's value here, else :data:`COMMON_DEFAULTS`.
+#: The Kalman programs' defaults are the designs the evaluation recommends (docs/evaluation.md "Defaults are the
+#: safe designs"): R/q 1,000 (Schultz 2002's 50,000 fired more than 1 s early on 17 runs of set:full and on 8.6 %
+#: of the transonic Monte Carlo at kalman_accel), and for kalman_accel half_up rounding and a 0.05 g accelerometer
+#: model error.
+PROGRAM_DEFAULTS: dict[str, dict[str, Any]] = {
+    "kalman_baro": {"ratio": 1000.0},
+    "kalman_accel": {"ratio": 1000.0, "rounding": "half_up", "accel_model_g": 0.05},
+}
+#: The program-dependent fields' values for every other program (the recursive programs, Schultz 2002's listing).
+COMMON_DEFAULTS: dict[str, Any] = {"ratio": 50_000.0, "rounding": "floor", "accel_model_g": 0.0}
 
 
 @dataclass(frozen=True)
@@ -209,11 +223,12 @@ class BuildConfig:
         counts/Pa x rho*g; it converts the velocity thresholds into state units (Q24.8 counts/s).
       * ``accel_counts_per_mps2``: accelerometer counts per m/s^2 (> 0; positive counts = upward acceleration).
     Filter:
-      * ``k``: sample period dt = 2^-k s (0..10). ``rounding``: ``floor`` or ``half_up``.
+      * ``k``: sample period dt = 2^-k s (0..10). ``rounding``: ``floor`` or ``half_up`` (``None``: the program's
+        default, :data:`PROGRAM_DEFAULTS`: half_up for kalman_accel, floor for every other program).
       * recursive: ``shift`` S (weight 2^-S, 1..8), ``threshold_q8`` (apogee threshold below the extreme in Q24.8
         units of 1/256 count: 128 = 1/2 LSB, 64 = 1/4, 32 = 1/8), ``gate_mps`` (velocity gate, m/s).
       * Kalman: ``noise_model`` (``accel_only``, ``jerk``, ``dwna``), ``ratio`` (R/q, measurement variance over
-        process-noise intensity), ``baro_sigma`` (barometer noise, counts), ``accel_sigma`` (accelerometer noise,
+        process-noise intensity; ``None``: 1,000 for the Kalman programs, :data:`PROGRAM_DEFAULTS`), ``baro_sigma`` (barometer noise, counts), ``accel_sigma`` (accelerometer noise,
         counts), ``mach_lo_mps``/``mach_hi_mps`` (Mach-lockout velocity window, m/s), ``mach_innov_m`` (innovation
         that triggers lockout, m), ``baro_min``/``baro_max`` (valid raw ADC range; ``None`` = full range).
       * all: ``liftoff_mps`` (liftoff velocity threshold, m/s).
@@ -249,29 +264,34 @@ class BuildConfig:
         (COAST_N samples); apogee only from COAST (Kalman). ``descent_mps``: DESCENT after apogee below -descent_mps.
       * ``accel_model_g``: kalman_accel's design adds this model error (g, rms) to the accelerometer's noise: the
         axial reading is taken as the vertical acceleration, which on a flight tilted by theta misreads a drag or
-        thrust D by D (1 - cos theta) (0.06 D at 20 degrees), plus scale errors; default 0 (the noise alone), the
-        recommended tuning 0.05 g (docs/gain-design.md, docs/evaluation.md "Accelerometer model error").
+        thrust D by D (1 - cos theta) (0.06 D at 20 degrees), plus scale errors; ``None``: 0.05 g for kalman_accel, 0 otherwise (before
+        issue 30 the default was 0, the noise alone) (docs/gain-design.md, docs/evaluation.md "Accelerometer model error").
       * ``clip_s``: ACC_CLIP needs the accelerometer at its rail (32767) for this long in boost (CLIP_N samples; a
         thrust above the range holds it there for the burn, a shock for milliseconds); ``clip_drag_mps2``: after
         ACC_CLIP, a drag reading at or below this (A_DRAG = g + it, in the program's units) is "drag-low": no
         apogee evidence counts until the drag reading has been low for 2^k samples (recursive) or a 2^(k+1)-sample
         drag-low window has re-based the velocity on the barometer (kalman_accel; docs/firmware-spec.md §5, §6).
     Physical guards of issue 30 (docs/firmware-spec.md §6 steps 4, 8, 9; Kalman programs):
-      * ``guards``: which are built, a bit mask (default 7, all): 1 **thrust** (kalman_accel: while PHASE is BOOST,
+      * ``guards``: which are built, a bit mask (default 15, all): 1 **thrust** (kalman_accel: while PHASE is BOOST,
         i.e. until the raw accelerometer has read below -coast_mps2 for coast_s, the barometer is not fused),
         2 **gravity** (below zero the velocity bound VB falls by g dt per sample only, and apogee evidence needs
         X2 >= VB - fall_margin_mps: a falling rocket cannot accelerate downward faster than gravity), 4 **floor**
-        (apogee evidence needs the filtered and the barometric height at least ``floor_m`` above the pad).
+        (apogee evidence needs the filtered and the barometric height at least ``floor_m`` above the pad), 8
+        **descent** (apogee evidence needs the barometer to read below the highest altitude it has read, or that
+        reading to be ``descent_hold_s`` old: apogee is the top, after it the barometer reads lower).
         Switching one off is for ablation and teeth tests, not for flight.
       * ``floor_m`` (0..10,000 m, default 30): the floor; ``fall_margin_mps`` (default 15 m/s): how far the velocity
         estimate may lie below the free-fall bound (filter noise and lag) before its evidence is discarded.
+      * ``descent_hold_s`` (0..60 s, default 4): how long the barometer's highest reading may hold apogee evidence
+        back (DESC_N samples; bounds the wait on a barometer that stops moving). A sensor of L metres a count shows
+        the descent within sqrt(2 L / g) of the top and holds its top count up to twice that: 4 s covers L <= 19.6 m.
       * ``quant_alt_m``: the Kalman design's barometer sigma is at least the barometer's quantization step /
         sqrt(12) in metres at this height above the pad (docs/gain-design.md "Quantization floor").
     """
 
     program: str = "kalman_baro"
     k: int = 7
-    rounding: str = "floor"
+    rounding: str = None  # type: ignore[assignment]  # None: the program's default, filled in by __post_init__
     baro_bits: int = 16
     baro_sign: int = -1
     units_per_metre: float = 3.5
@@ -280,10 +300,10 @@ class BuildConfig:
     threshold_q8: int = 64
     gate_mps: float = 61.0
     noise_model: str = "accel_only"
-    ratio: float = 50_000.0
+    ratio: float = None  # type: ignore[assignment]  # None: the program's default, filled in by __post_init__
     baro_sigma: float = 2.0
     accel_sigma: float = 20.0
-    accel_model_g: float = 0.0
+    accel_model_g: float = None  # type: ignore[assignment]  # None: the program's default (__post_init__)
     mach_lo_mps: float = 244.0
     mach_hi_mps: float = 366.0
     mach_innov_m: float = 30.0
@@ -310,14 +330,18 @@ class BuildConfig:
     clip_drag_mps2: float = 0.25 * 9.80665
     clip_s: float = 0.25
     quant_alt_m: float = 3000.0
-    guards: int = 7
+    guards: int = 15
     floor_m: float = 30.0
     fall_margin_mps: float = 15.0
+    descent_hold_s: float = 4.0
     extra: dict[str, Any] = field(default_factory=dict, compare=False, hash=False)
     #: where the config came from (its file), for messages; not a setting (not in :meth:`to_dict`)
     source: str | None = field(default=None, compare=False, hash=False, repr=False)
 
     def __post_init__(self) -> None:
+        for name, value in (COMMON_DEFAULTS | PROGRAM_DEFAULTS.get(self.program, {})).items():
+            if getattr(self, name) is None:
+                object.__setattr__(self, name, value)   # frozen: the one place a field is filled in
         self.validate()
 
     # ------------------------------------------------------------------ validation

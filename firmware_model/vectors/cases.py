@@ -33,7 +33,8 @@ GAIN_NAMES: tuple[str, ...] = ("G11", "G21", "G31", "G12", "G22", "G32", "ACC_G"
 SCALAR_CONSTANTS: tuple[str, ...] = ("K", "ROUND", "BARO_SIGN", "S", "THR", "V_LIFT", "V_GATE", "MACH_VLO",
                                      "MACH_VHI", "MACH_E", "BARO_MIN", "BARO_MAX", "ALT_SHIFT", "ALT_N", "CAL_P",
                                      "E_GATE", "GATE_N", "APO_N", "MACH_N", "DLY_N", "DV", "A_COAST", "COAST_N",
-                                     "V_DESC", "DU", "A_DRAG", "CLIP_N", "GUARDS", "DG", "V_FALL", "H_FLOOR")
+                                     "V_DESC", "DU", "A_DRAG", "CLIP_N", "GUARDS", "DG", "V_FALL", "H_FLOOR",
+                                     "DESC_N")
 
 # ------------------------------------------------------------------------------------------- the case matrix
 #: k values (sample period 2^-k s) of the committed set.
@@ -74,7 +75,9 @@ Q_FORMATS: dict[str, dict[str, str]] = {
                     "NEG": "uint16 apogee evidence samples in a row",
                     "PHASE": "uint16 flight phase (0 pad, 1 boost, 2 coast, 3 apogee, 4 descent)",
                     "CST": "uint16 coast samples in a row", "DLY": "uint16 Mach-delay samples left",
-                    "VB": "Q24.8 m/s (plausibility bound)"},
+                    "VB": "Q24.8 m/s (plausibility bound)",
+                    "HMAX": "Q24.8 m (highest valid barometric altitude)",
+                    "HT": "uint16 valid samples since HMAX last rose"},
     "kalman_accel": {"X1": "Q24.8 m (table altitude)", "X2": "Q24.8 m/s", "X3": "Q24.8 m/s^2",
                      "ACC0": "Q32.0 accelerometer counts (pad average)", "EVENTS": "uint16 event bits",
                      "APFRAC": "UQ0.16 fraction of a sample period", "GND": "Q24.8 m (pad average)",
@@ -87,7 +90,9 @@ Q_FORMATS: dict[str, dict[str, str]] = {
                      "LOCK": "uint16 Mach lockout samples left (0: barometer in use)",
                      "CLP": "uint16 clip counter (boost: rail samples in a row; after ACC_CLIP: samples of the "
                             "re-base window so far)",
-                     "E0": "Q24.8 m (re-base window: sum of the second half's innovations minus the first's)"},
+                     "E0": "Q24.8 m (re-base window: sum of the second half's innovations minus the first's)",
+                     "HMAX": "Q24.8 m (highest valid barometric altitude)",
+                     "HT": "uint16 valid samples since HMAX last rose"},
 }
 
 

@@ -251,7 +251,7 @@ def spec_kalman_step(c: object, st: dict[str, int], adc: int, acc: int) -> dict[
                 st["SUMA"] = wrap32(st["SUMA"] + acc)
             st["CAL"] += 1
             if st["CAL"] == ncal:
-                st["GND"] = st["X1"] = wrap32(rs_exact(st["SUMZ"], c.CAL_P, h))
+                st["GND"] = st["X1"] = st["HMAX"] = wrap32(rs_exact(st["SUMZ"], c.CAL_P, h))
                 if accel:
                     st["ACC0"] = wrap32(rs_exact(st["SUMA"], c.CAL_P, h))
         st["EVENTS"] = ev
@@ -333,6 +333,11 @@ def spec_kalman_step(c: object, st: dict[str, int], adc: int, acc: int) -> dict[
             st["CLP"] = 0
     fall = c.DG if c.GUARDS & 2 and st["VB"] <= 0 else c.DV           # issue 30: gravity
     st["VB"] = min(max(x2, st["VB"] - fall), st["VB"] + c.DU)         # 8. plausibility bound
+    if ok:                                                            # 8b. descent record (issue 30)
+        if hh > st["HMAX"]:
+            st["HMAX"], st["HT"] = hh, 0
+        elif st["HT"] < c.DESC_N:
+            st["HT"] += 1
     if st["PHASE"] == 1:                                              # 9. phases and apogee
         if x3 < -c.A_COAST:
             st["CST"] += 1
@@ -344,7 +349,8 @@ def spec_kalman_step(c: object, st: dict[str, int], adc: int, acc: int) -> dict[
         phys = not c.GUARDS & 2 or x2 - st["VB"] >= -c.V_FALL          # issue 30: gravity
         floor = st["GND"] + c.H_FLOOR                                   # issue 30: floor
         high = not c.GUARDS & 4 or (x1 >= floor and (not ok or hh >= floor))
-        if st["DLY"] == 0 and st["VB"] < 0 and (not ev & CLIP or ev & CLEAR) and phys and high:
+        down = not c.GUARDS & 8 or not ok or hh < st["HMAX"] or st["HT"] >= c.DESC_N   # issue 30: descent
+        if st["DLY"] == 0 and st["VB"] < 0 and (not ev & CLIP or ev & CLEAR) and phys and high and down:
             st["NEG"] += 1
             if st["NEG"] >= c.APO_N:
                 ev |= APOGEE
@@ -483,7 +489,7 @@ def _kalman_state(board: _Board, **words: int) -> dict[str, int]:
     c = board.build.consts
     base = {"X1": 0, "X2": 0, "X3": 0, "ACC0": 0, "EVENTS": 0, "APFRAC": 0, "GND": 0, "SUMZ": 0, "SUMA": 0,
             "CAL": 1 << c.CAL_P, "REJ": 0, "NEG": 0, "PHASE": 0, "CST": 0, "DLY": 0, "VB": 0, "LOCK": 0,
-            "CLP": 0, "E0": 0}
+            "CLP": 0, "E0": 0, "HMAX": 0, "HT": 0}
     base.update(words)
     return {name: base[name] for name in board.build.variables}
 
@@ -568,11 +574,15 @@ def test_kalman_one_step_boundaries(program: str, k: int, rounding: str, data: s
     # the clip counter at/next to CLIP_N (rail) and to the window's half and end; its sum anywhere
     clp = data.draw(st.sampled_from(_clp_values(c)), label="CLP")
     e0 = data.draw(st.one_of(st.just(0), _near(0, INT32_MAX, INT32_MIN)), label="E0")
+    # issue 30's descent record: HMAX at/next to this sample's altitude h (or anywhere), HT at/next to DESC_N
+    hmax = data.draw(st.one_of(_near(hh, hh), st.integers(INT32_MIN, INT32_MAX)), label="HMAX")
+    ht = data.draw(st.sampled_from(tuple(sorted({0, 1, max(0, c.DESC_N - 1), c.DESC_N, c.DESC_N + 1, 65535}))),
+                   label="HT")
     if mode == "free":
         x3 = data.draw(st.one_of(st.just(x3), _near(-c.A_COAST)), label="X3_coast")
     state = _kalman_state(board, X1=x1, X2=x2, X3=x3, ACC0=acc0, EVENTS=events, CAL=cal, REJ=rej, NEG=neg,
                           SUMZ=sumz, SUMA=suma, GND=12345, PHASE=phase, CST=cstv, DLY=dly, VB=vb, LOCK=lock,
-                          CLP=clp, E0=e0)
+                          CLP=clp, E0=e0, HMAX=hmax, HT=ht)
     got = board.step(dict(state), adc, acc)
     want = spec_kalman_step(c, dict(state), adc, acc)
     want = {name: want[name] for name in board.build.variables}

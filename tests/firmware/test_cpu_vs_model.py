@@ -495,7 +495,7 @@ def test_cpu_equals_model_on_the_ram_pressure_scenarios(scenario: str, baro: str
             cfg = dataclasses.replace(cfg, program=program)
         cpu = assert_same(cfg, adc, acc)
         if program in KALMAN:
-            assert build_constants(cfg).GUARDS == 7
+            assert build_constants(cfg).GUARDS == 15
             phase, ev = cpu.column("PHASE"), cpu.column("EVENTS")
             assert (phase == 2).any() and (ev & EVENT_BITS["APOGEE"]).any(), (program, scenario)
             if program == "kalman_accel":

@@ -35,8 +35,8 @@ def test_model_error_in_the_design_stops_the_early_detections_of_windy_flights(t
     assert all(v.get("accel_model_g") == 0.05 for v in tuning.RECOMMENDED["kalman_accel"].values())
     early, n = _early(tmp_path, "with")
     assert n == 80 and early == 0, early
-    without = {k: {f: v for f, v in fields.items() if f != "accel_model_g"}
-               for k, fields in tuning.RECOMMENDED["kalman_accel"].items()}
+    # the noise-only design: accel_model_g 0 (since issue 30 the BuildConfig default is the recommended 0.05 g)
+    without = {k: {**fields, "accel_model_g": 0.0} for k, fields in tuning.RECOMMENDED["kalman_accel"].items()}
     monkeypatch.setitem(tuning.RECOMMENDED, "kalman_accel", without)
     monkeypatch.setattr(pipeline, "_PLANS", {})        # the builds are planned once per spec and process
     early0, _ = _early(tmp_path, "without")

@@ -285,8 +285,8 @@ def test_mirror_equals_steady_state_ideal_and_time_varying_converges(program):
 @settings(max_examples=examples(30), deadline=None)
 @given(cfg=fst.build_configs(programs=("kalman_baro", "kalman_accel")), data=st.data())
 def test_kalman_table_translation_invariant_exactly(cfg, data):
-    """Adding an integer c to every altitude-table node gives X1 + c, GND + c, SUMZ + 2^CAL_P c and identical
-    X2, X3, EVENTS, APFRAC and counters: the predict never reads X1's absolute value and e1 = h - X1, the pad
+    """Adding an integer c to every altitude-table node gives X1 + c, GND + c, HMAX + c, SUMZ + 2^CAL_P c and
+    identical X2, X3, EVENTS, APFRAC and counters (HT too: the descent record compares altitudes only): the predict never reads X1's absolute value and e1 = h - X1, the pad
     average rs(SUMZ + 2^p c, p) = rs(SUMZ, p) + c exactly."""
     adc = data.draw(fst.adc_streams(max_len=150))
     acc = data.draw(fst.accel_streams(min_len=len(adc), max_len=len(adc)))
@@ -303,8 +303,9 @@ def test_kalman_table_translation_invariant_exactly(cfg, data):
     assert np.array_equal(t1.column("X1"), t0.column("X1") + c)
     assert np.array_equal(t1.column("GND")[done], t0.column("GND")[done] + c)
     assert np.array_equal(t1.column("SUMZ"), t0.column("SUMZ") + c * cal)
+    assert np.array_equal(t1.column("HMAX"), t0.column("HMAX") + c)
     for name in t0.names:
-        if name not in ("X1", "GND", "SUMZ"):
+        if name not in ("X1", "GND", "SUMZ", "HMAX"):
             assert np.array_equal(t1.column(name), t0.column(name)), name
 
 

@@ -311,11 +311,11 @@ def test_cli_vectors_input_takes_pascal_words_and_refuses_bad_ones(tmp_path) -> 
     r = _fwemu("vectors", "--firmware", "kalman_accel", "--input", str(ok), "--config", str(cfg), "--out",
                str(tmp_path / "v"), "--generator", "model")
     assert r.returncode == 0, r.stderr
-    doc = json.loads((tmp_path / "v" / "cases" / "kalman_accel_floor_k7_pa_ok.json").read_text())
+    doc = json.loads((tmp_path / "v" / "cases" / "kalman_accel_half_up_k7_pa_ok.json").read_text())
     assert doc["adc"] == [101325, 101320, -5, 99000] and doc["input"]["adc_bits"] == 32
     assert doc["events_first_sample"]["BARO_INVALID"] == 2
-    assert "int32_t fwv_kalman_accel_floor_k7_pa_ok_pa[4]" in (tmp_path / "v" / "cases" /
-                                                              "kalman_accel_floor_k7_pa_ok.h").read_text()
+    assert "int32_t fwv_kalman_accel_half_up_k7_pa_ok_pa[4]" in (tmp_path / "v" / "cases" /
+                                                              "kalman_accel_half_up_k7_pa_ok.h").read_text()
     bad = tmp_path / "bad.csv"
     bad.write_text("adc,acc\n101325,2048\n2147483648,2048\n")
     r = _fwemu("vectors", "--firmware", "kalman_accel", "--input", str(bad), "--config", str(cfg), "--out",

@@ -136,7 +136,7 @@ def test_equates_are_int32_and_complete(program: str, k: int, rounding: str) -> 
     base = {"K", "ROUND", "BARO_SIGN", "S", "THR", "V_LIFT", "V_GATE", "MACH_VLO", "MACH_VHI", "MACH_E",
             "BARO_MIN", "BARO_MAX", "ALT_SHIFT", "ALT_N", "CAL_P", "E_GATE", "GATE_N", "APO_N", "PASCAL",
             "MACH_N", "DLY_N", "DV", "A_COAST", "COAST_N", "V_DESC", "DU", "A_DRAG", "CLIP_N", "GUARDS", "DG", "V_FALL",
-            "H_FLOOR"}
+            "H_FLOOR", "DESC_N"}
     gain_keys = {f"{n}_{p}" for n in c.gains for p in ("M", "S")}
     assert set(eq) == base | gain_keys
     for name, value in eq.items():
@@ -162,9 +162,11 @@ def test_design_gain_below_2_pow_minus_33_is_built_as_zero() -> None:
     design value kept as the target (the model-vs-mirror bound carries its <= 2^-33 error), instead of refusing
     the build: here k = 10 with an accelerometer trusted 10x more than the model (G31 ~ 3.8e-11), and a noise-free
     8-bit barometer with a 1-count accelerometer (G31 ~ 1e-16). quantize_gain itself still refuses it."""
-    for cfg in (BuildConfig(program="kalman_accel", k=10, ratio=0.1),
+    # accel_model_g 0: the accelerometer as trusted as its noise alone (the default's 0.05 g model error would
+    # lift G31 far above 2^-33)
+    for cfg in (BuildConfig(program="kalman_accel", k=10, ratio=0.1, accel_model_g=0.0),
                 BuildConfig(program="kalman_accel", k=5, baro_bits=8, units_per_metre=3.5 / 256, baro_sigma=0.5,
-                            accel_sigma=1.0, ratio=1000.0)):
+                            accel_sigma=1.0, ratio=1000.0, accel_model_g=0.0)):
         c = build_constants(cfg)
         g = c.gains["G31"]
         assert (g.m, g.s) == (0, 0) and 0 < abs(g.target) < 2.0**-33
@@ -189,7 +191,7 @@ def test_transonic_gain_below_the_representable_range_is_zero() -> None:
     2^-33: it is built as 0 (the design value stays in float_gains; the model-vs-mirror bound carries the
     difference) instead of refusing the build, while a regular gain that small is still refused."""
     cfg = BuildConfig(program="kalman_accel", k=5, baro_bits=12, units_per_metre=3.5 / 16, baro_sigma=0.5,
-                      accel_sigma=1.0)
+                      accel_sigma=1.0, ratio=50_000.0, accel_model_g=0.0)   # the pre-issue-30 default design
     c = build_constants(cfg)
     tiny = [n for n in ("G11T", "G21T", "G31T") if abs(c.float_gains[n]) < 2.0**-33]
     assert tiny, {n: c.float_gains[n] for n in ("G11T", "G21T", "G31T")}

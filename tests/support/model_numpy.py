@@ -222,8 +222,8 @@ def _run_seed_literal(consts: "FirmwareConstants", mode: str, adc: np.ndarray, a
 # ---------------------------------------------------------------------------------------------------- Kalman
 def _run_kalman(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np.ndarray,
                 tr: _WrapTracker) -> tuple[np.ndarray, np.ndarray]:
-    """docs/firmware-spec.md §6 (kalman_baro: X1 X2 X3 EVENTS APFRAC GND SUMZ CAL REJ NEG PHASE CST DLY VB;
-    kalman_accel: X1 X2 X3 ACC0 EVENTS APFRAC GND SUMZ SUMA CAL REJ NEG PHASE CST DLY VB LOCK CLP E0)."""
+    """docs/firmware-spec.md §6 (kalman_baro: X1 X2 X3 EVENTS APFRAC GND SUMZ CAL REJ NEG PHASE CST DLY VB HMAX HT;
+    kalman_accel: X1 X2 X3 ACC0 EVENTS APFRAC GND SUMZ SUMA CAL REJ NEG PHASE CST DLY VB LOCK CLP E0 HMAX HT)."""
     accel = consts.program == "kalman_accel"
     n_streams, n = adc.shape
     K = int(consts.K)
@@ -260,10 +260,12 @@ def _run_kalman(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np
     lock = np.zeros(n_streams, dtype=np.int64)
     clp = np.zeros(n_streams, dtype=np.int64)
     e0 = np.zeros(n_streams, dtype=np.int64)
+    hmax = x1.copy()
+    ht = np.zeros(n_streams, dtype=np.int64)
 
     def row():
         cols = [x1, x2, x3] + ([acc0] if accel else []) + [ev, apfrac, gnd, sumz] + ([suma] if accel else [])
-        return cols + [cal, rej, neg, phase, cst, dly, vb] + ([lock, clp, e0] if accel else [])
+        return cols + [cal, rej, neg, phase, cst, dly, vb] + ([lock, clp, e0] if accel else []) + [hmax, ht]
 
     init = np.stack(row(), axis=-1)
     out = np.empty((n_streams, n, init.shape[-1]), dtype=np.int64)
@@ -274,8 +276,9 @@ def _run_kalman(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np
     a_drag, clip_n = np.int64(consts.A_DRAG), np.int64(consts.CLIP_N)
     half_n, win_n = np.int64(1 << K), np.int64(2 << K)
     guards = int(consts.GUARDS)
-    thrust_g, gravity_g, floor_g = bool(guards & 1), bool(guards & 2), bool(guards & 4)
+    thrust_g, gravity_g, floor_g, descent_g = (bool(guards & b) for b in (1, 2, 4, 8))
     dg, v_fall, h_floor = np.int64(consts.DG), np.int64(consts.V_FALL), np.int64(consts.H_FLOOR)
+    desc_n = np.int64(consts.DESC_N)
     for i in range(n):
         ev = ev & LATCHED_EVENTS
         baro_ok = baro_ok_all[:, i]
@@ -292,6 +295,7 @@ def _run_kalman(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np
             done = count & (cal == ncal)
             gnd = np.where(done, rs(sumz, int(consts.CAL_P), mode), gnd)
             x1 = np.where(done, gnd, x1)
+            hmax = np.where(done, gnd, hmax)
             if accel:
                 acc0 = np.where(done, rs(suma, int(consts.CAL_P), mode), acc0)
         # 2. predict
@@ -369,6 +373,11 @@ def _run_kalman(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np
         # 8. plausibility bound
         fall = np.where(gravity_g & (vb <= 0), dg, dv)      # gravity guard: below zero VB falls at g only
         vb = np.where(run, np.minimum(np.maximum(x2, vb - fall), vb + du), vb)
+        # 8b. descent record (valid samples)
+        rec = run & baro_ok
+        rise = rec & (h > hmax)
+        ht = np.where(rise, 0, np.where(rec & (ht < desc_n), ht + 1, ht))
+        hmax = np.where(rise, h, hmax)
         # 9. phases and apogee
         boost = run & (phase == _PH_BOOST)
         low = x3 < -a_coast
@@ -378,7 +387,8 @@ def _run_kalman(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np
         phys = (x2 - vb >= -v_fall) if gravity_g else np.ones(n_streams, dtype=bool)
         fl_h = gnd + h_floor
         high = ((x1 >= fl_h) & (~baro_ok | (h >= fl_h))) if floor_g else np.ones(n_streams, dtype=bool)
-        evid = coast & (dly == 0) & (vb < 0) & ~_clipped(ev) & phys & high
+        down = (~baro_ok | (h < hmax) | (ht >= desc_n)) if descent_g else np.ones(n_streams, dtype=bool)
+        evid = coast & (dly == 0) & (vb < 0) & ~_clipped(ev) & phys & high & down
         neg = np.where(coast, np.where(evid, neg + 1, 0), neg)
         fire = evid & (neg >= apo_n)
         ev = np.where(fire, ev | _APOGEE, ev)

@@ -89,6 +89,8 @@ void fw_init(fw_program prog, const fw_consts *c, fw_state *st, int32_t adc, int
     st->VB = 0;
     st->CLP = 0;
     st->E0 = 0;
+    st->HMAX = 0;
+    st->HT = 0;
     switch (prog) {
     case FW_RECURSIVE:
         st->EST = z8;
@@ -106,6 +108,7 @@ void fw_init(fw_program prog, const fw_consts *c, fw_state *st, int32_t adc, int
     case FW_KALMAN_BARO:
         st->X1 = baro_valid(c, adc) ? fw_alt(c, adc) : 0;
         st->GND = st->X1;
+        st->HMAX = st->X1;
         break;
     }
 }
@@ -259,6 +262,7 @@ static void step_kalman(const fw_consts *c, fw_state *st, int32_t adc, int16_t a
             if ((int32_t)st->CAL == ncal) {
                 st->GND = fw_wrap32(fw_rs(st->SUMZ, c->CAL_P, mode));
                 st->X1 = st->GND;
+                st->HMAX = st->GND;
                 if (with_accel) {
                     st->ACC0 = fw_wrap32(fw_rs(st->SUMA, c->CAL_P, mode));
                 }
@@ -386,6 +390,15 @@ static void step_kalman(const fw_consts *c, fw_state *st, int32_t adc, int16_t a
         }
         st->VB = (int32_t)vb;
     }
+    /* 8b. descent record: the highest valid barometric altitude, and how many valid samples it is old */
+    if (baro_ok) {
+        if (h > st->HMAX) {
+            st->HMAX = h;
+            st->HT = 0;
+        } else if ((int32_t)st->HT < c->DESC_N) {
+            st->HT = (uint16_t)(st->HT + 1u);
+        }
+    }
     /* 9. phases and apogee */
     if (st->PHASE == FW_PH_BOOST) {
         if ((int64_t)st->X3 < -(int64_t)c->A_COAST) {
@@ -402,7 +415,9 @@ static void step_kalman(const fw_consts *c, fw_state *st, int32_t adc, int16_t a
         const int64_t fl = (int64_t)st->GND + (int64_t)c->H_FLOOR;
         const int phys = !(c->GUARDS & 2) || (int64_t)st->X2 - (int64_t)st->VB >= -(int64_t)c->V_FALL;
         const int high = !(c->GUARDS & 4) || ((int64_t)st->X1 >= fl && (!baro_ok || (int64_t)h >= fl));
-        if (st->DLY == 0u && st->VB < 0 && !FW_CLIPPED(st->EVENTS) && phys && high) {
+        /* descent guard: the barometer reads below its highest, or that reading is DESC_N samples old */
+        const int down = !(c->GUARDS & 8) || !baro_ok || h < st->HMAX || (int32_t)st->HT >= c->DESC_N;
+        if (st->DLY == 0u && st->VB < 0 && !FW_CLIPPED(st->EVENTS) && phys && high && down) {
             st->NEG = (uint16_t)(st->NEG + 1u);
             if ((int32_t)st->NEG >= c->APO_N) {
                 st->EVENTS |= FW_EV_APOGEE;
@@ -464,14 +479,16 @@ int fw_words(fw_program prog, const fw_state *st, int32_t out[FW_MAX_WORDS])
     case FW_KALMAN_BARO:
         out[0] = st->X1; out[1] = st->X2; out[2] = st->X3; out[3] = st->EVENTS; out[4] = st->APFRAC;
         out[5] = st->GND; out[6] = st->SUMZ; out[7] = st->CAL; out[8] = st->REJ; out[9] = st->NEG;
-        out[10] = st->PHASE; out[11] = st->CST; out[12] = st->DLY; out[13] = st->VB;
-        return 14;
+        out[10] = st->PHASE; out[11] = st->CST; out[12] = st->DLY; out[13] = st->VB; out[14] = st->HMAX;
+        out[15] = st->HT;
+        return 16;
     case FW_KALMAN_ACCEL:
         out[0] = st->X1; out[1] = st->X2; out[2] = st->X3; out[3] = st->ACC0; out[4] = st->EVENTS;
         out[5] = st->APFRAC; out[6] = st->GND; out[7] = st->SUMZ; out[8] = st->SUMA; out[9] = st->CAL;
         out[10] = st->REJ; out[11] = st->NEG; out[12] = st->PHASE; out[13] = st->CST; out[14] = st->DLY;
-        out[15] = st->VB; out[16] = st->LOCK; out[17] = st->CLP; out[18] = st->E0;
-        return 19;
+        out[15] = st->VB; out[16] = st->LOCK; out[17] = st->CLP; out[18] = st->E0; out[19] = st->HMAX;
+        out[20] = st->HT;
+        return 21;
     }
     return 0;
 }
@@ -482,18 +499,19 @@ const char *fw_word_name(fw_program prog, int i)
                                       "PHASE", "CST", "CLP"};
     static const char *const lit[] = {"EST"};
     static const char *const kb[] = {"X1", "X2", "X3", "EVENTS", "APFRAC", "GND", "SUMZ", "CAL", "REJ", "NEG",
-                                     "PHASE", "CST", "DLY", "VB"};
+                                     "PHASE", "CST", "DLY", "VB", "HMAX", "HT"};
     static const char *const ka[] = {"X1", "X2", "X3", "ACC0", "EVENTS", "APFRAC", "GND", "SUMZ", "SUMA", "CAL",
-                                     "REJ", "NEG", "PHASE", "CST", "DLY", "VB", "LOCK", "CLP", "E0"};
+                                     "REJ", "NEG", "PHASE", "CST", "DLY", "VB", "LOCK", "CLP", "E0", "HMAX",
+                                     "HT"};
     switch (prog) {
     case FW_RECURSIVE:
         return (i >= 0 && i < 13) ? rec[i] : "?";
     case FW_RECURSIVE_SEED_LITERAL:
         return (i == 0) ? lit[0] : "?";
     case FW_KALMAN_BARO:
-        return (i >= 0 && i < 14) ? kb[i] : "?";
+        return (i >= 0 && i < 16) ? kb[i] : "?";
     case FW_KALMAN_ACCEL:
-        return (i >= 0 && i < 19) ? ka[i] : "?";
+        return (i >= 0 && i < 21) ? ka[i] : "?";
     }
     return "?";
 }

@@ -87,10 +87,12 @@ typedef struct {
     int32_t CLIP_N;     /* ACC_CLIP after CLIP_N rail samples (acc = 32767) in a row in boost */
     int32_t GUARDS;     /* Kalman: physical guards of issue 30, bit mask: 1 thrust (kalman_accel: no barometer in
                            BOOST), 2 gravity (VB falls by DG at or below 0; evidence needs X2 >= VB - V_FALL), 4 floor
-                           (evidence needs X1 and h >= GND + H_FLOOR) */
+                           (evidence needs X1 and h >= GND + H_FLOOR), 8 descent (evidence needs h < HMAX or
+                           HT >= DESC_N) */
     int32_t DG;         /* Kalman gravity guard: VB falls by at most DG = g dt per sample at or below 0, Q24.8 m/s */
     int32_t V_FALL;     /* Kalman gravity guard: evidence needs X2 - VB >= -V_FALL, Q24.8 m/s */
     int32_t H_FLOOR;    /* Kalman floor guard: evidence needs X1 and h at least H_FLOOR above GND, Q24.8 m */
+    int32_t DESC_N;     /* Kalman descent guard: evidence needs h < HMAX, or HMAX to be DESC_N valid samples old */
     const int32_t *ALT; /* [ALT_N] table nodes, Q24.8 m (FW_ALT_READ) */
 } fw_consts;
 
@@ -110,6 +112,8 @@ typedef struct {
     uint16_t CLP;            /* rail samples in a row in boost; after ACC_CLIP, drag-low coast samples in a row */
     int32_t E0;              /* kalman_accel: innovation drift over the clip-clear window (second half minus first
                                 half), Q24.8 m */
+    int32_t HMAX;            /* Kalman: the highest valid barometric altitude h since the pad calibration, Q24.8 m */
+    uint16_t HT;             /* Kalman: valid samples since HMAX last rose, 0..DESC_N */
 } fw_state;
 
 /* Flight phases of the PHASE word (docs/firmware-spec.md section 4a). */
@@ -120,7 +124,7 @@ typedef struct {
 #define FW_PH_DESCENT 4u
 
 /* Maximum number of output words of any program. */
-#define FW_MAX_WORDS 19
+#define FW_MAX_WORDS 21
 
 /* Exact helpers (exposed for unit tests). */
 int32_t fw_wrap32(int64_t x);                      /* x reduced to int32 two's complement */
