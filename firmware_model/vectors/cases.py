@@ -248,11 +248,17 @@ def tail_case_specs(require_logs: bool = True) -> list[CaseSpec]:
 #: recursive half_up edge_step case (1.8 KB) is left out: with it the data ran 220 bytes past 64 KiB (the recursive
 #: flight's adc array read wrong through pgm_read_word); recursive half_up keeps edge_ties, recursive edge_step keeps
 #: floor. The Schultz 2002 listing's pascal edge_ties (0.4 KB) takes its place: the pascal word on the AVR for the
-#: third program family, and the subset stays at 20 cases.
+#: third program family, and the subset stays at 20 cases. Since issue 30's descent guard (HMAX and HT: 16 and 21
+#: words a Kalman sample) the data ran 2.3 KB past 64 KiB again: the two Kalman programs' half_up edge_step cases
+#: (2.2 and 2.8 KB) are left out as recursive's was (each program and rounding keeps edge_ties; edge_step keeps
+#: floor), 18 cases.
+_AVR_LEFT_OUT: frozenset[tuple[str, str, str]] = frozenset({("recursive", "half_up", "step"),
+                                                            ("kalman_baro", "half_up", "step"),
+                                                            ("kalman_accel", "half_up", "step")})
 AVR_CASES: tuple[str, ...] = tuple(
     [case_name("recursive", "floor", 4, 16, "flight")]
     + [case_name(p, "floor", PASCAL_K, 32, "edge_ties") for p in ("recursive", "kalman_accel", "recursive_seed_literal")]
     + [case_name("kalman_accel", "half_up", 4, 16, "flight")]
     + [case_name(p, r, 4, 16, "edge_" + kind) for p in PROGRAMS for r in ROUNDINGS for kind in ("ties", "step")
-       if (p, r, kind) != ("recursive", "half_up", "step")]
+       if (p, r, kind) not in _AVR_LEFT_OUT]
 )
