@@ -390,11 +390,12 @@ def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: 
                 phys = not gravity_g or x2 - vb >= -v_fall
                 high = not floor_g or (x1 >= gnd + h_floor and (not baro_ok or h >= gnd + h_floor))
                 down = not descent_g or not baro_ok or h < hmax or ht >= desc_n
-                if dly == 0 and vb < 0 and not _clipped(ev) and phys and high and down:
-                    neg = neg + 1
-                    if neg >= apo_n:
-                        ev = ev | _APOGEE
-                        phase = 3
+                if dly == 0 and vb < 0 and not _clipped(ev) and phys and high:
+                    if down:                        # the descent guard pauses the count
+                        neg = neg + 1
+                        if neg >= apo_n:
+                            ev = ev | _APOGEE
+                            phase = 3
                 else:
                     neg = 0
             elif phase == 3 and x2 < -v_desc:

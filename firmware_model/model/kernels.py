@@ -717,12 +717,14 @@ def kalman_step(st, adc, acc, c, accel):  # type: ignore[no-untyped-def]
         fl = st[GND] + c[C_H_FLOOR]
         high = (c[C_GUARDS] & G_FLOOR) == 0 or (x1 >= fl and (not baro_ok or h >= fl))
         # descent guard: the barometer reads below its highest, or that reading is DESC_N valid samples old
+        #   (it pauses the evidence count, it does not restart it: a noisy reading returns to its highest count)
         down = (c[C_GUARDS] & G_DESCENT) == 0 or not baro_ok or h < st[HMAX] or st[HT] >= c[C_DESC_N]
-        if st[DLY] == 0 and vb < 0 and not _clipped(ev) and phys and high and down:
-            st[NEG] = st[NEG] + 1
-            if st[NEG] >= c[C_APO_N]:
-                ev |= APOGEE
-                st[PHASE] = PH_APOGEE
+        if st[DLY] == 0 and vb < 0 and not _clipped(ev) and phys and high:
+            if down:
+                st[NEG] = st[NEG] + 1
+                if st[NEG] >= c[C_APO_N]:
+                    ev |= APOGEE
+                    st[PHASE] = PH_APOGEE
         else:
             st[NEG] = 0
     elif st[PHASE] == PH_APOGEE and x2 < -c[C_V_DESC]:

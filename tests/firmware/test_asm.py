@@ -350,11 +350,12 @@ def spec_kalman_step(c: object, st: dict[str, int], adc: int, acc: int) -> dict[
         floor = st["GND"] + c.H_FLOOR                                   # issue 30: floor
         high = not c.GUARDS & 4 or (x1 >= floor and (not ok or hh >= floor))
         down = not c.GUARDS & 8 or not ok or hh < st["HMAX"] or st["HT"] >= c.DESC_N   # issue 30: descent
-        if st["DLY"] == 0 and st["VB"] < 0 and (not ev & CLIP or ev & CLEAR) and phys and high and down:
-            st["NEG"] += 1
-            if st["NEG"] >= c.APO_N:
-                ev |= APOGEE
-                st["PHASE"] = 3
+        if st["DLY"] == 0 and st["VB"] < 0 and (not ev & CLIP or ev & CLEAR) and phys and high:
+            if down:                                                  # the descent guard pauses the count
+                st["NEG"] += 1
+                if st["NEG"] >= c.APO_N:
+                    ev |= APOGEE
+                    st["PHASE"] = 3
         else:
             st["NEG"] = 0
     elif st["PHASE"] == 3 and x2 < -c.V_DESC:

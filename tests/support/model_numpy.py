@@ -388,8 +388,9 @@ def _run_kalman(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np
         fl_h = gnd + h_floor
         high = ((x1 >= fl_h) & (~baro_ok | (h >= fl_h))) if floor_g else np.ones(n_streams, dtype=bool)
         down = (~baro_ok | (h < hmax) | (ht >= desc_n)) if descent_g else np.ones(n_streams, dtype=bool)
-        evid = coast & (dly == 0) & (vb < 0) & ~_clipped(ev) & phys & high & down
-        neg = np.where(coast, np.where(evid, neg + 1, 0), neg)
+        evid = coast & (dly == 0) & (vb < 0) & ~_clipped(ev) & phys & high
+        neg = np.where(coast, np.where(evid, np.where(down, neg + 1, neg), 0), neg)   # descent guard: a pause
+        evid = evid & down
         fire = evid & (neg >= apo_n)
         ev = np.where(fire, ev | _APOGEE, ev)
         phase = np.where(fire, _PH_APOGEE, phase)

@@ -417,11 +417,13 @@ static void step_kalman(const fw_consts *c, fw_state *st, int32_t adc, int16_t a
         const int high = !(c->GUARDS & 4) || ((int64_t)st->X1 >= fl && (!baro_ok || (int64_t)h >= fl));
         /* descent guard: the barometer reads below its highest, or that reading is DESC_N samples old */
         const int down = !(c->GUARDS & 8) || !baro_ok || h < st->HMAX || (int32_t)st->HT >= c->DESC_N;
-        if (st->DLY == 0u && st->VB < 0 && !FW_CLIPPED(st->EVENTS) && phys && high && down) {
-            st->NEG = (uint16_t)(st->NEG + 1u);
-            if ((int32_t)st->NEG >= c->APO_N) {
-                st->EVENTS |= FW_EV_APOGEE;
-                st->PHASE = FW_PH_APOGEE;
+        if (st->DLY == 0u && st->VB < 0 && !FW_CLIPPED(st->EVENTS) && phys && high) {
+            if (down) {   /* the descent guard pauses the count, it does not restart it */
+                st->NEG = (uint16_t)(st->NEG + 1u);
+                if ((int32_t)st->NEG >= c->APO_N) {
+                    st->EVENTS |= FW_EV_APOGEE;
+                    st->PHASE = FW_PH_APOGEE;
+                }
             }
         } else {
             st->NEG = 0;
