@@ -339,7 +339,8 @@ class BuildConfig:
     source: str | None = field(default=None, compare=False, hash=False, repr=False)
 
     def __post_init__(self) -> None:
-        for name, value in (COMMON_DEFAULTS | PROGRAM_DEFAULTS.get(self.program, {})).items():
+        own = PROGRAM_DEFAULTS.get(self.program, {}) if isinstance(self.program, str) else {}   # a bad one: validate
+        for name, value in (COMMON_DEFAULTS | own).items():
             if getattr(self, name) is None:
                 object.__setattr__(self, name, value)   # frozen: the one place a field is filled in
         self.validate()

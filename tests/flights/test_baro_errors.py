@@ -362,7 +362,15 @@ def test_run_takes_tuning(fwemu):
     assert "tuning: recommended (ratio=1000.0)" in rec.stdout
     assert "tuning: default" in dflt.stdout
     apo = [line for line in rec.stdout.splitlines() if line.startswith("apogee:")]
-    assert apo and apo != [line for line in dflt.stdout.splitlines() if line.startswith("apogee:")]
+    # since issue 30 the Kalman programs' defaults are the recommended designs: the same firmware, the same apogee
+    assert apo and apo == [line for line in dflt.stdout.splitlines() if line.startswith("apogee:")]
+    # the recursive filter's recommendation differs from its defaults (S = k - 2, 1/2 LSB): the tuning is applied
+    rbase = ["run", "--firmware", "recursive", "--input", "sim:rb-m1670-m105", "--k", "6", "--model", "--quiet"]
+    rrec, rdflt = fwemu(*rbase, "--tuning", "recommended"), fwemu(*rbase)
+    assert rrec.returncode == 0 and rdflt.returncode == 0, rrec.stderr + rdflt.stderr
+    assert "tuning: recommended (shift=4, threshold_q8=128)" in rrec.stdout
+    rapo = [line for line in rrec.stdout.splitlines() if line.startswith("apogee:")]
+    assert rapo and rapo != [line for line in rdflt.stdout.splitlines() if line.startswith("apogee:")]
     bad = fwemu(*base, "--tuning", "best")
     assert bad.returncode == 2 and "invalid choice: 'best'" in bad.stderr and "Traceback" not in bad.stderr
 
