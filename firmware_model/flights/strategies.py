@@ -150,7 +150,7 @@ def flight_like_streams(cfg: BuildConfig | None = None, max_len: int = 400, nois
     simulator (see firmware_model's flight inputs for that): a shape with an apogee that hypothesis can shrink.
     The slowest shape drawn (apogee at 40 %, 15 % on the pad, burning half the climb) coasts for 1/8 of the
     stream, i.e. reaches g x duration / 8 (1.23 m/s per second of stream): to pass a filter's liftoff speed
-    (30 m/s by default) or velocity gate (61 m/s) and reach apogee at every k, ``min_len`` must be tens of seconds
+    (30 m/s by default) or velocity gate (40 m/s) and reach apogee at every k, ``min_len`` must be tens of seconds
     of samples (tests/firmware/test_cpu_vs_model.py ``flight_lengths``).
     """
     if not 1 <= min_len <= max_len:

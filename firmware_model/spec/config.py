@@ -226,7 +226,10 @@ class BuildConfig:
       * ``k``: sample period dt = 2^-k s (0..10). ``rounding``: ``floor`` or ``half_up`` (``None``: the program's
         default, :data:`PROGRAM_DEFAULTS`: half_up for kalman_accel, floor for every other program).
       * recursive: ``shift`` S (weight 2^-S, 1..8), ``threshold_q8`` (apogee threshold below the extreme in Q24.8
-        units of 1/256 count: 128 = 1/2 LSB, 64 = 1/4, 32 = 1/8), ``gate_mps`` (velocity gate, m/s).
+        units of 1/256 count: 128 = 1/2 LSB, 64 = 1/4, 32 = 1/8), ``gate_mps`` (velocity gate, m/s;
+        default 40 since issue 30: a rocket that coasts h metres after burnout had at least sqrt(2 g h) at burnout,
+        so 40 m/s arms every flight that coasts 82 m or more; Schultz 2002's ~200 ft/s (61 m/s, the default before)
+        never armed a 293 m flight with a long burn that peaked at 60.8 m/s).
       * Kalman: ``noise_model`` (``accel_only``, ``jerk``, ``dwna``), ``ratio`` (R/q, measurement variance over
         process-noise intensity; ``None``: 1,000 for the Kalman programs, :data:`PROGRAM_DEFAULTS`), ``baro_sigma`` (barometer noise, counts), ``accel_sigma`` (accelerometer noise,
         counts), ``mach_lo_mps``/``mach_hi_mps`` (Mach-lockout velocity window, m/s), ``mach_innov_m`` (innovation
@@ -298,7 +301,7 @@ class BuildConfig:
     accel_counts_per_mps2: float = 2048.0 / 9.80665
     shift: int = 5
     threshold_q8: int = 64
-    gate_mps: float = 61.0
+    gate_mps: float = 40.0
     noise_model: str = "accel_only"
     ratio: float = None  # type: ignore[assignment]  # None: the program's default, filled in by __post_init__
     baro_sigma: float = 2.0

@@ -178,12 +178,12 @@ def _flights(k: int, seeds=FLIGHT_SEEDS, **params):
 @pytest.mark.parametrize("rounding", ["floor", "half_up"])
 @pytest.mark.parametrize("k", [4, 5, 6, 7, 8])
 def test_recursive_gate_arms_after_the_velocity_peak_and_apogee_is_near_truth(k, rounding):
-    """On synthetic subsonic flights (peak ~76 m/s, gate 61 m/s, liftoff 30 m/s; default config):
+    """On synthetic subsonic flights (peak ~76 m/s, gate 40 m/s since issue 30, liftoff 30 m/s; default config):
 
     * LIFTOFF < GATE_HIGH < ARMED (strictly), GATE_HIGH is the first sample after liftoff with VEL > V_GATE and
       ARMED the first sample after GATE_HIGH with VEL < V_GATE (the definition, checked on the VEL column);
     * physically: ARMED falls after burnout, before the true apogee, while the TRUE speed is within 1.5 m/s of
-      the 61 m/s gate (the accelerometer velocity is exact up to noise and rounding of the counts scale);
+      the gate (the accelerometer velocity is exact up to noise and rounding of the counts scale);
     * APOGEE is declared in the window [true - 0.1 s, true + 2^S samples + 0.25 s]: the filter's delay on a
       ramp is 2^S - 1 samples; then EST must fall THR (1/4 count, ~0.07 m) below its maximum, which near apogee
       takes ~0.12 s (h = g t^2 / 2), and barometer noise (2 counts rms, ~0.25 count after the filter) can move
@@ -209,20 +209,21 @@ def test_recursive_gate_arms_after_the_velocity_peak_and_apogee_is_near_truth(k,
         assert armed == high + 1 + int(np.argmax(vel[high + 1:] < consts.V_GATE)), where
         assert vel[high:armed].min() >= consts.V_GATE and vel[high:armed].max() > consts.V_GATE, where
         assert burnout < armed < s.truth["apogee_sample"], where
-        assert abs(v_true[armed] - 61.0) <= 1.5, (where, v_true[armed])
+        assert abs(v_true[armed] - BuildConfig().gate_mps) <= 1.5, (where, v_true[armed])
         lag = (apogee - s.truth["apogee_sample"]) * dt
         assert -0.1 <= lag <= 2 ** consts.S * dt + 0.25, (where, lag)
 
 
 def test_recursive_flight_below_the_gate_is_never_armed():
     """The documented limitation (spec §5): a flight whose accelerometer velocity never exceeds V_GATE (here a
-    4 g boost for 1.2 s, peak ~45 m/s: above the 30 m/s liftoff, below the 61 m/s gate) lifts off but is never
-    armed, so this program never declares apogee; the same flight with the gate at 40 m/s is armed and is."""
+    4 g boost for 1.2 s, peak ~45 m/s: above the 30 m/s liftoff, below a 61 m/s gate, Schultz 2002's ~200 ft/s and
+    the default until issue 30) lifts off but is never armed, so this program never declares apogee; the same
+    flight with the gate at 40 m/s (the default since issue 30) is armed and is."""
     from firmware_model.model.streams import FlightParams, synthetic_flight
 
     s = synthetic_flight(6, 16, 5, FlightParams(boost_accel_g=4.0, burn_s=1.2))
     assert 40.0 < s.truth["max_speed_mps"] < 55.0
-    tr = run_model(_consts(k=6), s.adc, s.acc)
+    tr = run_model(_consts(k=6, gate_mps=61.0), s.adc, s.acc)
     assert tr.first_event("LIFTOFF") >= 0
     for bit in ("GATE_HIGH", "ARMED", "APOGEE"):
         assert tr.first_event(bit) == -1, bit

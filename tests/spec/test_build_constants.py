@@ -98,7 +98,7 @@ def test_default_kalman_baro_thresholds_in_documented_units() -> None:
     assert c.CAL_P == 5 and c.GATE_N == 13 and c.APO_N == 8   # round(0.1 * 128) = 13, round(0.06 * 128) = 8
     assert c.ALT_SHIFT == 7 and c.ALT_N == 513                 # 16 - 9 = 7: 2^9 segments + 1 node
     assert (c.BARO_MIN, c.BARO_MAX) == (0, 65535)
-    assert c.V_GATE == 1630606        # 61 m/s * (2048 / 9.80665) counts/(m/s^2) * 128 samples/s = 1630606.2
+    assert c.V_GATE == 1069250        # 40 m/s * (2048 / 9.80665) counts/(m/s^2) * 128 samples/s = 1069249.9
     assert set(c.gains) == {"G11", "G21", "G31"}
 
 
