@@ -177,10 +177,14 @@ def test_replay_csv_reproduces_the_input_words(tmp_path):
 
 
 def test_replayed_flight_through_fwemu_run_gives_the_rows_detection(tmp_path, capsys):
+    # the record ends 1 s after the true apogee: the default recursive build (S = 5, a 1 s lag at k = 5) has not
+    # fired by then on this flight, the others have (since the 40 m/s gate arms this 300 m flight, a record 2 s long
+    # lets every method fire)
+    small = {**SMALL, "descent_s": 1.0}
     spec_path = tmp_path / "s.json"
-    spec_path.write_text(json.dumps(SMALL))
+    spec_path.write_text(json.dumps(small))
     assert main(["montecarlo", str(spec_path), "--seed", "4", "--replay", "3", "--out", str(tmp_path)]) == 0
-    rows = pipeline.run_chunk({"spec": load_spec(SMALL), "seed": 4, "flights": [3]})
+    rows = pipeline.run_chunk({"spec": load_spec(small), "seed": 4, "flights": [3]})
     assert len(rows["method"]) == 4 and rows["fired"].any() and not rows["fired"].all()   # both cases checked
     for i, (m, t) in enumerate(zip(rows["method"], rows["tuning"])):
         capsys.readouterr()

@@ -70,8 +70,8 @@ MUTANTS: list[tuple[str, str, str, str, str, str]] = [
      "                st->EVENTS |= FW_EV_BARO_REJECT;\n            } else {"),
     ("clip_evidence", "apogee evidence during an accelerometer clip (the coast test without 'not ACC_CLIP or "
      "CLIP_CLEAR')", "kalman_accel", "floor",
-     "        if (st->DLY == 0u && st->VB < 0 && !FW_CLIPPED(st->EVENTS) && phys && high && down) {",
-     "        if (st->DLY == 0u && st->VB < 0 && phys && high && down) {"),
+     "        if (st->DLY == 0u && st->VB < 0 && !FW_CLIPPED(st->EVENTS) && phys && high) {",
+     "        if (st->DLY == 0u && st->VB < 0 && phys && high) {"),
 ]
 SHRUNK_MAX = 300
 BUDGET_S = 60.0
