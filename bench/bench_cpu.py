@@ -215,7 +215,8 @@ def loops(iterations: int, reps: int, musashi: Musashi | None) -> bool:
         ratio_m = f"{mus / warm:12.3f}x" if musashi else f"{'-':>13s}"
         print(f"  {name:7s} {n:7d} {n / cold:11,.0f} {n / warm:11,.0f} {n / py:11,.0f} {mus_s} {py / warm:12.1f}x"
               f" {ratio_m}" + ("" if same else "   REGISTERS DIFFER"))
-    print("  final registers D0-D7/A0-A6 identical on all: " + ("yes" if ok else "NO") + "   (target ours/m68k-py >= 10x)")
+    print("  final registers D0-D7/A0-A6 identical on all: " + ("yes" if ok else "NO")
+          + "   (target ours/m68k-py >= 10x)")
     return ok
 
 
@@ -290,7 +291,8 @@ def firmware(reps: int, musashi: Musashi | None) -> bool:
             best = min(best, dt)
             same = same and np.array_equal(np.asarray(words, dtype=np.int64), trace.words)
     print(f"firmware: kalman_accel k=7, synthetic_flight(7), {n} samples, {int(np.sum(trace.cycles)):,} clocks")
-    print(f"  ours (harness)  cold {n / cold:11,.0f} samples/s   warm {n / warm:11,.0f} samples/s   (target >= 100,000)")
+    print(f"  ours (harness)  cold {n / cold:11,.0f} samples/s   warm {n / warm:11,.0f} samples/s"
+          "   (target >= 100,000)")
     if musashi is not None:
         ok = ok and same
         print(f"  Musashi (minimal harness)       {n / best:11,.0f} samples/s   ours/Musashi = {best / warm:.3f}x"

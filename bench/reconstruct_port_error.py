@@ -108,7 +108,8 @@ def main(argv: list[str] | None = None) -> int:
         r = run_flight(c, a.seed + i)
         rows.append(r)
         f = (lambda x: "   none" if x is None else f"{x:+7.3f}")
-        print(f"{c.name:32s} M{r['peak_mach']:.2f} baro err {r['baro_error_min_m']:+7.0f}..{r['baro_error_max_m']:+5.0f} m"
+        print(f"{c.name:32s} M{r['peak_mach']:.2f} baro err {r['baro_error_min_m']:+7.0f}.."
+              f"{r['baro_error_max_m']:+5.0f} m"
               f"  imu {f(r['imu_white_err_s'])} -> {f(r['imu_port_err_s'])}"
               f"  axial {f(r['axial_white_err_s'])} -> {f(r['axial_port_err_s'])}", flush=True)
     summary = {k: _stats([r[k] for r in rows]) for k in ("imu_white_err_s", "imu_port_err_s", "axial_white_err_s",

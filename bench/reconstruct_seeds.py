@@ -20,8 +20,9 @@ its time mean, and the share of steps where it lies in its 95 % chi-square band 
 N), with the share above and below the band; the 3-dof NEES of each group (time and seed mean, 3 if consistent).
 Each seed also records its barometer reference's error (``baro_ref_err_m``: the offset of every barometer
 altitude); ``--baro-ref true`` replaces the reference by the true pad pressure without telling the filter (a
-diagnosis). Writes ``seeds-<suite>.json`` (every seed's figures), ``seeds-<suite>.npz`` (per flight, per step: the seed-averaged
-NEES and inside-shares, truth speed and Mach, for looking at phases of flight) and prints a markdown table.
+diagnosis). Writes ``seeds-<suite>.json`` (every seed's figures), ``seeds-<suite>.npz`` (per flight, per step: the
+seed-averaged NEES and inside-shares, truth speed and Mach, for looking at phases of flight) and prints a markdown
+table.
 """
 
 from __future__ import annotations

@@ -3,13 +3,14 @@ apogee and the log's own charge").
 
     PYTHONPATH=$PWD python bench/reference_ejection.py [--n 120] [--seed 31] [--out build/reference-ejection]
 
-Builds ``--n`` ejection logs (:mod:`tests.support.ejection`: 1-DOF flights, barometer on a non-standard day with
-white and correlated noise, 100 samples/s until the charge and 10 or 5 after it, the charge 0-1.5 s after the true
-apogee with a pressure pulse, a lifted barometer and a one-sample accelerometer shock; a state event, an
-rate drop and a shock, a shock alone at 10 or 5 samples/s throughout, or a barometer alone) and for each: the charge :func:`flights.charge.recovery_charge` finds
-(against the logged charge sample), the reference (:func:`flights.apogee_reference.reference_apogee`) and its error
-against the true apogee, and whether the truth lies inside the stated half-width (2 sigma) or interval. Prints the
-table by evidence and tail rate, and writes ``reference-ejection.json`` (every flight) when ``--out`` is given.
+Builds ``--n`` ejection logs (:mod:`tests.support.ejection`: 1-DOF flights, barometer on a non-standard day with white
+and correlated noise, 100 samples/s until the charge and 10 or 5 after it, the charge 0-1.5 s after the true apogee with
+a pressure pulse, a lifted barometer and a one-sample accelerometer shock; a state event, an rate drop and a shock, a
+shock alone at 10 or 5 samples/s throughout, or a barometer alone) and for each: the charge
+:func:`flights.charge.recovery_charge` finds (against the logged charge sample), the reference
+(:func:`flights.apogee_reference.reference_apogee`) and its error against the true apogee, and whether the truth lies
+inside the stated half-width (2 sigma) or interval. Prints the table by evidence and tail rate, and writes
+``reference-ejection.json`` (every flight) when ``--out`` is given.
 """
 
 from __future__ import annotations

@@ -178,6 +178,24 @@ class _Ins(NamedTuple):
     prefix: int
 
 
+class _Sym(NamedTuple):
+    """One register-only data instruction as :meth:`_BlockGen.symbolic` hands it to the step of its family
+    (:data:`_SYM_STEPS`): the instruction, handler name, flags asked for, address, size in bytes and mask, the
+    source operand (None for one operand), the destination data register, whether the source is that register, and
+    the NZVC flags asked for."""
+
+    ins: Instruction
+    h: str
+    need: int
+    pc: int
+    nb: int
+    M: int
+    src: Operand | None
+    r: int
+    same: bool
+    nzvc: int
+
+
 class _BlockGen:
     """Generates the source of one block function. Registers live in locals ``d0..a7``, the status register in
     ``sr``, data-dependent clocks accumulate in ``c``; every exit writes the registers back and returns
@@ -186,7 +204,7 @@ class _BlockGen:
     def __init__(self, facts: MapFacts, code: tuple[int, int] = (0, 1 << 24)) -> None:
         self.facts = facts
         self.code = code  # the block's own code bytes [start, end)
-        self.known: dict[int, int] = {}
+        self.known: dict[int, int] = {}  # data register -> value known here (set by gen() for one instruction)
         self.wrote = False  # set by write(): the instruction writes memory; check D[0] after it
         self.u32: set[str] = set()  # temporaries of this instruction known to hold a masked 32-bit address
         # Deferred flags (set by gen() for an instruction whose NZVC only a fault of itself or of the next
@@ -203,7 +221,7 @@ class _BlockGen:
         self.slow_texts: set[str] = set()
         self.cur = -1
         self.smc_inline = False  # set by gen(): a last write may leave the block right after it (smc_slots)
-        self.smc_slots: list[int] = []  # item indices to fill with the exit after the instruction  # data register -> value known here (set by gen() for one instruction)
+        self.smc_slots: list[int] = []  # item indices to fill with the exit after the instruction
         self.items: list[tuple[int, object]] = []  # (indent, line str | ("exit", ...) | ("mark", i))
         self.ind = 1
         self.used: set[int] = set()
@@ -818,11 +836,11 @@ class _BlockGen:
             return timing.cycles(ins)
         return None
 
-    def symbolic(self, ins: Instruction, h: str, need: int, pc: int) -> int | None:  # noqa: C901 - one branch per instruction family of the value layer (generated-code templates)
+    def symbolic(self, ins: Instruction, h: str, need: int, pc: int) -> int | None:
         """Take a register-only data instruction into the value layer: its result becomes the pending value of its
         register (no statement), flags are emitted when asked for. Returns its clocks, or None when it is left to
         the statement generator (memory operands, address registers, shifts with live flags, MUL by a register,
-        ADD/SUB with live flags in a block with lazy flags)."""
+        ADD/SUB with live flags in a block with lazy flags). One step per instruction family (:data:`_SYM_STEPS`)."""
         if h not in _SYM:
             return None
         ops = ins.operands
@@ -845,293 +863,334 @@ class _BlockGen:
         nzvc = need & _FLAGS_NZVC
         if nzvc and h in _FUSE_NZ:
             self.fuse_setup(_NZ_ONLY if h in _FUSE_ARITH else _NZ_CONDS, r)
+        return _SYM_STEPS[h](self, _Sym(ins, h, need, pc, nb, M, src, r, same, nzvc))
 
-        def operand(o: Operand, dest: int | None, n: int = nb) -> _Val:
-            if o.mode is _M.IMM:
-                k = o.value & MASK[n]
-                return _Val(str(k), k, k)
-            if o.mode is not _M.DREG:  # a constant address the map guarantees (cannot fault): read it now
-                t = self.tmp()
-                self.emit(f"{t} = {self.load(n, self.addr(o, n, pc, 'ea'))}")
-                return _Val(t, 0, MASK[n])
-            return self.take(o.reg, dest)
-
-        if h == "exg":
-            if src.mode is not _M.DREG:
-                return None
-            a, b = self.val(src.reg), self.val(r)
-            self.pend[src.reg], self.pend[r] = b, a
-            return timing.cycles(ins)
-        if h in ("cmp", "cmpi"):
-            if nzvc:
-                self.fuse_setup(_CMP_CONDS, None)
-                s, d = operand(src, None), self.take(r, None)
-                ls, ld = self.low(s, nb), self.low(d, nb)
-                if self.fusing is not None:  # only the next Bcc reads them: it compares the operands itself
-                    cond, self.fusing = self.fusing, None
-                    kind, op = _CMP_COND[cond]
-                    if kind == "s":
-                        ls = _lit(_sx(int(ls), nb)) if ls.isdigit() else f"(({ls} ^ {SIGN[nb]}) - {SIGN[nb]})"
-                        ld = _lit(_sx(int(ld), nb)) if ld.isdigit() else f"(({ld} ^ {SIGN[nb]}) - {SIGN[nb]})"
-                    self.fused = (cond, f"{ld} {op} {ls}", f"{ld} {_NOT_OP[op]} {ls}")
-                elif nzvc == CF:
-                    self.emit(f"sr = (sr & 0xFF1E) | (1 if {ld} < {ls} else 0)")
-                elif nzvc == ZF:
-                    self.emit(f"sr = (sr & 0xFF1B) | (4 if {ld} == {ls} else 0)")
-                else:
-                    if not _ATOM.match(ls):
-                        self.emit(f"s = {ls}")
-                        ls = "s"
-                    if not _ATOM.match(ld):
-                        self.emit(f"x = {ld}")
-                        ld = "x"
-                    self.emit(f"r = {ld} - {ls}")
-                    self.emit(f"rm = r & {M}")
-                    self.arith_flags("cmp", nb, ls, ld, need)
-            return timing.cycles(ins)
-        if h == "tst":
-            if nzvc:
-                self.fuse_setup(_NZ_CONDS, None)
-            x = self.low(self.take(r, None), nb)
-            if self.fusing is not None:
-                self.fuse_nz(x, nb, None, used=False)
-            else:
-                self.vflags(x, nb, need)
-            return timing.cycles(ins)
-        if h == "move":
-            s = operand(src, r)
-            if nb == 4:
-                if nzvc:
-                    x = self.vflags(self.u(s), 4, need, r)
-                    if x == _RN[r]:
-                        self.pend.pop(r, None)
-                        return timing.cycles(ins)
-                    s = s if x == s.e else _Val(x, 0, s.hi if s.exact() else M32, None, s.whi)
-                self.setv(r, s)
-                return timing.cycles(ins)
-            d = self.val(r)
-            if same:
-                d = s = self.bind(d)
-            x, xhi = self.low(s, nb), self.lowhi(s, nb)
-            self.setv(r, self.merge(d, nb, self.vflags(x, nb, need), xhi))
-            return timing.cycles(ins)
-        if h in ("and", "andi", "or", "ori", "eor", "eori"):
-            kind = h.rstrip("i")
-            op = {"and": "&", "or": "|", "eor": "^"}[kind]
-            s = operand(src, r)
-            d = self.val(r)
-            if same:
-                d = s = self.bind(d)
-            if nb == 4 or not nzvc:
-                if kind == "and":
-                    se = self.u(s) if nb == 4 else self.low(s, nb)
-                    de = self.force(d)
-                    mask = int(se) | (M32 ^ M) if se.isdigit() else None
-                    if mask is not None:  # any representative of d: & a constant <= 2^32-1 is exact
-                        e, hi = f"({de} & {mask})", min(mask, d.hi) if d.lo >= 0 else mask
-                    else:
-                        se = se if nb == 4 else f"({se} | {M32 ^ M})"
-                        e, hi = f"({self.u(d)} & {se})", min(s.hi if s.exact() else M32, d.hi if d.exact() else M32)
-                        if nb != 4:
-                            hi = d.hi if d.exact() else M32
-                    if de.isdigit() and not self.force(s).isdigit():  # a constant d: & it the other way round
-                        k = int(de)
-                        e, hi = f"({self.force(s)} & {k & M})", k & M
-                        if k & (M32 ^ M):
-                            e, hi = f"({k & (M32 ^ M)} | {e})", k
-                else:
-                    de, se = self.u(d), (self.u(s) if nb == 4 else self.low(s, nb))
-                    hi = (1 << max(d.hi if d.exact() else M32, self.lowhi(s, nb)).bit_length()) - 1
-                    e = f"({de} {op} {se})"
-                if nb == 4:
-                    x = self.vflags(e, 4, need, r)
-                    self.setx(r, x, _Val(x, 0, hi))
-                else:
-                    self.setv(r, _Val(e, 0, hi))
-                return timing.cycles(ins)
-            d = self.bind(d) if s is not d else d
-            ld, ls = self.low(d, nb), self.low(s, nb)
-            if kind == "and" and ls.isdigit() and not ld.isdigit():
-                x, xhi = f"({self.force(d)} & {ls})", int(ls)
-            elif kind == "and" and ld.isdigit() and not ls.isdigit():
-                x, xhi = f"({self.force(s)} & {ld})", int(ld)
-            else:
-                x = f"({ld} {op} {ls})"
-                xhi = min(self.lowhi(s, nb), self.lowhi(d, nb)) if kind == "and" else M
-            whole = d.exact() and d.hi <= M
-            x = self.vflags(x, nb, need, r if whole else None)
-            self.setx(r, x, self.merge(d, nb, x, xhi))
-            return timing.cycles(ins)
-        if h in ("add", "addi", "addq", "sub", "subi", "subq"):
-            flags = need & _ALL_FLAGS
-            if flags and self.lazy is not None:
-                return None
-            add = h.startswith("add")
-            s = _Val(str(src.value & M), src.value & M, src.value & M) if h in ("addq", "subq") else operand(src, r)
-            d = self.val(r)
-            if same:
-                d = s = self.bind(d)
-            if nb == 4 and not flags:
-                de, se = self.force(d), self.force(s)
-                if add:
-                    self.setv(r, _Val(f"({de} + {se})", d.lo + s.lo, d.hi + s.hi))
-                elif se == "0":
-                    self.setv(r, d)
-                else:
-                    self.setv(r, _Val(f"({de} - {se})", d.lo - s.hi, d.hi - s.lo))
-                return timing.cycles(ins)
-            if nb != 4:
-                d = self.bind(d) if s is not d else d
-            de, se = self.low(d, nb), self.low(s, nb)
-            dhi, shi = self.lowhi(d, nb), self.lowhi(s, nb)
-            if flags and self.fusing is not None:  # only the next Bcc reads N or Z: it tests the result; X (C with
-                # it: dead after the branch) is assigned when it is live
-                if need & XF:
-                    t = self.tmp()
-                    self.emit(f"{t} = {de} + {se}" if add else f"{t} = {de} - {se}")
-                    self.arith_flags("add" if add else "sub", nb, se, de, XF, t, None)
-                    rme = f"({t} & {M})"
-                else:
-                    rme = f"(({de} + {se}) & {M})" if add else f"(({de} - {se}) & {M})"
-                x = self.fuse_nz(rme, nb, r if nb == 4 else None)
-                self.setx(r, x, _Val(x, 0, M) if nb == 4 else self.merge(d, nb, x, M))
-                return timing.cycles(ins)
-            if not flags:
-                if add:
-                    x = f"({de} + {se})" if dhi + shi <= M else f"(({de} + {se}) & {M})"
-                    xhi = min(dhi + shi, M)
-                else:
-                    x, xhi = (de, dhi) if se == "0" else (f"(({de} - {se}) & {M})", M)
-                self.setv(r, self.merge(d, nb, x, xhi))
-                return timing.cycles(ins)
-            if need & VF:  # the overflow test reads both operands again
-                if not _ATOM.match(de):
-                    de = self.bind(_Val(de, 0, dhi)).e
-                if same:
-                    se = de
-                elif not _ATOM.match(se):
-                    se = self.bind(_Val(se, 0, shi)).e
+    def _sym_operand(self, it: _Sym, o: Operand, dest: int | None, n: int | None = None) -> _Val:
+        """The value of source operand ``o`` of ``it`` (``n`` bytes, default its size): an immediate, a constant
+        address the map guarantees (read now: it cannot fault) or a data register (:meth:`take` for ``dest``)."""
+        n = it.nb if n is None else n
+        if o.mode is _M.IMM:
+            k = o.value & MASK[n]
+            return _Val(str(k), k, k)
+        if o.mode is not _M.DREG:  # a constant address the map guarantees (cannot fault): read it now
             t = self.tmp()
-            self.emit(f"{t} = {de} + {se}" if add else f"{t} = {de} - {se}")
-            if need & (NF | ZF | VF):
-                rm = self.tmp()
-                self.emit(f"{rm} = {t} & {M}")
-                res = _Val(rm, 0, M)
-            else:
-                rm = None
-                res = _Val(t, 0, dhi + shi) if add else _Val(t, -shi, dhi)
-            self.arith_flags("add" if add else "sub", nb, se, de, need, t, rm)
-            self.setv(r, res if nb == 4 else self.merge(d, nb, self.low(res, nb), M))
-            return timing.cycles(ins)
-        if h in ("clr", "not", "neg"):
-            if h == "neg" and need & _ALL_FLAGS:
-                return None
-            d = self.val(r)
-            if h == "clr":
-                if nzvc:
-                    self.emit("sr = (sr & 0xFF10) | 4")
-                self.setv(r, self.merge(d, nb, "0", 0))
-                return timing.cycles(ins)
-            if nb == 4 and not nzvc:
-                de = self.force(d)
-                self.setv(r, _Val(f"(~{de})", -d.hi - 1, -d.lo - 1) if h == "not" else _Val(f"(-{de})", -d.hi, -d.lo))
-                return timing.cycles(ins)
-            d = self.bind(d)
-            ld = self.low(d, nb)
-            x = f"({ld} ^ {M})" if h == "not" else f"(-{ld} & {M})"
-            self.setv(r, self.merge(d, nb, self.vflags(x, nb, need), M))
-            return timing.cycles(ins)
-        if h == "swap":
-            d = self.val(r)
-            if d.exact() and d.hi <= 0xFFFF:
-                x = f"({self.force(d)} << 16)"
-                self.setv(r, _Val(self.vflags(x, 4, need), 0, d.hi << 16, "0", 0))
-                return timing.cycles(ins)
-            ue = self.u(d)
-            uhi = d.hi if d.exact() else M32
-            w, whi = f"({ue} >> 16)", uhi >> 16
-            if _ATOM.match(ue) or nzvc:
-                if not _ATOM.match(ue):
-                    d = self.bind(_Val(ue, 0, uhi))
-                    ue = d.e
-                    w = f"({ue} >> 16)"
-                x = self.vflags(f"(({self.low(d, 2)} << 16) | ({ue} >> 16))", 4, need, r)
-                self.setx(r, x, _Val(x, 0, M32, w, whi))
-                return timing.cycles(ins)
+            self.emit(f"{t} = {self.load(n, self.addr(o, n, it.pc, 'ea'))}")
+            return _Val(t, 0, MASK[n])
+        return self.take(o.reg, dest)
 
-            def make(d: _Val = _Val(ue, 0, uhi)) -> str:  # both halves of a composite value: bound once, if needed
-                t = self.bind(d)
-                return f"(({self.low(t, 2)} << 16) | ({t.e} >> 16))"
+    def _s_exg(self, it: _Sym) -> int | None:
+        """EXG Dx,Dy: the two pending values trade places."""
+        ins, _, _, _, _, _, src, r, _, _ = it
+        if src.mode is not _M.DREG:
+            return None
+        a, b = self.val(src.reg), self.val(r)
+        self.pend[src.reg], self.pend[r] = b, a
+        return timing.cycles(ins)
 
-            self.setv(r, _Val(make, 0, M32, w, whi))
-            return timing.cycles(ins)
-        if h == "ext":
-            d = self.val(r)
-            if ins.size is Size.W:
-                d = self.bind(d)
-                b, bhi = self.low(d, 1), self.lowhi(d, 1)
-                x, xhi = (b, bhi) if bhi <= 0x7F else (f"((({b} ^ 128) - 128) & 65535)", 0xFFFF)
-                self.setv(r, self.merge(d, 2, self.vflags(x, 2, need), xhi))
-                return timing.cycles(ins)
-            w, lo, hi = self.sx16(d)
-            ww = self.low(d, 2)
-            if nzvc:
-                x = self.vflags(w if lo >= 0 else f"({w} & {M32})", 4, need, r)
-                self.setx(r, x, _Val(x, 0, hi if lo >= 0 else M32, None, d.whi))
+    def _s_cmp(self, it: _Sym) -> int | None:
+        """CMP/CMPI into a data register: flags only (or a test fused into the next Bcc)."""
+        ins, _, need, _, nb, M, src, r, _, nzvc = it
+        if nzvc:
+            self.fuse_setup(_CMP_CONDS, None)
+            s, d = self._sym_operand(it, src, None), self.take(r, None)
+            ls, ld = self.low(s, nb), self.low(d, nb)
+            if self.fusing is not None:  # only the next Bcc reads them: it compares the operands itself
+                cond, self.fusing = self.fusing, None
+                kind, op = _CMP_COND[cond]
+                if kind == "s":
+                    ls = _lit(_sx(int(ls), nb)) if ls.isdigit() else f"(({ls} ^ {SIGN[nb]}) - {SIGN[nb]})"
+                    ld = _lit(_sx(int(ld), nb)) if ld.isdigit() else f"(({ld} ^ {SIGN[nb]}) - {SIGN[nb]})"
+                self.fused = (cond, f"{ld} {op} {ls}", f"{ld} {_NOT_OP[op]} {ls}")
+            elif nzvc == CF:
+                self.emit(f"sr = (sr & 0xFF1E) | (1 if {ld} < {ls} else 0)")
+            elif nzvc == ZF:
+                self.emit(f"sr = (sr & 0xFF1B) | (4 if {ld} == {ls} else 0)")
             else:
-                self.setv(r, _Val(w, lo, hi, ww if _ATOM.match(ww) else None, min(d.whi, 0xFFFF)))
-            return timing.cycles(ins)
-        if h in ("mulu", "muls") and src.mode is not _M.IMM:
-            sv = operand(src, r, 2)
-            d = self.val(r)
-            if same:
-                d = sv = self.bind(d)
-            t = self.low(sv, 2)
-            if t.isdigit():  # a known source: constant clocks, as MUL #imm
-                src = Operand(_M.IMM, value=int(t))
-                ea = timing.EA_TIME[_M.DREG][0]
-            else:
-                if not _ATOM.match(t):
-                    t = self.bind(_Val(t, 0, sv.whi)).e
-                    sv = _Val(t, 0, sv.whi)
-                if h == "mulu":
-                    self.cycles(f"2 * {t}.bit_count()")
-                    x, lo, hi = f"({t} * {self.low(d, 2)})", 0, 0xFFFF * d.whi
-                else:
-                    self.cycles(f"2 * (({t} << 1 ^ {t}) & 0xFFFF).bit_count()")
-                    a, alo, ahi = self.sx16(sv)
-                    b, blo, bhi = self.sx16(d)
-                    ps = (alo * blo, alo * bhi, ahi * blo, ahi * bhi)
-                    x, lo, hi = f"({a} * {b})", min(ps), max(ps)
-                if nzvc:
-                    x = self.vflags(x if lo >= 0 else f"({x} & {M32})", 4, need, r)
-                    lo, hi = 0, (hi if lo >= 0 else M32)
-                self.setx(r, x, _Val(x, lo, hi))
-                return 38 + timing.EA_TIME[src.mode][0]
+                if not _ATOM.match(ls):
+                    self.emit(f"s = {ls}")
+                    ls = "s"
+                if not _ATOM.match(ld):
+                    self.emit(f"x = {ld}")
+                    ld = "x"
+                self.emit(f"r = {ld} - {ls}")
+                self.emit(f"rm = r & {M}")
+                self.arith_flags("cmp", nb, ls, ld, need)
+        return timing.cycles(ins)
+
+    def _s_tst(self, it: _Sym) -> int | None:
+        """TST Dn: flags only (or a test fused into the next Bcc)."""
+        ins, _, need, _, nb, _, _, r, _, nzvc = it
+        if nzvc:
+            self.fuse_setup(_NZ_CONDS, None)
+        x = self.low(self.take(r, None), nb)
+        if self.fusing is not None:
+            self.fuse_nz(x, nb, None, used=False)
         else:
-            ea = timing.EA_TIME[_M.IMM][0]
-        if h in ("mulu", "muls"):
-            k = src.value & 0xFFFF
-            d = self.val(r)
-            if h == "mulu":
-                x, lo, hi = f"({k} * {self.low(d, 2)})", 0, k * d.whi
-                extra = 2 * k.bit_count()
-            else:
-                ks = _sx(k, 2)
-                w, wlo, whi = self.sx16(d)
-                x, lo, hi = f"({_lit(ks)} * {w})", min(ks * wlo, ks * whi), max(ks * wlo, ks * whi)
-                y = k << 1
-                extra = 2 * ((y ^ (y >> 1)) & 0xFFFF).bit_count()
-            if k == 0:
-                x, lo, hi = "0", 0, 0
+            self.vflags(x, nb, need)
+        return timing.cycles(ins)
+
+    def _s_move(self, it: _Sym) -> int | None:
+        """MOVE of a data register or an immediate into a data register."""
+        ins, _, need, _, nb, _, src, r, same, nzvc = it
+        s = self._sym_operand(it, src, r)
+        if nb == 4:
             if nzvc:
-                x = self.vflags(x if lo >= 0 else f"({x} & {M32})", 4, need, r)
-                lo, hi = 0, (hi if lo >= 0 else M32)
-            self.setx(r, x, _Val(x, lo, hi))
-            return 38 + ea + extra
+                x = self.vflags(self.u(s), 4, need, r)
+                if x == _RN[r]:
+                    self.pend.pop(r, None)
+                    return timing.cycles(ins)
+                s = s if x == s.e else _Val(x, 0, s.hi if s.exact() else M32, None, s.whi)
+            self.setv(r, s)
+            return timing.cycles(ins)
+        d = self.val(r)
+        if same:
+            d = s = self.bind(d)
+        x, xhi = self.low(s, nb), self.lowhi(s, nb)
+        self.setv(r, self.merge(d, nb, self.vflags(x, nb, need), xhi))
+        return timing.cycles(ins)
+
+    def _s_logic(self, it: _Sym) -> int | None:
+        """AND/OR/EOR (and the immediate forms) into a data register."""
+        ins, h, need, _, nb, M, src, r, same, nzvc = it
+        kind = h.rstrip("i")
+        op = {"and": "&", "or": "|", "eor": "^"}[kind]
+        s = self._sym_operand(it, src, r)
+        d = self.val(r)
+        if same:
+            d = s = self.bind(d)
+        if nb == 4 or not nzvc:
+            if kind == "and":
+                se = self.u(s) if nb == 4 else self.low(s, nb)
+                de = self.force(d)
+                mask = int(se) | (M32 ^ M) if se.isdigit() else None
+                if mask is not None:  # any representative of d: & a constant <= 2^32-1 is exact
+                    e, hi = f"({de} & {mask})", min(mask, d.hi) if d.lo >= 0 else mask
+                else:
+                    se = se if nb == 4 else f"({se} | {M32 ^ M})"
+                    e, hi = f"({self.u(d)} & {se})", min(s.hi if s.exact() else M32, d.hi if d.exact() else M32)
+                    if nb != 4:
+                        hi = d.hi if d.exact() else M32
+                if de.isdigit() and not self.force(s).isdigit():  # a constant d: & it the other way round
+                    k = int(de)
+                    e, hi = f"({self.force(s)} & {k & M})", k & M
+                    if k & (M32 ^ M):
+                        e, hi = f"({k & (M32 ^ M)} | {e})", k
+            else:
+                de, se = self.u(d), (self.u(s) if nb == 4 else self.low(s, nb))
+                hi = (1 << max(d.hi if d.exact() else M32, self.lowhi(s, nb)).bit_length()) - 1
+                e = f"({de} {op} {se})"
+            if nb == 4:
+                x = self.vflags(e, 4, need, r)
+                self.setx(r, x, _Val(x, 0, hi))
+            else:
+                self.setv(r, _Val(e, 0, hi))
+            return timing.cycles(ins)
+        d = self.bind(d) if s is not d else d
+        ld, ls = self.low(d, nb), self.low(s, nb)
+        if kind == "and" and ls.isdigit() and not ld.isdigit():
+            x, xhi = f"({self.force(d)} & {ls})", int(ls)
+        elif kind == "and" and ld.isdigit() and not ls.isdigit():
+            x, xhi = f"({self.force(s)} & {ld})", int(ld)
+        else:
+            x = f"({ld} {op} {ls})"
+            xhi = min(self.lowhi(s, nb), self.lowhi(d, nb)) if kind == "and" else M
+        whole = d.exact() and d.hi <= M
+        x = self.vflags(x, nb, need, r if whole else None)
+        self.setx(r, x, self.merge(d, nb, x, xhi))
+        return timing.cycles(ins)
+
+    def _s_addsub(self, it: _Sym) -> int | None:
+        """ADD/SUB (immediate and quick forms included) into a data register."""
+        ins, h, need, _, nb, M, src, r, same, _ = it
+        flags = need & _ALL_FLAGS
+        if flags and self.lazy is not None:
+            return None
+        add = h.startswith("add")
+        if h in ("addq", "subq"):
+            s = _Val(str(src.value & M), src.value & M, src.value & M)
+        else:
+            s = self._sym_operand(it, src, r)
+        d = self.val(r)
+        if same:
+            d = s = self.bind(d)
+        if nb == 4 and not flags:
+            de, se = self.force(d), self.force(s)
+            if add:
+                self.setv(r, _Val(f"({de} + {se})", d.lo + s.lo, d.hi + s.hi))
+            elif se == "0":
+                self.setv(r, d)
+            else:
+                self.setv(r, _Val(f"({de} - {se})", d.lo - s.hi, d.hi - s.lo))
+            return timing.cycles(ins)
+        if nb != 4:
+            d = self.bind(d) if s is not d else d
+        de, se = self.low(d, nb), self.low(s, nb)
+        dhi, shi = self.lowhi(d, nb), self.lowhi(s, nb)
+        if flags and self.fusing is not None:  # only the next Bcc reads N or Z: it tests the result; X (C with
+            # it: dead after the branch) is assigned when it is live
+            if need & XF:
+                t = self.tmp()
+                self.emit(f"{t} = {de} + {se}" if add else f"{t} = {de} - {se}")
+                self.arith_flags("add" if add else "sub", nb, se, de, XF, t, None)
+                rme = f"({t} & {M})"
+            else:
+                rme = f"(({de} + {se}) & {M})" if add else f"(({de} - {se}) & {M})"
+            x = self.fuse_nz(rme, nb, r if nb == 4 else None)
+            self.setx(r, x, _Val(x, 0, M) if nb == 4 else self.merge(d, nb, x, M))
+            return timing.cycles(ins)
+        if not flags:
+            if add:
+                x = f"({de} + {se})" if dhi + shi <= M else f"(({de} + {se}) & {M})"
+                xhi = min(dhi + shi, M)
+            else:
+                x, xhi = (de, dhi) if se == "0" else (f"(({de} - {se}) & {M})", M)
+            self.setv(r, self.merge(d, nb, x, xhi))
+            return timing.cycles(ins)
+        if need & VF:  # the overflow test reads both operands again
+            if not _ATOM.match(de):
+                de = self.bind(_Val(de, 0, dhi)).e
+            if same:
+                se = de
+            elif not _ATOM.match(se):
+                se = self.bind(_Val(se, 0, shi)).e
+        t = self.tmp()
+        self.emit(f"{t} = {de} + {se}" if add else f"{t} = {de} - {se}")
+        if need & (NF | ZF | VF):
+            rm = self.tmp()
+            self.emit(f"{rm} = {t} & {M}")
+            res = _Val(rm, 0, M)
+        else:
+            rm = None
+            res = _Val(t, 0, dhi + shi) if add else _Val(t, -shi, dhi)
+        self.arith_flags("add" if add else "sub", nb, se, de, need, t, rm)
+        self.setv(r, res if nb == 4 else self.merge(d, nb, self.low(res, nb), M))
+        return timing.cycles(ins)
+
+    def _s_unary(self, it: _Sym) -> int | None:
+        """CLR/NOT/NEG of a data register (NEG only with its flags dead)."""
+        ins, h, need, _, nb, M, _, r, _, nzvc = it
+        if h == "neg" and need & _ALL_FLAGS:
+            return None
+        d = self.val(r)
+        if h == "clr":
+            if nzvc:
+                self.emit("sr = (sr & 0xFF10) | 4")
+            self.setv(r, self.merge(d, nb, "0", 0))
+            return timing.cycles(ins)
+        if nb == 4 and not nzvc:
+            de = self.force(d)
+            self.setv(r, _Val(f"(~{de})", -d.hi - 1, -d.lo - 1) if h == "not" else _Val(f"(-{de})", -d.hi, -d.lo))
+            return timing.cycles(ins)
+        d = self.bind(d)
+        ld = self.low(d, nb)
+        x = f"({ld} ^ {M})" if h == "not" else f"(-{ld} & {M})"
+        self.setv(r, self.merge(d, nb, self.vflags(x, nb, need), M))
+        return timing.cycles(ins)
+
+    def _s_swap(self, it: _Sym) -> int | None:
+        """SWAP Dn: the two words trade places."""
+        ins, _, need, _, _, _, _, r, _, nzvc = it
+        d = self.val(r)
+        if d.exact() and d.hi <= 0xFFFF:
+            x = f"({self.force(d)} << 16)"
+            self.setv(r, _Val(self.vflags(x, 4, need), 0, d.hi << 16, "0", 0))
+            return timing.cycles(ins)
+        ue = self.u(d)
+        uhi = d.hi if d.exact() else M32
+        w, whi = f"({ue} >> 16)", uhi >> 16
+        if _ATOM.match(ue) or nzvc:
+            if not _ATOM.match(ue):
+                d = self.bind(_Val(ue, 0, uhi))
+                ue = d.e
+                w = f"({ue} >> 16)"
+            x = self.vflags(f"(({self.low(d, 2)} << 16) | ({ue} >> 16))", 4, need, r)
+            self.setx(r, x, _Val(x, 0, M32, w, whi))
+            return timing.cycles(ins)
+
+        def make(d: _Val = _Val(ue, 0, uhi)) -> str:  # both halves of a composite value: bound once, if needed
+            t = self.bind(d)
+            return f"(({self.low(t, 2)} << 16) | ({t.e} >> 16))"
+
+        self.setv(r, _Val(make, 0, M32, w, whi))
+        return timing.cycles(ins)
+
+    def _s_ext(self, it: _Sym) -> int | None:
+        """EXT.W / EXT.L Dn."""
+        ins, _, need, _, _, _, _, r, _, nzvc = it
+        d = self.val(r)
+        if ins.size is Size.W:
+            d = self.bind(d)
+            b, bhi = self.low(d, 1), self.lowhi(d, 1)
+            x, xhi = (b, bhi) if bhi <= 0x7F else (f"((({b} ^ 128) - 128) & 65535)", 0xFFFF)
+            self.setv(r, self.merge(d, 2, self.vflags(x, 2, need), xhi))
+            return timing.cycles(ins)
+        w, lo, hi = self.sx16(d)
+        ww = self.low(d, 2)
+        if nzvc:
+            x = self.vflags(w if lo >= 0 else f"({w} & {M32})", 4, need, r)
+            self.setx(r, x, _Val(x, 0, hi if lo >= 0 else M32, None, d.whi))
+        else:
+            self.setv(r, _Val(w, lo, hi, ww if _ATOM.match(ww) else None, min(d.whi, 0xFFFF)))
+        return timing.cycles(ins)
+
+    def _s_mul(self, it: _Sym) -> int | None:
+        """MULU/MULS into a data register: by a register (data-dependent clocks) or a known source."""
+        _, h, need, _, _, _, src, r, same, nzvc = it
+        if src.mode is _M.IMM:
+            return self._s_mul_imm(it, timing.EA_TIME[_M.IMM][0])
+        sv = self._sym_operand(it, src, r, 2)
+        d = self.val(r)
+        if same:
+            d = sv = self.bind(d)
+        t = self.low(sv, 2)
+        if t.isdigit():  # a known source: constant clocks, as MUL #imm
+            return self._s_mul_imm(it._replace(src=Operand(_M.IMM, value=int(t))), timing.EA_TIME[_M.DREG][0])
+        if not _ATOM.match(t):
+            t = self.bind(_Val(t, 0, sv.whi)).e
+            sv = _Val(t, 0, sv.whi)
+        if h == "mulu":
+            self.cycles(f"2 * {t}.bit_count()")
+            x, lo, hi = f"({t} * {self.low(d, 2)})", 0, 0xFFFF * d.whi
+        else:
+            self.cycles(f"2 * (({t} << 1 ^ {t}) & 0xFFFF).bit_count()")
+            a, alo, ahi = self.sx16(sv)
+            b, blo, bhi = self.sx16(d)
+            ps = (alo * blo, alo * bhi, ahi * blo, ahi * bhi)
+            x, lo, hi = f"({a} * {b})", min(ps), max(ps)
+        if nzvc:
+            x = self.vflags(x if lo >= 0 else f"({x} & {M32})", 4, need, r)
+            lo, hi = 0, (hi if lo >= 0 else M32)
+        self.setx(r, x, _Val(x, lo, hi))
+        return 38 + timing.EA_TIME[src.mode][0]
+
+    def _s_mul_imm(self, it: _Sym, ea: int) -> int | None:
+        """MULU/MULS by a known 16-bit source (``it.src`` an immediate), its EA time ``ea``."""
+        _, h, need, _, _, _, src, r, _, nzvc = it
+        k = src.value & 0xFFFF
+        d = self.val(r)
+        if h == "mulu":
+            x, lo, hi = f"({k} * {self.low(d, 2)})", 0, k * d.whi
+            extra = 2 * k.bit_count()
+        else:
+            ks = _sx(k, 2)
+            w, wlo, whi = self.sx16(d)
+            x, lo, hi = f"({_lit(ks)} * {w})", min(ks * wlo, ks * whi), max(ks * wlo, ks * whi)
+            y = k << 1
+            extra = 2 * ((y ^ (y >> 1)) & 0xFFFF).bit_count()
+        if k == 0:
+            x, lo, hi = "0", 0, 0
+        if nzvc:
+            x = self.vflags(x if lo >= 0 else f"({x} & {M32})", 4, need, r)
+            lo, hi = 0, (hi if lo >= 0 else M32)
+        self.setx(r, x, _Val(x, lo, hi))
+        return 38 + ea + extra
+
+    def _s_shift(self, it: _Sym) -> int | None:
+        """ASL/ASR/LSL/LSR.L of a data register by an immediate or a known count."""
+        ins, h, need, _, nb, _, src, r, _, _ = it
         # shifts: long, by an immediate or by a register holding a known count (with live flags: ASR/LSR/LSL by
         # 1..31 only)
-        if nb != 4 or len(ops) != 2:
+        if nb != 4 or len(ins.operands) != 2:
             return None
         if src.mode is _M.IMM:
             n = src.value
@@ -1747,3 +1806,16 @@ _EMITTERS: dict[str, Any] = {
     "dbcc": _BlockGen._i_dbcc, "jmp": _BlockGen._i_jump, "jsr": _BlockGen._i_jump, "rts": _BlockGen._i_rts,
     "movem": _BlockGen._i_movem, "nop": _BlockGen._i_nop,
 }
+
+
+#: Handler name -> the :class:`_BlockGen` step of the value layer that takes it (:meth:`_BlockGen.symbolic`; MOVEQ
+#: and the MOVEs to or from a constant address are taken before the dispatch).
+_SYM_STEPS: dict[str, Any] = {
+    "exg": _BlockGen._s_exg, "cmp": _BlockGen._s_cmp, "cmpi": _BlockGen._s_cmp, "tst": _BlockGen._s_tst,
+    "move": _BlockGen._s_move, **dict.fromkeys(("and", "andi", "or", "ori", "eor", "eori"), _BlockGen._s_logic),
+    **dict.fromkeys(("add", "addi", "addq", "sub", "subi", "subq"), _BlockGen._s_addsub),
+    **dict.fromkeys(("clr", "not", "neg"), _BlockGen._s_unary), "swap": _BlockGen._s_swap, "ext": _BlockGen._s_ext,
+    "mulu": _BlockGen._s_mul, "muls": _BlockGen._s_mul,
+    **dict.fromkeys(("asl", "asr", "lsl", "lsr"), _BlockGen._s_shift),
+}
+assert _SYM_STEPS.keys() | {"moveq"} == _SYM

@@ -26,8 +26,8 @@ Contract with :mod:`isa.cpu` (which decodes, caches and runs blocks):
   slow memory paths (:func:`_lazy_kind`).
   A memory write that hits compiled code sets ``D[0]`` (in the memory accessor); the block then leaves right
   after that instruction, unless the write was to a constant address outside the block's own code
-  (:func:`_quiet_write`: this block's instructions did not change). Instructions the block compiler does not take (TRAP, ILLEGAL, constant
-  odd branch targets) end the block; the CPU runs them through :mod:`isa.closures`.
+  (:func:`_quiet_write`: this block's instructions did not change). Instructions the block compiler does not take
+  (TRAP, ILLEGAL, constant odd branch targets) end the block; the CPU runs them through :mod:`isa.closures`.
 * The run loop starts a block only when ``bn >= info's most instructions`` and ``bc >`` the clock bound of one
   pass (:func:`_block_bound`) and ``until`` is not inside it: that keeps limits exact.
 * Modules (a pure split of one module; no cycles: ``blocks`` imports both, ``block_codegen`` imports
@@ -86,7 +86,241 @@ class _BlockInfo:
         self.regs = regs  #: register indices held in locals
 
 
-def _block_source(entries: list[_Entry], facts: MapFacts, lazy_ok: bool = True  # noqa: C901 - the block compiler: one branch per control-flow shape (branches, loops, calls, faults)
+class _Walk:
+    """The walk of :func:`_block_source` over the entries of one block, generating each as planned through the
+    block's :class:`_BlockGen`: straight-line instructions (:meth:`straight`), and one step per control-flow role of
+    :func:`_plan` (:meth:`dup`, :meth:`loop`, :meth:`branch`). Every step takes and returns the constant
+    instruction count ``n`` and clocks ``cy`` done on the path it is on (the locals ``ni``/``c`` hold the rest)."""
+
+    def __init__(self, entries: list[_Entry], facts: MapFacts, g: _BlockGen, role: dict[int, Any], head: int | None,
+                 need: list[int]) -> None:
+        self.entries = entries
+        self.facts = facts
+        self.g = g
+        self.role = role
+        self.need = need
+        # One segment per generated copy of an entry (a duplicated tail generates entries more than once): the
+        # entry, and the constant instruction count and clocks before it on the path that reaches that copy.
+        self.segs: list[tuple[int, int, int]] = []
+        # Entries reached other than by falling through from the entry before (values known there do not hold).
+        self.targets = {head} if head is not None else set()
+        for rr in role.values():
+            self.targets.update(x for x in rr[1:] if isinstance(x, int))
+        # The loop head: its address, and the count and clocks done when the walk reaches it (set by the caller).
+        self.head_pc = self.n_head = self.c_head = 0
+
+    def mark(self, i: int, n: int, cy: int) -> None:
+        self.g.items.append((0, ("mark", len(self.segs))))
+        self.segs.append((i, n, cy))
+
+    def body_start(self) -> int:
+        return len(self.g.items)
+
+    def close_body(self, pos: int) -> None:
+        if not any(isinstance(t, str) for _, t in self.g.items[pos:]):
+            self.g.emit("pass")
+
+    def adjust(self, dn: int, dc: int) -> None:
+        pos = self.body_start()
+        if dn:
+            self.g.emit(f"ni += {dn}")
+        if dc:
+            self.g.emit(f"c += {dc}")
+        self.close_body(pos)
+
+    def loopback(self, n: int, cy: int) -> None:
+        g = self.g
+        if n != self.n_head:
+            g.emit(f"ni += {n - self.n_head}")
+        if cy != self.c_head:
+            g.emit(f"c += {cy - self.c_head}")
+        g.emit("if ni <= ln:")  # implies c < lc (see the cap before the loop)
+        g.emit("    continue")
+        g.exit(self.head_pc, self.n_head, self.c_head)
+
+    def gen(self, lo: int, hi: int, n: int, cy: int) -> tuple[bool, int, int]:
+        """Emit entries lo..hi-1 reached with ``n`` instructions and ``cy`` constant clocks done; return (every
+        path has left the block, n, cy at ``hi``)."""
+        i = lo
+        while i < hi:
+            self.mark(i, n, cy)
+            r = self.role.get(i)
+            if r is None:
+                ended, n, cy = self.straight(i, lo, hi, n, cy)
+                i += 1
+            else:
+                self.g.flush()  # control flow: pending register values are assigned before it
+                ended, i, n, cy = self.flow(i, r, n, cy)
+            if ended:
+                return True, n, cy
+        self.g.flush()  # the end of a straight line (a join, the loop edge or the block's end follows)
+        return False, n, cy
+
+    def straight(self, i: int, lo: int, hi: int, n: int, cy: int) -> tuple[bool, int, int]:
+        """Emit entry ``i`` (no control-flow role) of the straight line lo..hi-1; return (the block ends after it,
+        n, cy after it)."""
+        entries, g, role, targets = self.entries, self.g, self.role, self.targets
+        pc, ins, h, cond, length = entries[i]
+        nxt = (pc + length) & 0xFFFFFF
+        assert g.fused is None, "a fused test not taken by its branch"
+        g.cur = i
+        g.defer = _defer_flags(entries, i, hi, role, targets)
+        g.wrote = False
+        g.u32 = set()
+        g.smc_inline = not _lowers_sp(ins, h)
+        g.smc_slots = []
+        g.known = {}
+        if i > lo and i not in targets and entries[i - 1][2] == "moveq" and (i - 1) not in role:
+            prev = entries[i - 1][1].operands
+            g.known = {prev[1].reg: _sx(prev[0].value & 0xFF, 1) & M32}
+        g.later = lambda reg, i=i: _read_later(entries, i, reg, role, targets, self.facts, g.code)
+        g.nxt = None
+        if i + 1 < hi and i + 1 not in targets and entries[i + 1][2] == "bcc":
+            g.nxt = (entries[i + 1][3], self.need[i + 1])
+        cyc, ended = g.instruction(n, ins, h, cond, pc, nxt, self.need[i], cy)
+        cy += cyc
+        n += 1
+        if _lowers_sp(ins, h) and h not in ("pea", "bsr", "jsr"):
+            g.emit(f"if {g.rg(15)} < MS[0]:")
+            g.emit(f"    MS[0] = {g.rg(15)}")
+        wrote = g.wrote
+        g.defer = False
+        if g.pending is not None and g.pending_from < i:
+            g.pending = None  # the instruction after the deferring one is done
+        for slot in g.smc_slots:
+            g.items[slot] = (g.items[slot][0], ("exit", nxt, n, cy, frozenset(g.dirty)))
+        if wrote and not ended:
+            g.emit("if D[0]:")
+            g.ind += 1
+            g.emit("D[0] = 0")
+            g.exit(nxt, n, cy)
+            g.ind -= 1
+        return ended, n, cy
+
+    def flow(self, i: int, r: tuple[Any, ...], n: int, cy: int) -> tuple[bool, int, int, int]:
+        """Emit entry ``i``, a branch with the role ``r``; return (every path has left the block, the entry the
+        walk goes on from, n, cy there)."""
+        kind = r[0]
+        if kind == "dup":  # the taken path runs a copy of the code from r[1] on (_plan_tails)
+            return self.dup(i, r[1], n, cy)
+        if kind == "loop":
+            return self.loop(i, n, cy)
+        if kind in ("skip", "join"):  # a join is reached here only in a copy that starts in a then-part
+            return False, r[1], n + 1, cy + timing.cycles(self.entries[i][1], taken=True)
+        return self.branch(i, r, n, cy)
+
+    def dup(self, i: int, j: int, n: int, cy: int) -> tuple[bool, int, int, int]:
+        """A branch whose taken path runs a copy of the code from entry ``j`` to the block's end."""
+        g = self.g
+        _, ins, h, cond, _ = self.entries[i]
+        taken = timing.cycles(ins, taken=True)
+        g.dyn = True
+        if h == "bra":
+            self.copy(j, n + 1, cy + taken)
+            return True, i, n + 1, cy + taken
+        g.emit(f"if {g.branch_test(cond)}:")
+        g.ind += 1
+        self.copy(j, n + 1, cy + taken)
+        g.ind -= 1
+        return False, i + 1, n + 1, cy + timing.cycles(ins, taken=False)
+
+    def loop(self, i: int, n: int, cy: int) -> tuple[bool, int, int, int]:
+        """A BRA, Bcc or DBcc back to the loop head: the ``continue`` of the block's ``while`` loop."""
+        g = self.g
+        _, ins, h, cond, _ = self.entries[i]
+        taken = timing.cycles(ins, taken=True)
+        g.dyn = True
+        if h == "bra":
+            self.loopback(n + 1, cy + taken)
+            return True, i, n + 1, cy + taken
+        if h == "bcc":
+            g.emit(f"if {g.branch_test(cond)}:")
+            g.ind += 1
+            self.loopback(n + 1, cy + taken)
+            g.ind -= 1
+            cy += timing.cycles(ins, taken=False)
+        else:  # dbcc
+            ce = _COND_EXPR[cond]
+            if ce != "False":
+                g.emit(f"if {_COND_EXPR[cond ^ 1]}:")
+                g.ind += 1
+            dn = g.wg(ins.operands[0].reg)
+            # the low word counts down: nonzero -> minus 1 (no borrow out of it), loop; zero -> $FFFF, out
+            g.emit(f"if {dn} & 0xFFFF:")
+            g.ind += 1
+            g.emit(f"{dn} -= 1")
+            self.loopback(n + 1, cy + taken)
+            g.ind -= 1
+            g.emit("else:")
+            g.emit(f"    {dn} |= 0xFFFF")
+            g.emit("    c += 2")
+            if ce != "False":
+                g.ind -= 1
+            cy += 12
+        return False, i + 1, n + 1, cy
+
+    def branch(self, i: int, r: tuple[Any, ...], n: int, cy: int) -> tuple[bool, int, int, int]:
+        """A Bcc forward inside the block: an ``if`` over the skipped entries (role "if"), or an ``if``/``else``
+        when they end in a BRA forward (role "ifelse": the else part runs to ``r[2]``)."""
+        g, entries = self.g, self.entries
+        kind, j = r[0], r[1]
+        _, ins, _, cond, _ = entries[i]
+        taken = timing.cycles(ins, taken=True)
+        not_taken = timing.cycles(ins, taken=False)
+        g.dyn = True
+        if kind == "if" and j == i + 1:
+            g.emit(f"if {g.branch_test(cond)}:")
+            g.ind += 1
+            self.adjust(0, taken - not_taken)
+            g.ind -= 1
+            return False, j, n + 1, cy + not_taken
+        g.emit(f"if {g.branch_test(cond, False)}:")
+        g.ind += 1
+        pos = self.body_start()
+        if kind == "if":
+            e1, n1, c1 = self.gen(i + 1, j, n + 1, cy + not_taken)
+            self.close_body(pos)
+            g.ind -= 1
+            n2, c2 = n + 1, cy + taken
+            if e1:
+                return False, j, n2, c2
+            if (n1, c1) != (n2, c2):
+                g.emit("else:")
+                g.ind += 1
+                self.adjust(n2 - n1, c2 - c1)
+                g.ind -= 1
+            return False, j, n1, c1
+        t = r[2]
+        e1, n1, c1 = self.gen(i + 1, j - 1, n + 1, cy + not_taken)
+        if not e1:
+            self.mark(j - 1, n1, c1)
+            n1 += 1
+            c1 += timing.cycles(entries[j - 1][1])
+        self.close_body(pos)
+        g.ind -= 1
+        g.emit("else:")
+        g.ind += 1
+        pos = self.body_start()
+        e2, n2, c2 = self.gen(j, t, n + 1, cy + taken)
+        if not e1 and not e2 and (n1, c1) != (n2, c2):
+            self.adjust(n2 - n1, c2 - c1)
+        self.close_body(pos)
+        g.ind -= 1
+        if e1 and e2:
+            return True, t, n, cy
+        n, cy = (n2, c2) if e1 else (n1, c1)
+        return False, t, n, cy
+
+    def copy(self, j: int, n: int, cy: int) -> None:
+        """A copy of the entries from ``j`` to the end of the block (a duplicated tail), ending in exits."""
+        pos = self.body_start()
+        e, n1, c1 = self.gen(j, len(self.entries), n, cy)
+        if not e:
+            self.g.exit((self.entries[-1][0] + self.entries[-1][4]) & 0xFFFFFF, n1, c1)
+        self.close_body(pos)
+
+
+def _block_source(entries: list[_Entry], facts: MapFacts, lazy_ok: bool = True
                   ) -> tuple[str, dict[str, object], tuple[list[int], list[int]], list[int], list[int], list[int],
                              bool, list[tuple[Any, ...]]]:
     """Python source of the block function for ``entries`` ((pc, instruction, handler, cond, length) each, back to
@@ -96,215 +330,15 @@ def _block_source(entries: list[_Entry], facts: MapFacts, lazy_ok: bool = True  
     k = len(entries)
     role, reach, head = _plan(entries)
     need = _liveness(entries, role, reach, head, facts)
-    loops = head is not None
     g = _BlockGen(facts, (entries[0][0], entries[-1][0] + entries[-1][4]))
     lazy = _lazy_kind(entries, reach, head, need) if lazy_ok else None
+    w = _Walk(entries, facts, g, role, head, need)
     loop_at = 0  # first item of the while loop
-    # One segment per generated copy of an entry (a duplicated tail generates entries more than once): the
-    # entry, and the constant instruction count and clocks before it on the path that reaches that copy.
-    segs: list[tuple[int, int, int]] = []
-    flow = bool(role)  # dynamic instruction count (local ni) needed
-
-    def mark(i: int, n: int, cy: int) -> None:
-        g.items.append((0, ("mark", len(segs))))
-        segs.append((i, n, cy))
-
-    def body_start() -> int:
-        return len(g.items)
-
-    def close_body(pos: int) -> None:
-        if not any(isinstance(t, str) for _, t in g.items[pos:]):
-            g.emit("pass")
-
-    def adjust(dn: int, dc: int) -> None:
-        pos = body_start()
-        if dn:
-            g.emit(f"ni += {dn}")
-        if dc:
-            g.emit(f"c += {dc}")
-        close_body(pos)
-
-    def loopback(n: int, cy: int) -> None:
-        if n != n_head:
-            g.emit(f"ni += {n - n_head}")
-        if cy != c_head:
-            g.emit(f"c += {cy - c_head}")
-        g.emit("if ni <= ln:")  # implies c < lc (see the cap before the loop)
-        g.emit("    continue")
-        g.exit(head_pc, n_head, c_head)
-
-    # Entries reached other than by falling through from the entry before (values known there do not hold).
-    targets = {head} if head is not None else set()
-    for rr in role.values():
-        targets.update(x for x in rr[1:] if isinstance(x, int))
-
-    def gen(lo: int, hi: int, n: int, cy: int) -> tuple[bool, int, int]:  # noqa: C901 - the block compiler's walk: one branch per control-flow shape
-        """Emit entries lo..hi-1 reached with ``n`` instructions and ``cy`` constant clocks done; return (every
-        path has left the block, n, cy at ``hi``)."""
-        i = lo
-        while i < hi:
-            pc, ins, h, cond, length = entries[i]
-            nxt = (pc + length) & 0xFFFFFF
-            mark(i, n, cy)
-            r = role.get(i)
-            if r is None:
-                assert g.fused is None, "a fused test not taken by its branch"
-                g.cur = i
-                g.defer = _defer_flags(entries, i, hi, role, targets)
-                g.wrote = False
-                g.u32 = set()
-                g.smc_inline = not _lowers_sp(ins, h)
-                g.smc_slots = []
-                g.known = {}
-                if i > lo and i not in targets and entries[i - 1][2] == "moveq" and (i - 1) not in role:
-                    prev = entries[i - 1][1].operands
-                    g.known = {prev[1].reg: _sx(prev[0].value & 0xFF, 1) & M32}
-                g.later = lambda reg, i=i: _read_later(entries, i, reg, role, targets, facts, g.code)
-                g.nxt = None
-                if i + 1 < hi and i + 1 not in targets and entries[i + 1][2] == "bcc":
-                    g.nxt = (entries[i + 1][3], need[i + 1])
-                cyc, ended = g.instruction(n, ins, h, cond, pc, nxt, need[i], cy)
-                cy += cyc
-                n += 1
-                if _lowers_sp(ins, h) and h not in ("pea", "bsr", "jsr"):
-                    g.emit(f"if {g.rg(15)} < MS[0]:")
-                    g.emit(f"    MS[0] = {g.rg(15)}")
-                wrote = g.wrote
-                g.defer = False
-                if g.pending is not None and g.pending_from < i:
-                    g.pending = None  # the instruction after the deferring one is done
-                for slot in g.smc_slots:
-                    g.items[slot] = (g.items[slot][0], ("exit", nxt, n, cy, frozenset(g.dirty)))
-                if wrote and not ended:
-                    g.emit("if D[0]:")
-                    g.ind += 1
-                    g.emit("D[0] = 0")
-                    g.exit(nxt, n, cy)
-                    g.ind -= 1
-                if ended:
-                    return True, n, cy
-                i += 1
-                continue
-            g.flush()  # control flow: pending register values are assigned before it
-            kind = r[0]
-            taken = timing.cycles(ins, taken=True)
-            if kind == "dup":  # the taken path runs a copy of the code from r[1] on (_plan_tails)
-                g.dyn = True
-                if h == "bra":
-                    copy(r[1], n + 1, cy + taken)
-                    return True, n + 1, cy + taken
-                g.emit(f"if {g.branch_test(cond)}:")
-                g.ind += 1
-                copy(r[1], n + 1, cy + taken)
-                g.ind -= 1
-                n += 1
-                cy += timing.cycles(ins, taken=False)
-                i += 1
-                continue
-            if kind == "loop":
-                g.dyn = True
-                if h == "bra":
-                    loopback(n + 1, cy + taken)
-                    return True, n + 1, cy + taken
-                if h == "bcc":
-                    g.emit(f"if {g.branch_test(cond)}:")
-                    g.ind += 1
-                    loopback(n + 1, cy + taken)
-                    g.ind -= 1
-                    cy += timing.cycles(ins, taken=False)
-                else:  # dbcc
-                    ce = _COND_EXPR[cond]
-                    if ce != "False":
-                        g.emit(f"if {_COND_EXPR[cond ^ 1]}:")
-                        g.ind += 1
-                    dn = g.wg(ins.operands[0].reg)
-                    # the low word counts down: nonzero -> minus 1 (no borrow out of it), loop; zero -> $FFFF, out
-                    g.emit(f"if {dn} & 0xFFFF:")
-                    g.ind += 1
-                    g.emit(f"{dn} -= 1")
-                    loopback(n + 1, cy + taken)
-                    g.ind -= 1
-                    g.emit("else:")
-                    g.emit(f"    {dn} |= 0xFFFF")
-                    g.emit("    c += 2")
-                    if ce != "False":
-                        g.ind -= 1
-                    cy += 12
-                n += 1
-                i += 1
-                continue
-            if kind in ("skip", "join"):  # a join is reached here only in a copy that starts in a then-part
-                n += 1
-                cy += taken
-                i = r[1]
-                continue
-            not_taken = timing.cycles(ins, taken=False)
-            j = r[1]
-            g.dyn = True
-            if kind == "if" and j == i + 1:
-                g.emit(f"if {g.branch_test(cond)}:")
-                g.ind += 1
-                adjust(0, taken - not_taken)
-                g.ind -= 1
-                n += 1
-                cy += not_taken
-                i = j
-                continue
-            g.emit(f"if {g.branch_test(cond, False)}:")
-            g.ind += 1
-            pos = body_start()
-            if kind == "if":
-                e1, n1, c1 = gen(i + 1, j, n + 1, cy + not_taken)
-                close_body(pos)
-                g.ind -= 1
-                n2, c2 = n + 1, cy + taken
-                if e1:
-                    n, cy = n2, c2
-                else:
-                    if (n1, c1) != (n2, c2):
-                        g.emit("else:")
-                        g.ind += 1
-                        adjust(n2 - n1, c2 - c1)
-                        g.ind -= 1
-                    n, cy = n1, c1
-                i = j
-                continue
-            t = r[2]
-            e1, n1, c1 = gen(i + 1, j - 1, n + 1, cy + not_taken)
-            if not e1:
-                mark(j - 1, n1, c1)
-                n1 += 1
-                c1 += timing.cycles(entries[j - 1][1])
-            close_body(pos)
-            g.ind -= 1
-            g.emit("else:")
-            g.ind += 1
-            pos = body_start()
-            e2, n2, c2 = gen(j, t, n + 1, cy + taken)
-            if not e1 and not e2 and (n1, c1) != (n2, c2):
-                adjust(n2 - n1, c2 - c1)
-            close_body(pos)
-            g.ind -= 1
-            if e1 and e2:
-                return True, n, cy
-            n, cy = (n2, c2) if e1 else (n1, c1)
-            i = t
-        g.flush()  # the end of a straight line (a join, the loop edge or the block's end follows)
-        return False, n, cy
-
-    def copy(j: int, n: int, cy: int) -> None:
-        """A copy of the entries from ``j`` to the end of the block (a duplicated tail), ending in exits."""
-        pos = body_start()
-        e, n1, c1 = gen(j, k, n, cy)
-        if not e:
-            g.exit((entries[-1][0] + entries[-1][4]) & 0xFFFFFF, n1, c1)
-        close_body(pos)
-
     if head is None:
-        ended, n_end, c_end = gen(0, k, 0, 0)
+        ended, n_end, c_end = w.gen(0, k, 0, 0)
     else:
-        head_pc = entries[head][0]
-        _, n_head, c_head = gen(0, head, 0, 0)  # the entries before the loop head (never all leave: see _plan)
+        w.head_pc = entries[head][0]
+        _, w.n_head, w.c_head = w.gen(0, head, 0, 0)  # the entries before the loop head (never all leave: _plan)
         # One test per pass instead of two (loopback): p more passes take at most p * C clocks (C: every entry of
         # the loop once, at its worst) and at least p instructions, so capping ln at ni + (lc - c - 1) // C here
         # makes `ni <= ln` imply the clock test `c < lc`. The cap only binds near a small max_cycles, where the
@@ -319,7 +353,7 @@ def _block_source(entries: list[_Entry], facts: MapFacts, lazy_ok: bool = True  
         loop_at = len(g.items)
         if lazy is not None:
             g.set_lazy(*lazy)
-        ended, n_end, c_end = gen(head, k, n_head, c_head)
+        ended, n_end, c_end = w.gen(head, k, w.n_head, w.c_head)
     if not ended:
         last_pc, _, _, _, last_len = entries[-1]
         g.exit((last_pc + last_len) & 0xFFFFFF, n_end, c_end)
@@ -330,13 +364,24 @@ def _block_source(entries: list[_Entry], facts: MapFacts, lazy_ok: bool = True  
                     t = t.replace(x, "")
                 if re.search(r"\bsr\b", t):
                     return _block_source(entries, facts, lazy_ok=False)
+    return _assemble(w, head, lazy is not None, flow=bool(role))
+
+
+def _assemble(w: _Walk, head: int | None, lazy: bool, flow: bool
+              ) -> tuple[str, dict[str, object], tuple[list[int], list[int]], list[int], list[int], list[int],
+                         bool, list[tuple[Any, ...]]]:
+    """The block function's text from the walk ``w`` of its entries (``head``: the loop head or None; ``lazy``:
+    the loop keeps lazy flags; ``flow``: there is control flow, so the local ``ni`` counts instructions), and
+    the rest of what :func:`_block_source` returns."""
+    g, entries, k = w.g, w.entries, len(w.entries)
+    loops = head is not None
     body: list[str] = []
     dirty = sorted(g.dirty)
     text = [t for _, t in g.items if isinstance(t, str)]
-    uses_sr = lazy is not None or any("sr" in t for t in text)
-    sr_dirty = lazy is not None or any("sr = " in t for t in text)
-    lines_ = [f"def __make(R, MS, D, rb, rw, rl, wb, ww, wl, m, fl, F16, F32, UL, UW, PL, PW{''.join(', ' + n for n in g.consts)}):",
-            "    def __block(bn, bc, until):"]
+    uses_sr = lazy or any("sr" in t for t in text)
+    sr_dirty = lazy or any("sr = " in t for t in text)
+    params = "R, MS, D, rb, rw, rl, wb, ww, wl, m, fl, F16, F32, UL, UW, PL, PW" + "".join(", " + n for n in g.consts)
+    lines_ = [f"def __make({params}):", "    def __block(bn, bc, until):"]
     used = sorted(g.used)
     loads = used + [16] * uses_sr
     if len(loads) >= _UNPACK_MIN:  # one unpacking of the 17-item register list (CPU._R): cheaper than 7 subscripts
@@ -348,17 +393,17 @@ def _block_source(entries: list[_Entry], facts: MapFacts, lazy_ok: bool = True  
             lines_.append("        sr = R[16]")
     if g.dyn:
         lines_.append("        c = 0")
-    if lazy is not None:
+    if lazy:
         lines_.append("        lr = None")
     if flow or loops:
         lines_.append("        ni = 0")
-    if loops:  # another pass from the head may start only if its worst case fits the budget (see CPU.run)
-        lines_.append(f"        ln = (bn if bn < 0x40000000 else 0x40000000) - {k - head + n_head}")
-        lines_.append(f"        if until == {head_pc}:")
+    if head is not None:  # another pass from the head may start only if its worst case fits the budget (CPU.run)
+        lines_.append(f"        ln = (bn if bn < 0x40000000 else 0x40000000) - {k - head + w.n_head}")
+        lines_.append(f"        if until == {w.head_pc}:")
         lines_.append("            ln = -1")
-        lines_.append(f"        lc = bc - {_block_bound(entries[head:]) + c_head}")
+        lines_.append(f"        lc = bc - {_block_bound(entries[head:]) + w.c_head}")
     first = len(lines_) + 1
-    seg_line = [0] * len(segs)
+    seg_line = [0] * len(w.segs)
     sr_so_far = False
     for ind, item in g.items:
         pad = "    " * (ind + 1)
@@ -383,12 +428,11 @@ def _block_source(entries: list[_Entry], facts: MapFacts, lazy_ok: bool = True  
                 expr += " + (ni << 24)"
             body.append(f"{pad}return {expr}")
     # Segments in text order (as generated): the line map of _BlockInfo (a fault's line -> its segment).
-    lines = seg_line
-    seg_pcs = [entries[i][0] for i, _, _ in segs]
-    ncount = [n for _, n, _ in segs]
-    prefix = [cy for _, _, cy in segs]
+    seg_pcs = [entries[i][0] for i, _, _ in w.segs]
+    ncount = [n for _, n, _ in w.segs]
+    prefix = [cy for _, _, cy in w.segs]
     src = "\n".join(lines_ + body + ["    return __block", ""])
-    return src, g.consts, (lines, seg_pcs), prefix, ncount, used, loops, [g.recipes[name] for name in g.consts]
+    return src, g.consts, (seg_line, seg_pcs), prefix, ncount, used, loops, [g.recipes[name] for name in g.consts]
 
 
 def _block_bound(entries: list[_Entry]) -> int:

@@ -191,7 +191,8 @@ def _pc_disp(instr: Instruction, target: int, ext_address: int, bits: int, what:
 def _ea_ext(instr: Instruction, op: Operand, size: Size | None, ext_address: int, i: int) -> list[int]:
     mode = op.mode
     if mode is Mode.ADISP:
-        _check(-32768 <= op.value <= 32767, instr, f"operand {i + 1}: displacement {op.value} out of range -32768..32767")
+        _check(-32768 <= op.value <= 32767, instr,
+               f"operand {i + 1}: displacement {op.value} out of range -32768..32767")
         return [op.value & 0xFFFF]
     if mode in (Mode.AINDEX, Mode.PCINDEX):
         idx = op.index

@@ -68,7 +68,11 @@ def _is_ident_char(ch: str) -> bool:
     return ch.isascii() and (ch.isalnum() or ch == "_")
 
 
-def tokenize(text: str, col0: int, where: Where) -> list[Token]:  # noqa: C901 - one branch per token kind of the assembler's expression syntax
+#: One-character punctuation tokens: character -> kind.
+_PUNCT: dict[str, str] = {"#": "hash", ",": "comma", "(": "lparen", ")": "rparen"}
+
+
+def tokenize(text: str, col0: int, where: Where) -> list[Token]:
     """Split an operand field into tokens. ``col0`` is the 1-based column of ``text[0]`` in the source line.
 
     Raises :class:`AssemblyError` for characters that cannot start a token, bad numbers and unterminated
@@ -76,123 +80,111 @@ def tokenize(text: str, col0: int, where: Where) -> list[Token]:  # noqa: C901 -
     tokens: list[Token] = []
     i = 0
     n = len(text)
-
-    def prev_is_term() -> bool:
-        return bool(tokens) and tokens[-1].kind in _TERM_END
-
     while i < n:
         ch = text[i]
         col = col0 + i
         if ch in " \t":
             i += 1
             continue
+        term = bool(tokens) and tokens[-1].kind in _TERM_END  # the token before ends a term
         if ch.isdigit():
-            j = i
-            while j < n and _is_ident_char(text[j]):
-                j += 1
-            word = text[i:j]
-            if j < n and text[j] == "$" and word.isdigit():
-                tokens.append(Token("ident", word + "$", col))
-                i = j + 1
-                continue
-            try:
-                if word[:2].lower() == "0x":
-                    value = int(word[2:], 16)
-                else:
-                    value = int(word, 10)
-            except ValueError:
-                raise where.error(f"bad number '{word}'", col) from None
-            tokens.append(Token("num", word, col, value))
-            i = j
-            continue
-        if ch == "$" or (ch in "%@" and not prev_is_term()):
-            base = {"$": 16, "%": 2, "@": 8}[ch]
-            j = i + 1
-            while j < n and _is_ident_char(text[j]):
-                j += 1
-            word = text[i + 1 : j]
-            try:
-                if not word:
-                    raise ValueError
-                value = int(word, base)
-            except ValueError:
-                raise where.error(f"bad number '{text[i:j]}'", col) from None
-            tokens.append(Token("num", text[i:j], col, value))
-            i = j
-            continue
-        if _is_ident_start(ch):
-            j = i
-            while j < n and _is_ident_char(text[j]):
-                j += 1
-            tokens.append(Token("ident", text[i:j], col))
-            i = j
-            continue
-        if ch == ".":
-            j = i + 1
-            while j < n and _is_ident_char(text[j]):
-                j += 1
-            word = text[i + 1 : j]
-            if not word:
-                raise where.error("stray '.'", col)
-            glued = i > 0 and text[i - 1] not in " \t"
-            if glued and prev_is_term() and word.lower() in SIZE_LETTERS:
-                tokens.append(Token("size", text[i:j], col, word.lower()))
-            elif word[0].isdigit() and not word.isdigit():
-                raise where.error(f"bad local label '.{word}'", col)
-            else:
-                tokens.append(Token("ident", text[i:j], col))
-            i = j
-            continue
-        if ch in "'\"":
-            j = i + 1
-            chars: list[str] = []
-            while True:
-                if j >= n:
-                    raise where.error("unterminated string", col)
-                if text[j] == ch:
-                    if j + 1 < n and text[j + 1] == ch:  # doubled quote = one quote character
-                        chars.append(ch)
-                        j += 2
-                        continue
-                    break
-                chars.append(text[j])
-                j += 1
-            s = "".join(chars)
-            tokens.append(Token("str", text[i : j + 1], col, s))
-            i = j + 1
-            continue
-        if ch == "#":
-            tokens.append(Token("hash", ch, col))
-            i += 1
-            continue
-        if ch == ",":
-            tokens.append(Token("comma", ch, col))
-            i += 1
-            continue
-        if ch == "(":
-            tokens.append(Token("lparen", ch, col))
-            i += 1
-            continue
-        if ch == ")":
-            tokens.append(Token("rparen", ch, col))
-            i += 1
-            continue
-        two = text[i : i + 2]
-        if two in _TWO_CHAR_OPS:
-            tokens.append(Token("op", two, col))
-            i += 2
-            continue
-        if ch in _ONE_CHAR_OPS:
-            tokens.append(Token("op", ch, col))
-            i += 1
-            continue
-        if ch == "=":
-            tokens.append(Token("op", "==", col))
-            i += 1
-            continue
-        raise where.error(f"unexpected character {ch!r}", col)
+            tok, i = _decimal(text, i, col, where)
+        elif ch == "$" or (ch in "%@" and not term):
+            tok, i = _based(text, i, col, where)
+        elif _is_ident_start(ch):
+            j = _word_end(text, i)
+            tok, i = Token("ident", text[i:j], col), j
+        elif ch == ".":
+            tok, i = _dotted(text, i, col, where, term)
+        elif ch in "'\"":
+            tok, i = _string(text, i, col, where)
+        elif ch in _PUNCT:
+            tok, i = Token(_PUNCT[ch], ch, col), i + 1
+        elif text[i : i + 2] in _TWO_CHAR_OPS:
+            tok, i = Token("op", text[i : i + 2], col), i + 2
+        elif ch in _ONE_CHAR_OPS:
+            tok, i = Token("op", ch, col), i + 1
+        elif ch == "=":
+            tok, i = Token("op", "==", col), i + 1
+        else:
+            raise where.error(f"unexpected character {ch!r}", col)
+        tokens.append(tok)
     tokens.append(Token("end", "", col0 + n))
     return tokens
+
+
+def _word_end(text: str, j: int) -> int:
+    """The index after the identifier characters of ``text`` from ``j`` on."""
+    n = len(text)
+    while j < n and _is_ident_char(text[j]):
+        j += 1
+    return j
+
+
+def _decimal(text: str, i: int, col: int, where: Where) -> tuple[Token, int]:
+    """The token at ``text[i]`` (a digit): a decimal or 0x number, or a numeric local label ``1$``; and the index
+    after it."""
+    j = _word_end(text, i)
+    word = text[i:j]
+    if j < len(text) and text[j] == "$" and word.isdigit():
+        return Token("ident", word + "$", col), j + 1
+    try:
+        if word[:2].lower() == "0x":
+            value = int(word[2:], 16)
+        else:
+            value = int(word, 10)
+    except ValueError:
+        raise where.error(f"bad number '{word}'", col) from None
+    return Token("num", word, col, value), j
+
+
+def _based(text: str, i: int, col: int, where: Where) -> tuple[Token, int]:
+    """The number at ``text[i]`` written with a base prefix ($ hex, % binary, @ octal), and the index after it."""
+    base = {"$": 16, "%": 2, "@": 8}[text[i]]
+    j = _word_end(text, i + 1)
+    word = text[i + 1 : j]
+    try:
+        if not word:
+            raise ValueError
+        value = int(word, base)
+    except ValueError:
+        raise where.error(f"bad number '{text[i:j]}'", col) from None
+    return Token("num", text[i:j], col, value), j
+
+
+def _dotted(text: str, i: int, col: int, where: Where, term: bool) -> tuple[Token, int]:
+    """The token at ``text[i]`` (a '.'): a size suffix glued to the term before (``term``), else a local label or
+    a dotted identifier; and the index after it."""
+    j = _word_end(text, i + 1)
+    word = text[i + 1 : j]
+    if not word:
+        raise where.error("stray '.'", col)
+    glued = i > 0 and text[i - 1] not in " \t"
+    if glued and term and word.lower() in SIZE_LETTERS:
+        return Token("size", text[i:j], col, word.lower()), j
+    if word[0].isdigit() and not word.isdigit():
+        raise where.error(f"bad local label '.{word}'", col)
+    return Token("ident", text[i:j], col), j
+
+
+def _string(text: str, i: int, col: int, where: Where) -> tuple[Token, int]:
+    """The quoted string at ``text[i]`` (a doubled quote stands for one quote character), and the index after it."""
+    ch = text[i]
+    n = len(text)
+    j = i + 1
+    chars: list[str] = []
+    while True:
+        if j >= n:
+            raise where.error("unterminated string", col)
+        if text[j] == ch:
+            if j + 1 < n and text[j + 1] == ch:  # doubled quote = one quote character
+                chars.append(ch)
+                j += 2
+                continue
+            break
+        chars.append(text[j])
+        j += 1
+    return Token("str", text[i : j + 1], col, "".join(chars)), j + 1
 
 
 #: Binary operator precedence levels, lowest first.

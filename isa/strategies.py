@@ -89,7 +89,8 @@ def forms(rows: Iterable[Row | str] | None = None, modes: frozenset[Mode] | None
             conds: list[int | None]
             if row.conditional:
                 legal = sorted(row.condition_codes)
-                conds = list(legal) if all_conditions else [legal[(counter + k) % len(legal)] for k in range(len(combos))]
+                conds = (list(legal) if all_conditions
+                         else [legal[(counter + k) % len(legal)] for k in range(len(combos))])
             else:
                 conds = [None]
             for k, combo in enumerate(combos):

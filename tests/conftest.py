@@ -16,7 +16,8 @@ Two overheads of hypothesis 6.1xx grow with the suite, not with what a test chec
 It also prints the closing lines tests record (the Cortex-M runs', :func:`pytest_terminal_summary`), loads
 the compiled model kernels in every test process (below), compiles the model's two numba drivers once before the
 xdist workers start when their cache is cold (:func:`pytest_configure`), and runs the longest files first and the
-thousands of millisecond oracle tests last (:func:`pytest_collection_modifyitems`): docs/history/testing-rounds.md, third round.
+thousands of millisecond oracle tests last (:func:`pytest_collection_modifyitems`): docs/history/testing-rounds.md,
+third round.
 """
 
 from __future__ import annotations
@@ -40,11 +41,12 @@ def _end_worker_now() -> None:
     """An xdist worker's last exit handler: flush and leave with ``os._exit(0)``, skipping the interpreter's final
     teardown. By then the worker has reported every test and pytest has unconfigured (its unraisable-exception
     check included); what is left is freeing a heap of hundreds of MB (compiled blocks, numba, 16 MiB CPU maps),
-    measured at 2.5-3 s after a full run, while the controller waits for both workers (docs/history/testing-rounds.md, sixth
-    round). Registered first thing in this module, before numba and the tests are imported, so every exit handler
-    registered later (llvmlite's and numba's shutdown flags, ``weakref.finalize``'s, which removes temporary
-    directories still alive, multiprocessing's) runs before it; in a worker nothing registers one earlier (checked
-    by logging ``atexit.register`` in a worker: those three, then this). Not in the controller or without xdist."""
+    measured at 2.5-3 s after a full run, while the controller waits for both workers
+    (docs/history/testing-rounds.md, sixth round). Registered first thing in this module, before numba and the tests are
+    imported, so every exit handler registered later (llvmlite's and numba's shutdown flags, ``weakref.finalize``'s,
+    which removes temporary directories still alive, multiprocessing's) runs before it; in a worker nothing registers
+    one earlier (checked by logging ``atexit.register`` in a worker: those three, then this). Not in the controller or
+    without xdist."""
     sys.stdout.flush()
     sys.stderr.flush()
     os._exit(0)
@@ -150,8 +152,9 @@ def pytest_configure(config: pytest.Config) -> None:
     """In the xdist controller, when the drivers' cache is cold: compile them once, in a subprocess started before
     the workers, instead of once in each worker (and in the CLI subprocesses that start before a worker has
     written the cache). Nobody waits for it: it runs while the workers start and collect (~10 CPU-s each), and a
-    process that needs a driver before the cache is written compiles it as it always did. Nothing happens with a warm cache, without ``-n``, or in a worker;
-    a warm-up that fails changes nothing (the tests then compile, and fail, as they would have)."""
+    process that needs a driver before the cache is written compiles it as it always did. Nothing happens with a warm
+    cache, without ``-n``, or in a worker; a warm-up that fails changes nothing (the tests then compile, and fail, as
+    they would have)."""
     config.addinivalue_line("markers", "seed_per_case: under a derandomized profile (ci), seed each parametrized "
                             "case of this hypothesis test from its own name (case_seed)")
     if hasattr(config, "workerinput") or not getattr(config.option, "numprocesses", None) or not _cold_drivers():

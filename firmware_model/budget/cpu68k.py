@@ -1,7 +1,8 @@
-"""Budget reports for a firmware build (docs/firmware-asm.md, docs/mcu.md): ROM, RAM, cycles per ``step``, CPU load, numeric headroom.
+"""Budget reports for a firmware build (docs/firmware-asm.md, docs/mcu.md): ROM, RAM, cycles per ``step``, CPU load,
+numeric headroom.
 
-Measured figures come from running the build on the emulated 68000 (:mod:`firmware_model.firmware.harness`) over a set of
-input streams; the static worst-case bound comes from the code itself (:func:`static_step_bound`) and every
+Measured figures come from running the build on the emulated 68000 (:mod:`firmware_model.firmware.harness`) over a
+set of input streams; the static worst-case bound comes from the code itself (:func:`static_step_bound`) and every
 measurement must stay under it (checked here and in the tests).
 
 Static bound (clocks, 68000, zero wait states): the longest path through the control-flow graph of ``step``,
@@ -247,8 +248,8 @@ def _target(dec: Any, pc: int, where: Any) -> int:
 
 def default_streams(k: int, bits: int, seed: int = 0, edge_samples: int = 512, pascal: bool = False) -> list[Stream]:
     """The budget's input set: the seeded synthetic flight at dt = 2^-k plus every edge stream
-    (:data:`firmware_model.model.streams.EDGE_KINDS`) of ``edge_samples`` samples (``pascal``: the pascal-word flight and
-    edge streams, :func:`~firmware_model.model.streams.synthetic_pascal_flight`,
+    (:data:`firmware_model.model.streams.EDGE_KINDS`) of ``edge_samples`` samples (``pascal``: the pascal-word flight
+    and edge streams, :func:`~firmware_model.model.streams.synthetic_pascal_flight`,
     :func:`~firmware_model.model.streams.pascal_edge_stream`)."""
     if pascal:
 
@@ -402,8 +403,8 @@ def plot_cycles(budgets: list[Budget], path: Path) -> bool:
 
 def write_reports(budgets: list[Budget], out_dir: Path) -> list[Path]:
     """Write ``budget.md``, ``budget.json``, ``cycles.csv`` and (when matplotlib is there) ``cycles.png`` into
-    ``out_dir`` through :func:`firmware_model.runtime.output.staged_folder`: everything goes to a stage folder first and is
-    moved into place under the folder lock only when complete, so an error or interrupt leaves the previous report
+    ``out_dir`` through :func:`firmware_model.runtime.output.staged_folder`: everything goes to a stage folder first and
+    is moved into place under the folder lock only when complete, so an error or interrupt leaves the previous report
     and no temporary file. Other files in ``out_dir`` are kept. Returns the files written."""
 
     out_dir = Path(out_dir)

@@ -284,8 +284,8 @@ def render_markdown(budgets: Sequence[McuBudget], m68k: Sequence[Any] = ()) -> s
              "Worst step over the budget inputs of each build (the same streams as the 68000 rows), with the input "
              "that gave it. AVR: cycles (Timer1 under simavr, exact). Cortex-M: **instructions** per step counted "
              "by QEMU (`-icount shift=0`), not cycles; the Cortex-M load assumes one cycle per instruction and is a "
-             "lower bound. Code/const: `fw.c` alone (all programs), then the constants struct and the build's altitude table "
-             "(flash data). RAM: state struct + static stack of `fw_step`.",
+             "lower bound. Code/const: `fw.c` alone (all programs), then the constants struct and the build's "
+             "altitude table (flash data). RAM: state struct + static stack of `fw_step`.",
              "Typical = the median on the 68000, the mean on the MCUs. The static worst-case bound is the 68000's "
              "(in brackets); the MCU maxima are measured.",
              "", *md.header(["build", "target", "clock", "code B", "const B", "RAM B (state+stack)",

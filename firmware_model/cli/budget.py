@@ -34,9 +34,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     p.add_argument("--seed", type=nonnegative_int, default=0, help="seed of the synthetic flight (default 0)")
     p.add_argument("--out", type=Path, default=Path("out/budget"), help="output directory (default out/budget)")
     p.add_argument("--mcu", action="store_true",
-                   help="also run the C99 port on the same inputs on an ATmega2560 (simavr: cycles) and Cortex-M0/M3/M4 "
-                        "(qemu-system-arm: instructions); writes mcu.md and mcu.json (targets whose tools are "
-                        "missing are reported as skipped)")
+                   help="also run the C99 port on the same inputs on an ATmega2560 (simavr: cycles) and "
+                        "Cortex-M0/M3/M4 (qemu-system-arm: instructions); writes mcu.md and mcu.json (targets whose "
+                        "tools are missing are reported as skipped)")
     p.set_defaults(func=run_budget)
 
 

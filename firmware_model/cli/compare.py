@@ -42,7 +42,8 @@ def register(subparsers: Any) -> None:
                         "defaults); the config file and the flags override it")
     src = p.add_mutually_exclusive_group()
     src.add_argument("--input", type=Path, help="CSV with an 'adc' column and optionally an 'acc' column")
-    src.add_argument("--synthetic", type=nonnegative_int, metavar="SEED", help="a synthetic flight from this seed (default 0)")
+    src.add_argument("--synthetic", type=nonnegative_int, metavar="SEED",
+                     help="a synthetic flight from this seed (default 0)")
     src.add_argument("--bias-table", action="store_true",
                      help="print the floor-vs-half_up bias table of --program (kalman_baro or kalman_accel) "
                           "for k = 5..8 and exit")
@@ -140,7 +141,8 @@ def bias_table(program: str = "kalman_baro", ks: tuple[int, ...] = (5, 6, 7, 8),
             + f", {seconds:g} s x 8 streams; bias = mean(integer - float mirror) over the second half",
             "",
             "| k | rounding | X1 bias (LSB) | X2 bias (LSB) | X2 bias (m/s) | X3 bias (LSB) "
-            "| linear prediction X1, X2, X3 (LSB) | predicted X2, ½·2^k/256 units/s (LSB) |", "|---|---|---|---|---|---|---|---|"]
+            "| linear prediction X1, X2, X3 (LSB) | predicted X2, ½·2^k/256 units/s (LSB) |",
+            "|---|---|---|---|---|---|---|---|"]
     for k in ks:
         n = int(seconds * 2 ** k)
         t = np.arange(n) / 2 ** k

@@ -1,11 +1,11 @@
 """``fwemu inputs``: a flight (any readable log, or ``sim:NAME``) as the firmware's integer input stream, the CSV
 that ``fwemu vectors --firmware P --input FILE.csv`` takes.
 
-The flight goes through the same steps as ``fwemu run`` (:func:`firmware_model.flights.firmware_inputs.firmware_inputs`):
-resampling onto the 2^-k s grid, the barometer and accelerometer models (``--baro`` / ``--accel`` presets; default
-the log's own sensor where its reader names one, else a TeleMetrum v1 barometer and the default 2048 counts/g
-accelerometer), sensor noise seeded by ``--seed``. The CSV has ``#`` lines saying where it came from, a header
-``time_s,adc[,acc]`` and one row per sample.
+The flight goes through the same steps as ``fwemu run``
+(:func:`firmware_model.flights.firmware_inputs.firmware_inputs`): resampling onto the 2^-k s grid, the barometer and
+accelerometer models (``--baro`` / ``--accel`` presets; default the log's own sensor where its reader names one, else a
+TeleMetrum v1 barometer and the default 2048 counts/g accelerometer), sensor noise seeded by ``--seed``. The CSV has
+``#`` lines saying where it came from, a header ``time_s,adc[,acc]`` and one row per sample.
 
 The words only mean something under a build config that describes the same sensors: ``--config-out FILE.json``
 writes one (the sensors' transfer function and scales, the noise measured on the pad, the program's tuning, and
@@ -147,7 +147,8 @@ def run_inputs(args: argparse.Namespace) -> int:
     comments = [f"fwemu inputs {args.source}: program {args.program}, k={cfg.k} (dt 2^-{cfg.k} s), {inputs.n} samples",
                 f"barometer {inputs.baro.name} ({inputs.baro.kind}), accelerometer "
                 f"{inputs.accel.name if inputs.has_accel else 'none'}, seed {inputs.seed}, resampling {args.resample}",
-                f"liftoff at {inputs.liftoff_s:.3f} s of the record; ground pressure {inputs.ground_pressure_pa:.1f} Pa"]
+                f"liftoff at {inputs.liftoff_s:.3f} s of the record; "
+                f"ground pressure {inputs.ground_pressure_pa:.1f} Pa"]
     comments += [f"note: {note}".replace("\n", " ") for note in inputs.report.notes]
     with output.open_atomic(args.out, "w") as f:
         for piece in _csv_lines(inputs, reads_acc or inputs.has_accel, comments):

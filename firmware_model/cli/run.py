@@ -107,7 +107,8 @@ def run_run(args: argparse.Namespace) -> int:
         engine = "integer model"
     else:
 
-        trace = run_firmware(build_firmware(cfg), adc, acc, progress=Progress(0, f"{cfg.program} on the 68000", show, interval=0.2))
+        trace = run_firmware(build_firmware(cfg), adc, acc,
+                             progress=Progress(0, f"{cfg.program} on the 68000", show, interval=0.2))
         engine = "emulated 68000"
     elapsed = time.monotonic() - t0
     table = from_trace(trace, cfg, time_s, adc, acc, altitude_of_counts(inputs))

@@ -19,9 +19,10 @@ from __future__ import annotations
 import csv
 import dataclasses
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 import numpy as np
 
@@ -447,8 +448,9 @@ def flight_params_for(cfg: BuildConfig, fast: bool = False) -> FlightParams:
     """The synthetic flight's sensor parameters matching ``cfg`` (same counts/metre, noise, baro sign).
     ``fast``: a transonic flight (14 g for 2 s, peak ~300 m/s, with a 60 m barometer error in 290..375 m/s) that
     exercises the Mach lockout of kalman_accel (kalman_baro has none: docs/firmware-spec.md §6)."""
-    sensors: dict[str, Any] = dict(units_per_metre=cfg.units_per_metre, baro_sign=cfg.baro_sign, baro_sigma=cfg.baro_sigma,
-                   accel_counts_per_mps2=cfg.accel_counts_per_mps2, accel_sigma=cfg.accel_sigma)
+    sensors: dict[str, Any] = dict(units_per_metre=cfg.units_per_metre, baro_sign=cfg.baro_sign,
+                                   baro_sigma=cfg.baro_sigma, accel_counts_per_mps2=cfg.accel_counts_per_mps2,
+                                   accel_sigma=cfg.accel_sigma)
     if fast:
         return FlightParams(boost_accel_g=14.0, burn_s=2.5, drag_per_m=0.0004, transonic_error_m=60.0, **sensors)
     return FlightParams(**sensors)
@@ -477,6 +479,47 @@ class CsvInfo:
                 "bits": self.bits, "k": self.k, "seed": None, "columns": "adc,acc" if self.has_acc else "adc"}
 
 
+def _open_input(path: Path) -> BinaryIO:
+    """``path`` opened for reading bytes, or a one-line :class:`UserError` saying why not."""
+    try:
+        return path.open("rb")
+    except FileNotFoundError:
+        raise UserError(f"{path}: no such input file") from None
+    except IsADirectoryError:
+        raise UserError(f"{path}: is a folder, not an input file") from None
+    except OSError as exc:
+        raise UserError(f"{path}: cannot read: {exc.strerror or exc}") from None
+
+
+def _text_lines(f: BinaryIO, path: Path) -> Iterator[str]:
+    """The lines of ``f`` decoded one by one, so that an undecodable byte is reported with its line (a UTF-8
+    byte-order mark at the start, as Excel's "CSV UTF-8" writes, is dropped)."""
+    for raw_no, raw in enumerate(f, start=1):
+        if raw_no == 1 and raw.startswith(b"\xef\xbb\xbf"):
+            raw = raw[3:]
+        try:
+            yield raw.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise UserError(f"{path}:{raw_no}: not UTF-8 text (byte 0x{raw[exc.start]:02x})") from None
+
+
+def _header_columns(where: str, cells: list[str], require_acc: bool) -> tuple[list[str], int, int | None]:
+    """(lower-case column names, index of ``adc``, index of ``acc`` or None) of the header row ``cells`` (stripped)
+    at ``where`` (file:line), or the :class:`UserError` that names the problem."""
+    header = [c.lower() for c in cells]
+    if "adc" not in header:
+        shown = ", ".join(repr(c) for c in cells[:8]) + (", ..." if len(cells) > 8 else "")
+        raise UserError(f"{where}: header must name an 'adc' column (and optionally 'acc'); got {shown[:200]}")
+    dupes = sorted({c for c in header if c and header.count(c) > 1})
+    if dupes:
+        raise UserError(f"{where}: duplicate column {dupes[0]!r} in the header")
+    i_acc = header.index("acc") if "acc" in header else None
+    if require_acc and i_acc is None:
+        raise UserError(f"{where}: this program reads the accelerometer: the header needs an 'acc' column "
+                        f"(counts, -32768..32767)")
+    return header, header.index("adc"), i_acc
+
+
 def iter_stream_csv(path: str | Path, bits: int, k: int, require_acc: bool = False, chunk: int = CSV_CHUNK,  # noqa: C901 - one loop that validates every row of a user CSV with a message per problem
                     info: CsvInfo | None = None):  # -> Iterator[tuple[np.ndarray, np.ndarray]]
     """Read a user stream from CSV in chunks of up to ``chunk`` samples, in constant memory: yields
@@ -492,32 +535,16 @@ def iter_stream_csv(path: str | Path, bits: int, k: int, require_acc: bool = Fal
     # bits = 32: the pascal kind's signed 32-bit word (BuildConfig.baro_word_bits)
     adc_lo, full = (-(1 << 31), (1 << 31) - 1) if bits == 32 else (0, (1 << bits) - 1)
     what = " (signed 32-bit pascal word)" if bits == 32 else f" ({bits}-bit barometer ADC)"
-    try:
-        f = path.open("rb")
-    except FileNotFoundError:
-        raise UserError(f"{path}: no such input file") from None
-    except IsADirectoryError:
-        raise UserError(f"{path}: is a folder, not an input file") from None
-    except OSError as exc:
-        raise UserError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    f = _open_input(path)
     lineno = 0
     header: list[str] | None = None
     i_adc = 0
     i_acc: int | None = None
     adc: list[int] = []
     acc: list[int] = []
-    def text_lines():  # decoded line by line, so an undecodable byte is reported with its line
-        for raw_no, raw in enumerate(f, start=1):
-            if raw_no == 1 and raw.startswith(b"\xef\xbb\xbf"):
-                raw = raw[3:]                      # UTF-8 byte-order mark (Excel's "CSV UTF-8")
-            try:
-                yield raw.decode("utf-8")
-            except UnicodeDecodeError as exc:
-                raise UserError(f"{path}:{raw_no}: not UTF-8 text (byte 0x{raw[exc.start]:02x})") from None
-
     try:
         with f:
-            reader = csv.reader(text_lines())
+            reader = csv.reader(_text_lines(f, path))
 
             def numbered_rows():  # (line number, row); a CSV syntax error names its line
                 while True:
@@ -534,20 +561,8 @@ def iter_stream_csv(path: str | Path, bits: int, k: int, require_acc: bool = Fal
                 cells = [c.strip() for c in row]
                 if not cells or all(c == "" for c in cells) or cells[0].startswith("#"):
                     continue
-                header = [c.lower() for c in cells]
-                if "adc" not in header:
-                    shown = ", ".join(repr(c) for c in cells[:8]) + (", ..." if len(cells) > 8 else "")
-                    raise UserError(f"{path}:{lineno}: header must name an 'adc' column (and optionally "
-                                    f"'acc'); got {shown[:200]}")
-                dupes = sorted({c for c in header if c and header.count(c) > 1})
-                if dupes:
-                    raise UserError(f"{path}:{lineno}: duplicate column {dupes[0]!r} in the header")
-                i_adc = header.index("adc")
-                i_acc = header.index("acc") if "acc" in header else None
+                header, i_adc, i_acc = _header_columns(f"{path}:{lineno}", cells, require_acc)
                 info.has_acc = i_acc is not None
-                if require_acc and i_acc is None:
-                    raise UserError(f"{path}:{lineno}: this program reads the accelerometer: the header needs "
-                                    f"an 'acc' column (counts, -32768..32767)")
                 break
             # The data rows, the same rules as the header loop above (a row whose cells are all blank, or
             # whose first cell starts with '#', is skipped; then the field count; then adc, then acc), written

@@ -5,8 +5,8 @@ of the altitude table's normal equations, the gain design's Riccati iteration, a
 OpenBLAS's size threshold) those threads busy-wait for the next one before they sleep. Every matrix here is small
 (3 x 3 to a few hundred nodes), so the pool computes nothing faster, and its spinning takes a core from the other
 process on a 2-core machine (``--jobs 2``, the two pytest workers) and is charged to the process's CPU time: it
-made ``bench/bench_cpu.py``'s firmware figures flip between two values a factor of two apart (docs/history/testing-rounds.md,
-sixth round).
+made ``bench/bench_cpu.py``'s firmware figures flip between two values a factor of two apart
+(docs/history/testing-rounds.md, sixth round).
 
 :func:`single_threaded_blas` must run before numpy is first imported (the thread count is read once, when the
 library loads); it only sets variables the user has not set, so ``OPENBLAS_NUM_THREADS=4 fwemu ...`` still works.

@@ -3,8 +3,8 @@
 One job: read and write a cached object by a path whose name is the content key of everything the object was
 computed from (the caller's responsibility: :func:`firmware_model.firmware.assemble.build_key` for assembled builds,
 :func:`firmware_model.vectors.flight_cases.flight_cases_key` for the flight vector cases,
-:func:`firmware_model.vectors.generate` for build constants; :func:`source_digest` is the part that covers this package's
-code; :func:`memo` is the load-or-compute-and-store the last two use). Writes are atomic (a temporary file in
+:func:`firmware_model.vectors.generate` for build constants; :func:`source_digest` is the part that covers this
+package's code; :func:`memo` is the load-or-compute-and-store the last two use). Writes are atomic (a temporary file in
 the same folder, then ``os.replace``): concurrent writers of one key write the same bytes and
 readers never see a partial file; a failed write (read-only or full disk) only costs the cache, and an unreadable
 or foreign file reads as a miss (it is recomputed and overwritten).

@@ -1,8 +1,9 @@
 """The task engine: run a picklable task function over plain-data chunks, on local processes or on a Dask cluster.
 
 Runtime layer: it imports nothing of the project but :mod:`firmware_model.runtime.errors` and
-:mod:`firmware_model.runtime.output`, and knows nothing of flights or firmware. A caller hands it ``fn`` (a module-level function, so that it pickles by reference) and a list of chunks (plain data:
-numbers, strings, tuples, dicts, numpy arrays) and gets ``(index, fn(chunk))`` back as chunks finish. What a
+:mod:`firmware_model.runtime.output`, and knows nothing of flights or firmware. A caller hands it ``fn`` (a
+module-level function, so that it pickles by reference) and a list of chunks (plain data: numbers, strings, tuples,
+dicts, numpy arrays) and gets ``(index, fn(chunk))`` back as chunks finish. What a
 result means, and how it is written, is the caller's business; :class:`ChunkStore` is the usual place.
 
 Backends (:func:`parse_scheduler`):

@@ -7,8 +7,8 @@ from :func:`build_constants`. Conversions (documented in docs/gain-design.md), a
 
 * Kalman velocities (``V_LIFT`` for Kalman programs, ``MACH_VLO``, ``MACH_VHI``): ``v_mps * 256`` (Q24.8 m/s: the
   Kalman programs run in metres since the altitude table); ``MACH_E = mach_innov_m * 256`` (Q24.8 m, unused).
-* Kalman field-ready constants: ``ALT_SHIFT``/``ALT_TABLE`` (:mod:`firmware_model.spec.alt_table`), ``CAL_P = cal_p`` (default a quarter second),
-  ``E_GATE = gate_sigmas * sqrt(S) * 256`` (S the steady-state innovation variance in m^2,
+* Kalman field-ready constants: ``ALT_SHIFT``/``ALT_TABLE`` (:mod:`firmware_model.spec.alt_table`), ``CAL_P = cal_p``
+  (default a quarter second), ``E_GATE = gate_sigmas * sqrt(S) * 256`` (S the steady-state innovation variance in m^2,
   :func:`firmware_model.spec.gain_design.innovation_sigma_m`; INT32_MAX when ``gate_sigmas`` = 0), ``GATE_N`` /
   ``APO_N`` = max(1, round(seconds * 2^k)).
 * Recursive velocities (``V_LIFT`` for recursive programs, ``V_GATE``): ``v_mps * accel_counts_per_mps2 * 2^K``

@@ -1,8 +1,9 @@
 """The design report of a build: the float design, the quantized integer constants and what quantization does to
 the filter (closed-loop poles), as one JSON-ready dict (``fwemu design --json``).
 
-It sits above both :mod:`firmware_model.spec.gain_design` (float gains) and :mod:`firmware_model.spec.build_constants` (integer
-constants, which import the design), so neither of those imports the other back.
+It sits above both :mod:`firmware_model.spec.gain_design` (float gains) and
+:mod:`firmware_model.spec.build_constants` (integer constants, which import the design), so neither of those imports
+the other back.
 """
 
 from __future__ import annotations
@@ -18,8 +19,8 @@ from firmware_model.spec.gain_design import GAIN_NAMES_ACCEL, GAIN_NAMES_BARO, c
 
 
 def _poles_json(poles: np.ndarray) -> list[dict[str, float]]:
-    return [{"re": float(p.real), "im": float(p.imag), "abs": math.sqrt(float(p.real) * float(p.real) + float(p.imag) * float(p.imag))}
-            for p in poles]
+    return [{"re": float(p.real), "im": float(p.imag),
+             "abs": math.sqrt(float(p.real) * float(p.real) + float(p.imag) * float(p.imag))} for p in poles]
 
 
 def design_report(cfg: BuildConfig) -> dict[str, Any]:

@@ -122,10 +122,11 @@ def case_config(program: str, rounding: str, k: int, bits: int) -> BuildConfig:
 
 
 def _flight_sensor(bits: int) -> tuple[float, float]:
-    """The linear barometer transfer (Pa per count, Pa at count 0) of :func:`firmware_model.model.streams.synthetic_flight`
-    for a ``bits``-bit ADC with the default pad (altitude, fraction of full scale): the altitude table of the
-    committed Kalman cases matches the synthetic flights' sensor (field-ready firmware, docs/firmware-spec.md
-    §2a). Counts below about 26,000 (16-bit) map to pressures under the table's floor (above ~31 km)."""
+    """The linear barometer transfer (Pa per count, Pa at count 0) of
+    :func:`firmware_model.model.streams.synthetic_flight` for a ``bits``-bit ADC with the default pad (altitude,
+    fraction of full scale): the altitude table of the committed Kalman cases matches the synthetic flights' sensor
+    (field-ready firmware, docs/firmware-spec.md §2a). Counts below about 26,000 (16-bit) map to pressures under the
+    table's floor (above ~31 km)."""
 
     p = FlightParams()
     p_pad = float(pressure_pa(p.pad_altitude_m))
@@ -257,7 +258,8 @@ _AVR_LEFT_OUT: frozenset[tuple[str, str, str]] = frozenset({("recursive", "half_
                                                             ("kalman_accel", "half_up", "step")})
 AVR_CASES: tuple[str, ...] = tuple(
     [case_name("recursive", "floor", 4, 16, "flight")]
-    + [case_name(p, "floor", PASCAL_K, 32, "edge_ties") for p in ("recursive", "kalman_accel", "recursive_seed_literal")]
+    + [case_name(p, "floor", PASCAL_K, 32, "edge_ties")
+       for p in ("recursive", "kalman_accel", "recursive_seed_literal")]
     + [case_name("kalman_accel", "half_up", 4, 16, "flight")]
     + [case_name(p, r, 4, 16, "edge_" + kind) for p in PROGRAMS for r in ROUNDINGS for kind in ("ties", "step")
        if (p, r, kind) not in _AVR_LEFT_OUT]

@@ -48,10 +48,10 @@ class CaseResult:
 
 @functools.lru_cache(maxsize=256)
 def _constants(cfg: BuildConfig) -> Any:
-    """:func:`firmware_model.spec.build_constants.build_constants` of ``cfg``, once per process (a pure function of the frozen
-    config) and kept in the disk cache (:func:`firmware_model.runtime.diskcache.cache_dir`, ``constants/<key>.pickle``) under
-    the config's ``repr`` and :func:`firmware_model.runtime.diskcache.source_digest`: the gain designs and the altitude
-    table fits of the committed matrix's 98 builds cost about 1 CPU-s in every run."""
+    """:func:`firmware_model.spec.build_constants.build_constants` of ``cfg``, once per process (a pure function of the
+    frozen config) and kept in the disk cache (:func:`firmware_model.runtime.diskcache.cache_dir`,
+    ``constants/<key>.pickle``) under the config's ``repr`` and :func:`firmware_model.runtime.diskcache.source_digest`:
+    the gain designs and the altitude table fits of the committed matrix's 98 builds cost about 1 CPU-s in every run."""
 
     return diskcache.memo("constants",
                           lambda: hashlib.sha256(repr((1, repr(cfg), diskcache.source_digest())).encode()).hexdigest(),

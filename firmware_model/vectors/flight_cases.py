@@ -80,8 +80,9 @@ def flight_case_specs(case_name: Any, spec_type: Any, stream_type: Any, require_
     cases only.
 
     Reading the logs and simulating the flights takes seconds; the result is kept in the disk cache
-    (:func:`firmware_model.runtime.diskcache.cache_dir`, ``cases/flights-<key>.pickle``) under :func:`flight_cases_key`, so a
-    later run with the same logs and the same code loads it instead (the same specs: tests/vectors/test_generate.py)."""
+    (:func:`firmware_model.runtime.diskcache.cache_dir`, ``cases/flights-<key>.pickle``) under :func:`flight_cases_key`,
+    so a later run with the same logs and the same code loads it instead (the same specs:
+    tests/vectors/test_generate.py)."""
 
     base = shared_dir()
     return diskcache.memo("cases", lambda: f"flights-{flight_cases_key(require_logs, base)}",

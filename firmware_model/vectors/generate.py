@@ -80,7 +80,8 @@ def render_case(res: CaseResult) -> tuple[bytes, bytes]:
     """``(case_json(res), case_header(res))`` encoded, with each row of expected words converted to text once for
     both files: a row of Python ints prints as ``str(row)`` = ``"[" + ", ".join(map(str, row)) + "]"``, the JSON
     row, and the same numbers make the C row unless one is INT32_MIN (then :func:`_c_expected`'s spelling). The
-    number-to-text conversion is most of the rendering; the bytes equal the two functions' (tests/vectors/test_generate.py)."""
+    number-to-text conversion is most of the rendering; the bytes equal the two functions'
+    (tests/vectors/test_generate.py)."""
     json_rows, c_rows = _row_texts(res.words)
     stream = res.spec.stream
     json_b = "".join(case_json_parts(res, [_json_values(stream.adc)], [_json_values(stream.acc)], [json_rows]))
@@ -112,8 +113,8 @@ def render_set(results: Sequence[CaseResult], kind: str, avr: Sequence[str] = ()
 
 
 def write_set(files: dict[str, bytes], out: str | Path, kind: str) -> None:
-    """Write a rendered set into ``out`` through :func:`firmware_model.runtime.output.staged_folder`: every file goes to a
-    stage folder beside ``out`` first; then, under the folder lock and with SIGINT/SIGTERM deferred, ``cases/`` is
+    """Write a rendered set into ``out`` through :func:`firmware_model.runtime.output.staged_folder`: every file goes to
+    a stage folder beside ``out`` first; then, under the folder lock and with SIGINT/SIGTERM deferred, ``cases/`` is
     swapped in as a whole and each other file replaced with ``os.replace``, the manifest last. On any error or
     interrupt before the commit nothing in ``out`` changes and no temporary name remains. A user set (kind
     ``user``) refuses to overwrite a directory holding the committed set (manifest kind ``all``)."""
@@ -173,8 +174,9 @@ def _job_batches(specs: Sequence[CaseSpec], jobs: int) -> list[list[int]]:
 
 
 def _worker_start() -> None:
-    """Initializer of a ``--jobs`` worker: SIGINT ignored, SIGTERM quiet (:func:`firmware_model.runtime.output.worker_init`),
-    the modules every case needs come with this one, imported while the parent is still building the case matrix."""
+    """Initializer of a ``--jobs`` worker: SIGINT ignored, SIGTERM quiet
+    (:func:`firmware_model.runtime.output.worker_init`), the modules every case needs come with this one, imported
+    while the parent is still building the case matrix."""
 
     worker_init()
 
@@ -182,14 +184,14 @@ def _worker_start() -> None:
 def generate(specs: Sequence[CaseSpec], generator: str = "emulation", progress: bool | None = None,
              jobs: int = 1, pool: Any = None, render: bool = False,
              more: Callable[[], Sequence[CaseSpec]] | None = None) -> list[CaseResult]:
-    """Run every case (in order); ``jobs`` > 1 runs them in that many worker processes, the cases of one build in
-    one worker (:func:`_job_batches`). The results come back in the order of ``specs`` whatever the workers'
-    timing, so the files written are byte-identical to ``jobs=1``. An error or interrupt terminates the workers
-    at once. ``pool``: workers the caller started already (:func:`~firmware_model.runtime.pool.start_pool`; terminated here). ``render``: the
-    workers also render each case's files (:attr:`CaseResult.rendered`), in parallel. ``more``: a function
-    returning further cases, run after ``specs`` (their results follow in order); with workers it is called
-    after the batches of ``specs`` are handed to them, so that building the further cases overlaps running the
-    first ones (an error it raises ends the workers as any other)."""
+    """Run every case (in order); ``jobs`` > 1 runs them in that many worker processes, the cases of one build in one
+    worker (:func:`_job_batches`). The results come back in the order of ``specs`` whatever the workers' timing, so the
+    files written are byte-identical to ``jobs=1``. An error or interrupt terminates the workers at once. ``pool``:
+    workers the caller started already (:func:`~firmware_model.runtime.pool.start_pool`; terminated here). ``render``:
+    the workers also render each case's files (:attr:`CaseResult.rendered`), in parallel. ``more``: a function returning
+    further cases, run after ``specs`` (their results follow in order); with workers it is called after the batches of
+    ``specs`` are handed to them, so that building the further cases overlaps running the first ones (an error it raises
+    ends the workers as any other)."""
     if jobs <= 1 or (len(specs) <= 1 and more is None):
         specs = list(specs) + (list(more()) if more is not None else [])
         bar = Progress(sum(len(s.stream) for s in specs), "vectors", progress, unit="samples")

@@ -29,9 +29,9 @@ def case_schema() -> dict[str, Any]:
                        "unsigned 16-bit.",
         "type": "object",
         "required": ["schema_version", "name", "generator", "tool", "firmware", "build_config", "rounding",
-                     "sample_period", "constants", "gains", "alt_table", "q_formats", "words", "word_bytes", "event_bits",
-                     "events_first_sample", "input", "int32_wrap", "cycles_68000", "sequencing", "init", "adc",
-                     "acc", "expected"],
+                     "sample_period", "constants", "gains", "alt_table", "q_formats", "words", "word_bytes",
+                     "event_bits", "events_first_sample", "input", "int32_wrap", "cycles_68000", "sequencing", "init",
+                     "adc", "acc", "expected"],
         "additionalProperties": False,
         "properties": {
             "schema_version": {"const": SCHEMA_VERSION},

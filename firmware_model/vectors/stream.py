@@ -10,8 +10,9 @@ hours of samples, so here nothing grows with its length:
    the integer model runs chunk by chunk from the state it reached (:class:`ModelStepper`, on the model's own
    kernels); every word of every chunk is cross-checked before the chunk's rows are spooled as text.
 3. The case JSON and the C header are written from the spools in pieces
-   (:func:`~firmware_model.vectors.generate.case_json_parts`, :func:`~firmware_model.vectors.generate.case_header_parts`): byte for
-   byte what the in-memory path writes for the same stream (tested).
+   (:func:`~firmware_model.vectors.generate.case_json_parts`,
+   :func:`~firmware_model.vectors.generate.case_header_parts`): byte for byte what the in-memory path writes for the
+   same stream (tested).
 
 Memory: O(chunk) (:data:`CHUNK` samples); disk: the final files plus the spools (about 20 bytes per sample per
 state word), all inside the stage, removed on any exit. Progress (stderr, when a terminal) counts samples.
@@ -232,7 +233,7 @@ def _put(f: Any, text: str) -> None:
     f.write(text)
 
 
-def generate_user(program: str, input_csv: str | Path, out: str | Path, config: str | Path | None = None,  # noqa: C901 - the streamed pipeline's steps (spool, run, cross-check, write) share its stage folder and state
+def generate_user(program: str, input_csv: str | Path, out: str | Path, config: str | Path | None = None,
                   generator: str = "emulation", header: bool = True, progress: bool | None = None,
                   chunk: int = CHUNK) -> dict[str, int]:
     """A one-case vector set (kind ``user``) from a user CSV, in constant memory (module docstring). Returns
@@ -250,7 +251,6 @@ def generate_user(program: str, input_csv: str | Path, out: str | Path, config: 
     path = Path(input_csv)
     info = CsvInfo(path, cfg.baro_word_bits, cfg.k)
     adc_dtype = "<i4" if cfg.pascal else "<u2"          # the barometer register: 32-bit pascal word or 16-bit ADC
-    sizes: dict[str, int] = {}
     with output.staged_folder(out, owned=("cases", "tables"), guard=guard, last=("manifest.json",)) as stage:
         # 1. validate and spool the inputs
         adc_path, acc_path = _spool_path(stage, "adc"), _spool_path(stage, "acc")
@@ -337,34 +337,43 @@ def generate_user(program: str, input_csv: str | Path, out: str | Path, config: 
                                  events_first=events_first if ev_col is not None else None)
 
         # 3. the files, streamed from the spools
-        def values(arr: np.ndarray, fmt: Any) -> Any:
-            for start in range(0, n, chunk):
-                yield fmt(np.asarray(arr[start:start + chunk], dtype=np.int64))
-
-        rel_files = [f"cases/{name}.json"] + ([f"cases/{name}.h", "c/cases.h"] if header else [])
-        (stage / "cases").mkdir()
-        if getattr(consts, "ALT_TABLE", None):       # the shared altitude table of a Kalman build
-            for rel, data in vec_c_header.alt_table_files(consts).items():
-                if rel.endswith(".h") and not header:
-                    continue
-                (stage / rel).parent.mkdir(exist_ok=True)
-                (stage / rel).write_bytes(data)
-                rel_files.append(rel)
-        with (stage / rel_files[0]).open("w", encoding="ascii", newline="") as f:
-            for piece in vec_case_json.case_json_parts(res, values(adc, vec_case_json._json_values),
-                                                 values(acc, vec_case_json._json_values), _chunks_of(json_rows)):
-                f.write(piece)
-        if header:
-            with (stage / rel_files[1]).open("w", encoding="ascii", newline="") as f:
-                for piece in vec_c_header.case_header_parts(res, values(adc, vec_c_header._c_rows), values(acc, vec_c_header._c_rows),
-                                                       _chunks_of(c_rows)):
-                    f.write(piece)
-            (stage / "c").mkdir()
-            (stage / "c" / "cases.h").write_bytes(vec_c_header.cases_table_header([res], "FWV_CASES_H").encode())
-        (stage / "schema.json").write_bytes(vec_schema.schema_bytes())
-        rel_files.append("schema.json")
-        hashes = {rel: sha256_file(stage / rel) for rel in sorted(rel_files)}
-        (stage / "manifest.json").write_bytes(vec_manifest.manifest_bytes("user", [label], 1, hashes))
-        for rel in rel_files + ["manifest.json"]:
-            sizes[rel] = (stage / rel).stat().st_size
+        sizes = _write_case_files(stage, res, adc, acc, json_rows, c_rows, chunk, header)
     return sizes
+
+
+def _write_case_files(stage: Path, res: vec_compute.CaseResult, adc: _Spooled, acc: _Spooled, json_rows: Path,
+                      c_rows: Path, chunk: int, header: bool) -> dict[str, int]:
+    """Step 3 of :func:`generate_user`: the case's JSON (and C header, with ``header``), the shared tables, the
+    schema and the manifest in ``stage``, streamed from the input spools ``adc``/``acc`` and the row spools;
+    returns {relative path: size in bytes}."""
+    name, n, consts, label = res.spec.name, len(adc), res.consts, res.generator
+
+    def values(arr: _Spooled, fmt: Any) -> Any:
+        for start in range(0, n, chunk):
+            yield fmt(np.asarray(arr[start:start + chunk], dtype=np.int64))
+
+    rel_files = [f"cases/{name}.json"] + ([f"cases/{name}.h", "c/cases.h"] if header else [])
+    (stage / "cases").mkdir()
+    if getattr(consts, "ALT_TABLE", None):       # the shared altitude table of a Kalman build
+        for rel, data in vec_c_header.alt_table_files(consts).items():
+            if rel.endswith(".h") and not header:
+                continue
+            (stage / rel).parent.mkdir(exist_ok=True)
+            (stage / rel).write_bytes(data)
+            rel_files.append(rel)
+    with (stage / rel_files[0]).open("w", encoding="ascii", newline="") as f:
+        for piece in vec_case_json.case_json_parts(res, values(adc, vec_case_json._json_values),
+                                                   values(acc, vec_case_json._json_values), _chunks_of(json_rows)):
+            f.write(piece)
+    if header:
+        with (stage / rel_files[1]).open("w", encoding="ascii", newline="") as f:
+            for piece in vec_c_header.case_header_parts(res, values(adc, vec_c_header._c_rows),
+                                                        values(acc, vec_c_header._c_rows), _chunks_of(c_rows)):
+                f.write(piece)
+        (stage / "c").mkdir()
+        (stage / "c" / "cases.h").write_bytes(vec_c_header.cases_table_header([res], "FWV_CASES_H").encode())
+    (stage / "schema.json").write_bytes(vec_schema.schema_bytes())
+    rel_files.append("schema.json")
+    hashes = {rel: sha256_file(stage / rel) for rel in sorted(rel_files)}
+    (stage / "manifest.json").write_bytes(vec_manifest.manifest_bytes("user", [label], 1, hashes))
+    return {rel: (stage / rel).stat().st_size for rel in rel_files + ["manifest.json"]}

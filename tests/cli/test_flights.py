@@ -12,7 +12,8 @@ import pytest
 from firmware_model.cli.main import main
 from firmware_model.runtime.engine import dask_available
 
-SHARED = Path(os.environ.get("FWEMU_SHARED_FLIGHTS") or Path(__file__).resolve().parents[2].parent / "shared" / "flights")
+SHARED = Path(os.environ.get("FWEMU_SHARED_FLIGHTS")
+              or Path(__file__).resolve().parents[2].parent / "shared" / "flights")
 needs_shared = pytest.mark.skipif(not SHARED.is_dir(), reason="../shared/flights is absent")
 PROMETHEUS = SHARED / "altosui" / "prometheus-2022-06-24-telemetrum.csv"
 SHORT_LOG = SHARED / "altosui" / "2012-05-28-serial-319-flight-005.csv"

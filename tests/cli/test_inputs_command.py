@@ -14,7 +14,8 @@ import pytest
 from firmware_model.cli.main import main
 from firmware_model.runtime.output import TEMP_PREFIX
 
-SHARED = Path(os.environ.get("FWEMU_SHARED_FLIGHTS") or Path(__file__).resolve().parents[2].parent / "shared" / "flights")
+SHARED = Path(os.environ.get("FWEMU_SHARED_FLIGHTS")
+              or Path(__file__).resolve().parents[2].parent / "shared" / "flights")
 EEPROM = SHARED / "euroc21" / "piccard-telemetrum-nosecone-serial-5877-flight-0002.eeprom"
 SIM = "sim:sub-k400-300m"
 

@@ -88,8 +88,9 @@ def test_ctrl_c_on_a_cold_numba_cache_is_one_line(delay: float, tmp_path: Path) 
     env = dict(os.environ, PYTHONPATH=str(ROOT), NUMBA_CACHE_DIR=str(tmp_path / "numba"),
                FWEMU_SHARED_FLIGHTS=str(LOGS))
     out = tmp_path / "v"
-    proc = subprocess.Popen([sys.executable, "-m", "firmware_model.cli.main", "vectors", "--all", "--generator", "model",
-                             "--out", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    proc = subprocess.Popen([sys.executable, "-m", "firmware_model.cli.main", "vectors", "--all", "--generator",
+                             "model", "--out", str(out)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     time.sleep(delay)
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=300)

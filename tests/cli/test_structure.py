@@ -78,8 +78,8 @@ def test_help_shows_no_rest_markup() -> None:
 def test_plain_strips_roles_and_literals() -> None:
     from firmware_model.cli.main import plain
 
-    assert plain("``fwemu vectors``: see :func:`~firmware_model.vectors.generate.check_set` and :class:`UserError`") == \
-        "fwemu vectors: see check_set and UserError"
+    text = "``fwemu vectors``: see :func:`~firmware_model.vectors.generate.check_set` and :class:`UserError`"
+    assert plain(text) == "fwemu vectors: see check_set and UserError"
 
 
 #: A citation the reader cannot follow: the brief the project was written from, or a paper by its file number
@@ -132,8 +132,8 @@ print(len(os.listdir("/proc/self/task")), os.environ.get("OPENBLAS_NUM_THREADS")
                     reason="needs Linux /proc and 2+ cores (OpenBLAS starts no pool on one core)")
 @pytest.mark.parametrize("preset", [None, "2"])
 def test_the_cli_runs_numpy_with_one_blas_thread_unless_told_otherwise(preset: str | None) -> None:
-    """firmware_model/runtime/blas_threads.py: the CLI process (and the workers it spawns, which inherit the variable) has
-    no OpenBLAS thread pool busy-waiting beside it; a user's OPENBLAS_NUM_THREADS is kept."""
+    """firmware_model/runtime/blas_threads.py: the CLI process (and the workers it spawns, which inherit the variable)
+    has no OpenBLAS thread pool busy-waiting beside it; a user's OPENBLAS_NUM_THREADS is kept."""
     env = {k: v for k, v in os.environ.items() if k not in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
     env["PYTHONPATH"] = str(ROOT)
     if preset is not None:

@@ -47,7 +47,7 @@ def where(e: AssemblyError) -> str:
     return f"{e.file}:{e.line}:{e.col}"
 
 
-# --- the Schultz 2002 listing -------------------------------------------------------------------------------------------
+# --- the Schultz 2002 listing -----------------------------------------------------------------------------------------
 
 SEED = """\
 * Schultz 2002 pseudo-listing (with the EQUs it assumes)

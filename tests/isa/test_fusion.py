@@ -150,9 +150,10 @@ def _both(src: str, d: list[int], ccr: int, **kw: object) -> tuple[object, ...]:
 @pytest.mark.parametrize("tail", ["kill", "x", "xz", "fault_taken", "fault_fall", "exit", "flags"])
 def test_every_setter_before_every_branch(tail: str) -> None:
     """Each setter, each condition's branch right after it, and after the branch: flags overwritten on both paths
-    (fused), X read on both paths (ROXL/ROXR: fused; X kept or assigned; ADDX/SUBX also read Z: not fused), a fault on the taken or the fall-through path
-    (flags live: not fused, SR at the fault exact), an exit right after (not fused), other flags read (Scc, not
-    fused), over sign-edge values and X set and clear: blocks equal closures (registers, SR, PC, counters, fault)."""
+    (fused), X read on both paths (ROXL/ROXR: fused; X kept or assigned; ADDX/SUBX also read Z: not fused), a fault
+    on the taken or the fall-through path (flags live: not fused, SR at the fault exact), an exit right after (not
+    fused), other flags read (Scc, not fused), over sign-edge values and X set and clear: blocks equal closures
+    (registers, SR, PC, counters, fault)."""
     after = {"kill": (" add.l d3,d3\n", " add.l d3,d3\n"),
              "x": (" roxl.l #1,d2\n", " roxr.w #1,d2\n"),
              "xz": (" addx.l d3,d2\n", " subx.b d3,d2\n"),

@@ -215,8 +215,8 @@ def test_branches_at_range_limits_match_gnu_as(tmp_path: Path) -> None:
         put(lambda a: Instruction("dbra", Size.W, (Operand(Mode.DREG, 3), Operand(Mode.ABSL, value=a + 2 + disp))))
         put(lambda a: Instruction("lea", Size.L, (Operand(Mode.PCDISP, value=a + 2 + disp), Operand(Mode.AREG, 1))))
     for disp in (-128, 0, 127):
-        put(lambda a: Instruction("move", Size.W, (Operand(Mode.PCINDEX, value=a + 2 + disp, index=IndexReg(True, 7, True)),
-                                                     Operand(Mode.DREG, 0))))
+        put(lambda a: Instruction("move", Size.W, (
+            Operand(Mode.PCINDEX, value=a + 2 + disp, index=IndexReg(True, 7, True)), Operand(Mode.DREG, 0))))
     assert _compare(tmp_path, placed) == len(placed)
 
 

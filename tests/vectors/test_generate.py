@@ -408,7 +408,8 @@ def test_render_case_equals_case_json_and_case_header() -> None:
     words[2][-1] = 2**31 - 1
     for rows in (res.words, words, np.asarray(words, dtype=np.int64), [tuple(r) for r in words]):
         res.words = rows
-        assert vectors.render_case(res) == (vec_case_json.case_json(res).encode(), vec_c_header.case_header(res).encode())
+        assert vectors.render_case(res) == (vec_case_json.case_json(res).encode(),
+                                            vec_c_header.case_header(res).encode())
     res.words = words
     assert b"(-2147483647 - 1)" in vectors.render_case(res)[1] and b"-2147483648" in vectors.render_case(res)[0]
 

@@ -105,7 +105,8 @@ def test_header_limit_is_enforced_and_no_header_writes_json(tmp_path: Path, monk
     csv = write_csv(tmp_path / "f.csv", s.adc, s.acc)
     monkeypatch.setattr(vectors_stream, "HEADER_MAX_SAMPLES", 100)
     out = tmp_path / "o"
-    with pytest.raises(UserError, match=rf"f\.csv has {len(s.adc)} samples; a C header holds at most 100 .*--no-header"):
+    with pytest.raises(UserError,
+                       match=rf"f\.csv has {len(s.adc)} samples; a C header holds at most 100 .*--no-header"):
         vectors_stream.generate_user("kalman_baro", csv, out, generator="model")
     assert not out.exists() and sorted(p.name for p in tmp_path.iterdir()) == ["f.csv"]
     vectors_stream.generate_user("kalman_baro", csv, out, generator="model", header=False)

@@ -155,8 +155,8 @@ def _table(where: str, value: Any) -> dict[str, Any]:
 #: what real barometers read near Mach 1 (port error, transonic dip, shock jump; parameters and ranges as
 #: :class:`firmware_model.flights.pressure_errors.BaroErrorModel` and ``BARO_ERROR_RANGES``); "real_flight_ram" adds
 #: issue 30's ram error in boost (``ram_cp`` q from ``ram_mach_on`` until each flight's burnout, fading over
-#: ``ram_fade_s``); "none" is no error. Another model (e.g. a measured transonic signature) is added by declaring its parameters
-#: here and its function in :data:`firmware_model.flights.montecarlo.pipeline.PRESSURE_ERROR_MODELS`.
+#: ``ram_fade_s``); "none" is no error. Another model (e.g. a measured transonic signature) is added by declaring its
+#: parameters here and its function in :data:`firmware_model.flights.montecarlo.pipeline.PRESSURE_ERROR_MODELS`.
 PRESSURE_ERROR_PARAMS: dict[str, dict[str, float]] = {
     "none": {},
     "step": {"altitude_step_m": DEFAULT_TRANSONIC_STEP_M, "mach_on": 1.0, "mach_off": 1.0, "width_mach": 0.0},
@@ -280,6 +280,31 @@ def read_spec_file(path: str | Path) -> dict[str, Any]:
     return raw
 
 
+def _pressure_error(pe_raw: Any, where: str, transonic: dict[str, Any] | None) -> dict[str, Any]:
+    """The spec's checked [pressure_error] table ({"model", "params"}) from its raw value ``pe_raw``; when absent,
+    the scenario's ``transonic`` error (a step or ramp), or none."""
+    if pe_raw is None:
+        pe_raw = {"model": "step", **(transonic or {})} if transonic is not None else {"model": "none"}
+        if transonic is not None and pe_raw.get("shape", "step") == "ramp":
+            pe_raw["width_mach"] = pe_raw.get("width_mach", 0.04)
+        pe_raw.pop("shape", None)
+    if not isinstance(pe_raw, dict) or not isinstance(pe_raw.get("model"), str) \
+            or pe_raw.get("model") not in PRESSURE_ERROR_PARAMS:
+        got = pe_raw.get("model") if isinstance(pe_raw, dict) else pe_raw
+        raise UserError(f"{where}: pressure_error: model: {echo(got)}"
+                        f"; allowed: a [pressure_error] table with model = one of {', '.join(PRESSURE_ERROR_PARAMS)}")
+    model = pe_raw["model"]
+    pdefs = PRESSURE_ERROR_PARAMS[model]
+    bad = set(pe_raw) - {"model"} - set(pdefs)
+    if bad:
+        raise UserError(f"{where}: pressure_error ({model}): unknown parameter(s) "
+                        f"{clip(', '.join(sorted(map(str, bad))))}; known: "
+                        f"{', '.join(pdefs) or 'none'}")
+    return {"model": model, "params": {p: _check_dist(f"{where}: pressure_error", p, pe_raw.get(p, d),
+                                                      PRESSURE_ERROR_RANGES.get(p))
+                                       for p, d in pdefs.items()}}
+
+
 def load_spec(raw: dict[str, Any], where: str = "spec") -> dict[str, Any]:  # noqa: C901 - checks each section and key of a spec in turn, one error message each
     """Check a raw spec and return the complete one (every default filled in; plain data, JSON-ready)."""
     unknown = set(raw) - _TOP_KEYS
@@ -357,8 +382,8 @@ def load_spec(raw: dict[str, Any], where: str = "spec") -> dict[str, Any]:  # no
     _table(f"{where}: dispersions", disp_raw)
     bad = set(disp_raw) - set(PARAMETERS)
     if bad:
-        raise UserError(f"{where}: dispersions: unknown parameter(s) {clip(', '.join(sorted(map(str, bad))))}; known: "
-                        f"{', '.join(PARAMETERS)}")
+        raise UserError(f"{where}: dispersions: unknown parameter(s) {clip(', '.join(sorted(map(str, bad))))}; "
+                        f"known: {', '.join(PARAMETERS)}")
     disp: dict[str, Any] = {}
     defaults = {"site_altitude_m": float(launch.get("site_altitude_m", 0.0)), "baro": "mpx4115_12bit",
                 "accel": "default", "drogue_delay_s": float(launch.get("drogue_delay_s", 0.0))}
@@ -370,27 +395,7 @@ def load_spec(raw: dict[str, Any], where: str = "spec") -> dict[str, Any]:  # no
         else:
             disp[pname] = defaults.get(pname, default)
 
-    pe_raw = raw.get("pressure_error")
-    if pe_raw is None:
-        pe_raw = {"model": "step", **(transonic or {})} if transonic is not None else {"model": "none"}
-        if transonic is not None and pe_raw.get("shape", "step") == "ramp":
-            pe_raw["width_mach"] = pe_raw.get("width_mach", 0.04)
-        pe_raw.pop("shape", None)
-    if not isinstance(pe_raw, dict) or not isinstance(pe_raw.get("model"), str) \
-            or pe_raw.get("model") not in PRESSURE_ERROR_PARAMS:
-        got = pe_raw.get("model") if isinstance(pe_raw, dict) else pe_raw
-        raise UserError(f"{where}: pressure_error: model: {echo(got)}"
-                        f"; allowed: a [pressure_error] table with model = one of {', '.join(PRESSURE_ERROR_PARAMS)}")
-    model = pe_raw["model"]
-    pdefs = PRESSURE_ERROR_PARAMS[model]
-    bad = set(pe_raw) - {"model"} - set(pdefs)
-    if bad:
-        raise UserError(f"{where}: pressure_error ({model}): unknown parameter(s) "
-                        f"{clip(', '.join(sorted(map(str, bad))))}; known: "
-                        f"{', '.join(pdefs) or 'none'}")
-    pe = {"model": model, "params": {p: _check_dist(f"{where}: pressure_error", p, pe_raw.get(p, d),
-                                                    PRESSURE_ERROR_RANGES.get(p))
-                                     for p, d in pdefs.items()}}
+    pe = _pressure_error(raw.get("pressure_error"), where, transonic)
     chunk = raw.get("chunk_flights", 250)
     if not isinstance(chunk, int) or isinstance(chunk, bool) or not 1 <= chunk <= 100_000:
         raise UserError(f"{where}: chunk_flights: {echo(chunk)}; allowed: an integer 1..100000")

@@ -33,7 +33,8 @@ from pathlib import Path
 from typing import Any
 
 from firmware_model.flights.readers import (aim, altimetercloud, altos_eeprom, altosui, blueraven, board, cats,
-                                            cats_raw, columns, eggtimer, generic, perfectflite, raven, raven_fip, rdas, rrc3)
+                                            cats_raw, columns, eggtimer, generic, perfectflite, raven, raven_fip, rdas,
+                                            rrc3)
 from firmware_model.flights.readers._common import read_text
 from firmware_model.flights.readers.generic import write_generic
 from firmware_model.flights.record import FlightRecord

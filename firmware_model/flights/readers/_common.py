@@ -1,8 +1,8 @@
 """Shared parts of the flight-log readers: reading text, one-line errors naming file and line, number parsing,
 the licence table of known logs, repeated-timestamp handling.
 
-Every reader reports a bad file as one :class:`~firmware_model.runtime.errors.UserError` ``"<file>:<line>: <what>"`` (line
-numbers are 1-based physical lines of the file) and never returns half a record.
+Every reader reports a bad file as one :class:`~firmware_model.runtime.errors.UserError`
+``"<file>:<line>: <what>"`` (line numbers are 1-based physical lines of the file) and never returns half a record.
 """
 
 from __future__ import annotations
@@ -22,7 +22,8 @@ from firmware_model.spec.atmosphere import pressure_pa
 #: listed here gets ``"unknown"`` unless it states its own (generic CSV: a ``# licence: ...`` comment line).
 KNOWN_LICENCES: tuple[tuple[str, str, str], ...] = (
     # (file-name regex, licence, origin)
-    (r"^prometheus-2022-06-24-tele(metrum|mega)\.csv$", "MIT", "RocketPy (github.com/RocketPy-Team/RocketPy) test data"),
+    (r"^prometheus-2022-06-24-tele(metrum|mega)\.csv$", "MIT",
+     "RocketPy (github.com/RocketPy-Team/RocketPy) test data"),
     (r"^hedy-(baro|imu)\.csv$", "MIT", "RocketPy (github.com/RocketPy-Team/RocketPy) test data, CATS flight computer"),
     (r"^2012-\d\d-\d\d-serial-\d+-flight-\d+\.csv$", "GPL-2.0-or-later", "AltOS source tree (altusmetrum.org)"),
 )

@@ -74,6 +74,34 @@ def header_names(line: str) -> list[str]:
     return names
 
 
+def _events(t: np.ndarray, states: list[str]) -> tuple[dict[str, float], str]:
+    """The first time of each AltOS state (``altos_<state>``) and ``altos_apogee`` (the first 'drogue' row, or
+    the first 'main' row when the state goes from coast straight to main: then with the note that says so)."""
+    events: dict[str, float] = {}
+    for ti, state in zip(t, states):
+        if state:
+            events.setdefault(f"altos_{state}", float(ti))
+    if "altos_drogue" in events:
+        events["altos_apogee"] = events["altos_drogue"]
+    elif "altos_main" in events:
+        i_main = states.index("main")
+        if i_main > 0 and states[i_main - 1] in ("coast", "fast"):
+            events["altos_apogee"] = events["altos_main"]
+            return events, ("no 'drogue' row: the state goes from coast straight to main, "
+                            "altos_apogee is the first 'main' row")
+    return events, ""
+
+
+def _baro_hint(p: np.ndarray) -> str:
+    """Which barometer the pressures ``p`` (Pa) look like they came from."""
+    x = (p / 1000.0 * 0.009 - 0.095) * 2047 * 16
+    if np.all(np.abs(x - np.rint(x)) <= 0.002):
+        return "telemetrum_v1"     # the README's exact MP3H6115A formula reproduces integer ADC counts
+    if np.all(p == np.rint(p)):
+        return "pascal"            # integer pascals: a digital (MS5607-like) sensor
+    return "unknown"
+
+
 def read(path: Path) -> FlightRecord:  # noqa: C901 - one pass over the CSV v5/v6 variants and their optional columns, each checked with its own message
     """Read one AltosUI CSV (v5 or v6) into a :class:`FlightRecord`: one pass over the lines into numeric
     arrays (memory: the text and a few numbers per row; no per-row field lists)."""
@@ -163,22 +191,13 @@ def read(path: Path) -> FlightRecord:  # noqa: C901 - one pass over the CSV v5/v
     temp = temp[keep] if temp is not None else None
     states = [names_of[int(c)] for c in state_code[:n][keep]]
 
-    events: dict[str, float] = {}
-    for ti, state in zip(t, states):
-        if state:
-            events.setdefault(f"altos_{state}", float(ti))
+    events, apogee_note = _events(t, states)
     notes: list[str] = []
     if plain is not None:
         notes.append("no '#version' comment line: the first line names the columns"
                      + ("" if "state_name" in col else "; no state_name column, so no AltOS events or apogee"))
-    if "altos_drogue" in events:
-        events["altos_apogee"] = events["altos_drogue"]
-    elif "altos_main" in events:
-        i_main = states.index("main")
-        if i_main > 0 and states[i_main - 1] in ("coast", "fast"):
-            events["altos_apogee"] = events["altos_main"]
-            notes.append("no 'drogue' row: the state goes from coast straight to main, "
-                         "altos_apogee is the first 'main' row")
+    if apogee_note:
+        notes.append(apogee_note)
     if repeats:
         notes.append(f"{repeats} repeated timestamps dropped ({conflicting} of them with different values; "
                      "the first row was kept)")
@@ -187,17 +206,10 @@ def read(path: Path) -> FlightRecord:  # noqa: C901 - one pass over the CSV v5/v
                      "the IMU block are used (time, state_name, acceleration, pressure, temperature)")
     notes.append("accel_mps2 = acceleration + g0 (AltOS removes the pad reading)")
     licence, origin = licence_of(path)
-    x = (p / 1000.0 * 0.009 - 0.095) * 2047 * 16
-    if np.all(np.abs(x - np.rint(x)) <= 0.002):
-        baro_hint = "telemetrum_v1"     # the README's exact MP3H6115A formula reproduces integer ADC counts
-    elif np.all(p == np.rint(p)):
-        baro_hint = "pascal"            # integer pascals: a digital (MS5607-like) sensor
-    else:
-        baro_hint = "unknown"
     provenance = {
         "source": str(path), "format": "altosui", "own_computer": "AltOS", "csv_version": version,
         "licence": licence, "origin": origin,
-        "rows": n, "altos_config": config, "baro_sensor_hint": baro_hint, "notes": notes,
+        "rows": n, "altos_config": config, "baro_sensor_hint": _baro_hint(p), "notes": notes,
         "repeated_timestamps_dropped": int(repeats), "conflicting_repeats": int(conflicting),
     }
     return FlightRecord(name=path.stem, time_s=t, pressure_pa=p, accel_mps2=acc + G0, temperature_c=temp,

@@ -104,22 +104,43 @@ def _bytes(path: Path, body: str, first_line: int) -> bytes:
     return hex_bytes(path, body, first_line)[0]
 
 
-def read(path: Path, flight: int | None = None) -> FlightRecord:  # noqa: C901 - the .eeprom's JSON header, flight selection and record kinds, each checked with its own message
-    """Read one flight of an AltOS .eeprom file."""
-    text = read_text(path)
-    if not text.lstrip().startswith("{"):
-        raise fail(path, 1, "not a JSON-config AltOS .eeprom (older text-config .eeprom files are not read)")
-    cfg, body, body_line = _config(path, text)
+def _format_and_coefficients(path: Path, cfg: dict) -> tuple[str, dict]:
+    """The log format (a key of :data:`LAYOUTS`) and the MS5607 coefficients of the configuration ``cfg``, or the
+    error that names the one missing."""
     fmt = cfg.get("log_format")
     if fmt not in LAYOUTS:
         raise fail(path, 1, f"log_format {fmt!r} ({cfg.get('product', '?')}): only "
                             + ", ".join(f"{k} ({v[2]})" for k, v in LAYOUTS.items()) + " are read")
-    size, acc_at, kind = LAYOUTS[fmt]
     coef = cfg.get("ms5607")
     need = ("sens", "off", "tcs", "tco", "tref", "tempsens")
     if not isinstance(coef, dict) or not all(isinstance(coef.get(k), int) for k in need):
         raise fail(path, 1, "the configuration has no MS5607 coefficients (ms5607: sens, off, tcs, tco, tref, "
                             "tempsens)")
+    return fmt, coef
+
+
+# The little-endian fields of a record's payload (from byte 4 on): ``at`` is the offset in the payload.
+def _u16(r: np.ndarray, at: int) -> int:
+    return int(r[4 + at]) | int(r[5 + at]) << 8
+
+
+def _s16(r: np.ndarray, at: int) -> int:
+    v = _u16(r, at)
+    return v - 65536 if v >= 32768 else v
+
+
+def _u32(r: np.ndarray, at: int) -> int:
+    return _u16(r, at) | _u16(r, at + 2) << 16
+
+
+def read(path: Path, flight: int | None = None) -> FlightRecord:
+    """Read one flight of an AltOS .eeprom file."""
+    text = read_text(path)
+    if not text.lstrip().startswith("{"):
+        raise fail(path, 1, "not a JSON-config AltOS .eeprom (older text-config .eeprom files are not read)")
+    cfg, body, body_line = _config(path, text)
+    fmt, coef = _format_and_coefficients(path, cfg)
+    size, acc_at, kind = LAYOUTS[fmt]
     data = _bytes(path, body, body_line)
     usable = len(data) - len(data) % size
     if usable == 0:
@@ -145,17 +166,7 @@ def read(path: Path, flight: int | None = None) -> FlightRecord:  # noqa: C901 -
     else:
         raise fail(path, body_line, f"flight {flight} is not in this file (flights {numbers})")
     idx = flights[pick]
-
-    def u16(r: np.ndarray, at: int) -> int:
-        return int(r[4 + at]) | int(r[5 + at]) << 8
-
-    def s16(r: np.ndarray, at: int) -> int:
-        v = u16(r, at)
-        return v - 65536 if v >= 32768 else v
-
-    def u32(r: np.ndarray, at: int) -> int:
-        return u16(r, at) | u16(r, at + 2) << 16
-
+    u16, s16, u32 = _u16, _s16, _u32
     f = recs[idx[0]]
     ground_accel = s16(f, 2)
     ground_pres = u32(f, 4)

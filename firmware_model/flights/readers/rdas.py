@@ -63,7 +63,8 @@ def read(path: Path) -> FlightRecord:
         m = _DATA.match(line) if "," not in line else None
         if m is None:
             if line_of:
-                raise fail(path, number, f"not a data line (time acceleration pressure [digital]): {line.strip()[:60]!r}")
+                raise fail(path, number,
+                           f"not a data line (time acceleration pressure [digital]): {line.strip()[:60]!r}")
             header.append(line.strip())
             continue
         t.append(parse_float(path, number, "time", m.group(1)))

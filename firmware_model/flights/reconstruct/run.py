@@ -227,6 +227,36 @@ def _fill(x: np.ndarray) -> np.ndarray:
     return x
 
 
+def _recovery(rec: Any, t: np.ndarray, f_ax: np.ndarray | None, lift: float, deploy_s: float | None,
+              notes: list[str]) -> tuple[float | None, np.ndarray, float | None, float]:
+    """The log's recovery events, with a note each in ``notes``: (the recovery charge's time, ``deploy_s`` when
+    given, else the log's own charge, or None; the first pass's extra accelerometer sigma per row, nonzero after
+    the charge; the first recovery event the log shows (charge or accelerometer shock), or None; the time until
+    which the estimate's speed is trusted, that event's or infinity)."""
+    charge = None if deploy_s is not None else recovery_charge(rec)
+    deploy = deploy_s if deploy_s is not None else (None if charge is None else charge.time_s)
+    extra = np.zeros(t.size)
+    if deploy is not None:
+        extra[t > deploy] = AFTER_DEPLOY_SIGMA
+        whence = "given" if charge is None else f"{charge.evidence}: {charge.detail}, log at {charge.rate_hz:.0f}/s"
+        notes.append(f"recovery charge at {deploy:.2f} s ({whence}): accelerometer trusted to "
+                     f"+-{AFTER_DEPLOY_SIGMA:g} m/s^2 only after it (ejection, parachute, tumbling)")
+    else:
+        notes.append(f"no recovery charge in the log: accelerometer trusted to +-{AFTER_DEPLOY_SIGMA:g} m/s^2 only "
+                     "after each channel's first-pass apogee (another computer's recovery, or tumbling)")
+    shock = first_shock(t, f_ax, lift + 0.2)
+    # the first recovery event the log shows, if any; the estimate's speed is trusted until then
+    event = min((x for x in (deploy, shock) if x is not None), default=None)
+    trust_s = np.inf if event is None else float(event)
+    port = f"barometer: static-port error {BARO_PORT_CP:g} of the dynamic pressure (1 sigma, correlated over 1 s)"
+    if event is not None:
+        why = "an accelerometer shock" if event == shock else "the recovery charge"
+        port += (f" until {event:.2f} s ({why}: the speed estimate is suspect after it; neither the port error "
+                 "nor the Mach gate applies)")
+    notes.append(port)
+    return deploy, extra, event, trust_s
+
+
 def reconstruct_log(path: str | Path, format: str | None = None,
                     deploy_s: float | None = None) -> Reconstruction:
     """A real log (module docstring): vertical channel, from the 3-axis IMU where the log has a gyroscope.
@@ -256,27 +286,8 @@ def reconstruct_log(path: str | Path, format: str | None = None,
     notes = list(log.notes) + gap_note + [f"barometer sigma {noise_m:.2f} m (pad noise, at least 0.3 m); liftoff "
                                           f"{lift:.2f} s"]
     n_pad = int(pad.sum())
-    charge = None if deploy_s is not None else recovery_charge(rec)
-    deploy = deploy_s if deploy_s is not None else (None if charge is None else charge.time_s)
-    extra = np.zeros(t.size)
-    if deploy is not None:
-        extra[t > deploy] = AFTER_DEPLOY_SIGMA
-        whence = "given" if charge is None else f"{charge.evidence}: {charge.detail}, log at {charge.rate_hz:.0f}/s"
-        notes.append(f"recovery charge at {deploy:.2f} s ({whence}): accelerometer trusted to "
-                     f"+-{AFTER_DEPLOY_SIGMA:g} m/s^2 only after it (ejection, parachute, tumbling)")
-    else:
-        notes.append(f"no recovery charge in the log: accelerometer trusted to +-{AFTER_DEPLOY_SIGMA:g} m/s^2 only "
-                     "after each channel's first-pass apogee (another computer's recovery, or tumbling)")
-    shock = first_shock(t, f_ax, lift + 0.2)
-    # the first recovery event the log shows, if any; the estimate's speed is trusted until then
-    event = min((x for x in (deploy, shock) if x is not None), default=None)
-    trust_s = np.inf if event is None else float(event)
-    port = f"barometer: static-port error {BARO_PORT_CP:g} of the dynamic pressure (1 sigma, correlated over 1 s)"
-    if event is not None:
-        why = "an accelerometer shock" if event == shock else "the recovery charge"
-        port += (f" until {event:.2f} s ({why}: the speed estimate is suspect after it; neither the port error "
-                 "nor the Mach gate applies)")
-    notes.append(port)
+    deploy, extra, event, trust_s = _recovery(rec, t, f_ax, lift, deploy_s, notes)
+
     def after(tt: np.ndarray, first_apogee_s: float) -> tuple[np.ndarray, float]:
         """The second pass's extra acceleration noise and end of trust in the estimate's speed: the charge's, or
         without one (this computer fired none; the rocket's recovery was another's, or it tumbled) from the first

@@ -326,6 +326,27 @@ def _add_process_noise(P: np.ndarray, k: int, dt: float, va: float, vg: float, s
         P[3 + i, i] += c
 
 
+def _predict_offset(P: np.ndarray, Paa: np.ndarray, Pa: np.ndarray, Daa: np.ndarray, dt: float
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """The predicted covariance and D = cov(error k, predicted error k+1) with the barometer's offset b a state
+    (outside the sigma points): from ``P`` (at k, with b), ``Paa`` (its dynamic block), the unscented predict's
+    ``Pa`` and ``Daa``: P_ab' = F P_ab, D = [[Daa, P_ab], [(F P_ab)^T, P_bb]]."""
+    m = P.shape[0]
+    Pab = P[:N_DYN, N_DYN]
+    FPab = Daa.T @ np.linalg.solve(Paa, Pab)
+    D = np.empty((m, m))
+    D[:N_DYN, :N_DYN] = Daa
+    D[:N_DYN, N_DYN] = Pab
+    D[N_DYN, :N_DYN] = FPab
+    D[N_DYN, N_DYN] = P[N_DYN, N_DYN]
+    Pn = np.empty((m, m))
+    Pn[:N_DYN, :N_DYN] = Pa
+    Pn[:N_DYN, N_DYN] = FPab
+    Pn[N_DYN, :N_DYN] = FPab
+    Pn[N_DYN, N_DYN] = P[N_DYN, N_DYN] + 1e-12 * dt
+    return Pn, D
+
+
 def run_ukf(t: np.ndarray, accel: np.ndarray, gyro: np.ndarray, saturated: np.ndarray, meas: Measurements,
             al: Alignment, noise: FilterNoise, site_asl_m: float, smooth: bool = True,
             earth_rate: np.ndarray | None = None, accel_sigma_extra: np.ndarray | None = None) -> Run:
@@ -378,21 +399,7 @@ def run_ukf(t: np.ndarray, accel: np.ndarray, gyro: np.ndarray, saturated: np.nd
         _add_process_noise(Pa, k, dt, va, vg, saturated, accel_sigma_extra, noise)
         Daa = w * (chi.T @ dev)
         if m > N_DYN:
-            # the offset b: P_ab' = F P_ab, D = cov(error k, predicted error k+1) = [[Daa, P_ab], [(F P_ab)^T, P_bb]]
-            Pab = P[:N_DYN, N_DYN]
-            FPab = Daa.T @ np.linalg.solve(Paa, Pab)
-            D = np.empty((m, m))
-            D[:N_DYN, :N_DYN] = Daa
-            D[:N_DYN, N_DYN] = Pab
-            D[N_DYN, :N_DYN] = FPab
-            D[N_DYN, N_DYN] = P[N_DYN, N_DYN]
-            Pn = np.empty((m, m))
-            Pn[:N_DYN, :N_DYN] = Pa
-            Pn[:N_DYN, N_DYN] = FPab
-            Pn[N_DYN, :N_DYN] = FPab
-            Pn[N_DYN, N_DYN] = P[N_DYN, N_DYN] + 1e-12 * dt
-            P = Pn
-            Dk[k] = D
+            P, Dk[k] = _predict_offset(P, Paa, Pa, Daa, dt)
         else:
             P = Pa
             Dk[k, :m, :m] = Daa

@@ -317,5 +317,5 @@ def check_port(port: Port, cfg: BuildConfig, *, examples: int | None = 1000, sec
     return res
 
 
-__all__ = ["CheckResult", "Difference", "Mismatch", "check_port", "compare", "crash_of", "cut_chunks", "first_difference",
-           "mismatch_of"]
+__all__ = ["CheckResult", "Difference", "Mismatch", "check_port", "compare", "crash_of", "cut_chunks",
+           "first_difference", "mismatch_of"]
