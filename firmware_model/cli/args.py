@@ -72,7 +72,8 @@ def add_flight_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-noise", action="store_true", help="noise-free sensors for FLIGHT arguments")
     p.add_argument("--format", help="reader override for FLIGHT files")
     add_reader_arguments(p)
-    p.add_argument("--rounding", choices=("floor", "half_up"), help="rounding of every build (default: the program's, half_up for kalman_accel, floor otherwise)")
+    p.add_argument("--rounding", choices=("floor", "half_up"),
+                   help="rounding of every build (default: the program's, half_up for kalman_accel, floor otherwise)")
     p.add_argument("--jobs", "-j", type=positive_int, default=1, metavar="N",
                    help="worker processes (default 1; output identical for any N)")
     p.add_argument("--scheduler", metavar="ADDRESS",

@@ -57,7 +57,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     p.add_argument("--config", metavar="FILE.json", help="a build config file (flags override it)")
     p.add_argument("--program", choices=PROGRAMS, help="firmware program (default: kalman_baro)")
     p.add_argument("--k", type=int, help="sample period 2^-k s (default 5)")
-    p.add_argument("--rounding", choices=ROUNDINGS, help="rounding of every right shift (default: the program's, half_up for kalman_accel, floor otherwise)")
+    p.add_argument("--rounding", choices=ROUNDINGS,
+                   help="rounding of every right shift (default: the program's, half_up for kalman_accel, floor "
+                        "otherwise)")
     p.add_argument("--sensor", choices=SENSORS, help="barometer: the golden vectors' 16- or 12-bit ADC, or the "
                                                      "pascal word (default adc16)")
     p.add_argument("--tuning", choices=TUNINGS, help="default: the BuildConfig defaults; recommended: "

@@ -80,7 +80,8 @@ def test_vectors_firmware_and_config_that_agree(tmp_path: Path) -> None:
     r = fwemu("vectors", "--firmware", "kalman_accel", "--input", "s.csv", "--config", "c.json", "--generator",
               "model", "--out", "o", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
-    doc = json.loads((tmp_path / "o" / "cases" / "kalman_accel_half_up_k5_b16_s.json").read_text())   # half_up: kalman_accel's default rounding
+    # half_up: kalman_accel's default rounding
+    doc = json.loads((tmp_path / "o" / "cases" / "kalman_accel_half_up_k5_b16_s.json").read_text())
     assert doc["build_config"]["program"] == "kalman_accel" and doc["build_config"]["ratio"] == 100.0
 
 
