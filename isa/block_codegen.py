@@ -178,24 +178,6 @@ class _Ins(NamedTuple):
     prefix: int
 
 
-class _Sym(NamedTuple):
-    """One register-only data instruction as :meth:`_BlockGen.symbolic` hands it to the step of its family
-    (:data:`_SYM_STEPS`): the instruction, handler name, flags asked for, address, size in bytes and mask, the
-    source operand (None for one operand), the destination data register, whether the source is that register, and
-    the NZVC flags asked for."""
-
-    ins: Instruction
-    h: str
-    need: int
-    pc: int
-    nb: int
-    M: int
-    src: Operand | None
-    r: int
-    same: bool
-    nzvc: int
-
-
 class _BlockGen:
     """Generates the source of one block function. Registers live in locals ``d0..a7``, the status register in
     ``sr``, data-dependent clocks accumulate in ``c``; every exit writes the registers back and returns
@@ -840,7 +822,9 @@ class _BlockGen:
         """Take a register-only data instruction into the value layer: its result becomes the pending value of its
         register (no statement), flags are emitted when asked for. Returns its clocks, or None when it is left to
         the statement generator (memory operands, address registers, shifts with live flags, MUL by a register,
-        ADD/SUB with live flags in a block with lazy flags). One step per instruction family (:data:`_SYM_STEPS`)."""
+        ADD/SUB with live flags in a block with lazy flags). One step per instruction family (:data:`_SYM_STEPS`,
+        each called with the instruction, its handler name, ``need``, ``pc``, size in bytes, source operand (None
+        for one operand), destination data register, whether the source is that register, and the NZVC asked for)."""
         if h not in _SYM:
             return None
         ops = ins.operands
@@ -851,7 +835,6 @@ class _BlockGen:
                 self.emit(f"sr = (sr & 0xFF10) | {_nz(k, 4)}")
             return 4
         nb = _nb(ins)
-        M = MASK[nb]
         src, dst = (ops[0], ops[1]) if len(ops) == 2 else (None, ops[0])
         if h == "move" and (dst.mode is not _M.DREG or src.mode not in (_M.DREG, _M.IMM)):
             return self.move_const(ins, nb, need, pc)
@@ -863,36 +846,36 @@ class _BlockGen:
         nzvc = need & _FLAGS_NZVC
         if nzvc and h in _FUSE_NZ:
             self.fuse_setup(_NZ_ONLY if h in _FUSE_ARITH else _NZ_CONDS, r)
-        return _SYM_STEPS[h](self, _Sym(ins, h, need, pc, nb, M, src, r, same, nzvc))
+        return _SYM_STEPS[h](self, ins, h, need, pc, nb, src, r, same, nzvc)
 
-    def _sym_operand(self, it: _Sym, o: Operand, dest: int | None, n: int | None = None) -> _Val:
-        """The value of source operand ``o`` of ``it`` (``n`` bytes, default its size): an immediate, a constant
+    def _sym_operand(self, o: Operand, dest: int | None, n: int, pc: int) -> _Val:
+        """The value of the ``n``-byte source operand ``o`` of the instruction at ``pc``: an immediate, a constant
         address the map guarantees (read now: it cannot fault) or a data register (:meth:`take` for ``dest``)."""
-        n = it.nb if n is None else n
         if o.mode is _M.IMM:
             k = o.value & MASK[n]
             return _Val(str(k), k, k)
         if o.mode is not _M.DREG:  # a constant address the map guarantees (cannot fault): read it now
             t = self.tmp()
-            self.emit(f"{t} = {self.load(n, self.addr(o, n, it.pc, 'ea'))}")
+            self.emit(f"{t} = {self.load(n, self.addr(o, n, pc, 'ea'))}")
             return _Val(t, 0, MASK[n])
         return self.take(o.reg, dest)
 
-    def _s_exg(self, it: _Sym) -> int | None:
+    def _s_exg(self, ins: Instruction, h: str, need: int, pc: int, nb: int, src: Operand | None, r: int, same: bool,
+               nzvc: int) -> int | None:
         """EXG Dx,Dy: the two pending values trade places."""
-        ins, _, _, _, _, _, src, r, _, _ = it
         if src.mode is not _M.DREG:
             return None
         a, b = self.val(src.reg), self.val(r)
         self.pend[src.reg], self.pend[r] = b, a
         return timing.cycles(ins)
 
-    def _s_cmp(self, it: _Sym) -> int | None:
+    def _s_cmp(self, ins: Instruction, h: str, need: int, pc: int, nb: int, src: Operand | None, r: int, same: bool,
+               nzvc: int) -> int | None:
         """CMP/CMPI into a data register: flags only (or a test fused into the next Bcc)."""
-        ins, _, need, _, nb, M, src, r, _, nzvc = it
+        M = MASK[nb]
         if nzvc:
             self.fuse_setup(_CMP_CONDS, None)
-            s, d = self._sym_operand(it, src, None), self.take(r, None)
+            s, d = self._sym_operand(src, None, nb, pc), self.take(r, None)
             ls, ld = self.low(s, nb), self.low(d, nb)
             if self.fusing is not None:  # only the next Bcc reads them: it compares the operands itself
                 cond, self.fusing = self.fusing, None
@@ -917,9 +900,9 @@ class _BlockGen:
                 self.arith_flags("cmp", nb, ls, ld, need)
         return timing.cycles(ins)
 
-    def _s_tst(self, it: _Sym) -> int | None:
+    def _s_tst(self, ins: Instruction, h: str, need: int, pc: int, nb: int, src: Operand | None, r: int, same: bool,
+               nzvc: int) -> int | None:
         """TST Dn: flags only (or a test fused into the next Bcc)."""
-        ins, _, need, _, nb, _, _, r, _, nzvc = it
         if nzvc:
             self.fuse_setup(_NZ_CONDS, None)
         x = self.low(self.take(r, None), nb)
@@ -929,10 +912,10 @@ class _BlockGen:
             self.vflags(x, nb, need)
         return timing.cycles(ins)
 
-    def _s_move(self, it: _Sym) -> int | None:
+    def _s_move(self, ins: Instruction, h: str, need: int, pc: int, nb: int, src: Operand | None, r: int, same: bool,
+                nzvc: int) -> int | None:
         """MOVE of a data register or an immediate into a data register."""
-        ins, _, need, _, nb, _, src, r, same, nzvc = it
-        s = self._sym_operand(it, src, r)
+        s = self._sym_operand(src, r, nb, pc)
         if nb == 4:
             if nzvc:
                 x = self.vflags(self.u(s), 4, need, r)
@@ -949,12 +932,13 @@ class _BlockGen:
         self.setv(r, self.merge(d, nb, self.vflags(x, nb, need), xhi))
         return timing.cycles(ins)
 
-    def _s_logic(self, it: _Sym) -> int | None:
+    def _s_logic(self, ins: Instruction, h: str, need: int, pc: int, nb: int, src: Operand | None, r: int, same: bool,
+                 nzvc: int) -> int | None:
         """AND/OR/EOR (and the immediate forms) into a data register."""
-        ins, h, need, _, nb, M, src, r, same, nzvc = it
+        M = MASK[nb]
         kind = h.rstrip("i")
         op = {"and": "&", "or": "|", "eor": "^"}[kind]
-        s = self._sym_operand(it, src, r)
+        s = self._sym_operand(src, r, nb, pc)
         d = self.val(r)
         if same:
             d = s = self.bind(d)
@@ -999,9 +983,10 @@ class _BlockGen:
         self.setx(r, x, self.merge(d, nb, x, xhi))
         return timing.cycles(ins)
 
-    def _s_addsub(self, it: _Sym) -> int | None:
+    def _s_addsub(self, ins: Instruction, h: str, need: int, pc: int, nb: int, src: Operand | None, r: int, same: bool,
+                  nzvc: int) -> int | None:
         """ADD/SUB (immediate and quick forms included) into a data register."""
-        ins, h, need, _, nb, M, src, r, same, _ = it
+        M = MASK[nb]
         flags = need & _ALL_FLAGS
         if flags and self.lazy is not None:
             return None
@@ -1009,7 +994,7 @@ class _BlockGen:
         if h in ("addq", "subq"):
             s = _Val(str(src.value & M), src.value & M, src.value & M)
         else:
-            s = self._sym_operand(it, src, r)
+            s = self._sym_operand(src, r, nb, pc)
         d = self.val(r)
         if same:
             d = s = self.bind(d)
@@ -1066,9 +1051,10 @@ class _BlockGen:
         self.setv(r, res if nb == 4 else self.merge(d, nb, self.low(res, nb), M))
         return timing.cycles(ins)
 
-    def _s_unary(self, it: _Sym) -> int | None:
+    def _s_unary(self, ins: Instruction, h: str, need: int, pc: int, nb: int, src: Operand | None, r: int, same: bool,
+                 nzvc: int) -> int | None:
         """CLR/NOT/NEG of a data register (NEG only with its flags dead)."""
-        ins, h, need, _, nb, M, _, r, _, nzvc = it
+        M = MASK[nb]
         if h == "neg" and need & _ALL_FLAGS:
             return None
         d = self.val(r)
@@ -1087,9 +1073,9 @@ class _BlockGen:
         self.setv(r, self.merge(d, nb, self.vflags(x, nb, need), M))
         return timing.cycles(ins)
 
-    def _s_swap(self, it: _Sym) -> int | None:
+    def _s_swap(self, ins: Instruction, h: str, need: int, pc: int, nb: int, src: Operand | None, r: int, same: bool,
+                nzvc: int) -> int | None:
         """SWAP Dn: the two words trade places."""
-        ins, _, need, _, _, _, _, r, _, nzvc = it
         d = self.val(r)
         if d.exact() and d.hi <= 0xFFFF:
             x = f"({self.force(d)} << 16)"
@@ -1114,9 +1100,9 @@ class _BlockGen:
         self.setv(r, _Val(make, 0, M32, w, whi))
         return timing.cycles(ins)
 
-    def _s_ext(self, it: _Sym) -> int | None:
+    def _s_ext(self, ins: Instruction, h: str, need: int, pc: int, nb: int, src: Operand | None, r: int, same: bool,
+               nzvc: int) -> int | None:
         """EXT.W / EXT.L Dn."""
-        ins, _, need, _, _, _, _, r, _, nzvc = it
         d = self.val(r)
         if ins.size is Size.W:
             d = self.bind(d)
@@ -1133,18 +1119,18 @@ class _BlockGen:
             self.setv(r, _Val(w, lo, hi, ww if _ATOM.match(ww) else None, min(d.whi, 0xFFFF)))
         return timing.cycles(ins)
 
-    def _s_mul(self, it: _Sym) -> int | None:
+    def _s_mul(self, ins: Instruction, h: str, need: int, pc: int, nb: int, src: Operand | None, r: int, same: bool,
+               nzvc: int) -> int | None:
         """MULU/MULS into a data register: by a register (data-dependent clocks) or a known source."""
-        _, h, need, _, _, _, src, r, same, nzvc = it
         if src.mode is _M.IMM:
-            return self._s_mul_imm(it, timing.EA_TIME[_M.IMM][0])
-        sv = self._sym_operand(it, src, r, 2)
+            return self._s_mul_imm(h, need, src, r, nzvc, timing.EA_TIME[_M.IMM][0])
+        sv = self._sym_operand(src, r, 2, pc)
         d = self.val(r)
         if same:
             d = sv = self.bind(d)
         t = self.low(sv, 2)
         if t.isdigit():  # a known source: constant clocks, as MUL #imm
-            return self._s_mul_imm(it._replace(src=Operand(_M.IMM, value=int(t))), timing.EA_TIME[_M.DREG][0])
+            return self._s_mul_imm(h, need, Operand(_M.IMM, value=int(t)), r, nzvc, timing.EA_TIME[_M.DREG][0])
         if not _ATOM.match(t):
             t = self.bind(_Val(t, 0, sv.whi)).e
             sv = _Val(t, 0, sv.whi)
@@ -1163,9 +1149,8 @@ class _BlockGen:
         self.setx(r, x, _Val(x, lo, hi))
         return 38 + timing.EA_TIME[src.mode][0]
 
-    def _s_mul_imm(self, it: _Sym, ea: int) -> int | None:
-        """MULU/MULS by a known 16-bit source (``it.src`` an immediate), its EA time ``ea``."""
-        _, h, need, _, _, _, src, r, _, nzvc = it
+    def _s_mul_imm(self, h: str, need: int, src: Operand, r: int, nzvc: int, ea: int) -> int | None:
+        """MULU/MULS by a known 16-bit source (``src`` an immediate), its EA time ``ea``."""
         k = src.value & 0xFFFF
         d = self.val(r)
         if h == "mulu":
@@ -1185,9 +1170,9 @@ class _BlockGen:
         self.setx(r, x, _Val(x, lo, hi))
         return 38 + ea + extra
 
-    def _s_shift(self, it: _Sym) -> int | None:
+    def _s_shift(self, ins: Instruction, h: str, need: int, pc: int, nb: int, src: Operand | None, r: int, same: bool,
+                 nzvc: int) -> int | None:
         """ASL/ASR/LSL/LSR.L of a data register by an immediate or a known count."""
-        ins, h, need, _, nb, _, src, r, _, _ = it
         # shifts: long, by an immediate or by a register holding a known count (with live flags: ASR/LSR/LSL by
         # 1..31 only)
         if nb != 4 or len(ins.operands) != 2:

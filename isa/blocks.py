@@ -88,8 +88,8 @@ class _BlockInfo:
 
 class _Walk:
     """The walk of :func:`_block_source` over the entries of one block, generating each as planned through the
-    block's :class:`_BlockGen`: straight-line instructions (:meth:`straight`), and one step per control-flow role of
-    :func:`_plan` (:meth:`dup`, :meth:`loop`, :meth:`branch`). Every step takes and returns the constant
+    block's :class:`_BlockGen`: straight-line instructions (:meth:`gen`), and one step per control-flow role of
+    :func:`_plan` (:meth:`flow`: :meth:`dup`, :meth:`loop`, :meth:`branch`). Every step takes and returns the constant
     instruction count ``n`` and clocks ``cy`` done on the path it is on (the locals ``ni``/``c`` hold the rest)."""
 
     def __init__(self, entries: list[_Entry], facts: MapFacts, g: _BlockGen, role: dict[int, Any], head: int | None,
@@ -140,62 +140,59 @@ class _Walk:
 
     def gen(self, lo: int, hi: int, n: int, cy: int) -> tuple[bool, int, int]:
         """Emit entries lo..hi-1 reached with ``n`` instructions and ``cy`` constant clocks done; return (every
-        path has left the block, n, cy at ``hi``)."""
+        path has left the block, n, cy at ``hi``). A straight-line entry is emitted here (the per-instruction path
+        of the compiler, kept in one frame), a control-flow role by :meth:`flow`."""
+        entries, g, role, targets, need, facts = self.entries, self.g, self.role, self.targets, self.need, self.facts
         i = lo
         while i < hi:
+            pc, ins, h, cond, length = entries[i]
+            nxt = (pc + length) & 0xFFFFFF
             self.mark(i, n, cy)
-            r = self.role.get(i)
-            if r is None:
-                ended, n, cy = self.straight(i, lo, hi, n, cy)
-                i += 1
-            else:
-                self.g.flush()  # control flow: pending register values are assigned before it
+            r = role.get(i)
+            if r is not None:
+                g.flush()  # control flow: pending register values are assigned before it
                 ended, i, n, cy = self.flow(i, r, n, cy)
+                if ended:
+                    return True, n, cy
+                continue
+            assert g.fused is None, "a fused test not taken by its branch"
+            g.cur = i
+            g.defer = _defer_flags(entries, i, hi, role, targets)
+            g.wrote = False
+            g.u32 = set()
+            g.smc_inline = not _lowers_sp(ins, h)
+            g.smc_slots = []
+            g.known = {}
+            if i > lo and i not in targets and entries[i - 1][2] == "moveq" and (i - 1) not in role:
+                prev = entries[i - 1][1].operands
+                g.known = {prev[1].reg: _sx(prev[0].value & 0xFF, 1) & M32}
+            g.later = lambda reg, i=i: _read_later(entries, i, reg, role, targets, facts, g.code)
+            g.nxt = None
+            if i + 1 < hi and i + 1 not in targets and entries[i + 1][2] == "bcc":
+                g.nxt = (entries[i + 1][3], need[i + 1])
+            cyc, ended = g.instruction(n, ins, h, cond, pc, nxt, need[i], cy)
+            cy += cyc
+            n += 1
+            if _lowers_sp(ins, h) and h not in ("pea", "bsr", "jsr"):
+                g.emit(f"if {g.rg(15)} < MS[0]:")
+                g.emit(f"    MS[0] = {g.rg(15)}")
+            wrote = g.wrote
+            g.defer = False
+            if g.pending is not None and g.pending_from < i:
+                g.pending = None  # the instruction after the deferring one is done
+            for slot in g.smc_slots:
+                g.items[slot] = (g.items[slot][0], ("exit", nxt, n, cy, frozenset(g.dirty)))
+            if wrote and not ended:
+                g.emit("if D[0]:")
+                g.ind += 1
+                g.emit("D[0] = 0")
+                g.exit(nxt, n, cy)
+                g.ind -= 1
             if ended:
                 return True, n, cy
-        self.g.flush()  # the end of a straight line (a join, the loop edge or the block's end follows)
+            i += 1
+        g.flush()  # the end of a straight line (a join, the loop edge or the block's end follows)
         return False, n, cy
-
-    def straight(self, i: int, lo: int, hi: int, n: int, cy: int) -> tuple[bool, int, int]:
-        """Emit entry ``i`` (no control-flow role) of the straight line lo..hi-1; return (the block ends after it,
-        n, cy after it)."""
-        entries, g, role, targets = self.entries, self.g, self.role, self.targets
-        pc, ins, h, cond, length = entries[i]
-        nxt = (pc + length) & 0xFFFFFF
-        assert g.fused is None, "a fused test not taken by its branch"
-        g.cur = i
-        g.defer = _defer_flags(entries, i, hi, role, targets)
-        g.wrote = False
-        g.u32 = set()
-        g.smc_inline = not _lowers_sp(ins, h)
-        g.smc_slots = []
-        g.known = {}
-        if i > lo and i not in targets and entries[i - 1][2] == "moveq" and (i - 1) not in role:
-            prev = entries[i - 1][1].operands
-            g.known = {prev[1].reg: _sx(prev[0].value & 0xFF, 1) & M32}
-        g.later = lambda reg, i=i: _read_later(entries, i, reg, role, targets, self.facts, g.code)
-        g.nxt = None
-        if i + 1 < hi and i + 1 not in targets and entries[i + 1][2] == "bcc":
-            g.nxt = (entries[i + 1][3], self.need[i + 1])
-        cyc, ended = g.instruction(n, ins, h, cond, pc, nxt, self.need[i], cy)
-        cy += cyc
-        n += 1
-        if _lowers_sp(ins, h) and h not in ("pea", "bsr", "jsr"):
-            g.emit(f"if {g.rg(15)} < MS[0]:")
-            g.emit(f"    MS[0] = {g.rg(15)}")
-        wrote = g.wrote
-        g.defer = False
-        if g.pending is not None and g.pending_from < i:
-            g.pending = None  # the instruction after the deferring one is done
-        for slot in g.smc_slots:
-            g.items[slot] = (g.items[slot][0], ("exit", nxt, n, cy, frozenset(g.dirty)))
-        if wrote and not ended:
-            g.emit("if D[0]:")
-            g.ind += 1
-            g.emit("D[0] = 0")
-            g.exit(nxt, n, cy)
-            g.ind -= 1
-        return ended, n, cy
 
     def flow(self, i: int, r: tuple[Any, ...], n: int, cy: int) -> tuple[bool, int, int, int]:
         """Emit entry ``i``, a branch with the role ``r``; return (every path has left the block, the entry the

@@ -86,16 +86,17 @@ def tokenize(text: str, col0: int, where: Where) -> list[Token]:
         if ch in " \t":
             i += 1
             continue
-        term = bool(tokens) and tokens[-1].kind in _TERM_END  # the token before ends a term
         if ch.isdigit():
             tok, i = _decimal(text, i, col, where)
-        elif ch == "$" or (ch in "%@" and not term):
+        elif ch == "$" or (ch in "%@" and not _ends_term(tokens)):
             tok, i = _based(text, i, col, where)
         elif _is_ident_start(ch):
-            j = _word_end(text, i)
+            j = i + 1
+            while j < n and _is_ident_char(text[j]):
+                j += 1
             tok, i = Token("ident", text[i:j], col), j
         elif ch == ".":
-            tok, i = _dotted(text, i, col, where, term)
+            tok, i = _dotted(text, i, col, where, _ends_term(tokens))
         elif ch in "'\"":
             tok, i = _string(text, i, col, where)
         elif ch in _PUNCT:
@@ -111,6 +112,11 @@ def tokenize(text: str, col0: int, where: Where) -> list[Token]:
         tokens.append(tok)
     tokens.append(Token("end", "", col0 + n))
     return tokens
+
+
+def _ends_term(tokens: list[Token]) -> bool:
+    """Whether the last token so far ends a term (then '%' is the modulo operator and '.' may be a size suffix)."""
+    return bool(tokens) and tokens[-1].kind in _TERM_END
 
 
 def _word_end(text: str, j: int) -> int:

@@ -144,14 +144,13 @@ def shift_count_cycles(size: Size | None, count: int) -> int:
     return (8 if size is Size.L else 6) + 2 * count
 
 
-#: Handlers whose clocks depend only on the operands: the ALU families (:func:`_alu_cycles`).
-_ALU = frozenset("add sub and or cmp eor adda suba cmpa addi subi ori eori andi cmpi addq subq cmpm addx subx "
-                 "clr neg negx not tst".split())
-#: Handlers that change the flow (or test a condition): :func:`_flow_cycles`.
-_FLOW = frozenset("scc bcc bra bsr dbcc jmp jsr rts trap illegal".split())
+#: Handlers that change the flow (or test a condition) other than Bcc and DBcc: :func:`_flow_cycles`.
+_FLOW = frozenset("scc bra bsr jmp jsr rts trap illegal".split())
+#: Clocks of the flow instructions that take the same time whatever their operands.
+_FLOW_FIXED = {"bra": 10, "bsr": 18, "rts": 16, "trap": 34, "illegal": 34}
 
 
-def cycles(
+def cycles(  # noqa: C901 - one branch per instruction timing rule of the 68000 tables
     instr: Instruction,
     *,
     taken: bool = True,
@@ -170,50 +169,11 @@ def cycles(
     h = handler_name(instr.mnemonic)
     ops = instr.operands
     size = instr.size
-    if h in _ALU:
-        return _alu_cycles(h, ops, size)
-    if h in _FLOW:
-        return _flow_cycles(h, ops, size, taken, expired)
+    long = size is Size.L
     if h in ("move", "movea"):
-        return 4 + _ea(ops[0], size) + _MOVE_DEST[ops[1].mode][1 if size is Size.L else 0]
+        return 4 + _ea(ops[0], size) + _MOVE_DEST[ops[1].mode][1 if long else 0]
     if h == "moveq":
         return 4
-    if h in _SHIFTS:
-        if len(ops) == 1:
-            return 8 + _ea(ops[0], Size.W)
-        if ops[0].mode is _M.IMM:
-            n = ops[0].value
-        else:
-            n = 0 if count is None else count
-        return shift_count_cycles(size, n)
-    if h == "mulu":
-        return mulu_cycles(source) + _ea(ops[0], Size.W)
-    if h == "muls":
-        return muls_cycles(source) + _ea(ops[0], Size.W)
-    if h in ("divu", "divs"):
-        divisor = source or 1
-        fn = divu_cycles if h == "divu" else divs_cycles
-        return fn(dividend, divisor) + _ea(ops[0], Size.W)
-    if h == "lea":
-        return _LEA[ops[0].mode]
-    if h == "pea":
-        return _PEA[ops[0].mode]
-    if h == "movem":
-        if ops[0].mode is _M.REGLIST:
-            n, ea_op, table = _bits(ops[0].value), ops[1], _MOVEM_R2M
-        else:
-            n, ea_op, table = _bits(ops[1].value), ops[0], _MOVEM_M2R
-        return table[ea_op.mode] + (8 if size is Size.L else 4) * n
-    if h in ("ext", "swap", "nop"):
-        return 4
-    if h == "exg":
-        return 6
-    raise KeyError(f"no timing for handler {h!r}")
-
-
-def _alu_cycles(h: str, ops: tuple[Operand, ...], size: Size | None) -> int:  # noqa: C901 - one branch per ALU timing rule of the 68000 tables (UM Tables 8-4 to 8-6)
-    """Clocks of the ALU instruction ``h`` (a name of :data:`_ALU`) on ``ops``."""
-    long = size is Size.L
     if h in ("add", "sub", "and", "or", "cmp", "eor"):
         src, dst = ops
         if dst.mode is _M.DREG and h == "cmp":
@@ -259,18 +219,9 @@ def _alu_cycles(h: str, ops: tuple[Operand, ...], size: Size | None) -> int:  # 
         if dst.mode is _M.DREG:
             return 6 if long else 4
         return (12 if long else 8) + _ea(dst, size)
-    assert h == "tst", h
-    return 4 + _ea(ops[0], size)
-
-
-def _flow_cycles(h: str, ops: tuple[Operand, ...], size: Size | None, taken: bool, expired: bool) -> int:
-    """Clocks of the branch, jump, Scc or exception instruction ``h`` (a name of :data:`_FLOW`); ``taken`` and
-    ``expired`` as for :func:`cycles`."""
-    if h == "scc":
-        if ops[0].mode is _M.DREG:
-            return 6 if taken else 4
-        return 8 + _ea(ops[0], size)
-    if h == "bcc":
+    if h == "tst":
+        return 4 + _ea(ops[0], size)
+    if h == "bcc":  # the two commonest flow rules here; the others in _flow_cycles
         if taken:
             return 10
         return 8 if size is Size.S else 12
@@ -278,11 +229,54 @@ def _flow_cycles(h: str, ops: tuple[Operand, ...], size: Size | None, taken: boo
         if expired:
             return 14
         return 10 if taken else 12
+    if h in _FLOW:  # other branches, jumps, Scc, exceptions
+        return _flow_cycles(h, ops, size, taken)
+    if h in _SHIFTS:
+        if len(ops) == 1:
+            return 8 + _ea(ops[0], Size.W)
+        if ops[0].mode is _M.IMM:
+            n = ops[0].value
+        else:
+            n = 0 if count is None else count
+        return shift_count_cycles(size, n)
+    if h == "mulu":
+        return mulu_cycles(source) + _ea(ops[0], Size.W)
+    if h == "muls":
+        return muls_cycles(source) + _ea(ops[0], Size.W)
+    if h in ("divu", "divs"):
+        divisor = source or 1
+        fn = divu_cycles if h == "divu" else divs_cycles
+        return fn(dividend, divisor) + _ea(ops[0], Size.W)
+    if h == "lea":
+        return _LEA[ops[0].mode]
+    if h == "pea":
+        return _PEA[ops[0].mode]
+    if h == "movem":
+        if ops[0].mode is _M.REGLIST:
+            n, ea_op, table = _bits(ops[0].value), ops[1], _MOVEM_R2M
+        else:
+            n, ea_op, table = _bits(ops[1].value), ops[0], _MOVEM_M2R
+        return table[ea_op.mode] + (8 if long else 4) * n
+    if h in ("ext", "swap", "nop"):
+        return 4
+    if h == "exg":
+        return 6
+    raise KeyError(f"no timing for handler {h!r}")
+
+
+
+def _flow_cycles(h: str, ops: tuple[Operand, ...], size: Size | None, taken: bool) -> int:
+    """Clocks of the branch, jump, Scc or exception instruction ``h`` (a name of :data:`_FLOW`); ``taken`` as for
+    :func:`cycles`."""
+    if h == "scc":
+        if ops[0].mode is _M.DREG:
+            return 6 if taken else 4
+        return 8 + _ea(ops[0], size)
     if h == "jmp":
         return _JMP[ops[0].mode]
     if h == "jsr":
         return _JSR[ops[0].mode]
-    return {"bra": 10, "bsr": 18, "rts": 16, "trap": 34, "illegal": 34}[h]
+    return _FLOW_FIXED[h]
 
 
 def cycle_range(instr: Instruction) -> tuple[int, int]:
