@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from firmware_model.flights.evaluate import (
+from firmware_model.flights.evaluation.evaluate import (
     FlightSpec,
     altitude_of_counts,
     flight_inputs,
@@ -16,7 +16,7 @@ from firmware_model.flights.evaluate import (
     sensor_config,
 )
 from firmware_model.flights.plot import plot_run
-from firmware_model.flights.runcsv import COLUMNS, RunTable, from_trace
+from firmware_model.flights.inputs.runcsv import COLUMNS, RunTable, from_trace
 from firmware_model.model.run import run_model
 from firmware_model.runtime.errors import UserError
 from firmware_model.runtime.output import write_file

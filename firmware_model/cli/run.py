@@ -18,7 +18,7 @@ import numpy as np
 from firmware_model.cli.args import add_reader_arguments, nonnegative_int
 from firmware_model.firmware.assemble import build_firmware
 from firmware_model.firmware.harness import run_firmware
-from firmware_model.flights.evaluate import (
+from firmware_model.flights.evaluation.evaluate import (
     ACCEL_PROGRAMS,
     FlightSpec,
     altitude_of_counts,
@@ -29,7 +29,7 @@ from firmware_model.flights.evaluate import (
     reference_for,
     sensor_config,
 )
-from firmware_model.flights.runcsv import from_trace
+from firmware_model.flights.inputs.runcsv import from_trace
 from firmware_model.model.run import run_model
 from firmware_model.runtime.errors import UserError
 from firmware_model.runtime.output import write_file

@@ -14,12 +14,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from firmware_model.cli.main import main
-from firmware_model.flights import baro_signatures as bs
-from firmware_model.flights import pressure_errors as pe
-from firmware_model.flights import scenarios as sc
-from firmware_model.flights import sim1dof as s1
-from firmware_model.flights.evalset import k_set, named_set, scenario_variants, shared_dir
-from firmware_model.flights.evaluate import (
+from firmware_model.flights.studies import baro_signatures as bs
+from firmware_model.flights.simulate import pressure_errors as pe
+from firmware_model.flights.simulate import scenarios as sc
+from firmware_model.flights.simulate import sim1dof as s1
+from firmware_model.flights.evaluation.evalset import k_set, named_set, scenario_variants, shared_dir
+from firmware_model.flights.evaluation.evaluate import (
     Detection,
     FlightResult,
     Reference,
@@ -29,7 +29,7 @@ from firmware_model.flights.evaluate import (
     render_markdown,
     summarize,
 )
-from firmware_model.flights.motors import load_motor
+from firmware_model.flights.simulate.motors import load_motor
 from firmware_model.flights.readers import read_flight
 from firmware_model.flights.strategies import supersonic_flights
 from firmware_model.runtime.errors import UserError

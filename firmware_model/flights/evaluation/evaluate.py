@@ -19,7 +19,7 @@ would fire the charge. The low-rate prediction (``APOGEE_PREDICTED`` + ``APFRAC`
 **Error** = detection time - reference time (positive = late).
 
 **Reference**: for simulated flights the true apogee (``Truth.apogee_time_s``, uncertainty 0); for real logs the
-robust parabola of :func:`firmware_model.flights.apogee_reference.reference_apogee` with its uncertainty. AltOS's own
+robust parabola of :func:`firmware_model.flights.reference.apogee_reference.reference_apogee` with its uncertainty. AltOS's own
 detection (AltosUI logs: ``record.events["altos_apogee"]``, the first ``drogue`` row) is reported beside, with its
 error against the same reference.
 
@@ -42,16 +42,16 @@ from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
 
-from firmware_model.flights.apogee_reference import reference_apogee
-from firmware_model.flights.charge import recovery_charge
-from firmware_model.flights.firmware_inputs import firmware_inputs
+from firmware_model.flights.reference.apogee_reference import reference_apogee
+from firmware_model.flights.reference.charge import recovery_charge
+from firmware_model.flights.inputs.firmware_inputs import firmware_inputs
 from firmware_model.flights.readers import read_flight
 from firmware_model.flights.record import FlightRecord
 from firmware_model.flights.reconstruct.reference import MODES as SMOOTHER_MODES
 from firmware_model.flights.reconstruct.reference import smoother_reference
-from firmware_model.flights.scenarios import scenario_mach, simulate_scenario
-from firmware_model.flights.sensors import AccelSensor, BaroSensor
-from firmware_model.flights.sim1dof import mach_of
+from firmware_model.flights.simulate.scenarios import scenario_mach, simulate_scenario
+from firmware_model.flights.inputs.sensors import AccelSensor, BaroSensor
+from firmware_model.flights.simulate.sim1dof import mach_of
 from firmware_model.model.float_reference import mirror
 from firmware_model.model.run import run_model
 from firmware_model.model.trace import EVENT_BITS

@@ -21,7 +21,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from firmware_model.flights.evaluate import (
+from firmware_model.flights.evaluation.evaluate import (
     METHODS,
     FlightSpec,
     _clean,
