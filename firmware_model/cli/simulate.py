@@ -10,7 +10,7 @@ from pathlib import Path
 
 from firmware_model.cli.args import positive_float
 from firmware_model.flights.simulate import scenarios
-from firmware_model.flights.inputs.export import generic_csv
+from firmware_model.flights.readers.generic import generic_csv
 from firmware_model.flights.simulate.motors import load_motor
 from firmware_model.flights.simulate.sim1dof import Launch, Rocket, simulate_1dof
 from firmware_model.runtime.errors import UserError

@@ -127,7 +127,7 @@ def test_run_on_a_generic_csv_of_prometheus_matches_the_table_and_the_cpu(tmp_pa
     from firmware_model.firmware.assemble import build_firmware
     from firmware_model.firmware.harness import run_firmware
     from firmware_model.flights.evaluation.evaluate import METHODS, FlightSpec, evaluate_flight, flight_inputs, sensor_config
-    from firmware_model.flights.inputs.export import generic_csv
+    from firmware_model.flights.readers.generic import generic_csv
     from firmware_model.flights.readers import read_flight
     from firmware_model.model.run import run_model
     from firmware_model.spec.build_constants import build_constants

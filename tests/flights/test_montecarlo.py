@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from firmware_model.cli.main import main
-from firmware_model.flights.inputs.export import generic_csv
+from firmware_model.flights.readers.generic import generic_csv
 from firmware_model.flights.inputs.firmware_inputs import firmware_inputs
 from firmware_model.flights.montecarlo import pipeline
 from firmware_model.flights.montecarlo import spec as spec_mod

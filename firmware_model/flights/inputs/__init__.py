@@ -1,2 +1,3 @@
 """From a flight record to what the firmware reads: sensor models (`sensors`), resampling to the firmware's rate,
-the integer input streams (`firmware_inputs`), the run CSV, and the generic-CSV export."""
+the integer input streams (`firmware_inputs`) and the run CSV (`runcsv`). The generic CSV is written
+beside its reader, :mod:`firmware_model.flights.readers.generic`."""
