@@ -24,13 +24,8 @@ from typing import Any
 import numpy as np
 
 from firmware_model.cli.args import add_reader_arguments, nonnegative_int
-from firmware_model.flights.evaluation.evaluate import (
-    FlightSpec,
-    flight_inputs,
-    load_record,
-    method_for_firmware,
-    sensor_config,
-)
+from firmware_model.flights.evaluation.methods import method_for_firmware
+from firmware_model.flights.evaluation.setup import FlightSpec, flight_inputs, load_record, sensor_config
 from firmware_model.model.streams import ACC_PROGRAMS
 from firmware_model.runtime import output
 from firmware_model.runtime.errors import UserError

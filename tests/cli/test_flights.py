@@ -126,7 +126,9 @@ def test_run_on_a_generic_csv_of_prometheus_matches_the_table_and_the_cpu(tmp_pa
     integer model give the same words on every sample."""
     from firmware_model.firmware.assemble import build_firmware
     from firmware_model.firmware.harness import run_firmware
-    from firmware_model.flights.evaluation.evaluate import METHODS, FlightSpec, evaluate_flight, flight_inputs, sensor_config
+    from firmware_model.flights.evaluation.evaluate import evaluate_flight
+    from firmware_model.flights.evaluation.methods import METHODS
+    from firmware_model.flights.evaluation.setup import FlightSpec, flight_inputs, sensor_config
     from firmware_model.flights.readers.generic import generic_csv
     from firmware_model.flights.readers import read_flight
     from firmware_model.model.run import run_model
@@ -147,7 +149,7 @@ def test_run_on_a_generic_csv_of_prometheus_matches_the_table_and_the_cpu(tmp_pa
     assert abs(apo - ref.time_s) <= ref.uncertainty_s + abs(row.error("kalman_baro")) + 1e-9
     # the generic file carries no AltOS events, so its reference is the whole-window fit (rule 5, the deployment
     # cut, needs the log's deployment time); the two fits of the same flight agree within their uncertainties
-    from firmware_model.flights.evaluation.evaluate import reference_for
+    from firmware_model.flights.evaluation.setup import reference_for
 
     gen = reference_for(read_flight(generic))
     assert f"reference ({gen.source}, ±{gen.uncertainty_s:.3f} s): {gen.time_s:.3f} s" in out

@@ -19,7 +19,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from firmware_model.runtime.errors import UserError
-from firmware_model.flights.evaluation.evaluate import reference_for
+from firmware_model.flights.evaluation.setup import reference_for
 from firmware_model.flights.readers import read_flight
 from firmware_model.flights.reconstruct import kernels
 from firmware_model.flights.reconstruct.apogee import velocity_zero_crossing

@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 
 from firmware_model.flights.evaluation.evalset import BARO_TAGS
-from firmware_model.flights.evaluation.evaluate import (METHODS, FlightSpec, flight_inputs, load_record, reference_for,
-                                             sensor_config)
+from firmware_model.flights.evaluation.methods import METHODS
+from firmware_model.flights.evaluation.setup import FlightSpec, flight_inputs, load_record, reference_for, sensor_config
 from firmware_model.model.run import run_model
 from firmware_model.spec.atmosphere import G0
 from firmware_model.spec.build_constants import build_constants

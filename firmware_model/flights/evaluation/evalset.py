@@ -1,5 +1,5 @@
 """The evaluation set behind the README's apogee table, and how command-line FLIGHT arguments become
-:class:`~firmware_model.flights.evaluation.evaluate.FlightSpec` rows (docs/evaluation.md, "The evaluation set").
+:class:`~firmware_model.flights.evaluation.setup.FlightSpec` rows (docs/evaluation.md, "The evaluation set").
 
 * ``set:eval`` (:func:`evaluation_set`): every simulated scenario (:func:`flights.scenarios.scenario_names`) with
   each of the sensings its catalogue tags suggest (:func:`scenario_variants`: 8/10/12/16-bit MPX4115-class ADCs,
@@ -23,7 +23,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any, Iterable, Sequence
 
-from firmware_model.flights.evaluation.evaluate import FlightSpec
+from firmware_model.flights.evaluation.setup import FlightSpec
 from firmware_model.flights.simulate.scenarios import get_scenario, scenario_names
 from firmware_model.runtime.errors import UserError
 from firmware_model.spec.config import BuildConfig

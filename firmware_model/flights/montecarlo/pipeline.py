@@ -16,7 +16,7 @@ Per chunk, everything batched over its flights:
 
 The firmware build of a method is fixed for the whole run, as on a real deployment: it is made for the nominal
 sensor preset at the nominal site, its noise figures measured on the pad of the nominal flight
-(:func:`firmware_model.flights.evaluation.evaluate.sensor_config`, as ``fwemu evaluate`` does); the dispersed flights then fly
+(:func:`firmware_model.flights.evaluation.setup.sensor_config`, as ``fwemu evaluate`` does); the dispersed flights then fly
 with it. A spec that draws the sensor preset (``baro``/``accel`` = choice) gets one build per preset.
 """
 
@@ -31,7 +31,8 @@ from typing import Any, Callable
 import numpy as np
 
 from firmware_model.flights.simulate import pressure_errors
-from firmware_model.flights.evaluation.evaluate import METHODS, sensor_config, tuning_overrides
+from firmware_model.flights.evaluation.methods import METHODS, tuning_overrides
+from firmware_model.flights.evaluation.setup import sensor_config
 from firmware_model.flights.inputs.firmware_inputs import firmware_inputs
 from firmware_model.flights.montecarlo.sim import P_COLS, T0_K, drag_table, simulate_batch
 from firmware_model.flights.montecarlo.spec import draw, fingerprint, flight_rng, slot_names

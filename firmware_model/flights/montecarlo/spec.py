@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 import tomllib
 
-from firmware_model.flights.evaluation.evaluate import METHODS
+from firmware_model.flights.evaluation.methods import METHODS
 from firmware_model.flights.simulate.motors import MOTOR_FILES
 from firmware_model.flights.simulate.pressure_errors import DEFAULT_TRANSONIC_STEP_M
 from firmware_model.flights.simulate.scenarios import get_scenario

@@ -20,7 +20,7 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
-from firmware_model.flights.evaluation.evaluate import reference_for
+from firmware_model.flights.evaluation.setup import reference_for
 from firmware_model.flights.readers import read_flight
 from firmware_model.runtime.errors import UserError
 

@@ -10,7 +10,9 @@ from typing import Any
 
 import numpy as np
 
-from firmware_model.flights.evaluation.evaluate import METHODS, FlightSpec, evaluate_flight
+from firmware_model.flights.evaluation.evaluate import evaluate_flight
+from firmware_model.flights.evaluation.methods import METHODS
+from firmware_model.flights.evaluation.setup import FlightSpec
 from firmware_model.flights.record import FlightRecord, Truth
 from firmware_model.flights.reconstruct.apogee import velocity_zero_crossing
 from firmware_model.flights.reconstruct.rotation import tilt_deg
