@@ -1,4 +1,5 @@
-"""Speed of the 1-DOF flight simulator (firmware_model.flights.simulate.sim1dof): its three engines side by side, in one run.
+"""Speed of the 1-DOF flight simulator (firmware_model.flights.simulate.sim1dof): its three engines side by side, in
+one run.
 
 ``make bench`` runs this file. Flights are drawn by ``random_flights``' parameter box (subsonic K400C/K828FJ
 rockets, ~8-25 s of flight, 1 kHz internal RK4 step, recorded at ``--record-hz``). Measured through the public

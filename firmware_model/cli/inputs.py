@@ -2,7 +2,8 @@
 that ``fwemu vectors --firmware P --input FILE.csv`` takes.
 
 The flight goes through the same steps as ``fwemu run``
-(:func:`firmware_model.flights.inputs.firmware_inputs.firmware_inputs`): resampling onto the 2^-k s grid, the barometer and
+(:func:`firmware_model.flights.inputs.firmware_inputs.firmware_inputs`): resampling onto the 2^-k s grid, the barometer
+and
 accelerometer models (``--baro`` / ``--accel`` presets; default the log's own sensor where its reader names one, else a
 TeleMetrum v1 barometer and the default 2048 counts/g accelerometer), sensor noise seeded by ``--seed``. The CSV has
 ``#`` lines saying where it came from, a header ``time_s,adc[,acc]`` and one row per sample.

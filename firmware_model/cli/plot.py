@@ -7,7 +7,8 @@ import argparse
 from pathlib import Path
 
 from firmware_model.flights.evaluation.methods import method_for_firmware
-from firmware_model.flights.evaluation.setup import FlightSpec, altitude_of_counts, flight_inputs, load_record, reference_for, sensor_config
+from firmware_model.flights.evaluation.setup import (FlightSpec, altitude_of_counts, flight_inputs, load_record,
+    reference_for, sensor_config)
 from firmware_model.flights.plot import plot_run
 from firmware_model.flights.inputs.runcsv import COLUMNS, RunTable, from_trace
 from firmware_model.model.run import run_model

@@ -226,7 +226,8 @@ def supersonic_flights(mach: tuple[float, float] = (0.95, 2.0),
                        descent_s: float = 3.0, record_hz: float = 100.0, internal_hz: float = 1000.0,
                        drogue_delay_s: tuple[float, float] = (0.0, 1.0), ram: bool = False):
     """Fast 1-DOF flights (peak Mach in ``mach``, default 0.95..2: transonic and supersonic) **with the barometer
-    errors of real flight** (:func:`firmware_model.flights.simulate.pressure_errors.real_flight_errors`): every parameter
+    errors of real flight** (:func:`firmware_model.flights.simulate.pressure_errors.real_flight_errors`): every
+    parameter
     of the error model drawn uniformly from :data:`~firmware_model.flights.simulate.pressure_errors.BARO_ERROR_RANGES`
     (transonic dip, shock jump of either sign, noise bursts at burnout and deployment, ejection spike), the noise
     seeded by the draw, a drogue delay in ``drogue_delay_s``. Rockets as :func:`flights` over ``motors`` (scaled

@@ -133,7 +133,8 @@ def test_lazy_loads_still_exist() -> None:
 @pytest.mark.parametrize("module, line, expect", [
     ("spec/config.py", "from firmware_model.model.run import run_model", "spec (layer 1) imports"),
     ("runtime/output.py", "from firmware_model.cli.args import positive_int", "runtime (layer 0) imports"),
-    ("flights/simulate/sim1dof.py", "from firmware_model.firmware.harness import run_firmware", "flights (layer 3) imports"),
+    ("flights/simulate/sim1dof.py", "from firmware_model.firmware.harness import run_firmware",
+     "flights (layer 3) imports"),
     ("cli/plot.py", "from firmware_model.cli.run import run_run", "command module"),
     ("flights/simulate/sim1dof.py", "from firmware_model.flights.evaluation.evaluate import evaluate_many",
      "flights room simulate"),

@@ -160,7 +160,8 @@ def sensors_for(spec: FlightSpec) -> tuple[Any, Any]:
 def sensor_config(inputs: Any) -> dict[str, Any]:
     """BuildConfig fields of a flight's sensing: ``inputs.config_overrides()`` (ADC width, sign, counts per metre,
     accelerometer scale, and the barometer's transfer function from which the Kalman programs' altitude table is
-    generated: ``baro_pa_per_count``, ``baro_pa_at_zero``), plus the noise the Kalman design assumes, **measured on the pad part of the stream** (the
+    generated: ``baro_pa_per_count``, ``baro_pa_at_zero``), plus the noise the Kalman design assumes, **measured on the
+    pad part of the stream** (the
     samples before ``inputs.liftoff_s``, as a designer measures a sensor on the bench): ``baro_sigma`` = standard
     deviation of the barometer words, at least 0.5 count (quantization); ``accel_sigma`` likewise for the
     accelerometer, at least 1 count. Barometer-only gains depend on R/q alone, so this matters only for

@@ -153,7 +153,8 @@ def _table(where: str, value: Any) -> dict[str, Any]:
 #: ../shared/flights/README.md): while the airspeed Mach is inside [mach_lo, mach_hi] the barometer reads the
 #: standard pressure of ``dip_m`` lower; "real_flight" is issue 20's model of
 #: what real barometers read near Mach 1 (port error, transonic dip, shock jump; parameters and ranges as
-#: :class:`firmware_model.flights.simulate.pressure_errors.BaroErrorModel` and ``BARO_ERROR_RANGES``); "real_flight_ram" adds
+#: :class:`firmware_model.flights.simulate.pressure_errors.BaroErrorModel` and ``BARO_ERROR_RANGES``);
+#: "real_flight_ram" adds
 #: issue 30's ram error in boost (``ram_cp`` q from ``ram_mach_on`` until each flight's burnout, fading over
 #: ``ram_fade_s``); "none" is no error. Another model (e.g. a measured transonic signature) is added by declaring its
 #: parameters here and its function in :data:`firmware_model.flights.montecarlo.pipeline.PRESSURE_ERROR_MODELS`.

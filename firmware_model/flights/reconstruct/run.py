@@ -166,7 +166,8 @@ def _end_at_gap(t: np.ndarray, lift_s: float) -> int:
 
 
 def first_shock(t: np.ndarray, f: np.ndarray | None, after_s: float) -> float | None:
-    """The first accelerometer shock after ``after_s`` (:func:`firmware_model.flights.reference.charge.accelerometer_shock`:
+    """The first accelerometer shock after ``after_s``
+    (:func:`firmware_model.flights.reference.charge.accelerometer_shock`:
     above 8 g and 4 times the median |f| of its neighbours, at least two on each side, so that a single sample at a
     5 samples/s tail counts): an ejection charge, a separation or a break-up. None without one, or without an
     accelerometer."""

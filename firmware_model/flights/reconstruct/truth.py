@@ -1,14 +1,17 @@
 """6-DOF truth from RocketPy for the reconstruction: position, velocity, attitude, body rates and specific force.
 
-:func:`truth_run` flies a :class:`~firmware_model.flights.simulate.sim1dof.Rocket` with RocketPy (the same rocket build as
-:mod:`firmware_model.flights.simulate.rocketpy_sim`) and samples its solution on a fine regular grid (``truth_hz``, default
+:func:`truth_run` flies a :class:`~firmware_model.flights.simulate.sim1dof.Rocket` with RocketPy (the same rocket build
+as
+:mod:`firmware_model.flights.simulate.rocketpy_sim`) and samples its solution on a fine regular grid (``truth_hz``,
+default
 1 kHz) from ``pad_s`` before ignition to ``after_apogee_s`` after apogee. Frames: RocketPy's launch-site frame,
 x east, y north, z up (flat earth, no Coriolis, as RocketPy integrates it), origin at the rail's foot; body frame
 as RocketPy's (z along the rocket axis towards the nose). The quaternion ``q = (e0, e1, e2, e3)`` rotates body
 vectors into the site frame (its rotation matrix's third column is the rocket axis). Body rates are RocketPy's
 ``w1, w2, w3`` (body frame, rad/s). Specific force (what an ideal accelerometer at the centre of mass reads, body
 frame) = ``R(q)^T (a - g + 2 W x v)``, ``a`` RocketPy's acceleration in its (rotating) site frame, ``g = (0, 0,
--g(z))`` with the gravity model of :mod:`firmware_model.flights.simulate.rocketpy_sim`, ``W`` the earth's rate (RocketPy adds
+-g(z))`` with the gravity model of :mod:`firmware_model.flights.simulate.rocketpy_sim`, ``W`` the earth's rate
+(RocketPy adds
 the Coriolis term ``-2 W x v`` to ``a``; an accelerometer does not feel it).
 
 Runs take seconds, so :func:`truth_run` keeps them in the user's cache folder

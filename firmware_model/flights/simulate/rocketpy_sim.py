@@ -1,6 +1,7 @@
 """RocketPy 6-DOF flights with truth (optional extra ``flights``; docs/flights-sim.md, "RocketPy").
 
-The same :class:`~firmware_model.flights.simulate.sim1dof.Rocket` description as the 1-DOF model (dry mass, diameter, motor
+The same :class:`~firmware_model.flights.simulate.sim1dof.Rocket` description as the 1-DOF model (dry mass, diameter,
+motor
 table, Cd(M) curve, drogue), plus a generic airframe for the 6-DOF parts RocketPy needs (length, a von Karman nose,
 four trapezoidal fins, inertia of a uniform cylinder; :class:`Airframe`). Offline: RocketPy's own ISA standard
 atmosphere (no downloads) or a "custom_atmosphere" (still ISA pressure and temperature) with constant or

@@ -6,7 +6,8 @@ after (rows whose reference carries a warning left out, docs/evaluation.md "Flag
 |error| on the AltosUI logs next to AltOS's own (README "Field-ready firmware").
 
 ``--rescore`` judges both files against the reference apogee of *this* tree: each real log named by its
-``source`` path is read again and :func:`flights.evaluate.reference_for` recomputed (simulated flights keep their
+``source`` path is read again and :func:`flights.evaluation.setup.reference_for` recomputed (simulated flights keep
+their
 truth), so that a "before" run made with an older reference rule is compared on the same reference as "after".
 Only detection times are taken from the files. The flights of the two files must be the same (by name and k).
 """
