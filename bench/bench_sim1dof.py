@@ -1,4 +1,5 @@
-"""Speed of the 1-DOF flight simulator (firmware_model.flights.sim1dof): its three engines side by side, in one run.
+"""Speed of the 1-DOF flight simulator (firmware_model.flights.simulate.sim1dof): its three engines side by side, in
+one run.
 
 ``make bench`` runs this file. Flights are drawn by ``random_flights``' parameter box (subsonic K400C/K828FJ
 rockets, ~8-25 s of flight, 1 kHz internal RK4 step, recorded at ``--record-hz``). Measured through the public
@@ -33,13 +34,13 @@ single_threaded_blas()  # before numpy loads: no OpenBLAS pool busy-waiting on t
 
 import numpy as np  # noqa: E402 - imported after single_threaded_blas(): numpy must not load first
 
-from firmware_model.flights import sim1dof as s1  # noqa: E402 - imported after single_threaded_blas(): numpy must not load first
+from firmware_model.flights.simulate import sim1dof as s1  # noqa: E402 - imported after single_threaded_blas(): numpy must not load first
 
 _STARTUP = """
 import time
 t0 = time.perf_counter()
-from firmware_model.flights import sim1dof as s1
-from firmware_model.flights.motors import load_motor
+from firmware_model.flights.simulate import sim1dof as s1
+from firmware_model.flights.simulate.motors import load_motor
 t1 = time.perf_counter()
 s1.simulate_1dof(s1.Rocket("x", 8.0, 0.1, load_motor("K400C")), s1.Launch(record_hz=100.0))
 t2 = time.perf_counter()

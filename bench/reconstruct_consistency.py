@@ -22,7 +22,7 @@ import numpy as np
 from firmware_model.flights.plot import _png, _pyplot
 from firmware_model.flights.reconstruct.flightset import flight_set
 from firmware_model.flights.reconstruct.sensors import gps_preset, imu_preset
-from firmware_model.flights.reconstruct.study import nees_band_share, run_case
+from firmware_model.flights.studies.reconstruct_study import nees_band_share, run_case
 from firmware_model.runtime.output import write_file
 
 G = 9.80665

@@ -4,7 +4,7 @@
     PYTHONPATH=$PWD python bench/reconstruct_port_error.py [--out build/reconstruct-port] [--seed 0] [--only NAME ...]
 
 Per flight: the `chari` IMU, no GPS (what a real log gives), and the project's barometer (MS5607, 100 Hz) whose
-pressure gets :func:`~firmware_model.flights.pressure_errors.real_flight_errors` with a model drawn from
+pressure gets :func:`~firmware_model.flights.simulate.pressure_errors.real_flight_errors` with a model drawn from
 ``BARO_ERROR_RANGES`` (a static-port error of 0-0.06 of the dynamic pressure, the transonic dip, the shock jump;
 no bursts or ejection spike: these flights deploy nothing). The smoother's apogee time against truth, for the
 3-axis filter (vertical-imu) and the axial-as-vertical one (vertical-axial), each run once without the port-error
@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from firmware_model.flights.pressure_errors import draw_error_model, real_flight_errors
+from firmware_model.flights.simulate.pressure_errors import draw_error_model, real_flight_errors
 from firmware_model.flights.record import FlightRecord
 from firmware_model.flights.reconstruct.apogee import velocity_zero_crossing
 from firmware_model.flights.reconstruct.flightset import flight_set

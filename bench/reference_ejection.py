@@ -23,8 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
-from firmware_model.flights.apogee_reference import reference_apogee
-from firmware_model.flights.charge import recovery_charge
+from firmware_model.flights.reference.apogee_reference import reference_apogee
+from firmware_model.flights.reference.charge import recovery_charge
 from firmware_model.runtime.errors import UserError
 from firmware_model.runtime.output import write_file
 from tests.support.ejection import ejection_logs

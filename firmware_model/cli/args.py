@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import argparse
 
-from firmware_model.flights.evalset import resolve_flights
+from firmware_model.flights.evaluation.evalset import resolve_flights
 
 
 def nonnegative_int(text: str) -> int:

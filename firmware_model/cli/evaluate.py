@@ -9,7 +9,9 @@ from dataclasses import replace
 from pathlib import Path
 
 from firmware_model.cli.args import add_flight_arguments, specs_from_args
-from firmware_model.flights.evaluate import evaluate_many, methods_named, table_files
+from firmware_model.flights.evaluation.evaluate import evaluate_many
+from firmware_model.flights.evaluation.methods import methods_named
+from firmware_model.flights.evaluation.tables import table_files
 from firmware_model.runtime.output import staged_folder
 from firmware_model.runtime.progress import Progress
 

@@ -2,7 +2,8 @@
 that ``fwemu vectors --firmware P --input FILE.csv`` takes.
 
 The flight goes through the same steps as ``fwemu run``
-(:func:`firmware_model.flights.firmware_inputs.firmware_inputs`): resampling onto the 2^-k s grid, the barometer and
+(:func:`firmware_model.flights.inputs.firmware_inputs.firmware_inputs`): resampling onto the 2^-k s grid, the barometer
+and
 accelerometer models (``--baro`` / ``--accel`` presets; default the log's own sensor where its reader names one, else a
 TeleMetrum v1 barometer and the default 2048 counts/g accelerometer), sensor noise seeded by ``--seed``. The CSV has
 ``#`` lines saying where it came from, a header ``time_s,adc[,acc]`` and one row per sample.
@@ -24,13 +25,8 @@ from typing import Any
 import numpy as np
 
 from firmware_model.cli.args import add_reader_arguments, nonnegative_int
-from firmware_model.flights.evaluate import (
-    FlightSpec,
-    flight_inputs,
-    load_record,
-    method_for_firmware,
-    sensor_config,
-)
+from firmware_model.flights.evaluation.methods import method_for_firmware
+from firmware_model.flights.evaluation.setup import FlightSpec, flight_inputs, load_record, sensor_config
 from firmware_model.model.streams import ACC_PROGRAMS
 from firmware_model.runtime import output
 from firmware_model.runtime.errors import UserError

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from firmware_model.cli.args import bounded_int, nonnegative_int, positive_int
 from firmware_model.runtime.errors import UserError
-from firmware_model.flights.export import generic_csv
+from firmware_model.flights.readers.generic import generic_csv
 from firmware_model.flights.montecarlo.pipeline import replay_configs, replay_record
 from firmware_model.flights.montecarlo.run import MAX_FLIGHTS, run_montecarlo
 from firmware_model.flights.montecarlo.spec import load_spec, read_spec_file

@@ -6,17 +6,11 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from firmware_model.flights.evaluate import (
-    FlightSpec,
-    altitude_of_counts,
-    flight_inputs,
-    load_record,
-    method_for_firmware,
-    reference_for,
-    sensor_config,
-)
+from firmware_model.flights.evaluation.methods import method_for_firmware
+from firmware_model.flights.evaluation.setup import (FlightSpec, altitude_of_counts, flight_inputs, load_record,
+    reference_for, sensor_config)
 from firmware_model.flights.plot import plot_run
-from firmware_model.flights.runcsv import COLUMNS, RunTable, from_trace
+from firmware_model.flights.inputs.runcsv import COLUMNS, RunTable, from_trace
 from firmware_model.model.run import run_model
 from firmware_model.runtime.errors import UserError
 from firmware_model.runtime.output import write_file

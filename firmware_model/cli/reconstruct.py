@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from firmware_model.flights.apogee_reference import reference_apogee
+from firmware_model.flights.reference.apogee_reference import reference_apogee
 from firmware_model.flights.reconstruct.plots import plot_errors, plot_states, plot_trajectory
 from firmware_model.flights.reconstruct.run import Reconstruction, reconstruct_log, reconstruct_sim
 from firmware_model.runtime.errors import UserError

@@ -18,18 +18,10 @@ import numpy as np
 from firmware_model.cli.args import add_reader_arguments, nonnegative_int
 from firmware_model.firmware.assemble import build_firmware
 from firmware_model.firmware.harness import run_firmware
-from firmware_model.flights.evaluate import (
-    ACCEL_PROGRAMS,
-    FlightSpec,
-    altitude_of_counts,
-    burnout_time,
-    flight_inputs,
-    load_record,
-    method_for_firmware,
-    reference_for,
-    sensor_config,
-)
-from firmware_model.flights.runcsv import from_trace
+from firmware_model.flights.evaluation.methods import ACCEL_PROGRAMS, method_for_firmware
+from firmware_model.flights.evaluation.setup import (FlightSpec, altitude_of_counts, burnout_time, flight_inputs,
+    load_record, reference_for, sensor_config)
+from firmware_model.flights.inputs.runcsv import from_trace
 from firmware_model.model.run import run_model
 from firmware_model.runtime.errors import UserError
 from firmware_model.runtime.output import write_file

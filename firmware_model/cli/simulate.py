@@ -1,7 +1,7 @@
 """``fwemu simulate``: write a simulated flight as a generic CSV with truth columns (``time_s, pressure_pa,
 accel_mps2, true_altitude_m, true_velocity_mps, true_accel_mps2``; the exact true apogee in the header comments),
-from a named scenario (:mod:`firmware_model.flights.scenarios`) or from 1-DOF parameters
-(:mod:`firmware_model.flights.sim1dof`). Deterministic: the same arguments give the same bytes."""
+from a named scenario (:mod:`firmware_model.flights.simulate.scenarios`) or from 1-DOF parameters
+(:mod:`firmware_model.flights.simulate.sim1dof`). Deterministic: the same arguments give the same bytes."""
 
 from __future__ import annotations
 
@@ -9,10 +9,10 @@ import argparse
 from pathlib import Path
 
 from firmware_model.cli.args import positive_float
-from firmware_model.flights import scenarios
-from firmware_model.flights.export import generic_csv
-from firmware_model.flights.motors import load_motor
-from firmware_model.flights.sim1dof import Launch, Rocket, simulate_1dof
+from firmware_model.flights.simulate import scenarios
+from firmware_model.flights.readers.generic import generic_csv
+from firmware_model.flights.simulate.motors import load_motor
+from firmware_model.flights.simulate.sim1dof import Launch, Rocket, simulate_1dof
 from firmware_model.runtime.errors import UserError
 from firmware_model.runtime.output import write_file
 

@@ -9,8 +9,9 @@ import sys
 from pathlib import Path
 
 from firmware_model.cli.args import add_flight_arguments, specs_from_args
-from firmware_model.flights import plot, sweep
-from firmware_model.flights.sweep import DEFAULT_RATIOS
+from firmware_model.flights import plot
+from firmware_model.flights.evaluation import sweep
+from firmware_model.flights.evaluation.sweep import DEFAULT_RATIOS
 from firmware_model.runtime.errors import UserError
 from firmware_model.runtime.output import staged_folder
 

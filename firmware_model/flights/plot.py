@@ -56,7 +56,7 @@ def _spans(t: np.ndarray, mask: np.ndarray) -> list[tuple[float, float]]:
 def plot_run(run: Any, *, zoom: bool = False, title: str = "", reference_s: float | None = None,
              altos_s: float | None = None, zoom_halfwidth_s: float | None = None,
              own_computer: str = "AltOS") -> bytes:
-    """PNG of a run (:class:`firmware_model.flights.runcsv.RunTable`: ``time_s``, ``raw_altitude_m``,
+    """PNG of a run (:class:`firmware_model.flights.inputs.runcsv.RunTable`: ``time_s``, ``raw_altitude_m``,
     ``filtered_altitude_m``, ``velocity_mps``, ``events``, ``event_times()``)."""
 
     plt = _pyplot()

@@ -94,7 +94,7 @@ class FlightRecord:
     def _check_plausible(self, t: np.ndarray, where: str) -> None:
         """Issue 33: a pressure outside :data:`PRESSURE_RANGE_PA` (1e308 Pa reached the barometer model) or an
         acceleration beyond :data:`MAX_ACCEL_MPS2` is an error naming the file's line (``row_lines``) or the row. (A
-        clock jump is judged later, where the flight is known: :mod:`firmware_model.flights.firmware_inputs` refuses
+        clock jump is judged later, where the flight is known: :mod:`firmware_model.flights.inputs.firmware_inputs` refuses
         one before apogee naming its line and ends the stream at one after it, with a note: docs/flights.md "Gaps".)"""
         def at(i: int) -> str:
             if self.row_lines is not None and len(self.row_lines) == len(t):

@@ -23,9 +23,9 @@ import numpy as np
 from hypothesis import assume
 from hypothesis import strategies as st
 
-from firmware_model.flights.pressure_errors import (BARO_ERROR_RANGES, ISSUE20_PARAMS, draw_error_model,
+from firmware_model.flights.simulate.pressure_errors import (BARO_ERROR_RANGES, ISSUE20_PARAMS, draw_error_model,
                                                     real_flight_errors)
-from firmware_model.flights.sim1dof import Box, Launch, mach_of, rocket_from_unit, simulate_1dof
+from firmware_model.flights.simulate.sim1dof import Box, Launch, mach_of, rocket_from_unit, simulate_1dof
 from firmware_model.spec.atmosphere import pressure_pa
 from firmware_model.spec.config import PROGRAMS, ROUNDINGS, BuildConfig
 
@@ -192,13 +192,13 @@ def flights(mach: tuple[float, float] = (0.15, 0.8), motors: Sequence[str] = ("K
             site_altitude_m: tuple[float, float] = (0.0, 1500.0), pad_s: tuple[float, float] = (0.5, 2.0),
             descent_s: float = 5.0, record_hz: float = 200.0, internal_hz: float = 1000.0):
     """Simulated flights (:class:`firmware_model.flights.FlightRecord` with truth) from the 1-DOF model
-    (:mod:`firmware_model.flights.sim1dof`) over a parameter box: a shipped motor (``motors``) scaled in thrust
+    (:mod:`firmware_model.flights.simulate.sim1dof`) over a parameter box: a shipped motor (``motors``) scaled in thrust
     (0.3..1) and time (0.7..1.5), dry mass between the bounds that keep thrust/weight >= 4 and the drag-free
     burnout speed inside ``mach`` x 340 m/s, diameter 54..160 mm, Cd x 0.8..1.3, drogue CdA 0.2..0.8 m^2, launch
     site ``site_altitude_m``, ``pad_s`` on the pad, ``descent_s`` after apogee, recorded at ``record_hz``. Flights
     whose simulated peak Mach lies outside ``mach`` are rejected, so the default box is subsonic (peak Mach <= 0.8);
     widen ``mach`` (and ``motors``, e.g. add "M1670", "M6400") for transonic/supersonic flights. No pressure
-    errors or sensor model: apply :mod:`firmware_model.flights.pressure_errors` and the sensor models on top.
+    errors or sensor model: apply :mod:`firmware_model.flights.simulate.pressure_errors` and the sensor models on top.
     About 7 ms per 20 s flight with the 'fast' extra (numba; bench/bench_sim1dof.py), ~0.3 s without."""
     from hypothesis import assume
 
@@ -226,8 +226,9 @@ def supersonic_flights(mach: tuple[float, float] = (0.95, 2.0),
                        descent_s: float = 3.0, record_hz: float = 100.0, internal_hz: float = 1000.0,
                        drogue_delay_s: tuple[float, float] = (0.0, 1.0), ram: bool = False):
     """Fast 1-DOF flights (peak Mach in ``mach``, default 0.95..2: transonic and supersonic) **with the barometer
-    errors of real flight** (:func:`firmware_model.flights.pressure_errors.real_flight_errors`): every parameter
-    of the error model drawn uniformly from :data:`~firmware_model.flights.pressure_errors.BARO_ERROR_RANGES`
+    errors of real flight** (:func:`firmware_model.flights.simulate.pressure_errors.real_flight_errors`): every
+    parameter
+    of the error model drawn uniformly from :data:`~firmware_model.flights.simulate.pressure_errors.BARO_ERROR_RANGES`
     (transonic dip, shock jump of either sign, noise bursts at burnout and deployment, ejection spike), the noise
     seeded by the draw, a drogue delay in ``drogue_delay_s``. Rockets as :func:`flights` over ``motors`` (scaled
     in thrust and time). Each example is a :class:`FlightRecord` whose ``truth`` is the error-free flight and
@@ -259,8 +260,8 @@ def ram_flights(mach: tuple[float, float] = (0.95, 2.0), motors: Sequence[str] =
                 site_altitude_m: tuple[float, float] = (0.0, 1500.0), descent_s: float = 3.0,
                 record_hz: float = 100.0, others: bool = True):
     """Fast 1-DOF flights (as :func:`supersonic_flights`) **with the ram error in boost** of issue 30
-    (:func:`firmware_model.flights.pressure_errors.ram_coefficient`): ``ram_cp``, ``ram_mach_on`` and
-    ``ram_fade_s`` drawn uniformly over their :data:`~firmware_model.flights.pressure_errors.BARO_ERROR_RANGES`
+    (:func:`firmware_model.flights.simulate.pressure_errors.ram_coefficient`): ``ram_cp``, ``ram_mach_on`` and
+    ``ram_fade_s`` drawn uniformly over their :data:`~firmware_model.flights.simulate.pressure_errors.BARO_ERROR_RANGES`
     (0.01-0.20 of q from Mach 0.6-0.9, fading 0-0.5 s after burnout); ``others``: the issue-20 errors drawn too
     (else off: the ram signature alone). Flights whose peak Mach stays below the drawn onset are rejected (the
     error would never switch on). Each example is a :class:`FlightRecord` with ``truth`` error-free and

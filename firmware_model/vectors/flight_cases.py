@@ -1,6 +1,6 @@
 """Golden-vector cases from flights (docs/vectors.md, "Flight cases"): the MIT-licensed shared logs (prometheus
 TeleMetrum/TeleMega, CATS hedy) and a few simulated scenarios, turned into firmware input streams exactly as the
-apogee table does (:func:`firmware_model.flights.evaluate.flight_inputs`, the same build fields), cut to the pad
+apogee table does (:func:`firmware_model.flights.evaluation.setup.flight_inputs`, the same build fields), cut to the pad
 and the flight up to 3 s after the reference apogee so the cases stay small.
 
 Each case's ``input.provenance`` names the source (path relative to the repository's parent for logs, so
@@ -21,9 +21,10 @@ from typing import Any
 
 import numpy as np
 
-from firmware_model.flights.evalset import shared_dir
-from firmware_model.flights.evaluate import METHODS, FlightSpec, load_record, reference_for, sensor_config, sensors_for
-from firmware_model.flights.firmware_inputs import firmware_inputs
+from firmware_model.flights.evaluation.evalset import shared_dir
+from firmware_model.flights.evaluation.methods import METHODS
+from firmware_model.flights.evaluation.setup import FlightSpec, load_record, reference_for, sensor_config, sensors_for
+from firmware_model.flights.inputs.firmware_inputs import firmware_inputs
 from firmware_model.runtime import diskcache
 from firmware_model.runtime.errors import UserError
 from firmware_model.runtime.hashing import sha256_file

@@ -35,7 +35,7 @@ from firmware_model.runtime.hashing import sha256_bytes, sha256_file
 from firmware_model.runtime.output import worker_init
 from firmware_model.runtime.pool import end_pool, start_pool
 from firmware_model.runtime.progress import Progress
-from firmware_model.flights.evalset import shared_dir
+from firmware_model.flights.evaluation.evalset import shared_dir
 from firmware_model.spec.config import PROGRAMS, BuildConfig, load_config
 from firmware_model.vectors.c_header import (
     _INT32_MIN,

@@ -36,7 +36,7 @@ def _one_line_error(capsys, argv: list[str], *needles: str) -> None:
 # ---------------------------------------------------------------------------------------------------- simulate
 def test_simulate_scenario_round_trips_through_the_generic_reader(tmp_path, capsys):
     from firmware_model.flights.readers import read_flight
-    from firmware_model.flights.scenarios import simulate_scenario
+    from firmware_model.flights.simulate.scenarios import simulate_scenario
 
     out = tmp_path / "f.csv"
     assert main(["simulate", "--scenario", SHORT_SIM[4:], "-o", str(out)]) == 0
@@ -55,7 +55,7 @@ def test_simulate_scenario_round_trips_through_the_generic_reader(tmp_path, caps
 
 
 def test_simulate_list_1dof_and_errors(tmp_path, capsys):
-    from firmware_model.flights.scenarios import scenario_names
+    from firmware_model.flights.simulate.scenarios import scenario_names
 
     assert main(["simulate", "--list"]) == 0
     listed = capsys.readouterr().out.splitlines()
@@ -101,7 +101,7 @@ def test_run_cpu_and_model_agree_on_a_simulated_flight(tmp_path, capsys):
     apo = [line for line in out_cpu.splitlines() if line.startswith("apogee:")]
     assert apo and apo == [line for line in out_model.splitlines() if line.startswith("apogee:")]
     assert "worst step:" in out_cpu and "truth:" in out_cpu and "error:" in out_cpu
-    from firmware_model.flights.scenarios import simulate_scenario
+    from firmware_model.flights.simulate.scenarios import simulate_scenario
 
     burn = float(next(line for line in out_cpu.splitlines() if line.startswith("burnout:")).split()[1])
     true_burn = simulate_scenario(SHORT_SIM[4:]).provenance["summary"]["burnout_s"]
@@ -126,8 +126,10 @@ def test_run_on_a_generic_csv_of_prometheus_matches_the_table_and_the_cpu(tmp_pa
     integer model give the same words on every sample."""
     from firmware_model.firmware.assemble import build_firmware
     from firmware_model.firmware.harness import run_firmware
-    from firmware_model.flights.evaluate import METHODS, FlightSpec, evaluate_flight, flight_inputs, sensor_config
-    from firmware_model.flights.export import generic_csv
+    from firmware_model.flights.evaluation.evaluate import evaluate_flight
+    from firmware_model.flights.evaluation.methods import METHODS
+    from firmware_model.flights.evaluation.setup import FlightSpec, flight_inputs, sensor_config
+    from firmware_model.flights.readers.generic import generic_csv
     from firmware_model.flights.readers import read_flight
     from firmware_model.model.run import run_model
     from firmware_model.spec.build_constants import build_constants
@@ -147,7 +149,7 @@ def test_run_on_a_generic_csv_of_prometheus_matches_the_table_and_the_cpu(tmp_pa
     assert abs(apo - ref.time_s) <= ref.uncertainty_s + abs(row.error("kalman_baro")) + 1e-9
     # the generic file carries no AltOS events, so its reference is the whole-window fit (rule 5, the deployment
     # cut, needs the log's deployment time); the two fits of the same flight agree within their uncertainties
-    from firmware_model.flights.evaluate import reference_for
+    from firmware_model.flights.evaluation.setup import reference_for
 
     gen = reference_for(read_flight(generic))
     assert f"reference ({gen.source}, ±{gen.uncertainty_s:.3f} s): {gen.time_s:.3f} s" in out

@@ -404,8 +404,8 @@ def _clipped_flight(scenario: str, k: int) -> tuple[np.ndarray, np.ndarray, dict
     """A simulated M6400 flight at Mach 1.67 (30-51 g boost: the default +-16 g accelerometer sits at its rail for
     the whole burn) sensed as the apogee table senses it (16-bit MPX4115 barometer, default accelerometer, noisy),
     cut 3 s after the reference apogee: (adc, acc, the sensor's BuildConfig fields)."""
-    from firmware_model.flights.evaluate import FlightSpec, load_record, reference_for, sensor_config, sensors_for
-    from firmware_model.flights.firmware_inputs import firmware_inputs
+    from firmware_model.flights.evaluation.setup import FlightSpec, load_record, reference_for, sensor_config, sensors_for
+    from firmware_model.flights.inputs.firmware_inputs import firmware_inputs
 
     record = load_record(f"sim:{scenario}")
     ref = reference_for(record)
@@ -425,7 +425,7 @@ def test_cpu_equals_model_clipped_accelerometer_flights(scenario: str, program: 
     CLIP_N and sets ACC_CLIP in BOOST; no apogee evidence before CLIP_CLEAR; CLIP_CLEAR set later (recursive: CLP at
     2^K in COAST; kalman_accel: the 2^(K+1)-sample window complete, LOCK from MACH_N to 0, E0 non-zero, VB
     re-based); then APOGEE. kalman_baro has no accelerometer logic: it sets neither bit."""
-    from firmware_model.flights.evaluate import METHODS
+    from firmware_model.flights.evaluation.methods import METHODS
 
     adc, acc, sensor = _clipped_flight(scenario, k)
     cfg = METHODS["rec_quarter" if program == "recursive" else program].config(k, sensor, rounding=rounding)
@@ -455,7 +455,7 @@ def test_cpu_equals_model_clipped_accelerometer_flights(scenario: str, program: 
 
 
 # ---------------------------------------------------------------------------------------------------- issue 30
-#: The ram-pressure scenarios of issue 30 (firmware_model.flights.scenarios: a port reading ram pressure in boost,
+#: The ram-pressure scenarios of issue 30 (firmware_model.flights.simulate.scenarios: a port reading ram pressure in boost,
 #: 1-DOF and RocketPy, some logs starting in boost), each with the first barometer of its set:full variants.
 RAM_SCENARIOS: tuple[tuple[str, str], ...] = (
     ("ram-m1670-m156-easymega-boostlog", "ms5607"), ("ram-l1350-m114-telemega", "analog-12"),
@@ -469,8 +469,8 @@ RAM_SCENARIOS: tuple[tuple[str, str], ...] = (
 def _ram_flight(scenario: str, baro: str, k: int) -> tuple[np.ndarray, np.ndarray, dict]:
     """The scenario sensed as set:full senses it (its barometer, default accelerometer, noisy): (adc, acc, the
     sensor's BuildConfig fields)."""
-    from firmware_model.flights.evalset import BARO_TAGS
-    from firmware_model.flights.evaluate import FlightSpec, flight_inputs, load_record, sensor_config
+    from firmware_model.flights.evaluation.evalset import BARO_TAGS
+    from firmware_model.flights.evaluation.setup import FlightSpec, flight_inputs, load_record, sensor_config
 
     spec = FlightSpec(f"sim:{scenario}", k=k, baro=BARO_TAGS.get(baro, baro), noise=True)
     inputs = flight_inputs(load_record(spec.source), spec)
@@ -485,7 +485,7 @@ def test_cpu_equals_model_on_the_ram_pressure_scenarios(scenario: str, baro: str
     middle one, the Kalman programs with all guards) on each ram-pressure scenario at k = 5, and the guards'
     branches are reached, so the comparison is not vacuous: kalman_accel locks the barometer out on the pad's
     thrust samples or in BOOST from the sample after liftoff; both Kalman programs pass through COAST and fire."""
-    from firmware_model.flights.evaluate import METHODS
+    from firmware_model.flights.evaluation.methods import METHODS
 
     adc, acc, sensor = _ram_flight(scenario, baro, 5)
     for program in ("recursive", "recursive_seed_literal", "kalman_baro", "kalman_accel"):

@@ -14,22 +14,16 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from firmware_model.cli.main import main
-from firmware_model.flights import baro_signatures as bs
-from firmware_model.flights import pressure_errors as pe
-from firmware_model.flights import scenarios as sc
-from firmware_model.flights import sim1dof as s1
-from firmware_model.flights.evalset import k_set, named_set, scenario_variants, shared_dir
-from firmware_model.flights.evaluate import (
-    Detection,
-    FlightResult,
-    Reference,
-    flight_context,
-    render_csv,
-    render_json,
-    render_markdown,
-    summarize,
-)
-from firmware_model.flights.motors import load_motor
+from firmware_model.flights.studies import baro_signatures as bs
+from firmware_model.flights.simulate import pressure_errors as pe
+from firmware_model.flights.simulate import scenarios as sc
+from firmware_model.flights.simulate import sim1dof as s1
+from firmware_model.flights.evaluation.evalset import k_set, named_set, scenario_variants, shared_dir
+from firmware_model.flights.evaluation.evaluate import FlightResult
+from firmware_model.flights.evaluation.methods import Detection
+from firmware_model.flights.evaluation.setup import Reference, flight_context
+from firmware_model.flights.evaluation.tables import render_csv, render_json, render_markdown, summarize
+from firmware_model.flights.simulate.motors import load_motor
 from firmware_model.flights.readers import read_flight
 from firmware_model.flights.strategies import supersonic_flights
 from firmware_model.runtime.errors import UserError

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from firmware_model.runtime.errors import UserError
-from firmware_model.flights.beforeafter import main, rescore, stats, table
+from firmware_model.flights.studies.beforeafter import main, rescore, stats, table
 
 SHARED = Path(os.environ.get("FWEMU_SHARED_FLIGHTS") or Path(__file__).resolve().parents[2].parent / "shared" / "flights")
 
@@ -61,8 +61,8 @@ def test_rescore_recomputes_a_logs_reference() -> None:
 
 
 def test_sim_all_is_every_scenario_as_a_flight_argument() -> None:
-    from firmware_model.flights.evalset import resolve_flights
-    from firmware_model.flights.scenarios import scenario_names
+    from firmware_model.flights.evaluation.evalset import resolve_flights
+    from firmware_model.flights.simulate.scenarios import scenario_names
 
     specs = resolve_flights(["sim:all"], ks=(5, 6), baro="telemetrum_v1")
     assert [s.source for s in specs] == [f"sim:{n}" for n in scenario_names() for _ in (5, 6)]
@@ -70,7 +70,7 @@ def test_sim_all_is_every_scenario_as_a_flight_argument() -> None:
 
 
 def test_sweep_table_has_most_early_and_the_usable_worst() -> None:
-    from firmware_model.flights.sweep import SweepResult, render_markdown
+    from firmware_model.flights.evaluation.sweep import SweepResult, render_markdown
 
     res = SweepResult("ratio", [1e3, 5e4], ["a", "cato"], "kalman_baro",
                       {"a": [-0.2, 0.1], "cato": [1.5, None]}, {"a": ["", ""], "cato": ["", ""]},

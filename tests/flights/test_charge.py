@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from firmware_model.flights.apogee_reference import reference_apogee
-from firmware_model.flights.charge import accelerometer_shock, recovery_charge
+from firmware_model.flights.reference.apogee_reference import reference_apogee
+from firmware_model.flights.reference.charge import accelerometer_shock, recovery_charge
 from firmware_model.flights.readers import read_flight
 from firmware_model.flights.reconstruct.run import reconstruct_log
 from firmware_model.runtime.errors import UserError

@@ -8,8 +8,9 @@ from __future__ import annotations
 
 import pytest
 
-from firmware_model.flights.evalset import named_set
-from firmware_model.flights.evaluate import evaluate_flight, methods_named
+from firmware_model.flights.evaluation.evalset import named_set
+from firmware_model.flights.evaluation.evaluate import evaluate_flight
+from firmware_model.flights.evaluation.methods import methods_named
 
 
 def _row(label: str):

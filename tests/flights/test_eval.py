@@ -10,8 +10,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from firmware_model.runtime.errors import UserError
-from firmware_model.flights.evaluate import (METHODS, Detection, FlightResult, Reference, detect_from_events,
-                                             methods_named, render_csv, render_json, render_markdown, summarize)
+from firmware_model.flights.evaluation.evaluate import FlightResult
+from firmware_model.flights.evaluation.methods import METHODS, Detection, detect_from_events, methods_named
+from firmware_model.flights.evaluation.setup import Reference
+from firmware_model.flights.evaluation.tables import render_csv, render_json, render_markdown, summarize
 from firmware_model.model.trace import EVENT_BITS
 from tests.support.profiles import examples
 
@@ -208,7 +210,8 @@ SUBSONIC_WINDOW_S: tuple[float, float] = (-3.5, 0.6)
 @settings(max_examples=examples(6))
 @given(st.data())
 def test_hypothesis_subsonic_flights_kalman_baro_within_window(data):
-    from firmware_model.flights.evaluate import FlightSpec, evaluate_inputs, flight_inputs
+    from firmware_model.flights.evaluation.evaluate import evaluate_inputs
+    from firmware_model.flights.evaluation.setup import FlightSpec, flight_inputs
     from firmware_model.flights.strategies import flights
 
     record = data.draw(flights(pad_s=(0.5, 1.0), descent_s=3.0, record_hz=100.0))
@@ -269,7 +272,7 @@ def test_flight_vector_cases_carry_provenance_and_licence():
 
 
 def test_tuning_overrides():
-    from firmware_model.flights.evaluate import tuning_overrides
+    from firmware_model.flights.evaluation.methods import tuning_overrides
     from firmware_model.spec.tuning import RECOMMENDED
 
     assert tuning_overrides(METHODS["kalman_accel"], 6) == {}

@@ -20,13 +20,15 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from firmware_model.cli.main import main
-from firmware_model.flights.evaluate import FlightSpec, evaluate_flight, methods_named, reference_for
-from firmware_model.flights.firmware_inputs import firmware_inputs
+from firmware_model.flights.evaluation.evaluate import evaluate_flight
+from firmware_model.flights.evaluation.methods import methods_named
+from firmware_model.flights.evaluation.setup import FlightSpec, reference_for
+from firmware_model.flights.inputs.firmware_inputs import firmware_inputs
 from firmware_model.flights.readers import _matches, detect_format, not_a_log, read_flight
 from firmware_model.flights.readers._common import read_text
 from firmware_model.flights.readers.columns import parse_map
 from firmware_model.flights.readers.eeprom import ms5607_pressure
-from firmware_model.flights.sensors import BaroSensor
+from firmware_model.flights.inputs.sensors import BaroSensor
 from firmware_model.runtime.errors import UserError
 from firmware_model.spec.atmosphere import G0, altitude_m
 from tests.support.mutate import damaged

@@ -16,7 +16,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from firmware_model.cli.main import main
-from firmware_model.flights.apogee_reference import reference_apogee
+from firmware_model.flights.reference.apogee_reference import reference_apogee
 from firmware_model.flights.readers import _matches, detect_format, read_flight
 from firmware_model.flights.readers._common import read_text
 from firmware_model.runtime.errors import UserError

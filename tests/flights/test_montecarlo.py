@@ -19,8 +19,8 @@ import numpy as np
 import pytest
 
 from firmware_model.cli.main import main
-from firmware_model.flights.export import generic_csv
-from firmware_model.flights.firmware_inputs import firmware_inputs
+from firmware_model.flights.readers.generic import generic_csv
+from firmware_model.flights.inputs.firmware_inputs import firmware_inputs
 from firmware_model.flights.montecarlo import pipeline
 from firmware_model.flights.montecarlo import spec as spec_mod
 from firmware_model.flights.montecarlo.results import flights_for, have_pyarrow, read_rows, wilson
@@ -28,9 +28,9 @@ from firmware_model.flights.montecarlo.run import run_montecarlo
 from firmware_model.flights.montecarlo.sim import P_COLS, drag_table, simulate_batch
 from firmware_model.flights.montecarlo.spec import draw, flight_rng, load_spec, read_spec_file
 from firmware_model.flights.readers import read_flight
-from firmware_model.flights.scenarios import get_scenario
-from firmware_model.flights.sensors import AccelSensor, BaroSensor
-from firmware_model.flights.sim1dof import Launch, simulate_1dof
+from firmware_model.flights.simulate.scenarios import get_scenario
+from firmware_model.flights.inputs.sensors import AccelSensor, BaroSensor
+from firmware_model.flights.simulate.sim1dof import Launch, simulate_1dof
 from firmware_model.runtime.engine import Backend
 from firmware_model.runtime.errors import UserError
 
@@ -341,7 +341,7 @@ def test_real_flight_model_matches_the_deterministic_model_of_issue_20():
     """The Monte Carlo's "real_flight" pressure error (batched over flights, per-flight parameters) equals
     flights.pressure_errors.real_flight_errors (issue 20) flight by flight, its noise bursts and ejection spike off:
     port error, transonic dip, and the jump at each crossing of jump_mach."""
-    from firmware_model.flights import pressure_errors as pe
+    from firmware_model.flights.simulate import pressure_errors as pe
     from firmware_model.flights.record import FlightRecord
     from firmware_model.spec import atmosphere as atm
     dt = 1 / 32
@@ -368,7 +368,7 @@ def test_real_flight_ram_model_matches_the_deterministic_model_of_issue_30():
     """"real_flight_ram" (batched, per-flight parameters and burnouts) equals flights.pressure_errors.real_flight_errors
     with the ram error in boost flight by flight (noise bursts and ejection off); the ram part reads high by ram_cp q
     while fully on before burnout and not at all after burnout + fade."""
-    from firmware_model.flights import pressure_errors as pe
+    from firmware_model.flights.simulate import pressure_errors as pe
     from firmware_model.flights.record import FlightRecord
     from firmware_model.spec import atmosphere as atm
     dt = 1 / 64

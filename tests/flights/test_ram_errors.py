@@ -9,13 +9,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from firmware_model.flights import pressure_errors as pe
-from firmware_model.flights import scenarios as sc
-from firmware_model.flights import sim1dof as s1
-from firmware_model.flights.evalset import named_set
-from firmware_model.flights.firmware_inputs import firmware_inputs
-from firmware_model.flights.motors import load_motor
-from firmware_model.flights.sensors import BaroSensor
+from firmware_model.flights.simulate import pressure_errors as pe
+from firmware_model.flights.simulate import scenarios as sc
+from firmware_model.flights.simulate import sim1dof as s1
+from firmware_model.flights.evaluation.evalset import named_set
+from firmware_model.flights.inputs.firmware_inputs import firmware_inputs
+from firmware_model.flights.simulate.motors import load_motor
+from firmware_model.flights.inputs.sensors import BaroSensor
 from firmware_model.flights.strategies import ram_flights
 from firmware_model.runtime.errors import UserError
 from firmware_model.spec import atmosphere as atm

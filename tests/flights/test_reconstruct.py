@@ -19,7 +19,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from firmware_model.runtime.errors import UserError
-from firmware_model.flights.evaluate import reference_for
+from firmware_model.flights.evaluation.setup import reference_for
 from firmware_model.flights.readers import read_flight
 from firmware_model.flights.reconstruct import kernels
 from firmware_model.flights.reconstruct.apogee import velocity_zero_crossing
@@ -35,7 +35,7 @@ from firmware_model.flights.reconstruct.truth import quat_to_matrix
 from firmware_model.flights.reconstruct.ukf import (FilterNoise, _pad_attitude, align, baro_variances, boxminus, flat,
                                                     unflat)
 from firmware_model.flights.reconstruct.vertical import run_vertical
-from firmware_model.flights.sensors import BaroSensor
+from firmware_model.flights.inputs.sensors import BaroSensor
 from tests.support.profiles import PROFILE, examples
 
 ROOT = Path(__file__).resolve().parents[2]

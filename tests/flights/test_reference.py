@@ -13,10 +13,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from firmware_model.spec.atmosphere import G0, altitude_m, pressure_pa
-from firmware_model.flights.firmware_inputs import DEFAULT_PAD_S, firmware_inputs
+from firmware_model.flights.inputs.firmware_inputs import DEFAULT_PAD_S, firmware_inputs
 from firmware_model.flights.record import FlightRecord, Truth
-from firmware_model.flights.apogee_reference import liftoff_time, reference_apogee
-from firmware_model.flights.sensors import BaroSensor
+from firmware_model.flights.reference.apogee_reference import liftoff_time, reference_apogee
+from firmware_model.flights.inputs.sensors import BaroSensor
 from tests.support.profiles import examples
 
 SHARED = Path(os.environ.get("FWEMU_SHARED_FLIGHTS") or Path(__file__).resolve().parents[2].parent / "shared" / "flights")
@@ -151,7 +151,7 @@ def test_parabola_against_simulated_truth(rec: FlightRecord, noise: float, seed:
 @pytest.mark.parametrize("name", ["sub-k400-300m", "sub-k828-1400m", "trans-k828-m118", "trans-m6400-m109",
                                   "sup-m1670-m145", "sup-m2245-m19-9400m-spikes"])
 def test_parabola_on_scenarios(name: str) -> None:
-    from firmware_model.flights.scenarios import simulate_scenario
+    from firmware_model.flights.simulate.scenarios import simulate_scenario
 
     rec = simulate_scenario(name)
     for noise in (0.0, 10.0):
@@ -166,7 +166,7 @@ def test_liftoff_from_each_source(name: str) -> None:
     """Liftoff from truth, from the accelerometer alone and from the barometer alone agree within 0.03 s."""
     import dataclasses
 
-    from firmware_model.flights.scenarios import simulate_scenario
+    from firmware_model.flights.simulate.scenarios import simulate_scenario
 
     rec = simulate_scenario(name)
     v = rec.truth.velocity_mps
@@ -205,7 +205,7 @@ def test_deployment_cut_against_truth(name: str, d: float) -> None:
     the samples before the charge and lands within its uncertainty + 0.03 s of the true apogee (an interval
     reference: the truth inside it, +-0.03 s). sub-l1350-1900m-delay at 0.1 s, a measured miss of the unconstrained
     one-sided fit (+0.095 s against 0.053 s), is inside since the fit has its curvature prior (issue 31)."""
-    from firmware_model.flights.scenarios import simulate_scenario
+    from firmware_model.flights.simulate.scenarios import simulate_scenario
 
     rec = simulate_scenario(name)
     ref = reference_apogee(_deployed_log(rec, d))
@@ -226,7 +226,7 @@ def test_charge_before_apogee_is_justified(early: float) -> None:
     truth within its uncertainty + 0.03 s."""
     import dataclasses
 
-    from firmware_model.flights.scenarios import simulate_scenario
+    from firmware_model.flights.simulate.scenarios import simulate_scenario
 
     rec = simulate_scenario("sub-k828-1400m")
     ta = float(rec.truth.apogee_time_s)
@@ -242,7 +242,7 @@ def test_flat_top_before_the_charge_is_an_interval() -> None:
     across the ejection)."""
     import dataclasses
 
-    from firmware_model.flights.scenarios import simulate_scenario
+    from firmware_model.flights.simulate.scenarios import simulate_scenario
 
     rec = simulate_scenario("sub-k828-1400m")
     ta = float(rec.truth.apogee_time_s)

@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from firmware_model.runtime.errors import UserError
-from firmware_model.flights.resample import grid, resample
+from firmware_model.flights.inputs.resample import grid, resample
 from tests.support.profiles import examples
 
 

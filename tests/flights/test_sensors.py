@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from firmware_model.spec.atmosphere import G0, altitude_m, density_kg_m3
 from firmware_model.runtime.errors import UserError
-from firmware_model.flights.sensors import ACCEL_PRESETS, BARO_PRESETS, AccelSensor, BaroSensor
+from firmware_model.flights.inputs.sensors import ACCEL_PRESETS, BARO_PRESETS, AccelSensor, BaroSensor
 from tests.support.profiles import examples
 
 SHARED = Path(os.environ.get("FWEMU_SHARED_FLIGHTS") or Path(__file__).resolve().parents[2].parent / "shared" / "flights")

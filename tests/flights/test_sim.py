@@ -13,10 +13,10 @@ from scipy import integrate, optimize
 
 from firmware_model.spec import atmosphere as atm
 from firmware_model.runtime.errors import UserError
-from firmware_model.flights import motors as mo
-from firmware_model.flights import pressure_errors as pe
-from firmware_model.flights import scenarios as sc
-from firmware_model.flights import sim1dof as s1
+from firmware_model.flights.simulate import motors as mo
+from firmware_model.flights.simulate import pressure_errors as pe
+from firmware_model.flights.simulate import scenarios as sc
+from firmware_model.flights.simulate import sim1dof as s1
 from firmware_model.flights.strategies import flights
 from tests.support.profiles import examples
 
@@ -306,7 +306,7 @@ def test_flights_strategy_subsonic_with_truth(rec):
 def test_rocketpy_missing_is_a_user_error(monkeypatch):
     import sys
 
-    from firmware_model.flights import rocketpy_sim
+    from firmware_model.flights.simulate import rocketpy_sim
     monkeypatch.setitem(sys.modules, "rocketpy", None)
     with pytest.raises(UserError, match="install the flights extra"):
         rocketpy_sim.simulate_rocketpy(s1.Rocket("x", 8.0, 0.1, mo.load_motor("K400C")))
@@ -317,7 +317,7 @@ def test_rocketpy_cross_check_and_record():
     +0.006 % apogee, +5.8 ms, +0.008 % burnout velocity; M1670 transonic -0.048 %, +11.9 ms, -0.014 %.
     Asserted bounds for both: 0.1 %, 25 ms, 0.05 %."""
     pytest.importorskip("rocketpy")
-    from firmware_model.flights import crosscheck
+    from firmware_model.flights.simulate import crosscheck
     name = "K828FJ subsonic"
     c = crosscheck.compare(name, crosscheck.CROSS_CHECK_ROCKETS[name])
     assert abs(c.apogee_rel) < 1e-3, c.line()
@@ -376,7 +376,7 @@ def test_same_bytes_in_a_fresh_process():
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[2]
-    code = ("from tests.flights.test_sim import _digest; from firmware_model.flights import sim1dof as s1; "
+    code = ("from tests.flights.test_sim import _digest; from firmware_model.flights.simulate import sim1dof as s1; "
             "print(' '.join(_digest(r) for r in s1.random_flights(3, 9, launch=s1.Launch(record_hz=50.0))))")
     env = dict(os.environ, PYTHONPATH=str(root))
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, cwd=root,

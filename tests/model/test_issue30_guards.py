@@ -4,7 +4,8 @@ On the ram-pressure scenarios (a port reading ram pressure in boost: the baromet
 below the pad while the rocket climbs at Mach 1.5) the firmware as it was (GUARDS = 0) fires in boost, 16-37 s
 before apogee; each guard switched on alone removes that detection, and the floor guard is also needed with the
 other two on (kalman_baro at the default tuning: gravity and thrust alone leave a -34 s detection). The flights
-are sensed as set:full senses them (firmware_model.flights.evalset) and run through the integer model, which the
+are sensed as set:full senses them (firmware_model.flights.evaluation.evalset) and run through the integer model, which
+the
 emulated 68000 equals word for word (tests/firmware/test_cpu_vs_model.py, ram scenarios). The descent guard's teeth
 are on a coarse barometer instead (an 8-bit ADC without noise, as set:full senses it), where the others cannot see the
 early detection: the flat top of the reading, not a port error.
@@ -17,9 +18,9 @@ import functools
 import numpy as np
 import pytest
 
-from firmware_model.flights.evalset import BARO_TAGS
-from firmware_model.flights.evaluate import (METHODS, FlightSpec, flight_inputs, load_record, reference_for,
-                                             sensor_config)
+from firmware_model.flights.evaluation.evalset import BARO_TAGS
+from firmware_model.flights.evaluation.methods import METHODS
+from firmware_model.flights.evaluation.setup import FlightSpec, flight_inputs, load_record, reference_for, sensor_config
 from firmware_model.model.run import run_model
 from firmware_model.spec.atmosphere import G0
 from firmware_model.spec.build_constants import build_constants

@@ -20,6 +20,14 @@ from tests.support.imports import ROOT, find_cycle, import_graph, module_graph, 
 LAYERS: dict[str, int] = {"runtime": 0, "spec": 1, "model": 2, "firmware": 3, "flights": 3, "vectors": 4,
                           "budget": 5, "cli": 6}
 
+#: The rooms of flights/ (docs/architecture.md), lowest first: a flights module may import its own room and any
+#: lower one. The record type and the plot helpers sit in flights/ itself; ``strategies`` (the public hypothesis
+#: strategies, path documented in the README) draws simulated flights; the studies import the library, never the
+#: reverse.
+ROOMS: dict[str, int] = {"record": 0, "plot": 0, "__init__": 0, "readers": 1, "simulate": 2, "reference": 3,
+                         "inputs": 4, "reconstruct": 5, "evaluation": 6, "montecarlo": 7, "strategies": 8,
+                         "studies": 9}
+
 #: Imports allowed inside a function, each a documented lazy load of a heavy optional dependency behind it:
 #: (importing module, imported module) -> why.
 LAZY: dict[tuple[str, str], str] = {
@@ -37,6 +45,14 @@ def module_name(path: Path, root: Path = ROOT) -> str:
 def package_of(module: str) -> str | None:
     parts = module.split(".")
     return parts[1] if len(parts) > 1 and parts[0] == "firmware_model" else None
+
+
+def room_of(module: str) -> str | None:
+    """The room of a firmware_model.flights module (None outside flights, "__init__" for the package itself)."""
+    parts = module.split(".")
+    if parts[:2] != ["firmware_model", "flights"]:
+        return None
+    return parts[2] if len(parts) > 2 else "__init__"
 
 
 def project_imports(path: Path, root: Path = ROOT) -> list[tuple[str, int, bool]]:
@@ -86,6 +102,10 @@ def layer_violations(package: Path = PKG) -> list[str]:
                 continue
             if theirs != mine and LAYERS[theirs] >= LAYERS[mine]:
                 bad.append(f"{where}:{line}: {mine} (layer {LAYERS[mine]}) imports {target} (layer {LAYERS[theirs]})")
+            if mine == theirs == "flights" and (a := room_of(me)) and (b := room_of(target)) and (
+                    ROOMS[b] > ROOMS[a] or (a != b and ROOMS[a] == ROOMS[b] > 0)):
+                bad.append(f"{where}:{line}: flights room {a} (rank {ROOMS[a]}) imports {target} (room {b}, "
+                           f"rank {ROOMS[b]})")
             if mine == theirs == "cli" and me != "firmware_model.cli.main" and target not in (
                     "firmware_model.cli", "firmware_model.cli.args"):
                 bad.append(f"{where}:{line}: command module {me} imports command module {target}")
@@ -95,6 +115,7 @@ def layer_violations(package: Path = PKG) -> list[str]:
 def test_sources_found() -> None:
     modules = {module_name(p) for p in PKG.rglob("*.py")}
     assert len(modules) > 50 and set(LAYERS) <= {package_of(m) for m in modules}
+    assert {room_of(m) for m in modules if room_of(m)} == set(ROOMS), "a flights room or module the ROOMS list lacks"
 
 
 def test_imports_run_downwards_and_none_is_deferred() -> None:
@@ -112,8 +133,14 @@ def test_lazy_loads_still_exist() -> None:
 @pytest.mark.parametrize("module, line, expect", [
     ("spec/config.py", "from firmware_model.model.run import run_model", "spec (layer 1) imports"),
     ("runtime/output.py", "from firmware_model.cli.args import positive_int", "runtime (layer 0) imports"),
-    ("flights/sim1dof.py", "from firmware_model.firmware.harness import run_firmware", "flights (layer 3) imports"),
+    ("flights/simulate/sim1dof.py", "from firmware_model.firmware.harness import run_firmware",
+     "flights (layer 3) imports"),
     ("cli/plot.py", "from firmware_model.cli.run import run_run", "command module"),
+    ("flights/simulate/sim1dof.py", "from firmware_model.flights.evaluation.evaluate import evaluate_many",
+     "flights room simulate"),
+    ("flights/reconstruct/run.py", "from firmware_model.flights.studies import reconstruct_study",
+     "flights room reconstruct"),
+    ("flights/readers/aim.py", "from firmware_model.flights.inputs import sensors", "flights room readers"),
     ("model/trace.py", "def _late():\n    from firmware_model.spec.config import BuildConfig",
      "imported inside a function"),
 ])

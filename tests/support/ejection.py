@@ -1,5 +1,6 @@
 """Simulated flights that end in an ejection, logged as AltOS logs them (issue 31; docs/evaluation.md, "The reference
-apogee and the log's own charge"): the 1-DOF simulator's trajectory (:func:`firmware_model.flights.sim1dof`), whose
+apogee and the log's own charge"): the 1-DOF simulator's trajectory (:func:`firmware_model.flights.simulate.sim1dof`),
+whose
 drogue opens when the charge fires (separation), sensed and logged like a real log:
 
 * the barometer: a non-standard day (the barometric height is the true one times 0.95-1.05: the standard
@@ -26,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from firmware_model.flights.record import FlightRecord
-from firmware_model.flights.sim1dof import Box, Launch, rocket_from_unit, simulate_1dof
+from firmware_model.flights.simulate.sim1dof import Box, Launch, rocket_from_unit, simulate_1dof
 from firmware_model.spec import atmosphere as atm
 
 G0 = 9.80665

@@ -7,7 +7,7 @@ Per chunk, everything batched over its flights:
    dt = 2^-k (no resampling needed: the integration step divides dt), with ``pad_s`` of pad before ignition;
 3. sense (vectorised over the chunk): static pressure of the (temperature-shifted) atmosphere, the pressure-error
    model (:data:`PRESSURE_ERROR_MODELS`), spikes, barometer gain/offset/noise and ADC transfer, accelerometer
-   gain/offset/noise/range -- the same transfer functions as :mod:`firmware_model.flights.sensors`, with each
+   gain/offset/noise/range -- the same transfer functions as :mod:`firmware_model.flights.inputs.sensors`, with each
    flight's noise drawn from its own generator at its own length;
 4. run every (method, tuning) on the bit-exact integer model over all streams of the chunk at once
    (:func:`firmware_model.model.run_model`; streams shorter than the chunk's longest are held at their last value
@@ -16,7 +16,7 @@ Per chunk, everything batched over its flights:
 
 The firmware build of a method is fixed for the whole run, as on a real deployment: it is made for the nominal
 sensor preset at the nominal site, its noise figures measured on the pad of the nominal flight
-(:func:`firmware_model.flights.evaluate.sensor_config`, as ``fwemu evaluate`` does); the dispersed flights then fly
+(:func:`firmware_model.flights.evaluation.setup.sensor_config`, as ``fwemu evaluate`` does); the dispersed flights then fly
 with it. A spec that draws the sensor preset (``baro``/``accel`` = choice) gets one build per preset.
 """
 
@@ -30,15 +30,16 @@ from typing import Any, Callable
 
 import numpy as np
 
-from firmware_model.flights import pressure_errors
-from firmware_model.flights.evaluate import METHODS, sensor_config, tuning_overrides
-from firmware_model.flights.firmware_inputs import firmware_inputs
+from firmware_model.flights.simulate import pressure_errors
+from firmware_model.flights.evaluation.methods import METHODS, tuning_overrides
+from firmware_model.flights.evaluation.setup import sensor_config
+from firmware_model.flights.inputs.firmware_inputs import firmware_inputs
 from firmware_model.flights.montecarlo.sim import P_COLS, T0_K, drag_table, simulate_batch
 from firmware_model.flights.montecarlo.spec import draw, fingerprint, flight_rng, slot_names
-from firmware_model.flights.motors import load_motor
+from firmware_model.flights.simulate.motors import load_motor
 from firmware_model.flights.record import FlightRecord, Truth
-from firmware_model.flights.sensors import AccelSensor, BaroSensor
-from firmware_model.flights.sim1dof import Launch, Rocket, simulate_1dof
+from firmware_model.flights.inputs.sensors import AccelSensor, BaroSensor
+from firmware_model.flights.simulate.sim1dof import Launch, Rocket, simulate_1dof
 from firmware_model.model.run import run_model
 from firmware_model.model.trace import EVENT_BITS
 from firmware_model.runtime.errors import UserError
@@ -51,7 +52,7 @@ G0 = atm.G0
 # --------------------------------------------------------------------------------------------- pressure errors
 def _hysteresis(mach: np.ndarray, on: np.ndarray, off: np.ndarray) -> np.ndarray:
     """(nf, n) 0/1: on from the first sample at or above ``on`` until the first later sample below ``off``, per
-    row (the "step" shape of :func:`firmware_model.flights.pressure_errors.supersonic_fraction`)."""
+    row (the "step" shape of :func:`firmware_model.flights.simulate.pressure_errors.supersonic_fraction`)."""
     out = np.zeros(mach.shape)
     state = np.zeros(mach.shape[0], dtype=bool)
     for j in range(mach.shape[1]):       # a loop over samples, vectorised over flights
@@ -64,7 +65,7 @@ def _hysteresis(mach: np.ndarray, on: np.ndarray, off: np.ndarray) -> np.ndarray
 def _step_model(p: np.ndarray, mach: np.ndarray, prm: dict[str, np.ndarray]) -> np.ndarray:
     """Schultz n.d.'s transonic step: while supersonic the barometer reads the standard pressure of an altitude
     ``altitude_step_m`` higher (``width_mach`` > 0: blended over that Mach width around the switch, as the "ramp"
-    shape of :mod:`firmware_model.flights.pressure_errors`)."""
+    shape of :mod:`firmware_model.flights.simulate.pressure_errors`)."""
     on, off, width = prm["mach_on"][:, None], prm["mach_off"][:, None], prm["width_mach"][:, None]
     frac = _hysteresis(mach, prm["mach_on"], prm["mach_off"])
     if np.any(width > 0):
@@ -95,12 +96,12 @@ def _dip_model(p: np.ndarray, mach: np.ndarray, prm: dict[str, np.ndarray]) -> n
 
 
 def _real_flight_model(p: np.ndarray, mach: np.ndarray, prm: dict[str, np.ndarray]) -> np.ndarray:
-    """The barometer errors of real flight (:func:`firmware_model.flights.pressure_errors.real_flight_errors`,
+    """The barometer errors of real flight (:func:`firmware_model.flights.simulate.pressure_errors.real_flight_errors`,
     issue 20), batched over flights with per-flight parameters: the port error and the transonic dip
-    (:func:`~firmware_model.flights.pressure_errors.pressure_coefficient` of the Mach number, times ``q``), and the
+    (:func:`~firmware_model.flights.simulate.pressure_errors.pressure_coefficient` of the Mach number, times ``q``), and the
     altitude jump at each crossing of ``jump_mach`` (the shock passing the port), rising over ``jump_rise_s`` and
     relaxing with ``jump_decay_s``; with the parameters of "real_flight_ram" also issue 30's ram error in boost
-    (:func:`~firmware_model.flights.pressure_errors.ram_coefficient`, ending at each flight's burnout
+    (:func:`~firmware_model.flights.simulate.pressure_errors.ram_coefficient`, ending at each flight's burnout
     ``_burnout_s``, on the stream's time axis). Not here: the noise bursts and the ejection spike of the
     deterministic model (the Monte Carlo's spikes stand in for them)."""
     dt = float(prm["_dt"][0])

@@ -1,6 +1,6 @@
 """A batched 3-DOF point-mass simulator for dispersed flights: wind, rail inclination, non-standard temperature.
 
-The 1-DOF model of :mod:`firmware_model.flights.sim1dof` is vertical; a Monte Carlo over wind and rail angle needs
+The 1-DOF model of :mod:`firmware_model.flights.simulate.sim1dof` is vertical; a Monte Carlo over wind and rail angle needs
 the flight path to bend. This is the same point mass (thrust table, propellant mass proportional to the impulse
 still to come, Mach-dependent drag times a scale, constant g0, RK4 with a fixed step), in three dimensions:
 

@@ -28,11 +28,11 @@ from typing import Any
 import numpy as np
 import tomllib
 
-from firmware_model.flights.evaluate import METHODS
-from firmware_model.flights.motors import MOTOR_FILES
-from firmware_model.flights.pressure_errors import DEFAULT_TRANSONIC_STEP_M
-from firmware_model.flights.scenarios import get_scenario
-from firmware_model.flights.sensors import ACCEL_PRESETS, BARO_PRESETS
+from firmware_model.flights.evaluation.methods import METHODS
+from firmware_model.flights.simulate.motors import MOTOR_FILES
+from firmware_model.flights.simulate.pressure_errors import DEFAULT_TRANSONIC_STEP_M
+from firmware_model.flights.simulate.scenarios import get_scenario
+from firmware_model.flights.inputs.sensors import ACCEL_PRESETS, BARO_PRESETS
 from firmware_model.runtime.errors import UserError
 
 #: Dispersed parameters in their fixed slot order (never reorder: append). name -> (default, meaning).
@@ -147,13 +147,14 @@ def _table(where: str, value: Any) -> dict[str, Any]:
 #: Pluggable static-pressure error models: name -> {parameter: default}. A model is a function of
 #: (pressure, Mach, per-flight parameters) registered in :mod:`.pipeline` under the same name; its parameters are
 #: dispersed like the others (slots after :data:`PARAMETERS`, in this declared order). "step" is Schultz n.d.'s step
-#: in pressure altitude above Mach 1 (:func:`firmware_model.flights.pressure_errors.transonic_pressure_error`);
+#: in pressure altitude above Mach 1 (:func:`firmware_model.flights.simulate.pressure_errors.transonic_pressure_error`);
 #: "transonic_dip" is a stand-in for the signatures of real supersonic logs (the barometric altitude falls by
 #: 100-800 m during the transonic passage, pressure reading high, and jumps back when the shock passes the port:
 #: ../shared/flights/README.md): while the airspeed Mach is inside [mach_lo, mach_hi] the barometer reads the
 #: standard pressure of ``dip_m`` lower; "real_flight" is issue 20's model of
 #: what real barometers read near Mach 1 (port error, transonic dip, shock jump; parameters and ranges as
-#: :class:`firmware_model.flights.pressure_errors.BaroErrorModel` and ``BARO_ERROR_RANGES``); "real_flight_ram" adds
+#: :class:`firmware_model.flights.simulate.pressure_errors.BaroErrorModel` and ``BARO_ERROR_RANGES``);
+#: "real_flight_ram" adds
 #: issue 30's ram error in boost (``ram_cp`` q from ``ram_mach_on`` until each flight's burnout, fading over
 #: ``ram_fade_s``); "none" is no error. Another model (e.g. a measured transonic signature) is added by declaring its
 #: parameters here and its function in :data:`firmware_model.flights.montecarlo.pipeline.PRESSURE_ERROR_MODELS`.

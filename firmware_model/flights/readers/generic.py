@@ -30,6 +30,7 @@ import numpy as np
 from firmware_model.flights.readers._common import (check_time, fail, iter_lines, licence_of, parse_float,
                                                     read_text, show)
 from firmware_model.flights.record import FlightRecord, Truth
+from firmware_model.runtime.output import write_file
 from firmware_model.spec.atmosphere import G0, pressure_pa
 
 BARO_COLUMNS: tuple[str, ...] = ("pressure_pa", "pressure_hpa", "altitude_m")
@@ -193,26 +194,25 @@ def _fmt(x: float) -> str:
     return "" if not np.isfinite(x) else repr(float(x))
 
 
-def write_generic(record: FlightRecord, path: str | Path) -> Path:
-    """Write ``record`` as a generic flight CSV that :func:`read` reads back to the same arrays, bit for bit
-    (shortest round-trip float repr; NaN as an empty field). Columns: ``time_s``, ``pressure_pa``, then
-    ``accel_mps2`` (the specific force, also for a record holding counts), ``temperature_c`` and the truth columns
-    where present; ``# key: value`` comments carry name, licence, source, ground pressure and the truth apogee.
-    Written to a temporary file in the same folder and renamed, so an interrupted write leaves no partial file."""
-    import os
-    import tempfile
-
-    path = Path(path)
+def generic_csv(record: FlightRecord, *, truth: bool = True, temperature: bool = True) -> str:
+    """The generic-CSV text of ``record``, which :func:`read` reads back to the same arrays, bit for bit (shortest
+    round-trip float repr; NaN as an empty field). Columns: ``time_s``, ``pressure_pa``, then ``accel_mps2`` (the
+    specific force, also for a record holding counts), ``temperature_c`` (when present and ``temperature``) and the
+    truth columns (when present and ``truth``); ``# key: value`` comments carry name, source, format, licence (those
+    the provenance has), ground pressure and the truth apogee."""
     cols: list[tuple[str, np.ndarray]] = [("time_s", np.asarray(record.time_s, dtype=np.float64)),
                                           ("pressure_pa", np.asarray(record.pressure_pa, dtype=np.float64))]
     f = record.specific_force_mps2()
     if f is not None:
-        cols.append(("accel_mps2", f))
-    if record.temperature_c is not None:
+        cols.append(("accel_mps2", np.asarray(f, dtype=np.float64)))
+    if temperature and record.temperature_c is not None:
         cols.append(("temperature_c", np.asarray(record.temperature_c, dtype=np.float64)))
-    tr = record.truth
-    meta = {"name": record.name, "licence": record.provenance.get("licence", "unknown"),
-            "source": record.provenance.get("source", record.name)}
+    tr = record.truth if truth else None
+    meta: dict[str, str] = {"name": record.name}
+    prov = record.provenance or {}
+    for key in ("source", "format", "licence"):
+        if prov.get(key) is not None:
+            meta[key] = str(prov[key])
     if record.ground_pressure_pa is not None:
         meta["ground_pressure_pa"] = repr(float(record.ground_pressure_pa))
     if tr is not None:
@@ -225,18 +225,15 @@ def write_generic(record: FlightRecord, path: str | Path) -> Path:
             meta["true_apogee_time_s"] = repr(float(tr.apogee_time_s))
         if tr.apogee_altitude_m is not None:
             meta["true_apogee_altitude_m"] = repr(float(tr.apogee_altitude_m))
-    lines = [f"# {k}: {' '.join(str(v).split())}" for k, v in meta.items()]
+    lines = [f"# {k}: {' '.join(v.split())}" for k, v in meta.items()]
     lines.append(",".join(name for name, _ in cols))
     arrays = [a for _, a in cols]
     for i in range(record.n):
         lines.append(",".join(_fmt(a[i]) for a in arrays))
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", newline="\n") as fh:
-            fh.write("\n".join(lines) + "\n")
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return path
+    return "\n".join(lines) + "\n"
+
+
+def write_generic(record: FlightRecord, path: str | Path, *, truth: bool = True, temperature: bool = True) -> Path:
+    """Write :func:`generic_csv` of ``record`` to ``path`` through :func:`firmware_model.runtime.output.write_file`
+    (atomic: an interrupted write leaves the previous file, no partial one)."""
+    return write_file(path, generic_csv(record, truth=truth, temperature=temperature))

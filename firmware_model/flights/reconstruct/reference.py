@@ -2,7 +2,8 @@
 
 :func:`smoother_reference` reconstructs a real log (:func:`~.run.reconstruct_log`, from the record's source file)
 and returns the time its smoothed vertical velocity crosses zero, with ``2 sigma`` as the uncertainty, beside the
-barometric parabola's (:func:`firmware_model.flights.apogee_reference.reference_apogee`). The two *disagree* when their
+barometric parabola's (:func:`firmware_model.flights.reference.apogee_reference.reference_apogee`). The two *disagree*
+when their
 times differ by more than the parabola's uncertainty plus the smoother's 2 sigma.
 """
 
@@ -14,7 +15,7 @@ from pathlib import Path
 from firmware_model.runtime.errors import UserError
 from firmware_model.flights.record import FlightRecord
 from firmware_model.flights.reconstruct.run import reconstruct_log
-from firmware_model.flights.apogee_reference import ReferenceApogee, reference_apogee
+from firmware_model.flights.reference.apogee_reference import ReferenceApogee, reference_apogee
 
 MODES: tuple[str, ...] = ("parabola", "smoother", "auto")
 

@@ -34,9 +34,9 @@ from firmware_model.flights.reconstruct.truth import gravity, truth_run
 from firmware_model.flights.reconstruct.flightset import case_named, flight_set
 from firmware_model.flights.reconstruct.ukf import FilterNoise, Measurements, align, run_ukf, unflat
 from firmware_model.flights.reconstruct.vertical import run_vertical
-from firmware_model.flights.pressure_errors import BARO_ERROR_RANGES
-from firmware_model.flights.apogee_reference import ground_pressure, liftoff_time, noise_scale
-from firmware_model.flights.charge import accelerometer_shock, recovery_charge
+from firmware_model.flights.simulate.pressure_errors import BARO_ERROR_RANGES
+from firmware_model.flights.reference.apogee_reference import ground_pressure, liftoff_time, noise_scale
+from firmware_model.flights.reference.charge import accelerometer_shock, recovery_charge
 from firmware_model.spec import atmosphere as atm
 
 G = 9.80665
@@ -166,7 +166,8 @@ def _end_at_gap(t: np.ndarray, lift_s: float) -> int:
 
 
 def first_shock(t: np.ndarray, f: np.ndarray | None, after_s: float) -> float | None:
-    """The first accelerometer shock after ``after_s`` (:func:`firmware_model.flights.charge.accelerometer_shock`:
+    """The first accelerometer shock after ``after_s``
+    (:func:`firmware_model.flights.reference.charge.accelerometer_shock`:
     above 8 g and 4 times the median |f| of its neighbours, at least two on each side, so that a single sample at a
     5 samples/s tail counts): an ejection charge, a separation or a break-up. None without one, or without an
     accelerometer."""

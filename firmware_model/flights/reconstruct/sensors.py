@@ -10,7 +10,8 @@
   ``sigma_v_m`` vertical), independent dropouts (probability ``dropout``), and the export limits Chari discusses:
   no fix while faster than ``max_speed_mps`` (1,200 mph) or higher than ``max_altitude_m`` (60,000 ft) above sea
   level (either limit; ``cocom=False`` lifts them).
-* :func:`baro_samples`: the barometer as the rest of the project models it (:class:`firmware_model.flights.sensors.
+* :func:`baro_samples`: the barometer as the rest of the project models it
+(:class:`firmware_model.flights.inputs.sensors.
   BaroSensor`): ISA pressure at the truth's geopotential altitude, through the sensor's noise, rounding and range.
 
 Presets (:data:`IMU_PRESETS`, :data:`GPS_PRESETS`): ``chari`` is the paper's suite (100 Hz IMU with the BNO055's
@@ -33,7 +34,7 @@ from firmware_model.spec import atmosphere as atm
 from firmware_model.spec.atmosphere import G0
 from firmware_model.runtime.errors import UserError
 from firmware_model.flights.reconstruct.truth import EARTH_R, Truth6
-from firmware_model.flights.sensors import BaroSensor
+from firmware_model.flights.inputs.sensors import BaroSensor
 
 
 @dataclass(frozen=True)

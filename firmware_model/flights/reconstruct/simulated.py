@@ -18,7 +18,7 @@ from firmware_model.flights.reconstruct.sensors import (GpsModel, ImuData, ImuMo
                                                         baro_sigma_m, gps_samples, imu_samples)
 from firmware_model.flights.reconstruct.truth import Truth6
 from firmware_model.flights.reconstruct.ukf import FilterNoise, Measurements, Run, align, run_ukf, unflat
-from firmware_model.flights.sensors import BaroSensor
+from firmware_model.flights.inputs.sensors import BaroSensor
 
 BARO_DEFAULT = BaroSensor.preset("ms5607", noise_pa=3.0)
 

@@ -1,14 +1,17 @@
 """6-DOF truth from RocketPy for the reconstruction: position, velocity, attitude, body rates and specific force.
 
-:func:`truth_run` flies a :class:`~firmware_model.flights.sim1dof.Rocket` with RocketPy (the same rocket build as
-:mod:`firmware_model.flights.rocketpy_sim`) and samples its solution on a fine regular grid (``truth_hz``, default
+:func:`truth_run` flies a :class:`~firmware_model.flights.simulate.sim1dof.Rocket` with RocketPy (the same rocket build
+as
+:mod:`firmware_model.flights.simulate.rocketpy_sim`) and samples its solution on a fine regular grid (``truth_hz``,
+default
 1 kHz) from ``pad_s`` before ignition to ``after_apogee_s`` after apogee. Frames: RocketPy's launch-site frame,
 x east, y north, z up (flat earth, no Coriolis, as RocketPy integrates it), origin at the rail's foot; body frame
 as RocketPy's (z along the rocket axis towards the nose). The quaternion ``q = (e0, e1, e2, e3)`` rotates body
 vectors into the site frame (its rotation matrix's third column is the rocket axis). Body rates are RocketPy's
 ``w1, w2, w3`` (body frame, rad/s). Specific force (what an ideal accelerometer at the centre of mass reads, body
 frame) = ``R(q)^T (a - g + 2 W x v)``, ``a`` RocketPy's acceleration in its (rotating) site frame, ``g = (0, 0,
--g(z))`` with the gravity model of :mod:`firmware_model.flights.rocketpy_sim`, ``W`` the earth's rate (RocketPy adds
+-g(z))`` with the gravity model of :mod:`firmware_model.flights.simulate.rocketpy_sim`, ``W`` the earth's rate
+(RocketPy adds
 the Coriolis term ``-2 W x v`` to ``a``; an accelerometer does not feel it).
 
 Runs take seconds, so :func:`truth_run` keeps them in the user's cache folder
@@ -29,9 +32,9 @@ import numpy as np
 from firmware_model.runtime import diskcache
 from firmware_model.spec.atmosphere import G0
 from firmware_model.runtime.errors import UserError
-from firmware_model.flights import rocketpy_sim
-from firmware_model.flights.scenarios import Scenario
-from firmware_model.flights.sim1dof import Launch, Rocket, simulate_1dof
+from firmware_model.flights.simulate import rocketpy_sim
+from firmware_model.flights.simulate.scenarios import Scenario
+from firmware_model.flights.simulate.sim1dof import Launch, Rocket, simulate_1dof
 
 EARTH_R: float = 6378137.0
 EARTH_RATE: float = 7.2921159e-5   # rad/s
@@ -67,10 +70,10 @@ class TruthCase:
         h = hashlib.sha256(json.dumps(asdict(self), sort_keys=True, default=str).encode())
         h.update(TRUTH_VERSION.encode())
         here = Path(__file__).resolve()
-        for p in (here.parent.parent / "rocketpy_sim.py", here.parent.parent / "motors.py",
-                  here.parent.parent / "sim1dof.py"):
+        sim = here.parent.parent / "simulate"
+        for p in (sim / "rocketpy_sim.py", sim / "motors.py", sim / "sim1dof.py"):
             h.update(p.read_bytes())
-        for p in sorted((here.parent.parent / "data").iterdir()):
+        for p in sorted((sim / "data").iterdir()):
             if p.is_file():
                 h.update(p.name.encode() + p.read_bytes())
         h.update(rocketpy_sim._rocketpy_version().encode())

@@ -10,7 +10,9 @@ from typing import Any
 
 import numpy as np
 
-from firmware_model.flights.evaluate import METHODS, FlightSpec, evaluate_flight
+from firmware_model.flights.evaluation.evaluate import evaluate_flight
+from firmware_model.flights.evaluation.methods import METHODS
+from firmware_model.flights.evaluation.setup import FlightSpec
 from firmware_model.flights.record import FlightRecord, Truth
 from firmware_model.flights.reconstruct.apogee import velocity_zero_crossing
 from firmware_model.flights.reconstruct.rotation import tilt_deg
@@ -19,7 +21,7 @@ from firmware_model.flights.reconstruct.simulated import (errors, inside_2sigma,
                                                           sensed_flight)
 from firmware_model.flights.reconstruct.truth import Truth6, TruthCase, truth_run
 from firmware_model.flights.reconstruct.ukf import unflat
-from firmware_model.flights.apogee_reference import reference_apogee
+from firmware_model.flights.reference.apogee_reference import reference_apogee
 from firmware_model.spec import atmosphere as atm
 
 

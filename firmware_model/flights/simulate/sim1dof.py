@@ -42,7 +42,7 @@ from typing import Sequence
 
 import numpy as np
 
-from firmware_model.flights.motors import ThrustCurve, default_drag_curve, load_motor
+from firmware_model.flights.simulate.motors import ThrustCurve, default_drag_curve, load_motor
 from firmware_model.flights.record import FlightRecord, Truth
 from firmware_model.runtime.errors import UserError
 from firmware_model.runtime.output import interrupts_deferred
@@ -506,7 +506,7 @@ def simulate_1dof(rockets: Sequence[Rocket] | Rocket, launch: Launch | Sequence[
         burn_t = r.motor.burn_time_s
         bi = n_pad + int(round(burn_t * l.record_hz))
         provenance_i = {
-            "source": "firmware_model.flights.sim1dof", "format": "simulation", "simulator": "1-DOF point mass",
+            "source": "firmware_model.flights.simulate.sim1dof", "format": "simulation", "simulator": "1-DOF point mass",
             "licence": "MIT (this project; motor and drag tables from RocketPy, MIT)",
             "integrator": f"RK4, fixed step {b.h * 1e3:.6g} ms", "record_hz": l.record_hz,
             "rocket": r.describe(), "launch": asdict(l),

@@ -24,12 +24,12 @@ from typing import Any
 
 import numpy as np
 
-from firmware_model.flights.motors import DATA_DIR, load_motor
-from firmware_model.flights.pressure_errors import (BaroErrorModel, draw_error_model, pressure_spikes,
+from firmware_model.flights.simulate.motors import DATA_DIR, load_motor
+from firmware_model.flights.simulate.pressure_errors import (BaroErrorModel, draw_error_model, pressure_spikes,
                                                     real_flight_errors, transonic_pressure_error)
 from firmware_model.flights.record import FlightRecord, Truth
-from firmware_model.flights.rocketpy_sim import simulate_rocketpy_with_mach
-from firmware_model.flights.sim1dof import Launch, Rocket, mach_of, simulate_1dof
+from firmware_model.flights.simulate.rocketpy_sim import simulate_rocketpy_with_mach
+from firmware_model.flights.simulate.sim1dof import Launch, Rocket, mach_of, simulate_1dof
 from firmware_model.runtime.errors import UserError
 
 #: Mach-class bounds (peak Mach) asserted by the tests.
@@ -41,7 +41,7 @@ MACH_CLASSES: dict[str, tuple[float, float]] = {"subsonic": (0.0, 0.9), "transon
 class Scenario:
     """A named simulated flight. ``rocket``: :class:`Rocket` fields (``motor`` by name); ``launch``:
     :class:`Launch` fields; ``simulator``: "1dof" or "rocketpy" (then ``rocketpy`` holds wind/rail settings for
-    :func:`firmware_model.flights.rocketpy_sim.simulate_rocketpy`); ``transonic``/``spikes``: keyword arguments
+    :func:`firmware_model.flights.simulate.rocketpy_sim.simulate_rocketpy`); ``transonic``/``spikes``: keyword arguments
     of the pressure-error functions, or None; ``baro_errors``: the barometer errors of real flight
     (:func:`.pressure_errors.real_flight_errors`): ``{"model": {BaroErrorModel fields}, "seed": n}`` (fields not
     named keep their defaults) or ``{"draw": n, "seed": n}`` (every parameter drawn from

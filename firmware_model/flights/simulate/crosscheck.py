@@ -1,6 +1,6 @@
 """Cross-check of the 1-DOF model against RocketPy on vertical no-wind flights of the same rocket (docs/flights-sim.md).
 
-``python -m firmware_model.flights.crosscheck [PNG]`` simulates the cross-check rockets with both simulators,
+``python -m firmware_model.flights.simulate.crosscheck [PNG]`` simulates the cross-check rockets with both simulators,
 prints apogee altitude and time and burnout velocity side by side, and (with a path) writes the figure: altitude
 and vertical velocity against time, both simulators, plus their differences.
 """
@@ -14,10 +14,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from firmware_model.flights.motors import load_motor
+from firmware_model.flights.simulate.motors import load_motor
 from firmware_model.flights.record import FlightRecord
-from firmware_model.flights.rocketpy_sim import simulate_rocketpy
-from firmware_model.flights.sim1dof import Launch, Rocket, simulate_1dof
+from firmware_model.flights.simulate.rocketpy_sim import simulate_rocketpy
+from firmware_model.flights.simulate.sim1dof import Launch, Rocket, simulate_1dof
 
 #: The rockets cross-checked (vertical, no wind, same mass, diameter, drag curve and motor in both simulators).
 CROSS_CHECK_ROCKETS: dict[str, Rocket] = {

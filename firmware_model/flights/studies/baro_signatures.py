@@ -34,7 +34,8 @@ the two clocks by the lag that best matches the two barometric altitudes on the 
 Also per barometer (:func:`boost_port_error`, issue 30): the port's error during the boost as a fraction of the
 dynamic pressure, against the same trajectory, and the lowest barometric height it read in boost.
 
-``python -m firmware_model.flights.baro_signatures [--png FILE] [--model-png FILE]`` prints the Markdown tables and
+``python -m firmware_model.flights.studies.baro_signatures [--png FILE] [--model-png FILE]`` prints the Markdown tables
+and
 writes the figures (the second: the measured residuals beside the model's error on four scenarios).
 AltOS is GPL: this reads the CSV columns (a format fact), nothing of its code.
 """
@@ -51,8 +52,8 @@ from typing import Any
 
 import numpy as np
 
-from firmware_model.flights.evalset import shared_dir
-from firmware_model.flights.scenarios import scenario_mach, simulate_scenario
+from firmware_model.flights.evaluation.evalset import shared_dir
+from firmware_model.flights.simulate.scenarios import scenario_mach, simulate_scenario
 from firmware_model.runtime.errors import UserError
 from firmware_model.runtime.output import write_file
 from firmware_model.spec import atmosphere as atm

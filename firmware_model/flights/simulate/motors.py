@@ -1,4 +1,4 @@
-"""Motor thrust curves and the drag curve shipped with the simulators (``firmware_model/flights/data/``).
+"""Motor thrust curves and the drag curve shipped with the simulators (``firmware_model/flights/simulate/data/``).
 
 The files are verbatim copies from the RocketPy repository (MIT; see ``data/README.md`` for each file's path and
 commit). A motor is a :class:`ThrustCurve`: a piecewise-linear thrust table from ignition (t = 0, thrust 0) to

@@ -6,7 +6,7 @@ sensor models (:mod:`.sensors`) on the resampled pressure and specific force, no
 
 Pad time: the firmware's ``init`` reads sample 0 as the pad (ground level, the accelerometer's 1 g), and a pad
 calibration averaging 2^p samples needs more (docs/firmware-spec.md). By default the stream starts
-:data:`DEFAULT_PAD_S` = 2.0 s before liftoff (:func:`~firmware_model.flights.apogee_reference.liftoff_time`). Real logs
+:data:`DEFAULT_PAD_S` = 2.0 s before liftoff (:func:`~firmware_model.flights.reference.apogee_reference.liftoff_time`). Real logs
 often start later (AltosUI logs begin 0.3 s before boost): grid samples before the log's first row are filled with
 the **pad values** (median pressure and specific force of the rows before liftoff, else of the first row) and the
 report counts them (``before_log``) and says so in a note. Noise is added to them like to every other sample.
@@ -20,11 +20,11 @@ from typing import Any
 
 import numpy as np
 
-from firmware_model.flights.apogee_reference import ground_pressure, liftoff_time
+from firmware_model.flights.reference.apogee_reference import ground_pressure, liftoff_time
 from firmware_model.flights.readers._common import show
 from firmware_model.flights.record import FlightRecord
-from firmware_model.flights.resample import ResampleReport, resample
-from firmware_model.flights.sensors import AccelSensor, BaroSensor
+from firmware_model.flights.inputs.resample import ResampleReport, resample
+from firmware_model.flights.inputs.sensors import AccelSensor, BaroSensor
 from firmware_model.runtime.errors import UserError
 from firmware_model.spec.atmosphere import G0
 from firmware_model.spec.config import BuildConfig

@@ -51,7 +51,7 @@ from typing import Any
 import numpy as np
 
 from firmware_model.flights.record import FlightRecord
-from firmware_model.flights.sim1dof import mach_of
+from firmware_model.flights.simulate.sim1dof import mach_of
 from firmware_model.runtime.errors import UserError
 from firmware_model.spec import atmosphere as atm
 

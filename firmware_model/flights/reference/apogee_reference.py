@@ -20,7 +20,7 @@
   4. Nominal window w = 1.5 s; the uncertainty is the largest distance of the vertex time from the nominal one over
      the windows w = 1.0, 1.25, 1.5, 2.0, 2.5 s and the nominal window shifted by +-0.25 s (all that give a valid
      fit), at least half the log's median interval near the peak (the time resolution of the data).
-  5. The log's recovery charge (:func:`firmware_model.flights.charge.recovery_charge`: its own computer's
+  5. The log's recovery charge (:func:`firmware_model.flights.reference.charge.recovery_charge`: its own computer's
      event, else an accelerometer shock or the ejection's pressure pulse in the flight's top): after it the flight is
      not free (separation, a parachute) and the ejection disturbs the pressure for seconds, so **only the samples
      before it are used** (:func:`_pre_charge_reference`, issue 31). Spikes and the running-median peak as in 1-2 on
@@ -60,7 +60,7 @@ from typing import Any
 
 import numpy as np
 
-from firmware_model.flights.charge import RecoveryCharge, recovery_charge
+from firmware_model.flights.reference.charge import RecoveryCharge, recovery_charge
 from firmware_model.flights.readers import read_flight
 from firmware_model.flights.record import FlightRecord
 from firmware_model.runtime.errors import UserError
@@ -499,7 +499,7 @@ def reference_table(paths: list[str], format: str | None = None) -> str:
     """The Markdown table of docs/flights.md for flight logs ``paths``: reference apogee, its uncertainty,
     altitude, fitted curvature, spikes rejected, and the log's own computer's apogee against it where the log has
     one (AltOS's first drogue state, an RRC3's Drogue event, CATS's EV_APOGEE, ...: ``FlightRecord.own_apogee``).
-    ``python -m firmware_model.flights.apogee_reference LOG...`` prints it."""
+    ``python -m firmware_model.flights.reference.apogee_reference LOG...`` prints it."""
 
     out = ["| log | reference apogee (s) | ± (s) | altitude AGL (m) | curvature (m/s²) | spikes rejected "
            "| own computer's apogee (s) | own − reference (s) |", "|---|---|---|---|---|---|---|---|"]

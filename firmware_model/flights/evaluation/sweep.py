@@ -21,17 +21,9 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from firmware_model.flights.evaluate import (
-    METHODS,
-    FlightSpec,
-    _clean,
-    flight_inputs,
-    load_record,
-    methods_named,
-    reference_for,
-    run_method,
-    sensor_config,
-)
+from firmware_model.flights.evaluation.methods import METHODS, methods_named, run_method
+from firmware_model.flights.evaluation.setup import FlightSpec, flight_inputs, load_record, reference_for, sensor_config
+from firmware_model.flights.evaluation.tables import _clean
 from firmware_model.runtime import markdown as md
 from firmware_model.runtime.errors import UserError
 from firmware_model.runtime.pool import ordered_map

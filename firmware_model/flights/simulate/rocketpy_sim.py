@@ -1,6 +1,7 @@
 """RocketPy 6-DOF flights with truth (optional extra ``flights``; docs/flights-sim.md, "RocketPy").
 
-The same :class:`~firmware_model.flights.sim1dof.Rocket` description as the 1-DOF model (dry mass, diameter, motor
+The same :class:`~firmware_model.flights.simulate.sim1dof.Rocket` description as the 1-DOF model (dry mass, diameter,
+motor
 table, Cd(M) curve, drogue), plus a generic airframe for the 6-DOF parts RocketPy needs (length, a von Karman nose,
 four trapezoidal fins, inertia of a uniform cylinder; :class:`Airframe`). Offline: RocketPy's own ISA standard
 atmosphere (no downloads) or a "custom_atmosphere" (still ISA pressure and temperature) with constant or
@@ -38,7 +39,7 @@ from math import radians, sin
 import numpy as np
 
 from firmware_model.flights.record import FlightRecord, Truth
-from firmware_model.flights.sim1dof import Launch, Rocket, simulate_1dof
+from firmware_model.flights.simulate.sim1dof import Launch, Rocket, simulate_1dof
 from firmware_model.runtime.errors import UserError
 from firmware_model.spec import atmosphere as atm
 from firmware_model.spec.atmosphere import G0
@@ -184,7 +185,7 @@ def simulate_rocketpy_with_mach(rocket: Rocket, launch: Launch = Launch(), name:
         "landed_s": None,
     }
     prov = {
-        "source": "firmware_model.flights.rocketpy_sim", "format": "simulation", "simulator": "RocketPy 6-DOF",
+        "source": "firmware_model.flights.simulate.rocketpy_sim", "format": "simulation", "simulator": "RocketPy 6-DOF",
         "rocketpy_version": _rocketpy_version(),
         "licence": "MIT (this project; RocketPy and its motor/drag data, MIT)",
         "integrator": f"RocketPy LSODA, rtol={rtol:g}, max_time_step={max_time_step:g} s; sampled by linear "

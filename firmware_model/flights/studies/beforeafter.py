@@ -1,12 +1,13 @@
 """The before/after table of a firmware change, from two ``fwemu evaluate`` JSON files of the same flights.
 
-``python -m firmware_model.flights.beforeafter BEFORE.json AFTER.json [--rescore]`` prints, per method and k:
+``python -m firmware_model.flights.studies.beforeafter BEFORE.json AFTER.json [--rescore]`` prints, per method and k:
 median |error|, worst |error| and the most early detection before and after, the worst over usable references
 after (rows whose reference carries a warning left out, docs/evaluation.md "Flagged references"), and the median
 |error| on the AltosUI logs next to AltOS's own (README "Field-ready firmware").
 
 ``--rescore`` judges both files against the reference apogee of *this* tree: each real log named by its
-``source`` path is read again and :func:`flights.evaluate.reference_for` recomputed (simulated flights keep their
+``source`` path is read again and :func:`flights.evaluation.setup.reference_for` recomputed (simulated flights keep
+their
 truth), so that a "before" run made with an older reference rule is compared on the same reference as "after".
 Only detection times are taken from the files. The flights of the two files must be the same (by name and k).
 """
@@ -20,7 +21,7 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
-from firmware_model.flights.evaluate import reference_for
+from firmware_model.flights.evaluation.setup import reference_for
 from firmware_model.flights.readers import read_flight
 from firmware_model.runtime.errors import UserError
 
@@ -132,7 +133,7 @@ def table(before: list[dict[str, Any]], after: list[dict[str, Any]]) -> str:
 def main(argv: list[str]) -> int:
     args = [a for a in argv if a != "--rescore"]
     if len(args) != 2:
-        print("usage: python -m firmware_model.flights.beforeafter BEFORE.json AFTER.json [--rescore]",
+        print("usage: python -m firmware_model.flights.studies.beforeafter BEFORE.json AFTER.json [--rescore]",
               file=sys.stderr)
         return 2
     try:

@@ -1,5 +1,5 @@
 """The evaluation set behind the README's apogee table, and how command-line FLIGHT arguments become
-:class:`~firmware_model.flights.evaluate.FlightSpec` rows (docs/evaluation.md, "The evaluation set").
+:class:`~firmware_model.flights.evaluation.setup.FlightSpec` rows (docs/evaluation.md, "The evaluation set").
 
 * ``set:eval`` (:func:`evaluation_set`): every simulated scenario (:func:`flights.scenarios.scenario_names`) with
   each of the sensings its catalogue tags suggest (:func:`scenario_variants`: 8/10/12/16-bit MPX4115-class ADCs,
@@ -23,8 +23,8 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any, Iterable, Sequence
 
-from firmware_model.flights.evaluate import FlightSpec
-from firmware_model.flights.scenarios import get_scenario, scenario_names
+from firmware_model.flights.evaluation.setup import FlightSpec
+from firmware_model.flights.simulate.scenarios import get_scenario, scenario_names
 from firmware_model.runtime.errors import UserError
 from firmware_model.spec.config import BuildConfig
 
@@ -56,7 +56,7 @@ SHARED_LOGS: tuple[str, ...] = (
 #: Default sensing of a ``sim:NAME`` argument: (barometer preset, accelerometer preset, noisy, k).
 DEFAULT_SIM: tuple[str, str, bool, int] = ("mpx4115_16bit", "default", True, 7)
 
-#: Scenario tag -> sensor preset (:data:`firmware_model.flights.sensors.BARO_PRESETS`).
+#: Scenario tag -> sensor preset (:data:`firmware_model.flights.inputs.sensors.BARO_PRESETS`).
 BARO_TAGS: dict[str, str] = {"analog-8": "mpx4115_8bit", "analog-10": "mpx4115_10bit",
                              "analog-12": "mpx4115_12bit", "analog-16": "mpx4115_16bit", "ms5607": "ms5607",
                              "telemetrum": "telemetrum_v1"}
@@ -68,7 +68,7 @@ def shared_dir() -> Path | None:
     env = os.environ.get("FWEMU_SHARED_FLIGHTS")
     if env:
         return Path(env) if Path(env).is_dir() else None
-    here = Path(__file__).resolve().parents[2] / ".." / "shared" / "flights"
+    here = Path(__file__).resolve().parents[3] / ".." / "shared" / "flights"
     return here.resolve() if here.is_dir() else None
 
 
