@@ -245,7 +245,164 @@ def _mirror_kalman(consts: "FirmwareConstants", g: dict[str, float], adc: np.nda
     return init, out
 
 
-def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: bool, h_all: np.ndarray,  # noqa: C901 - mirrors the firmware's Kalman step (spec §6) branch for branch
+class _MirrorConsts:
+    """The build constants one Kalman mirror step reads, as Python floats and ints (read once per stream)."""
+
+    __slots__ = ("accel", "dt", "half_dt2", "ncal", "e_gate", "gate_n", "apo_n", "mach_vlo", "v_lift", "mach_n",
+                 "dly_n", "dv", "du", "a_coast", "coast_n", "v_desc", "a_drag", "clip_n", "thrust_g", "gravity_g",
+                 "floor_g", "descent_g", "dg", "v_fall", "h_floor", "desc_n", "half_n", "win_n", "acc_g", "g11",
+                 "g21", "g31", "g12", "g22", "g32")
+
+    def __init__(self, consts: "FirmwareConstants", g: dict[str, float], accel: bool) -> None:
+        self.accel = accel
+        self.dt = 2.0 ** -int(consts.K)
+        self.half_dt2 = 2.0 ** -(2 * int(consts.K) + 1)
+        self.ncal = 1 << int(consts.CAL_P)
+        self.e_gate, self.gate_n, self.apo_n = float(consts.E_GATE), int(consts.GATE_N), int(consts.APO_N)
+        self.mach_vlo, self.v_lift = consts.MACH_VLO, consts.V_LIFT
+        self.mach_n, self.dly_n = int(consts.MACH_N), int(consts.DLY_N)
+        self.dv, self.du = float(consts.DV), float(consts.DU)
+        self.a_coast, self.coast_n, self.v_desc = float(consts.A_COAST), int(consts.COAST_N), float(consts.V_DESC)
+        self.a_drag, self.clip_n = float(consts.A_DRAG), int(consts.CLIP_N)
+        guards = int(consts.GUARDS)
+        self.thrust_g, self.gravity_g, self.floor_g, self.descent_g = (bool(guards & b) for b in (1, 2, 4, 8))
+        self.dg, self.v_fall, self.h_floor = float(consts.DG), float(consts.V_FALL), float(consts.H_FLOOR)
+        self.desc_n = int(consts.DESC_N)
+        self.half_n, self.win_n = 1 << int(consts.K), 2 << int(consts.K)
+        self.acc_g = g["ACC_G"] if accel else 0.0
+        self.g11, self.g21, self.g31 = (float(g[n]) for n in ("G11", "G21", "G31"))
+        self.g12, self.g22, self.g32 = (float(g[n]) for n in ("G12", "G22", "G32")) if accel else (0.0, 0.0, 0.0)
+
+
+def _mirror_calibrate(k: _MirrorConsts, h: float, a: float, sumz: float, suma: float, cal: int, x1: float,
+                      hmax: float, gnd: float, acc0: float) -> tuple:
+    """§6 step 1 on a valid pad sample: the ground (and 1 g) are the means of 2^CAL_P samples, here exact
+    divisions. Returns (sumz, suma, cal, x1, hmax, gnd, acc0)."""
+    sumz = sumz + h
+    suma = suma + a
+    cal = cal + 1
+    if cal == k.ncal:
+        gnd = sumz / k.ncal
+        x1 = hmax = gnd
+        if k.accel:
+            acc0 = suma / k.ncal
+    return sumz, suma, cal, x1, hmax, gnd, acc0
+
+
+def _mirror_clip_window(k: _MirrorConsts, h: float, a: float, baro_ok: bool, ev: int, phase: int, x1: float,
+                        x2: float, vb: float, clp: int, e0: float, acc0: float) -> tuple:
+    """§6 step 4, clip: locked until a drag-low window of 2^(K+1) samples in coast re-bases the velocity by the
+    difference of its halves' innovations. Returns (lock, locked, rebase, ev, x2, vb, clp, e0)."""
+    lock, locked, rebase = k.mach_n, True, False
+    if phase == 2 and (a - acc0) * k.acc_g >= -k.a_drag and baro_ok:
+        e = h - x1
+        clp = clp + 1
+        e0 = e0 - e if clp <= k.half_n else e0 + e
+        if clp == k.win_n:
+            x2 = x2 + e0 * k.dt
+            vb = x2
+            lock, locked, rebase = 0, False, True
+            ev = ev | _CLIP_CLEAR
+    else:
+        clp, e0 = 0, 0.0
+    return lock, locked, rebase, ev, x2, vb, clp, e0
+
+
+def _mirror_lockout(k: _MirrorConsts, h: float, a: float, baro_ok: bool, ev: int, phase: int, x1: float,
+                    x2: float, vb: float, lock: int, clp: int, e0: float, acc0: float) -> tuple:
+    """§6 step 4 (kalman_accel): the barometer is out near Mach 1 or while the motor may push (thrust guard), then
+    MACH_N samples more, and comes back with a re-base. Returns (lock, locked, rebase, ev, x2, vb, clp, e0)."""
+    locked = rebase = False
+    if _clipped(ev):
+        lock, locked, rebase, ev, x2, vb, clp, e0 = _mirror_clip_window(k, h, a, baro_ok, ev, phase, x1, x2, vb,
+                                                                         clp, e0, acc0)
+    elif ((ev & _LIFTOFF) != 0 and x2 > k.mach_vlo) or (
+            k.thrust_g and (phase == 1 or (phase == 0 and (a - acc0) * k.acc_g > k.a_coast))):
+        lock, locked = k.mach_n, True
+    elif lock > 1:
+        lock, locked = lock - 1, True
+    elif lock == 1:
+        if baro_ok:
+            lock, rebase = 0, True
+        else:
+            locked = True
+    if locked:
+        ev = ev | _MACH
+    return lock, locked, rebase, ev, x2, vb, clp, e0
+
+
+def _mirror_gate(k: _MirrorConsts, h: float, x1: float, rebase: bool, rej: int, ev: int) -> tuple:
+    """§6 step 5 (valid, not locked): re-base X1 to the table value, or the innovation through the gate (a spike
+    is rejected up to GATE_N samples in a row). Returns (x1, e1, use, rej, ev)."""
+    use = False
+    e1 = 0.0
+    if rebase:
+        x1 = h
+        rej = 0
+    else:
+        e1 = h - x1
+        if -k.e_gate <= e1 <= k.e_gate:
+            rej = 0
+            use = True
+        elif rej < k.gate_n:
+            rej = rej + 1
+            ev = ev | _BARO_REJECT
+        else:
+            use = True
+    return x1, e1, use, rej, ev
+
+
+def _mirror_liftoff(k: _MirrorConsts, a: float, ev: int, x2: float, phase: int, dly: int, clp: int) -> tuple:
+    """§6 step 7: liftoff starts the Mach delay; kalman_accel counts boost samples at the accelerometer's rail
+    (ACC_CLIP after CLIP_N of them). Returns (ev, phase, dly, clp)."""
+    if (ev & _LIFTOFF) != 0:
+        if dly > 0:
+            dly = dly - 1
+    elif x2 > k.v_lift:
+        ev = ev | _LIFTOFF
+        phase = 1
+        dly = k.dly_n
+    if k.accel and phase == 1 and (ev & _ACC_CLIP) == 0:
+        if a == 32767:
+            clp = clp + 1
+            if clp >= k.clip_n:
+                ev = ev | _ACC_CLIP
+                clp = 0
+        else:
+            clp = 0
+    return ev, phase, dly, clp
+
+
+def _mirror_phases(k: _MirrorConsts, h: float, baro_ok: bool, ev: int, x1: float, x2: float, x3: float,
+                   vb: float, gnd: float, hmax: float, ht: int, phase: int, cst: int, neg: int, dly: int) -> tuple:
+    """§6 step 9: BOOST -> COAST on COAST_N decelerating samples (one back per other sample), COAST -> APOGEE on
+    APO_N samples of evidence the guards find physical, above the pad and descending (the descent guard pauses
+    the count), APOGEE -> DESCENT. Returns (ev, phase, cst, neg)."""
+    if phase == 1:
+        if x3 < -k.a_coast:
+            cst = cst + 1
+            if cst >= k.coast_n:
+                phase = 2
+        elif cst > 0:
+            cst = cst - 1
+    if phase == 2:
+        phys = not k.gravity_g or x2 - vb >= -k.v_fall
+        high = not k.floor_g or (x1 >= gnd + k.h_floor and (not baro_ok or h >= gnd + k.h_floor))
+        down = not k.descent_g or not baro_ok or h < hmax or ht >= k.desc_n
+        if dly == 0 and vb < 0 and not _clipped(ev) and phys and high:
+            if down:
+                neg = neg + 1
+                if neg >= k.apo_n:
+                    ev = ev | _APOGEE
+                    phase = 3
+        else:
+            neg = 0
+    elif phase == 3 and x2 < -k.v_desc:
+        phase = 4
+    return ev, phase, cst, neg
+
+
+def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: bool, h_all: np.ndarray,
                        baro_ok_all: np.ndarray, acc: np.ndarray) -> list[tuple[float, ...]]:
     """The Kalman mirror of ONE stream on Python floats (C doubles): the rows of the words in ``word_names`` order.
 
@@ -254,23 +411,10 @@ def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: 
     for ``np.where(c, a, b)``, ``min(x, 65535.0)`` for ``np.minimum(65535.0, x)``, NaN kept), ~50x faster on
     the tests' single streams. Every output was checked bit for bit against the array loop when it replaced it
     (sha256 of the words of every call the tests make, plus multi-stream, NaN/inf and edge inputs); numpy's
-    overflow RuntimeWarnings are the only thing not reproduced."""
-    dt = 2.0 ** -int(consts.K)
-    half_dt2 = 2.0 ** -(2 * int(consts.K) + 1)
-    ncal = 1 << int(consts.CAL_P)
-    e_gate, gate_n, apo_n = float(consts.E_GATE), int(consts.GATE_N), int(consts.APO_N)
-    mach_vlo, v_lift = consts.MACH_VLO, consts.V_LIFT
-    mach_n, dly_n, dv, du = int(consts.MACH_N), int(consts.DLY_N), float(consts.DV), float(consts.DU)
-    a_coast, coast_n, v_desc = float(consts.A_COAST), int(consts.COAST_N), float(consts.V_DESC)
-    a_drag, clip_n = float(consts.A_DRAG), int(consts.CLIP_N)
-    guards = int(consts.GUARDS)
-    thrust_g, gravity_g, floor_g, descent_g = (bool(guards & b) for b in (1, 2, 4, 8))
-    dg, v_fall, h_floor = float(consts.DG), float(consts.V_FALL), float(consts.H_FLOOR)
-    desc_n = int(consts.DESC_N)
-    half_n, win_n = 1 << int(consts.K), 2 << int(consts.K)
-    acc_g = g["ACC_G"] if accel else 0.0
-    g11, g21, g31 = (float(g[n]) for n in ("G11", "G21", "G31"))
-    g12, g22, g32 = (float(g[n]) for n in ("G12", "G22", "G32")) if accel else (0.0, 0.0, 0.0)
+    overflow RuntimeWarnings are the only thing not reproduced. The branchy steps are the ``_mirror_*`` helpers
+    above, named for the spec's steps as :func:`firmware_model.model.kernels.kalman_step`'s are."""
+    k = _MirrorConsts(consts, g, accel)
+    dt, half_dt2, acc_g = k.dt, k.half_dt2, k.acc_g
     hs, oks, accs = h_all.tolist(), baro_ok_all.tolist(), acc.tolist()
     x1 = gnd = hmax = hs[0]
     ht = 0
@@ -280,128 +424,42 @@ def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: 
     e0 = 0.0
     rows: list[tuple[float, ...]] = []
     for h, baro_ok, a in zip(hs, oks, accs):
-        ev = ev & LATCHED_EVENTS
+        ev = ev & LATCHED_EVENTS                                    # 0. per-sample bits, barometer range
         if not baro_ok:
             ev = ev | _BARO_INVALID
-        # 1. pad calibration (a stream still calibrating takes this branch only)
-        calib = cal < ncal
-        if calib and baro_ok:
-            sumz = sumz + h
-            suma = suma + a
-            cal = cal + 1
-            if cal == ncal:
-                gnd = sumz / ncal
-                x1 = hmax = gnd
-                if accel:
-                    acc0 = suma / ncal
-        if not calib:
-            # 2. predict
-            x1 = x1 + x2 * dt + x3 * half_dt2
+        if cal < k.ncal:                                            # 1. pad calibration, nothing else
+            if baro_ok:
+                sumz, suma, cal, x1, hmax, gnd, acc0 = _mirror_calibrate(k, h, a, sumz, suma, cal, x1, hmax, gnd,
+                                                                         acc0)
+        else:
+            x1 = x1 + x2 * dt + x3 * half_dt2                       # 2. predict
             x2 = x2 + x3 * dt
-            # 3. accelerometer innovation
-            e2 = (a - acc0) * acc_g - x3 if accel else 0.0
-            # 4. Mach lockout (kalman_accel)
+            e2 = (a - acc0) * acc_g - x3 if accel else 0.0          # 3. accelerometer innovation
             locked = rebase = False
-            if accel:
-                if _clipped(ev):
-                    # after a clip: locked until a drag-low window of 2^(K+1) samples re-bases the velocity
-                    lock, locked = mach_n, True
-                    if phase == 2 and (a - acc0) * acc_g >= -a_drag and baro_ok:
-                        e = h - x1
-                        clp = clp + 1
-                        e0 = e0 - e if clp <= half_n else e0 + e
-                        if clp == win_n:
-                            x2 = x2 + e0 * dt
-                            vb = x2
-                            lock, locked, rebase = 0, False, True
-                            ev = ev | _CLIP_CLEAR
-                    else:
-                        clp, e0 = 0, 0.0
-                elif ((ev & _LIFTOFF) != 0 and x2 > mach_vlo) or (
-                        thrust_g and (phase == 1 or (phase == 0 and (a - acc0) * acc_g > a_coast))):
-                    lock, locked = mach_n, True
-                elif lock > 1:
-                    lock, locked = lock - 1, True
-                elif lock == 1:
-                    if baro_ok:
-                        lock, rebase = 0, True
-                    else:
-                        locked = True
-                if locked:
-                    ev = ev | _MACH
-            # 5. innovation and gate
+            if accel:                                               # 4. Mach lockout
+                lock, locked, rebase, ev, x2, vb, clp, e0 = _mirror_lockout(k, h, a, baro_ok, ev, phase, x1, x2,
+                                                                            vb, lock, clp, e0, acc0)
             use = False
             e1 = 0.0
-            if baro_ok and not locked:
-                if rebase:
-                    x1 = h
-                    rej = 0
-                else:
-                    e1 = h - x1
-                    if -e_gate <= e1 <= e_gate:
-                        rej = 0
-                        use = True
-                    elif rej < gate_n:
-                        rej = rej + 1
-                        ev = ev | _BARO_REJECT
-                    else:
-                        use = True
-            # 6. correct (locked out: X1, X2 only predicted, X3 = the accelerometer)
-            c1 = e1 if use else 0.0
+            if baro_ok and not locked:                              # 5. innovation and gate
+                x1, e1, use, rej, ev = _mirror_gate(k, h, x1, rebase, rej, ev)
+            c1 = e1 if use else 0.0                                 # 6. correct (locked: X3 = the accelerometer)
             if locked:
                 x3 = x3 + e2
             else:
-                x1 = x1 + g11 * c1 + g12 * e2
-                x2 = x2 + g21 * c1 + g22 * e2
-                x3 = x3 + g31 * c1 + g32 * e2
-            # 7. liftoff and Mach delay
-            if (ev & _LIFTOFF) != 0:
-                if dly > 0:
-                    dly = dly - 1
-            elif x2 > v_lift:
-                ev = ev | _LIFTOFF
-                phase = 1
-                dly = dly_n
-            if accel and phase == 1 and (ev & _ACC_CLIP) == 0:
-                if a == 32767:
-                    clp = clp + 1
-                    if clp >= clip_n:
-                        ev = ev | _ACC_CLIP
-                        clp = 0
-                else:
-                    clp = 0
-            # 8. plausibility bound
-            vb = min(max(x2, vb - (dg if gravity_g and vb <= 0 else dv)), vb + du)
-            # 8b. descent record (valid samples)
-            if baro_ok:
+                x1 = x1 + k.g11 * c1 + k.g12 * e2
+                x2 = x2 + k.g21 * c1 + k.g22 * e2
+                x3 = x3 + k.g31 * c1 + k.g32 * e2
+            ev, phase, dly, clp = _mirror_liftoff(k, a, ev, x2, phase, dly, clp)       # 7. liftoff, rail clip
+            vb = min(max(x2, vb - (k.dg if k.gravity_g and vb <= 0 else k.dv)), vb + k.du)   # 8. bound
+            if baro_ok:                                             # 8b. descent record
                 if h > hmax:
                     hmax, ht = h, 0
-                elif ht < desc_n:
+                elif ht < k.desc_n:
                     ht = ht + 1
-            # 9. phases and apogee
-            if phase == 1:
-                if x3 < -a_coast:
-                    cst = cst + 1
-                    if cst >= coast_n:
-                        phase = 2
-                elif cst > 0:
-                    cst = cst - 1
-            if phase == 2:
-                phys = not gravity_g or x2 - vb >= -v_fall
-                high = not floor_g or (x1 >= gnd + h_floor and (not baro_ok or h >= gnd + h_floor))
-                down = not descent_g or not baro_ok or h < hmax or ht >= desc_n
-                if dly == 0 and vb < 0 and not _clipped(ev) and phys and high:
-                    if down:                        # the descent guard pauses the count
-                        neg = neg + 1
-                        if neg >= apo_n:
-                            ev = ev | _APOGEE
-                            phase = 3
-                else:
-                    neg = 0
-            elif phase == 3 and x2 < -v_desc:
-                phase = 4
-            # 10. low-rate prediction (in coast)
-            d = -x3 * dt
+            ev, phase, cst, neg = _mirror_phases(k, h, baro_ok, ev, x1, x2, x3, vb, gnd, hmax, ht, phase, cst,
+                                                 neg, dly)          # 9. phases and apogee
+            d = -x3 * dt                                            # 10. low-rate prediction (in coast)
             if phase == 2 and (ev & _PREDICTED) == 0 and x2 > 0 and x2 < d and not _clipped(ev):
                 apfrac = min(65536.0 * x2 / d, 65535.0)
                 ev = ev | _PREDICTED
