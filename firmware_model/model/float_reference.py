@@ -689,7 +689,120 @@ class SwitchedBound:
     decided: int
 
 
-def kalman_switched_bound(consts: "FirmwareConstants", fm: FloatTrace, adc: np.ndarray,  # noqa: C901 - follows the Kalman step's decisions (gated, transonic, clipped) sample by sample
+class _StepMatrices:
+    """The per-decision matrices of :func:`kalman_switched_bound`: ``(A, |IKH| @ u, barometer columns or None,
+    accelerometer columns or None)`` of a (used, rebase, locked) combination, built at its first sample (so a gain
+    is read, or found missing, where it was before) and kept."""
+
+    def __init__(self, consts: "FirmwareConstants", F: np.ndarray, u: np.ndarray, rho: Any, accel: bool) -> None:
+        self.F, self.u, self.accel = F, u, accel
+        fg, qg = consts.float_gains, consts.gains
+        self.col = lambda names: np.array([fg[n] for n in names])
+        self.dcol = lambda names: np.array([abs(qg[n].value - fg[n]) for n in names])
+        self.rcol = lambda names: np.array([rho(qg[n].s) for n in names])
+        self.steps: dict[tuple, tuple] = {}
+
+    def __call__(self, used: bool, rebase: bool, locked: bool = False) -> tuple:
+        """A re-base sample (kalman_accel, §6 step 5) replaces X1 by the table value h: its X1 row of ``I - K H``
+        loses the predicted X1 (the table's rounding enters w as rho_alt); locked out (§6 step 6), X1 and X2 are
+        predicted only and X3 = a (its error enters w)."""
+        steps, F, u = self.steps, self.F, self.u
+        if locked:
+            if (used, rebase, locked) not in steps:
+                IKH = np.diag([1.0, 1.0, 0.0])
+                steps[used, rebase, locked] = (IKH @ F, np.abs(IKH) @ u, None, None)
+            return steps[used, rebase, locked]
+        if (used, rebase) not in steps:
+            col, dcol, rcol = self.col, self.dcol, self.rcol
+            b1, b2 = ("G11", "G21", "G31"), ("G12", "G22", "G32")
+            bcols = acols = None
+            if used:
+                Hs = [np.array([[1.0, 0.0, 0.0]])]
+                Ks = [col(b1)]
+                bcols = (rcol(b1), dcol(b1), np.abs(col(b1)))
+            else:
+                Hs, Ks = [], []
+            if self.accel:
+                Hs.append(np.array([[0.0, 0.0, 1.0]]))
+                Ks.append(col(b2))
+                acols = (rcol(b2), dcol(b2), np.abs(col(b2)))
+            if Hs:
+                H = np.vstack(Hs)
+                Kt = np.stack(Ks, axis=1)
+                IKH = np.eye(3) - Kt @ H
+            else:
+                IKH = np.eye(3)
+            if rebase:
+                IKH = IKH.copy()
+                IKH[0, 0] = 0.0
+            steps[used, rebase] = (IKH @ F, np.abs(IKH) @ u, bcols, acols)
+        return steps[used, rebase]
+
+
+class _PhiSum:
+    """``B = sum_s |Phi(t, s+1)| w_s`` of :func:`kalman_switched_bound`, carried exactly from sample to sample.
+
+    The terms live in preallocated buffers instead of arrays regrown every sample: ``phi[cur][:k]`` is the stack
+    of products (oldest first, as the concatenations built it), ``ws[:k]`` the w_s, ``wmax[:k]`` their row maxima.
+    Every array handed to matmul and einsum is a C-contiguous (k, 3, 3) / (k, 3) block at the start of its buffer,
+    shaped and strided like the fresh arrays before: the same BLAS and einsum kernels run on the same numbers, so
+    every float is unchanged."""
+
+    def __init__(self, n: int) -> None:
+        cap = n + 1
+        self.phi = [np.empty((cap, 3, 3)), np.empty((cap, 3, 3))]
+        self.cur = 0
+        self.aphi = np.empty((cap, 3, 3))
+        self.ws = np.empty((cap, 3))
+        self.wmax = np.empty(cap)
+        self.k = 0
+
+    def start(self, w0: tuple[float, float, float]) -> np.ndarray:
+        """The pad calibration completes: one term, Phi = I, w = the GND rounding ``w0``; returns B."""
+        self.phi[self.cur][0] = np.eye(3)
+        self.ws[0] = w0
+        self.wmax[0] = self.ws[0].max()
+        self.k = 1
+        return self.ws[0].copy()
+
+    def push(self, A: np.ndarray, wt: np.ndarray) -> np.ndarray:
+        """One sample: every Phi is multiplied by its A, the sample's own term (I, wt) appended; returns B, the
+        terms decayed below 1e-15 of it dropped (they only shrink further)."""
+        phi, ws, wmax, k = self.phi, self.ws, self.wmax, self.k
+        nxt = phi[1 - self.cur]
+        if k:
+            np.matmul(A, phi[self.cur][:k], out=nxt[:k])
+        nxt[k] = np.eye(3)
+        self.cur = cur = 1 - self.cur
+        ws[k] = wt
+        wmax[k] = wt.max()
+        k += 1
+        self.k = k
+        absphis = np.abs(phi[cur][:k], out=self.aphi[:k])
+        B = np.einsum("sij,sj->i", absphis, ws[:k])
+        thr = 1e-15 * max(B.max(), 1e-300)
+        # Shortcut, exact: a finite B means every entry of every |Phi| and w is finite (each enters B once), so a
+        # term's maximum entry is >= its |Phi[0, 0]|, and rounding is monotone: |Phi[0, 0]| * wmax > thr > 0
+        # (so wmax > 0) implies max|Phi| * wmax > thr. When that holds for every term, nothing is dropped.
+        if all(map(math.isfinite, B.tolist())) and (absphis[:, 0, 0] * wmax[:k] > thr).all():
+            return B
+        # the per-term maximum of the 9 entries as a tree of elementwise maxima (exact, NaN-propagating: the same
+        # values as .max(axis=(1, 2)), which reduces each short row separately and costs ~30 ns a term)
+        a9 = absphis.reshape(k, 9)
+        m4 = np.maximum(a9[:, :4], a9[:, 4:8])
+        amax = np.maximum(np.maximum(np.maximum(m4[:, 0], m4[:, 1]), np.maximum(m4[:, 2], m4[:, 3])), a9[:, 8])
+        keep = amax * wmax[:k] > thr
+        keep[-1] = True
+        if not keep.all():
+            m = int(np.count_nonzero(keep))
+            phi[cur][:m] = phi[cur][:k][keep]
+            ws[:m] = ws[:k][keep]
+            wmax[:m] = wmax[:k][keep]
+            self.k = m
+        return B
+
+
+def kalman_switched_bound(consts: "FirmwareConstants", fm: FloatTrace, adc: np.ndarray,
                           acc: np.ndarray | None = None) -> SwitchedBound:
     """Bound on ``|X_int - X_mirror|`` (X1, X2, X3, word scale) for ONE stream, valid at every sample while the
     integer run takes the same decisions as the mirror ``fm`` (barometer used or not: valid / gated; transonic
@@ -705,7 +818,7 @@ def kalman_switched_bound(consts: "FirmwareConstants", fm: FloatTrace, adc: np.n
     barometer gains, and the accelerometer scale's rounding and quantization. Pad calibration leaves ``delta_0 =
     (rho(CAL_P) + rho(ALT_SHIFT), 0, 0)`` (GND) and an ACC0 error of rho(CAL_P) counts. Then ``|delta_t| <=
     sum_s |Phi(t, s+1)| |w_s| + |Phi(t, c0)| |delta_0|``, computed exactly by carrying every product ``Phi`` (no
-    geometric tail, no stability assumption)."""
+    geometric tail, no stability assumption): :class:`_PhiSum`, with the matrices of :class:`_StepMatrices`."""
     if consts.program not in ("kalman_baro", "kalman_accel"):
         raise UserError(f"kalman_switched_bound: {consts.program!r} is not a Kalman program")
     mode = "half_up" if consts.ROUND else "floor"
@@ -716,18 +829,9 @@ def kalman_switched_bound(consts: "FirmwareConstants", fm: FloatTrace, adc: np.n
     K = int(consts.K)
     dt = 2.0 ** -K
     F = np.array([[1.0, dt, dt * dt / 2], [0.0, 1.0, dt], [0.0, 0.0, 1.0]])
-    fg, qg = consts.float_gains, consts.gains
-    col = lambda names: np.array([fg[n] for n in names])
-    dcol = lambda names: np.array([abs(qg[n].value - fg[n]) for n in names])
-    rcol = lambda names: np.array([rho(qg[n].s) for n in names])
-    b1, b2 = ("G11", "G21", "G31"), ("G12", "G22", "G32")
-    H1 = np.array([[1.0, 0.0, 0.0]])
-    H2 = np.array([[0.0, 0.0, 1.0]])
     u = np.array([rho(K) + rho(2 * K + 1), rho(K), 0.0])
     rho_alt = rho(int(consts.ALT_SHIFT))
-    names = fm.names
-    w = fm.words
-    init = fm.init_words
+    names, w, init = fm.names, fm.words, fm.init_words
     prev = np.vstack([init[None, :], w[:-1]])
     ev = w[:, names.index("EVENTS")].astype(np.int64)
     cal_prev = prev[:, names.index("CAL")]
@@ -738,58 +842,19 @@ def kalman_switched_bound(consts: "FirmwareConstants", fm: FloatTrace, adc: np.n
         # samples ending here
         clip_rebase = ((ev & _CLIP_CLEAR) != 0) & ((ev_prev & _CLIP_CLEAR) == 0)
         win_n = 2 << int(consts.K)
+        g_acc = consts.gains["ACC_G"]
+        acc0_f = prev[:, names.index("ACC0")]
+        a_err_base = rho(g_acc.s) + abs(g_acc.value - consts.float_gains["ACC_G"]) * np.abs(acc - acc0_f)
+        acc_g = consts.float_gains["ACC_G"]
     ncal = 1 << int(consts.CAL_P)
     n = len(adc)
     bound = np.zeros((n, 3))
     margin = np.zeros(n)
     ok = (adc >= consts.BARO_MIN) & (adc <= consts.BARO_MAX)
-    if accel:
-        g_acc = qg["ACC_G"]
-        acc0_f = prev[:, names.index("ACC0")]
-        a_err_base = rho(g_acc.s) + abs(g_acc.value - fg["ACC_G"]) * np.abs(acc - acc0_f)
-    # Loop invariants, hoisted: the same expressions as before, evaluated once (or once per (used, trans)).
     absF = np.abs(F)
-    eye3 = np.eye(3)
     rho_cal = rho(int(consts.CAL_P))
-    if accel:
-        acc_g = fg["ACC_G"]
-        acc_cal = abs(acc_g) * rho_cal
-    steps: dict[tuple, tuple] = {}
-
-    def step_consts(used: bool, rebase: bool, locked: bool = False) -> tuple:
-        """``(A, |IKH| @ u, barometer columns or None, accelerometer columns or None)`` of a (used, rebase)
-        combination, built at its first sample (so a gain is read, or found missing, where it was before). A
-        re-base sample (kalman_accel, §6 step 5) replaces X1 by the table value h: its X1 row of ``I - K H``
-        loses the predicted X1 (the table's rounding enters w as rho_alt)."""
-        if locked:            # kalman_accel locked out: X1, X2 predicted, X3 = a (its error enters w)
-            if (used, rebase, locked) not in steps:
-                IKH = np.diag([1.0, 1.0, 0.0])
-                steps[used, rebase, locked] = (IKH @ F, np.abs(IKH) @ u, None, None)
-            return steps[used, rebase, locked]
-        if (used, rebase) not in steps:
-            bcols = acols = None
-            if used:
-                Hs = [H1]
-                Ks = [col(b1)]
-                bcols = (rcol(b1), dcol(b1), np.abs(col(b1)))
-            else:
-                Hs, Ks = [], []
-            if accel:
-                Hs.append(H2)
-                Ks.append(col(b2))
-                acols = (rcol(b2), dcol(b2), np.abs(col(b2)))
-            if Hs:
-                H = np.vstack(Hs)
-                Kt = np.stack(Ks, axis=1)
-                IKH = np.eye(3) - Kt @ H
-            else:
-                IKH = np.eye(3)
-            if rebase:
-                IKH = IKH.copy()
-                IKH[0, 0] = 0.0
-            steps[used, rebase] = (IKH @ F, np.abs(IKH) @ u, bcols, acols)
-        return steps[used, rebase]
-
+    acc_cal = abs(acc_g) * rho_cal if accel else 0.0
+    step_consts = _StepMatrices(consts, F, u, rho, accel)
     # The barometer's table value at every valid sample in one call (elementwise: the same floats as one call per
     # sample). A table that fails on some valid sample falls back to the per-sample call, which raises where it did.
     h_all = None
@@ -798,89 +863,43 @@ def kalman_switched_bound(consts: "FirmwareConstants", fm: FloatTrace, adc: np.n
             h_all = _alt_table_float(consts)(np.where(ok, adc, 0.0))
         except Exception:  # noqa: BLE001 - re-raised by the per-sample lookup at the sample that needs it
             h_all = None
-    # The terms sum_s |Phi(t, s+1)| w_s live in preallocated buffers instead of arrays regrown every sample:
-    # phi[cur][:k] is the stack of products (oldest first, as the concatenations built it), ws[:k] the w_s,
-    # wmax[:k] their row maxima. Every array handed to matmul and einsum is a C-contiguous (k, 3, 3) / (k, 3)
-    # block at the start of its buffer, shaped and strided like the fresh arrays before: the same BLAS and einsum
-    # kernels run on the same numbers, so every float is unchanged.
-    cap = n + 1
-    phi = [np.empty((cap, 3, 3)), np.empty((cap, 3, 3))]
-    cur = 0
-    aphi = np.empty((cap, 3, 3))
-    ws = np.empty((cap, 3))
-    wmax = np.empty(cap)
-    k = 0
+    terms = _PhiSum(n)
     B = np.zeros(3)
     for t in range(n):
-        if cal_prev[t] < ncal:
+        if cal_prev[t] < ncal:                          # §6 step 1: pad calibration
             if ok[t] and cal_prev[t] + 1 == ncal:       # calibration completes: the GND/ACC0 rounding
-                phi[cur][0] = eye3
-                ws[0] = (rho_cal + rho_alt, 0.0, 0.0)
-                wmax[0] = ws[0].max()
-                k = 1
-                B = ws[0].copy()
+                B = terms.start((rho_cal + rho_alt, 0.0, 0.0))
             bound[t] = B if cal_prev[t] + 1 >= ncal and ok[t] else np.array([rho_alt, 0.0, 0.0])  # X1 = alt(adc0)
             continue
-        x1p = prev[t, 0] + prev[t, 1] * dt + prev[t, 2] * dt * dt / 2
+        x1p = prev[t, 0] + prev[t, 1] * dt + prev[t, 2] * dt * dt / 2      # step 2: predict
         pred_b = absF @ B + u
         margin[t] = pred_b[0] + rho_alt
-        crebase = bool(accel and clip_rebase[t])
+        crebase = bool(accel and clip_rebase[t])                            # step 4: the decisions the mirror took
         rebase = crebase or bool(accel and lock_prev[t] == 1 and lock_now[t] == 0 and not ev[t] & _MACH)
         used = bool(ok[t] and not (ev[t] & (_BARO_REJECT | _MACH)) and not rebase)
         locked = bool(accel and ev[t] & _MACH)
         A, iku, bcols, acols = step_consts(used, rebase, locked)
         r = np.zeros(3)
-        if rebase:
+        if rebase:                                                          # step 5: X1 = h
             r[0] += rho_alt
         if crebase:
             # X2 += rs(E0, K): E0 sums the window's innovations h - X1 (predicted), each within margin of the
             # mirror's (the X1 prediction's bound plus the table's rounding), so |dE0| <= sum of the margins and
             # the re-base adds |dE0| 2^-K + rho(K) to X2's error (column 1 of I - K H is e_1 on this sample)
             r[1] += float(margin[max(0, t - win_n + 1):t + 1].sum()) * dt + rho(K)
-        if used:
+        if used:                                                            # step 6: the barometer's products
             e1 = h_all[t] - x1p if h_all is not None else _alt_mirror_e1(consts, adc[t], x1p)
             e1_int = abs(e1) + margin[t]
             rc, dc, ac = bcols
             r += rc + dc * e1_int + ac * rho_alt
-        if locked:
+        if locked:                                                          # X3 = a
             r[2] += a_err_base[t] + acc_cal
-        elif accel:
+        elif accel:                                                         # the accelerometer's products
             e2_int = abs((acc[t] - acc0_f[t]) * acc_g - (prev[t, 2])) + pred_b[2] + a_err_base[t] + acc_cal
             a_err = a_err_base[t] + acc_cal
             rc, dc, ac = acols
             r += rc + dc * e2_int + ac * a_err
-        wt = iku + r
-        nxt = phi[1 - cur]
-        if k:
-            np.matmul(A, phi[cur][:k], out=nxt[:k])
-        nxt[k] = eye3
-        cur = 1 - cur
-        ws[k] = wt
-        wmax[k] = wt.max()
-        k += 1
-        absphis = np.abs(phi[cur][:k], out=aphi[:k])
-        B = np.einsum("sij,sj->i", absphis, ws[:k])
-        # drop terms whose contribution has decayed below 1e-15 of the bound (they only shrink further)
-        thr = 1e-15 * max(B.max(), 1e-300)
-        # Shortcut, exact: a finite B means every entry of every |Phi| and w is finite (each enters B once), so a
-        # term's maximum entry is >= its |Phi[0, 0]|, and rounding is monotone: |Phi[0, 0]| * wmax > thr > 0
-        # (so wmax > 0) implies max|Phi| * wmax > thr. When that holds for every term, nothing is dropped.
-        if all(map(math.isfinite, B.tolist())) and (absphis[:, 0, 0] * wmax[:k] > thr).all():
-            bound[t] = B
-            continue
-        # the per-term maximum of the 9 entries as a tree of elementwise maxima (exact, NaN-propagating: the same
-        # values as .max(axis=(1, 2)), which reduces each short row separately and costs ~30 ns a term)
-        a9 = absphis.reshape(k, 9)
-        m4 = np.maximum(a9[:, :4], a9[:, 4:8])
-        amax = np.maximum(np.maximum(np.maximum(m4[:, 0], m4[:, 1]), np.maximum(m4[:, 2], m4[:, 3])), a9[:, 8])
-        keep = amax * wmax[:k] > thr
-        keep[-1] = True
-        if not keep.all():
-            m = int(np.count_nonzero(keep))
-            phi[cur][:m] = phi[cur][:k][keep]
-            ws[:m] = ws[:k][keep]
-            wmax[:m] = wmax[:k][keep]
-            k = m
+        B = terms.push(A, iku + r)
         bound[t] = B
     return SwitchedBound(bound, margin, n)
 
