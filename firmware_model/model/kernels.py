@@ -48,7 +48,7 @@ import numpy as np
 FORCE_PURE: bool = bool(globals().get("FORCE_PURE", False))
 
 
-def _load_numba():
+def _load_numba():  # type: ignore[no-untyped-def]
     if FORCE_PURE or os.environ.get("FWEMU_NO_NUMBA", "").strip() not in ("", "0"):
         return None
     try:
@@ -73,7 +73,7 @@ if _numba is not None:
         # holds a lock around the kernel call. Read by numba at the first parallel launch.
         _numba.config.THREADING_LAYER = "forksafe"
 else:
-    def njit(*args, **kwargs):  # type: ignore[no-redef]  # the stand-in for numba.njit when numba is absent
+    def njit(*args, **kwargs):  # type: ignore[no-redef]
         """No numba: the decorated function stays plain Python."""
         if args and callable(args[0]):
             return args[0]
@@ -257,7 +257,7 @@ INT32_MIN = -2147483648
 INT32_MAX = 2147483647
 
 
-def pack_constants(consts, dtype=np.int64) -> np.ndarray:
+def pack_constants(consts, dtype=np.int64) -> np.ndarray:  # type: ignore[no-untyped-def]
     """The constants array of a :class:`~firmware_model.spec.build_constants.FirmwareConstants` (indices ``C_*``); gains a
     program does not have are (0, 0). ``dtype=object`` gives Python ints (the uncompiled path)."""
     values = [int(getattr(consts, name)) for name in _SCALARS]
@@ -271,7 +271,7 @@ def pack_constants(consts, dtype=np.int64) -> np.ndarray:
 
 # ------------------------------------------------------------------------------------------- fixed point
 @njit(cache=True)
-def rs(x, s, rnd):
+def rs(x, s, rnd):  # type: ignore[no-untyped-def]
     """Rounding right shift (docs/firmware-spec.md §1): floor (``rnd == 0``) or half_up (``rnd == 1``),
     computed as ``(x >> s) + bit(s-1) of x`` (no intermediate value beyond x)."""
     if s <= 0:
@@ -283,13 +283,13 @@ def rs(x, s, rnd):
 
 
 @njit(cache=True)
-def _w32(x):
+def _w32(x):  # type: ignore[no-untyped-def]
     """wrap32: the exact integer reduced to signed 32-bit two's complement."""
     return ((x + 2147483648) & 4294967295) - 2147483648
 
 
 @njit("int64(int64, int64, int64)", cache=True)
-def _note(w, x, wid):
+def _note(w, x, wid):  # type: ignore[no-untyped-def]
     """``wid`` if no wrap was noted yet in this sample (``w == 0``) and the exact ``x`` is outside int32.
 
     Compiled for this one signature at import (cached): its callers pass the wrap id as a constant (``W_X1``
@@ -303,7 +303,7 @@ def _note(w, x, wid):
 
 # ------------------------------------------------------------------------------------------- recursive (§5)
 @njit(cache=True)
-def recursive_init(st, adc, acc, c):
+def recursive_init(st, adc, acc, c):  # type: ignore[no-untyped-def]
     """EST = EXT = wrap32(z << 8); VEL = 0; ACC0 = acc; EVENTS = 0; ZL = wrap32(z); SUMA = CAL = REJ = NEG = 0."""
     z = adc * c[C_BARO_SIGN]
     st[EST] = _w32(z << 8)       # exact for |z| < 2^23: every ADC word; a pascal word wraps as LSL.L does
@@ -322,14 +322,14 @@ def recursive_init(st, adc, acc, c):
 
 
 @njit(cache=True, inline="always")
-def _clipped(ev):
+def _clipped(ev):  # type: ignore[no-untyped-def]
     """ACC_CLIP and not CLIP_CLEAR: after an accelerometer clip, before the speed is known again (docs/firmware-spec.md
     §5, §6: no apogee evidence, no prediction; kalman_accel keeps the barometer out)."""
     return (ev & (ACC_CLIP | CLIP_CLEAR)) == ACC_CLIP
 
 
 @njit(cache=True, inline="always")
-def _rail_count(st, i_clp, phase, ev, acc, clip_n):
+def _rail_count(st, i_clp, phase, ev, acc, clip_n):  # type: ignore[no-untyped-def]
     """docs/firmware-spec.md §5 step 3 and §6 step 7 (the accelerometer programs): in BOOST and before ACC_CLIP,
     st[i_clp] counts consecutive samples at the accelerometer's rail (32767); the CLIP_N-th sets ACC_CLIP and
     CLP = 0. Returns EVENTS."""
@@ -345,7 +345,7 @@ def _rail_count(st, i_clp, phase, ev, acc, clip_n):
 
 
 @njit(cache=True, inline="always")
-def recursive_step(st, adc, acc, c):
+def recursive_step(st, adc, acc, c):  # type: ignore[no-untyped-def]
     """docs/firmware-spec.md §5 steps 0-6; returns the first wrap id of the sample (0: none)."""
     rnd = c[C_ROUND]
     S = c[C_S]
@@ -440,13 +440,13 @@ def recursive_step(st, adc, acc, c):
 
 
 @njit(cache=True)
-def seed_literal_init(st, adc, acc, c):
+def seed_literal_init(st, adc, acc, c):  # type: ignore[no-untyped-def]
     """EST = z << 8."""
     st[EST] = _w32((adc * c[C_BARO_SIGN]) << 8)
 
 
 @njit(cache=True, inline="always")
-def seed_literal_step(st, adc, acc, c):
+def seed_literal_step(st, adc, acc, c):  # type: ignore[no-untyped-def]
     """The Schultz 2002 listing as written: EST += rs(EST, S) - (z << (8 - S)); no flight logic."""
     S = c[C_S]
     est = st[EST]
@@ -458,7 +458,7 @@ def seed_literal_step(st, adc, acc, c):
 
 # ------------------------------------------------------------------------------------------- Kalman (§6)
 @njit(cache=True, inline="always")
-def _alt(adc, c, rnd):
+def _alt(adc, c, rnd):  # type: ignore[no-untyped-def]
     """alt(adc) (docs/firmware-spec.md §2a): the table node below plus rs((next - node) * f, ALT_SHIFT). The
     result lies between two int32 nodes, so it never wraps; the product is below 2^46."""
     s = c[C_ALT_SHIFT]
@@ -469,7 +469,7 @@ def _alt(adc, c, rnd):
 
 
 @njit(cache=True)
-def kalman_init(st, adc, acc, c):
+def kalman_init(st, adc, acc, c):  # type: ignore[no-untyped-def]
     """X1 = GND = alt(adc) (0 for an invalid sample); X2 = X3 = 0; ACC0 = acc (kalman_accel only); EVENTS =
     APFRAC = 0; SUMZ = SUMA = 0; CAL = REJ = NEG = 0."""
     h = 0
@@ -499,41 +499,48 @@ def kalman_init(st, adc, acc, c):
 
 
 @njit(cache=True, inline="always")
-def _baro_sample(adc, c, rnd):
-    """Step 0: (baro_ok, h). A reading outside BARO_MIN..BARO_MAX is a dead or railed sensor and would index past
-    the altitude table, so the table is read only for a valid sample (h = 0 otherwise, never used)."""
+def kalman_step(st, adc, acc, c, accel):  # type: ignore[no-untyped-def]
+    """docs/firmware-spec.md §6 steps 0-10 (``accel``: kalman_accel, else kalman_baro); returns the first wrap id.
+
+    Wrap bookkeeping as the numpy model has it: SUMZ, SUMA (calibration); X1, X2 (predict), mulg(acc), e2, e1,
+    then per state i mulg(e1, Gi1), mulg(e2, Gi2), Xi. Every barometer gain product is checked when the innovation
+    exists (barometer valid, not locked out, not a re-base sample), also one whose correction is not applied
+    (gated). VB = max(X2, VB - DV) never leaves int32 (X2 is an int32)."""
+    rnd = c[C_ROUND]
+    K = c[C_K]
+    w = W_NONE
+    ev = st[EVENTS] & LATCHED
+    # 0. barometer range; h = alt(adc) for a valid sample
     baro_ok = c[C_BARO_MIN] <= adc and adc <= c[C_BARO_MAX]
     h = 0
     if baro_ok:
         h = _alt(adc, c, rnd)
-    return baro_ok, h
-
-
-@njit(cache=True, inline="always")
-def _calibrate(st, h, acc, c, rnd, w, accel):
-    """Step 1 on a valid pad sample: the ground altitude (and 1 g) are means over 2^CAL_P samples, so no single
-    noisy reading becomes the pad. Returns the wrap id (SUMZ, then SUMA)."""
-    sz = st[SUMZ] + h
-    w = _note(w, sz, W_SUMZ)
-    st[SUMZ] = _w32(sz)
-    if accel:
-        sa = st[SUMA] + acc
-        w = _note(w, sa, W_SUMA)
-        st[SUMA] = _w32(sa)
-    st[CAL] = st[CAL] + 1
-    if st[CAL] == (1 << c[C_CAL_P]):
-        st[GND] = rs(st[SUMZ], c[C_CAL_P], rnd)
-        st[X1] = st[GND]
-        st[HMAX] = st[GND]
-        if accel:
-            st[ACC0] = rs(st[SUMA], c[C_CAL_P], rnd)
-    return w
-
-
-@njit(cache=True, inline="always")
-def _predict(x1, x2, x3, K, rnd, w):
-    """Step 2: constant acceleration over one sample period dt = 2^-K s (X1 += X2 dt + X3 dt^2 / 2, X2 += X3 dt).
-    Returns (x1, x2, w)."""
+    else:
+        ev |= BARO_INVALID
+    # 1. pad calibration
+    ncal = 1 << c[C_CAL_P]
+    if st[CAL] < ncal:
+        if baro_ok:
+            sz = st[SUMZ] + h
+            w = _note(w, sz, W_SUMZ)
+            st[SUMZ] = _w32(sz)
+            if accel:
+                sa = st[SUMA] + acc
+                w = _note(w, sa, W_SUMA)
+                st[SUMA] = _w32(sa)
+            st[CAL] = st[CAL] + 1
+            if st[CAL] == ncal:
+                st[GND] = rs(st[SUMZ], c[C_CAL_P], rnd)
+                st[X1] = st[GND]
+                st[HMAX] = st[GND]
+                if accel:
+                    st[ACC0] = rs(st[SUMA], c[C_CAL_P], rnd)
+        st[EVENTS] = ev
+        return w
+    x1 = st[X1]
+    x2 = st[X2]
+    x3 = st[X3]
+    # 2. predict
     t1 = rs(x2, K, rnd) + rs(x3, 2 * K + 1, rnd)
     t2 = rs(x3, K, rnd)
     x1 = x1 + t1
@@ -542,145 +549,129 @@ def _predict(x1, x2, x3, K, rnd, w):
     x2 = x2 + t2
     w = _note(w, x2, W_X2)
     x2 = _w32(x2)
-    return x1, x2, w
-
-
-@njit(cache=True, inline="always")
-def _accel_innovation(st, acc, x3, c, rnd, w):
-    """Step 3 (kalman_accel): the accelerometer measures X3 directly once 1 g (ACC0) is taken off and the counts
-    scaled to Q24.8 m/s^2. Returns (a, e2, w)."""
-    a = rs((acc - st[ACC0]) * c[C_ACC_G_M], c[C_ACC_G_S], rnd)
-    w = _note(w, a, W_ACC)
-    a = _w32(a)
-    e2 = a - x3
-    w = _note(w, e2, W_E2)
-    e2 = _w32(e2)
-    return a, e2, w
-
-
-@njit(cache=True, inline="always")
-def _clip_window(st, ev, a, h, x1, x2, baro_ok, c, K, rnd, w):
-    """Step 4, clip: after a rail clip X2 is only a lower bound of the speed, so the barometer stays out until a
-    2^(K+1)-sample drag-low window in coast has measured the offset (second half's innovations minus the first's)
-    and re-based X2 by it. Returns (locked, rebase, x2, ev, w)."""
-    locked = True
-    rebase = False
-    st[LOCK] = c[C_MACH_N]
-    if st[PHASE] == PH_COAST and a >= -c[C_A_DRAG] and baro_ok:
-        e = h - x1
-        w = _note(w, e, W_E1)
-        e = _w32(e)
-        st[CLP] = st[CLP] + 1
-        if st[CLP] <= (1 << K):
-            s0 = st[E0] - e
-        else:
-            s0 = st[E0] + e
-        w = _note(w, s0, W_E0)
-        st[E0] = _w32(s0)
-        if st[CLP] == (2 << K):
-            x2 = x2 + rs(st[E0], K, rnd)
-            w = _note(w, x2, W_X2)
-            x2 = _w32(x2)
-            st[VB] = x2
-            st[LOCK] = 0
-            ev |= CLIP_CLEAR
-            locked = False
-            rebase = True
-    else:
-        st[CLP] = 0
-        st[E0] = 0
-    return locked, rebase, x2, ev, w
-
-
-@njit(cache=True, inline="always")
-def _mach_lockout(st, ev, a, h, x1, x2, baro_ok, c, K, rnd, w):
-    """Step 4 (kalman_accel): near Mach 1, or while the motor may push (thrust guard: the port may read ram
-    pressure), the static port is no altimeter, so the barometer is kept out and the accelerometer carries the
-    state; it returns MACH_N samples later with a re-base. Returns (locked, rebase, x2, ev, w)."""
+    # 3. accelerometer innovation (kalman_accel)
+    e2 = 0
+    a = 0
+    if accel:
+        a = rs((acc - st[ACC0]) * c[C_ACC_G_M], c[C_ACC_G_S], rnd)
+        w = _note(w, a, W_ACC)
+        a = _w32(a)
+        e2 = a - x3
+        w = _note(w, e2, W_E2)
+        e2 = _w32(e2)
+    # 4. Mach lockout (kalman_accel): no barometer above MACH_VLO and MACH_N samples after; then re-base
     locked = False
     rebase = False
-    if _clipped(ev):
-        locked, rebase, x2, ev, w = _clip_window(st, ev, a, h, x1, x2, baro_ok, c, K, rnd, w)
-    elif ((ev & LIFTOFF) != 0 and x2 > c[C_MACH_VLO]) or (
-            (c[C_GUARDS] & G_THRUST) != 0
-            and (st[PHASE] == PH_BOOST or (st[PHASE] == PH_PAD and a > c[C_A_COAST]))):
-        st[LOCK] = c[C_MACH_N]
-        locked = True
-    elif st[LOCK] > 1:
-        st[LOCK] = st[LOCK] - 1
-        locked = True
-    elif st[LOCK] == 1:
-        if baro_ok:
-            st[LOCK] = 0
-            rebase = True
-        else:
+    if accel:
+        if _clipped(ev):
+            # after an accelerometer clip: the barometer stays out until the drag reading has been low for a
+            # 2^(k+1)-sample window in coast, which then re-bases the velocity (§6 step 4, "clip")
             locked = True
-    if locked:
-        ev |= MACH_LOCKOUT
-    return locked, rebase, x2, ev, w
-
-
-@njit(cache=True, inline="always")
-def _baro_innovation(st, h, x1, rebase, ev, c, w):
-    """Step 5 (valid, not locked): a re-base takes the barometer's altitude as is (no velocity step from an offset
-    it carried while out); otherwise e1 = h - X1 is used if inside the gate, or once the gate has stayed shut for
-    GATE_N samples (a lasting shift, not a spike). Returns (x1, e1, use, ev, w)."""
+            st[LOCK] = c[C_MACH_N]
+            if st[PHASE] == PH_COAST and a >= -c[C_A_DRAG] and baro_ok:
+                e = h - x1
+                w = _note(w, e, W_E1)
+                e = _w32(e)
+                st[CLP] = st[CLP] + 1
+                if st[CLP] <= (1 << K):
+                    s0 = st[E0] - e
+                else:
+                    s0 = st[E0] + e
+                w = _note(w, s0, W_E0)
+                st[E0] = _w32(s0)
+                if st[CLP] == (2 << K):
+                    x2 = x2 + rs(st[E0], K, rnd)
+                    w = _note(w, x2, W_X2)
+                    x2 = _w32(x2)
+                    st[VB] = x2
+                    st[LOCK] = 0
+                    ev |= CLIP_CLEAR
+                    locked = False
+                    rebase = True
+            else:
+                st[CLP] = 0
+                st[E0] = 0
+        elif ((ev & LIFTOFF) != 0 and x2 > c[C_MACH_VLO]) or (
+                (c[C_GUARDS] & G_THRUST) != 0
+                and (st[PHASE] == PH_BOOST or (st[PHASE] == PH_PAD and a > c[C_A_COAST]))):
+            # above the Mach threshold, or (thrust guard) the motor may be pushing: still in BOOST (the raw
+            # accelerometer has not yet read below -A_COAST for COAST_N samples), or on the pad with the raw
+            # accelerometer reading more than A_COAST above 1 g: the port may read ram pressure
+            st[LOCK] = c[C_MACH_N]
+            locked = True
+        elif st[LOCK] > 1:
+            st[LOCK] = st[LOCK] - 1
+            locked = True
+        elif st[LOCK] == 1:
+            if baro_ok:
+                st[LOCK] = 0
+                rebase = True
+            else:
+                locked = True
+        if locked:
+            ev |= MACH_LOCKOUT
+    # 5. innovation and gate (re-base: X1 = h, no barometer correction)
     e1 = 0
     use = False
-    if rebase:
-        x1 = h
-        st[REJ] = 0
-    else:
-        e1 = h - x1
-        w = _note(w, e1, W_E1)
-        e1 = _w32(e1)
-        eg = c[C_E_GATE]
-        if -eg <= e1 and e1 <= eg:
+    if baro_ok and not locked:
+        if rebase:
+            x1 = h
             st[REJ] = 0
-            use = True
-        elif st[REJ] < c[C_GATE_N]:
-            st[REJ] = st[REJ] + 1
-            ev |= BARO_REJECT
         else:
-            use = True
-    return x1, e1, use, ev, w
-
-
-@njit(cache=True, inline="always")
-def _correct_word(xi, e1, e2, m1, s1, m2, s2, use, accel, rnd, w, w1, w2, wx):
-    """Step 6 for one state word: Xi += mulg(e1, Gi1) (if used) + mulg(e2, Gi2) (kalman_accel). The barometer's
-    product is checked for a wrap also when gated (the bookkeeping of :func:`kalman_step`). Returns (xi, w)."""
-    p1 = rs(e1 * m1, s1, rnd)
-    w = _note(w, p1, w1)
-    ci = _w32(p1)
-    if not use:
-        ci = 0
-    if accel:
-        p2 = rs(e2 * m2, s2, rnd)
-        w = _note(w, p2, w2)
-        ci += _w32(p2)
-    xi = xi + ci
-    w = _note(w, xi, wx)
-    return _w32(xi), w
-
-
-@njit(cache=True, inline="always")
-def _correct(x1, x2, x3, e1, e2, use, accel, c, rnd, w):
-    """Step 6, not locked: the filter's fixed steady-state Kalman gains pull each state
-    towards the measurements, in the order X1, X2, X3. Returns (x1, x2, x3, w)."""
-    x1, w = _correct_word(x1, e1, e2, c[C_G11_M], c[C_G11_S], c[C_G12_M], c[C_G12_S], use, accel, rnd, w,
-                          W_E1G11, W_E2G12, W_X1)
-    x2, w = _correct_word(x2, e1, e2, c[C_G21_M], c[C_G21_S], c[C_G22_M], c[C_G22_S], use, accel, rnd, w,
-                          W_E1G21, W_E2G22, W_X2)
-    x3, w = _correct_word(x3, e1, e2, c[C_G31_M], c[C_G31_S], c[C_G32_M], c[C_G32_S], use, accel, rnd, w,
-                          W_E1G31, W_E2G32, W_X3)
-    return x1, x2, x3, w
-
-
-@njit(cache=True, inline="always")
-def _liftoff(st, ev, x2, c):
-    """Step 7: liftoff when the velocity estimate passes V_LIFT; from then DLY_N samples (the Mach delay) must pass
-    before an apogee may be declared. Returns EVENTS."""
+            e1 = h - x1
+            w = _note(w, e1, W_E1)
+            e1 = _w32(e1)
+            eg = c[C_E_GATE]
+            if -eg <= e1 and e1 <= eg:
+                st[REJ] = 0
+                use = True
+            elif st[REJ] < c[C_GATE_N]:
+                st[REJ] = st[REJ] + 1
+                ev |= BARO_REJECT
+            else:
+                use = True
+    # 6. correct (every barometer gain product is checked for a wrap when the innovation exists); locked out:
+    #    X1, X2 only predicted, X3 = a (the accelerometer alone)
+    if locked:
+        x3 = a
+    else:
+        c11 = rs(e1 * c[C_G11_M], c[C_G11_S], rnd)
+        w = _note(w, c11, W_E1G11)
+        c1 = _w32(c11)
+        if not use:
+            c1 = 0
+        if accel:
+            c12 = rs(e2 * c[C_G12_M], c[C_G12_S], rnd)
+            w = _note(w, c12, W_E2G12)
+            c1 += _w32(c12)
+        x1 = x1 + c1
+        w = _note(w, x1, W_X1)
+        x1 = _w32(x1)
+        c21 = rs(e1 * c[C_G21_M], c[C_G21_S], rnd)
+        w = _note(w, c21, W_E1G21)
+        c2 = _w32(c21)
+        if not use:
+            c2 = 0
+        if accel:
+            c22 = rs(e2 * c[C_G22_M], c[C_G22_S], rnd)
+            w = _note(w, c22, W_E2G22)
+            c2 += _w32(c22)
+        x2 = x2 + c2
+        w = _note(w, x2, W_X2)
+        x2 = _w32(x2)
+        c31 = rs(e1 * c[C_G31_M], c[C_G31_S], rnd)
+        w = _note(w, c31, W_E1G31)
+        c3 = _w32(c31)
+        if not use:
+            c3 = 0
+        if accel:
+            c32 = rs(e2 * c[C_G32_M], c[C_G32_S], rnd)
+            w = _note(w, c32, W_E2G32)
+            c3 += _w32(c32)
+        x3 = x3 + c3
+        w = _note(w, x3, W_X3)
+        x3 = _w32(x3)
+    # 7. liftoff and Mach delay
     if (ev & LIFTOFF) != 0:
         if st[DLY] > 0:
             st[DLY] = st[DLY] - 1
@@ -688,13 +679,11 @@ def _liftoff(st, ev, x2, c):
         ev |= LIFTOFF
         st[PHASE] = PH_BOOST
         st[DLY] = c[C_DLY_N]
-    return ev
-
-
-@njit(cache=True, inline="always")
-def _plausibility_bound(st, x2, c):
-    """Step 8: VB follows X2 but falls by at most DV (g + drag; DG = g once VB <= 0, gravity guard) and rises by
-    at most DU per sample, so a reversal faster than a rocket can decelerate leaves VB positive. Returns VB."""
+    # 7b. accelerometer at its rail for CLIP_N samples in boost: the integral underestimates the speed from now on
+    if accel:
+        ev = _rail_count(st, CLP, st[PHASE], ev, acc, c[C_CLIP_N])
+    # 8. plausibility bound: VB follows X2, falling by at most DV (gravity guard: DG once VB <= 0) and rising by
+    #    at most DU per sample
     if (c[C_GUARDS] & G_GRAVITY) != 0 and st[VB] <= 0:
         vb = st[VB] - c[C_DG]
     else:
@@ -704,71 +693,43 @@ def _plausibility_bound(st, x2, c):
     if vb > st[VB] + c[C_DU]:
         vb = st[VB] + c[C_DU]
     st[VB] = vb
-    return vb
-
-
-@njit(cache=True, inline="always")
-def _descent_record(st, h, baro_ok, c):
-    """Step 8b: the highest valid barometric altitude and its age in valid samples (the descent guard's evidence
-    that the rocket has started down); an invalid sample measures nothing and changes neither."""
+    # 8b. descent record: the highest valid barometric altitude and how many valid samples it is old
     if baro_ok:
         if h > st[HMAX]:
             st[HMAX] = h
             st[HT] = 0
         elif st[HT] < c[C_DESC_N]:
             st[HT] = st[HT] + 1
-
-
-@njit(cache=True, inline="always")
-def _coast_count(st, x3, c):
-    """Step 9a: BOOST ends after COAST_N samples of deceleration below -A_COAST; a sample above takes one count back
-    (not all: a noisy accelerometer near the threshold must still reach COAST, issue 30)."""
-    if x3 < -c[C_A_COAST]:
-        st[CST] = st[CST] + 1
-        if st[CST] >= c[C_COAST_N]:
-            st[PHASE] = PH_COAST
-    elif st[CST] > 0:
-        st[CST] = st[CST] - 1
-
-
-@njit(cache=True, inline="always")
-def _apogee_evidence(st, ev, x1, x2, vb, h, baro_ok, c):
-    """Step 9b (COAST): APO_N samples of evidence (VB < 0, Mach delay over, no open clip) that the guards find
-    physical (gravity), above the pad (floor) and descending (descent: pauses, does not restart, the count) set
-    APOGEE. GND + H_FLOOR: |GND| <= 2^30, exact. Returns EVENTS."""
-    g = c[C_GUARDS]
-    phys = (g & G_GRAVITY) == 0 or x2 - vb >= -c[C_V_FALL]
-    fl = st[GND] + c[C_H_FLOOR]
-    high = (g & G_FLOOR) == 0 or (x1 >= fl and (not baro_ok or h >= fl))
-    down = (g & G_DESCENT) == 0 or not baro_ok or h < st[HMAX] or st[HT] >= c[C_DESC_N]
-    if st[DLY] == 0 and vb < 0 and not _clipped(ev) and phys and high:
-        if down:
-            st[NEG] = st[NEG] + 1
-            if st[NEG] >= c[C_APO_N]:
-                ev |= APOGEE
-                st[PHASE] = PH_APOGEE
-    else:
-        st[NEG] = 0
-    return ev
-
-
-@njit(cache=True, inline="always")
-def _phases(st, ev, x1, x2, x3, vb, h, baro_ok, c):
-    """Step 9 (§4a), PHASE as it is now: BOOST -> COAST (9a, then 9b on the same sample), COAST -> APOGEE (9b),
-    APOGEE -> DESCENT once X2 < -V_DESC (9c). Returns EVENTS."""
+    # 9. phases and apogee
     if st[PHASE] == PH_BOOST:
-        _coast_count(st, x3, c)
+        if x3 < -c[C_A_COAST]:
+            st[CST] = st[CST] + 1
+            if st[CST] >= c[C_COAST_N]:
+                st[PHASE] = PH_COAST
+        elif st[CST] > 0:
+            # issue 30: a sample at or above -A_COAST takes one back (not all: a noisy accelerometer near the
+            # threshold must still reach COAST)
+            st[CST] = st[CST] - 1
     if st[PHASE] == PH_COAST:
-        ev = _apogee_evidence(st, ev, x1, x2, vb, h, baro_ok, c)
+        # gravity guard: the estimate is at most V_FALL below the free-fall bound; floor guard: the filtered and
+        # (valid) barometric heights are at least H_FLOOR above the pad (GND + H_FLOOR: |GND| <= 2^30, exact)
+        phys = (c[C_GUARDS] & G_GRAVITY) == 0 or x2 - vb >= -c[C_V_FALL]
+        fl = st[GND] + c[C_H_FLOOR]
+        high = (c[C_GUARDS] & G_FLOOR) == 0 or (x1 >= fl and (not baro_ok or h >= fl))
+        # descent guard: the barometer reads below its highest, or that reading is DESC_N valid samples old
+        #   (it pauses the evidence count, it does not restart it: a noisy reading returns to its highest count)
+        down = (c[C_GUARDS] & G_DESCENT) == 0 or not baro_ok or h < st[HMAX] or st[HT] >= c[C_DESC_N]
+        if st[DLY] == 0 and vb < 0 and not _clipped(ev) and phys and high:
+            if down:
+                st[NEG] = st[NEG] + 1
+                if st[NEG] >= c[C_APO_N]:
+                    ev |= APOGEE
+                    st[PHASE] = PH_APOGEE
+        else:
+            st[NEG] = 0
     elif st[PHASE] == PH_APOGEE and x2 < -c[C_V_DESC]:
         st[PHASE] = PH_DESCENT
-    return ev
-
-
-@njit(cache=True, inline="always")
-def _predict_apogee(st, ev, x2, x3, K, rnd):
-    """Step 10: in coast, once the velocity would reach zero within the next sample (X2 < -X3 dt), APFRAC is that
-    fraction of the period (Q0.16; operands halved into DIVU.W's 16-bit divisor). Returns EVENTS."""
+    # 10. low-rate apogee prediction (in coast)
     if st[PHASE] == PH_COAST and (ev & APOGEE_PREDICTED) == 0 and x2 > 0 and not _clipped(ev):
         d = -rs(x3, K, rnd)
         if x2 < d:
@@ -778,54 +739,6 @@ def _predict_apogee(st, ev, x2, x3, K, rnd):
                 v = v >> 1
             st[APFRAC] = min(65535, (v << 16) // d)
             ev |= APOGEE_PREDICTED
-    return ev
-
-
-@njit(cache=True, inline="always")
-def kalman_step(st, adc, acc, c, accel):
-    """docs/firmware-spec.md §6 steps 0-10 (``accel``: kalman_accel, else kalman_baro); returns the first wrap id.
-
-    Wrap bookkeeping as the numpy model has it: SUMZ, SUMA (calibration); X1, X2 (predict), mulg(acc), e2, e1,
-    then per state i mulg(e1, Gi1), mulg(e2, Gi2), Xi. Every barometer gain product is checked when the innovation
-    exists (barometer valid, not locked out, not a re-base sample), also one whose correction is not applied
-    (gated). VB = max(X2, VB - DV) never leaves int32 (X2 is an int32). Each step is one helper, inlined by numba
-    into the per-program sample loop."""
-    rnd = c[C_ROUND]
-    K = c[C_K]
-    w = W_NONE
-    ev = st[EVENTS] & LATCHED                                           # 0. clear the per-sample bits
-    baro_ok, h = _baro_sample(adc, c, rnd)
-    if not baro_ok:
-        ev |= BARO_INVALID
-    if st[CAL] < (1 << c[C_CAL_P]):                                     # 1. pad calibration, then the step ends
-        if baro_ok:
-            w = _calibrate(st, h, acc, c, rnd, w, accel)
-        st[EVENTS] = ev
-        return w
-    x1, x2, w = _predict(st[X1], st[X2], st[X3], K, rnd, w)             # 2.
-    x3 = st[X3]
-    a = 0
-    e2 = 0
-    locked = False
-    rebase = False
-    if accel:
-        a, e2, w = _accel_innovation(st, acc, x3, c, rnd, w)            # 3.
-        locked, rebase, x2, ev, w = _mach_lockout(st, ev, a, h, x1, x2, baro_ok, c, K, rnd, w)   # 4.
-    e1 = 0
-    use = False
-    if baro_ok and not locked:
-        x1, e1, use, ev, w = _baro_innovation(st, h, x1, rebase, ev, c, w)                       # 5.
-    if locked:
-        x3 = a                                                          # 6. the accelerometer alone
-    else:
-        x1, x2, x3, w = _correct(x1, x2, x3, e1, e2, use, accel, c, rnd, w)
-    ev = _liftoff(st, ev, x2, c)                                        # 7.
-    if accel:
-        ev = _rail_count(st, CLP, st[PHASE], ev, acc, c[C_CLIP_N])      # 7, accelerometer clip
-    vb = _plausibility_bound(st, x2, c)                                 # 8.
-    _descent_record(st, h, baro_ok, c)                                  # 8b.
-    ev = _phases(st, ev, x1, x2, x3, vb, h, baro_ok, c)                 # 9.
-    ev = _predict_apogee(st, ev, x2, x3, K, rnd)                        # 10.
     st[X1] = x1
     st[X2] = x2
     st[X3] = x3
@@ -834,20 +747,20 @@ def kalman_step(st, adc, acc, c, accel):
 
 
 @njit(cache=True, inline="always")
-def kalman_baro_step(st, adc, acc, c):
+def kalman_baro_step(st, adc, acc, c):  # type: ignore[no-untyped-def]
     """kalman_baro: :func:`kalman_step` without the accelerometer and the lockout."""
     return kalman_step(st, adc, acc, c, False)
 
 
 @njit(cache=True, inline="always")
-def kalman_accel_step(st, adc, acc, c):
+def kalman_accel_step(st, adc, acc, c):  # type: ignore[no-untyped-def]
     """kalman_accel: :func:`kalman_step` with the accelerometer innovation and the Mach lockout."""
     return kalman_step(st, adc, acc, c, True)
 
 
 # ------------------------------------------------------------------------------------------- driver
 @njit(cache=True)
-def _init(prog, st, adc, acc, c):
+def _init(prog, st, adc, acc, c):  # type: ignore[no-untyped-def]
     if prog == P_RECURSIVE:
         recursive_init(st, adc, acc, c)
     elif prog == P_SEED_LITERAL:
@@ -865,14 +778,14 @@ _OUT_KALMAN_ACCEL = OUT_COLS["kalman_accel"]
 
 
 @njit(cache=True, inline="always")
-def _copy_out(st, cols, row):
+def _copy_out(st, cols, row):  # type: ignore[no-untyped-def]
     """``row[j] = st[cols[j]]``: the output words of the state (``cols`` an array or a tuple)."""
     for j in range(len(cols)):
         row[j] = st[cols[j]]
 
 
 @njit(cache=True)
-def _stream_recursive(st, adc, acc, c, out):
+def _stream_recursive(st, adc, acc, c, out):  # type: ignore[no-untyped-def]
     """Samples 0..n-1 of one stream through :func:`recursive_step`: (first wrap sample or -1, its wrap id)."""
     f = -1
     wid = 0
@@ -885,7 +798,7 @@ def _stream_recursive(st, adc, acc, c, out):
 
 
 @njit(cache=True)
-def _stream_seed_literal(st, adc, acc, c, out):
+def _stream_seed_literal(st, adc, acc, c, out):  # type: ignore[no-untyped-def]
     """Samples 0..n-1 of one stream through :func:`seed_literal_step`: (first wrap sample or -1, its wrap id)."""
     f = -1
     wid = 0
@@ -898,7 +811,7 @@ def _stream_seed_literal(st, adc, acc, c, out):
 
 
 @njit(cache=True)
-def _stream_kalman_baro(st, adc, acc, c, out):
+def _stream_kalman_baro(st, adc, acc, c, out):  # type: ignore[no-untyped-def]
     """Samples 0..n-1 of one stream through :func:`kalman_baro_step`: (first wrap sample or -1, its wrap id)."""
     f = -1
     wid = 0
@@ -911,7 +824,7 @@ def _stream_kalman_baro(st, adc, acc, c, out):
 
 
 @njit(cache=True)
-def _stream_kalman_accel(st, adc, acc, c, out):
+def _stream_kalman_accel(st, adc, acc, c, out):  # type: ignore[no-untyped-def]
     """Samples 0..n-1 of one stream through :func:`kalman_accel_step`: (first wrap sample or -1, its wrap id)."""
     f = -1
     wid = 0
@@ -924,7 +837,7 @@ def _stream_kalman_accel(st, adc, acc, c, out):
 
 
 @njit(cache=True)
-def run_stream(prog, st, adc, acc, c, cols, init_row, out):
+def run_stream(prog, st, adc, acc, c, cols, init_row, out):  # type: ignore[no-untyped-def]
     """One stream (``adc``/``acc`` of shape ``(n,)``) through program ``prog``: ``init`` on sample 0 into
     ``init_row``, then ``step`` on samples 0..n-1 into ``out[i]`` (the state entries ``cols``); ``st`` is the
     state. Returns (first sample with a wrap or -1, its wrap id or 0).
@@ -947,7 +860,7 @@ def run_stream(prog, st, adc, acc, c, cols, init_row, out):
 
 
 @njit(cache=True, parallel=True)
-def run_streams(prog, adc, acc, c, cols, state, init_out, out, first, word):
+def run_streams(prog, adc, acc, c, cols, state, init_out, out, first, word):  # type: ignore[no-untyped-def]
     """Run every stream ``s`` of ``adc``/``acc`` (shape ``(streams, n)``) through program ``prog``
     (:func:`run_stream`), the streams in parallel when compiled. Writes ``init_out[s, j]`` and ``out[s, i, j]``
     (the state entries ``cols[j]``), ``first[s]`` (first sample with a wrap, or -1) and ``word[s]`` (its wrap
@@ -959,7 +872,7 @@ def run_streams(prog, adc, acc, c, cols, state, init_out, out, first, word):
 
 
 @njit(cache=True)
-def run_streams_serial(prog, adc, acc, c, cols, state, init_out, out, first, word):
+def run_streams_serial(prog, adc, acc, c, cols, state, init_out, out, first, word):  # type: ignore[no-untyped-def]
     """:func:`run_streams` on the calling thread only: for small calls, where waking the worker threads costs
     more than the work (0.02-0.2 ms per call on this loaded machine, against ~4 us for 100 samples). About half
     as fast per sample as the parallel driver even on one stream (numba marks the array arguments of a parallel

@@ -589,9 +589,10 @@ def test_bound_has_teeth_a_wrong_lockout_or_rebase_breaks_it(bug, monkeypatch):
     acc[pad:] = np.clip(np.rint(a0 + (acc[pad:] - a0) * 1.03), -32768, 32767).astype(np.int64)
     _check_bound(consts, adc, acc)
     if bug == "no re-base":
-        kern = _kernels_variant("            st[LOCK] = 0\n            rebase = True", "            st[LOCK] = 0")
+        kern = _kernels_variant("                st[LOCK] = 0\n                rebase = True",
+                                "                st[LOCK] = 0")
     else:
-        kern = _kernels_variant("    if locked:\n        x3 = a", "    if False:\n        x3 = a")
+        kern = _kernels_variant("    if locked:\n        x3 = a\n    else:", "    if False:\n        x3 = a\n    else:")
     monkeypatch.setattr(me, "run_model", lambda c, a, b: _VariantTrace(kern, c, a, b))
     with pytest.raises(AssertionError):
         _check_bound(consts, adc, acc)
@@ -640,9 +641,9 @@ def test_bound_has_teeth_a_wrong_clip_rebase_breaks_it(bug, monkeypatch):
 
     consts, adc, acc = _clip_case(6, "half_up")
     _check_bound(consts, adc, acc)
-    old = "            x2 = x2 + rs(st[E0], K, rnd)\n"
-    new = ("            x2 = x2 + rs(st[E0], K + 1, rnd)\n" if bug == "half the re-base"
-           else "            x2 = x2 + 0\n")
+    old = "                    x2 = x2 + rs(st[E0], K, rnd)\n"
+    new = ("                    x2 = x2 + rs(st[E0], K + 1, rnd)\n" if bug == "half the re-base"
+           else "                    x2 = x2 + 0\n")
     kern = _kernels_variant(old, new)
     monkeypatch.setattr(me, "run_model", lambda c, a, b: _VariantTrace(kern, c, a, b))
     with pytest.raises(AssertionError):
