@@ -487,7 +487,8 @@ def kalman_matrices(cfg: "BuildConfig") -> tuple[np.ndarray, np.ndarray, np.ndar
     return ss.F.copy(), ss.H.copy(), ss.Q * m2, ss.R * m2
 
 
-def riccati_iteration(cfg: BuildConfig, tol: float = 1e-13, max_iter: int = 10_000_000) -> tuple[np.ndarray, np.ndarray]:
+def riccati_iteration(cfg: BuildConfig, tol: float = 1e-13,
+                      max_iter: int = 10_000_000) -> tuple[np.ndarray, np.ndarray]:
     """Steady-state filter-form gain ``K`` (3 x m) and a-priori covariance ``P`` (word scale^2) by iterating the
     Riccati recursion to convergence (relative change of K below ``tol``). ``K[i, j]`` is the design gain
     ``G(i+1)(j+1)`` (units 1, 1/s, 1/s^2 for the barometer column).
@@ -813,7 +814,8 @@ def kalman_switched_bound(consts: "FirmwareConstants", fm: FloatTrace, adc: np.n
     where ``H_t``/``K_t`` are the measurement rows and design gains applied at sample t (both rows; the
     accelerometer row only when the barometer was not used: gated, invalid, Mach lockout; on a re-base sample the
     predicted X1 is dropped and X1 carries the table's rounding; on the velocity re-base after an accelerometer
-    clip X2 also carries the window's innovation error, sum of the margins times 2^-K, plus rho(K)), ``u`` the predict rounding, ``r_t`` the rounding of each gain multiply, the gain quantization times the
+    clip X2 also carries the window's innovation error, sum of the margins times 2^-K, plus rho(K)), ``u`` the
+    predict rounding, ``r_t`` the rounding of each gain multiply, the gain quantization times the
     integer innovation (|e1_int| <= |e1_mirror| + margin), the table interpolation's rounding times the
     barometer gains, and the accelerometer scale's rounding and quantization. Pad calibration leaves ``delta_0 =
     (rho(CAL_P) + rho(ALT_SHIFT), 0, 0)`` (GND) and an ACC0 error of rho(CAL_P) counts. Then ``|delta_t| <=
