@@ -245,7 +245,164 @@ def _mirror_kalman(consts: "FirmwareConstants", g: dict[str, float], adc: np.nda
     return init, out
 
 
-def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: bool, h_all: np.ndarray,  # noqa: C901 - mirrors the firmware's Kalman step (spec §6) branch for branch
+class _MirrorConsts:
+    """The build constants one Kalman mirror step reads, as Python floats and ints (read once per stream)."""
+
+    __slots__ = ("accel", "dt", "half_dt2", "ncal", "e_gate", "gate_n", "apo_n", "mach_vlo", "v_lift", "mach_n",
+                 "dly_n", "dv", "du", "a_coast", "coast_n", "v_desc", "a_drag", "clip_n", "thrust_g", "gravity_g",
+                 "floor_g", "descent_g", "dg", "v_fall", "h_floor", "desc_n", "half_n", "win_n", "acc_g", "g11",
+                 "g21", "g31", "g12", "g22", "g32")
+
+    def __init__(self, consts: "FirmwareConstants", g: dict[str, float], accel: bool) -> None:
+        self.accel = accel
+        self.dt = 2.0 ** -int(consts.K)
+        self.half_dt2 = 2.0 ** -(2 * int(consts.K) + 1)
+        self.ncal = 1 << int(consts.CAL_P)
+        self.e_gate, self.gate_n, self.apo_n = float(consts.E_GATE), int(consts.GATE_N), int(consts.APO_N)
+        self.mach_vlo, self.v_lift = consts.MACH_VLO, consts.V_LIFT
+        self.mach_n, self.dly_n = int(consts.MACH_N), int(consts.DLY_N)
+        self.dv, self.du = float(consts.DV), float(consts.DU)
+        self.a_coast, self.coast_n, self.v_desc = float(consts.A_COAST), int(consts.COAST_N), float(consts.V_DESC)
+        self.a_drag, self.clip_n = float(consts.A_DRAG), int(consts.CLIP_N)
+        guards = int(consts.GUARDS)
+        self.thrust_g, self.gravity_g, self.floor_g, self.descent_g = (bool(guards & b) for b in (1, 2, 4, 8))
+        self.dg, self.v_fall, self.h_floor = float(consts.DG), float(consts.V_FALL), float(consts.H_FLOOR)
+        self.desc_n = int(consts.DESC_N)
+        self.half_n, self.win_n = 1 << int(consts.K), 2 << int(consts.K)
+        self.acc_g = g["ACC_G"] if accel else 0.0
+        self.g11, self.g21, self.g31 = (float(g[n]) for n in ("G11", "G21", "G31"))
+        self.g12, self.g22, self.g32 = (float(g[n]) for n in ("G12", "G22", "G32")) if accel else (0.0, 0.0, 0.0)
+
+
+def _mirror_calibrate(k: _MirrorConsts, h: float, a: float, sumz: float, suma: float, cal: int, x1: float,
+                      hmax: float, gnd: float, acc0: float) -> tuple:
+    """§6 step 1 on a valid pad sample: the ground (and 1 g) are the means of 2^CAL_P samples, here exact
+    divisions. Returns (sumz, suma, cal, x1, hmax, gnd, acc0)."""
+    sumz = sumz + h
+    suma = suma + a
+    cal = cal + 1
+    if cal == k.ncal:
+        gnd = sumz / k.ncal
+        x1 = hmax = gnd
+        if k.accel:
+            acc0 = suma / k.ncal
+    return sumz, suma, cal, x1, hmax, gnd, acc0
+
+
+def _mirror_clip_window(k: _MirrorConsts, h: float, a: float, baro_ok: bool, ev: int, phase: int, x1: float,
+                        x2: float, vb: float, clp: int, e0: float, acc0: float) -> tuple:
+    """§6 step 4, clip: locked until a drag-low window of 2^(K+1) samples in coast re-bases the velocity by the
+    difference of its halves' innovations. Returns (lock, locked, rebase, ev, x2, vb, clp, e0)."""
+    lock, locked, rebase = k.mach_n, True, False
+    if phase == 2 and (a - acc0) * k.acc_g >= -k.a_drag and baro_ok:
+        e = h - x1
+        clp = clp + 1
+        e0 = e0 - e if clp <= k.half_n else e0 + e
+        if clp == k.win_n:
+            x2 = x2 + e0 * k.dt
+            vb = x2
+            lock, locked, rebase = 0, False, True
+            ev = ev | _CLIP_CLEAR
+    else:
+        clp, e0 = 0, 0.0
+    return lock, locked, rebase, ev, x2, vb, clp, e0
+
+
+def _mirror_lockout(k: _MirrorConsts, h: float, a: float, baro_ok: bool, ev: int, phase: int, x1: float,
+                    x2: float, vb: float, lock: int, clp: int, e0: float, acc0: float) -> tuple:
+    """§6 step 4 (kalman_accel): the barometer is out near Mach 1 or while the motor may push (thrust guard), then
+    MACH_N samples more, and comes back with a re-base. Returns (lock, locked, rebase, ev, x2, vb, clp, e0)."""
+    locked = rebase = False
+    if _clipped(ev):
+        lock, locked, rebase, ev, x2, vb, clp, e0 = _mirror_clip_window(k, h, a, baro_ok, ev, phase, x1, x2, vb,
+                                                                         clp, e0, acc0)
+    elif ((ev & _LIFTOFF) != 0 and x2 > k.mach_vlo) or (
+            k.thrust_g and (phase == 1 or (phase == 0 and (a - acc0) * k.acc_g > k.a_coast))):
+        lock, locked = k.mach_n, True
+    elif lock > 1:
+        lock, locked = lock - 1, True
+    elif lock == 1:
+        if baro_ok:
+            lock, rebase = 0, True
+        else:
+            locked = True
+    if locked:
+        ev = ev | _MACH
+    return lock, locked, rebase, ev, x2, vb, clp, e0
+
+
+def _mirror_gate(k: _MirrorConsts, h: float, x1: float, rebase: bool, rej: int, ev: int) -> tuple:
+    """§6 step 5 (valid, not locked): re-base X1 to the table value, or the innovation through the gate (a spike
+    is rejected up to GATE_N samples in a row). Returns (x1, e1, use, rej, ev)."""
+    use = False
+    e1 = 0.0
+    if rebase:
+        x1 = h
+        rej = 0
+    else:
+        e1 = h - x1
+        if -k.e_gate <= e1 <= k.e_gate:
+            rej = 0
+            use = True
+        elif rej < k.gate_n:
+            rej = rej + 1
+            ev = ev | _BARO_REJECT
+        else:
+            use = True
+    return x1, e1, use, rej, ev
+
+
+def _mirror_liftoff(k: _MirrorConsts, a: float, ev: int, x2: float, phase: int, dly: int, clp: int) -> tuple:
+    """§6 step 7: liftoff starts the Mach delay; kalman_accel counts boost samples at the accelerometer's rail
+    (ACC_CLIP after CLIP_N of them). Returns (ev, phase, dly, clp)."""
+    if (ev & _LIFTOFF) != 0:
+        if dly > 0:
+            dly = dly - 1
+    elif x2 > k.v_lift:
+        ev = ev | _LIFTOFF
+        phase = 1
+        dly = k.dly_n
+    if k.accel and phase == 1 and (ev & _ACC_CLIP) == 0:
+        if a == 32767:
+            clp = clp + 1
+            if clp >= k.clip_n:
+                ev = ev | _ACC_CLIP
+                clp = 0
+        else:
+            clp = 0
+    return ev, phase, dly, clp
+
+
+def _mirror_phases(k: _MirrorConsts, h: float, baro_ok: bool, ev: int, x1: float, x2: float, x3: float,
+                   vb: float, gnd: float, hmax: float, ht: int, phase: int, cst: int, neg: int, dly: int) -> tuple:
+    """§6 step 9: BOOST -> COAST on COAST_N decelerating samples (one back per other sample), COAST -> APOGEE on
+    APO_N samples of evidence the guards find physical, above the pad and descending (the descent guard pauses
+    the count), APOGEE -> DESCENT. Returns (ev, phase, cst, neg)."""
+    if phase == 1:
+        if x3 < -k.a_coast:
+            cst = cst + 1
+            if cst >= k.coast_n:
+                phase = 2
+        elif cst > 0:
+            cst = cst - 1
+    if phase == 2:
+        phys = not k.gravity_g or x2 - vb >= -k.v_fall
+        high = not k.floor_g or (x1 >= gnd + k.h_floor and (not baro_ok or h >= gnd + k.h_floor))
+        down = not k.descent_g or not baro_ok or h < hmax or ht >= k.desc_n
+        if dly == 0 and vb < 0 and not _clipped(ev) and phys and high:
+            if down:
+                neg = neg + 1
+                if neg >= k.apo_n:
+                    ev = ev | _APOGEE
+                    phase = 3
+        else:
+            neg = 0
+    elif phase == 3 and x2 < -k.v_desc:
+        phase = 4
+    return ev, phase, cst, neg
+
+
+def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: bool, h_all: np.ndarray,
                        baro_ok_all: np.ndarray, acc: np.ndarray) -> list[tuple[float, ...]]:
     """The Kalman mirror of ONE stream on Python floats (C doubles): the rows of the words in ``word_names`` order.
 
@@ -254,23 +411,10 @@ def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: 
     for ``np.where(c, a, b)``, ``min(x, 65535.0)`` for ``np.minimum(65535.0, x)``, NaN kept), ~50x faster on
     the tests' single streams. Every output was checked bit for bit against the array loop when it replaced it
     (sha256 of the words of every call the tests make, plus multi-stream, NaN/inf and edge inputs); numpy's
-    overflow RuntimeWarnings are the only thing not reproduced."""
-    dt = 2.0 ** -int(consts.K)
-    half_dt2 = 2.0 ** -(2 * int(consts.K) + 1)
-    ncal = 1 << int(consts.CAL_P)
-    e_gate, gate_n, apo_n = float(consts.E_GATE), int(consts.GATE_N), int(consts.APO_N)
-    mach_vlo, v_lift = consts.MACH_VLO, consts.V_LIFT
-    mach_n, dly_n, dv, du = int(consts.MACH_N), int(consts.DLY_N), float(consts.DV), float(consts.DU)
-    a_coast, coast_n, v_desc = float(consts.A_COAST), int(consts.COAST_N), float(consts.V_DESC)
-    a_drag, clip_n = float(consts.A_DRAG), int(consts.CLIP_N)
-    guards = int(consts.GUARDS)
-    thrust_g, gravity_g, floor_g, descent_g = (bool(guards & b) for b in (1, 2, 4, 8))
-    dg, v_fall, h_floor = float(consts.DG), float(consts.V_FALL), float(consts.H_FLOOR)
-    desc_n = int(consts.DESC_N)
-    half_n, win_n = 1 << int(consts.K), 2 << int(consts.K)
-    acc_g = g["ACC_G"] if accel else 0.0
-    g11, g21, g31 = (float(g[n]) for n in ("G11", "G21", "G31"))
-    g12, g22, g32 = (float(g[n]) for n in ("G12", "G22", "G32")) if accel else (0.0, 0.0, 0.0)
+    overflow RuntimeWarnings are the only thing not reproduced. The branchy steps are the ``_mirror_*`` helpers
+    above, named for the spec's steps as :func:`firmware_model.model.kernels.kalman_step`'s are."""
+    k = _MirrorConsts(consts, g, accel)
+    dt, half_dt2, acc_g = k.dt, k.half_dt2, k.acc_g
     hs, oks, accs = h_all.tolist(), baro_ok_all.tolist(), acc.tolist()
     x1 = gnd = hmax = hs[0]
     ht = 0
@@ -280,128 +424,42 @@ def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: 
     e0 = 0.0
     rows: list[tuple[float, ...]] = []
     for h, baro_ok, a in zip(hs, oks, accs):
-        ev = ev & LATCHED_EVENTS
+        ev = ev & LATCHED_EVENTS                                    # 0. per-sample bits, barometer range
         if not baro_ok:
             ev = ev | _BARO_INVALID
-        # 1. pad calibration (a stream still calibrating takes this branch only)
-        calib = cal < ncal
-        if calib and baro_ok:
-            sumz = sumz + h
-            suma = suma + a
-            cal = cal + 1
-            if cal == ncal:
-                gnd = sumz / ncal
-                x1 = hmax = gnd
-                if accel:
-                    acc0 = suma / ncal
-        if not calib:
-            # 2. predict
-            x1 = x1 + x2 * dt + x3 * half_dt2
+        if cal < k.ncal:                                            # 1. pad calibration, nothing else
+            if baro_ok:
+                sumz, suma, cal, x1, hmax, gnd, acc0 = _mirror_calibrate(k, h, a, sumz, suma, cal, x1, hmax, gnd,
+                                                                         acc0)
+        else:
+            x1 = x1 + x2 * dt + x3 * half_dt2                       # 2. predict
             x2 = x2 + x3 * dt
-            # 3. accelerometer innovation
-            e2 = (a - acc0) * acc_g - x3 if accel else 0.0
-            # 4. Mach lockout (kalman_accel)
+            e2 = (a - acc0) * acc_g - x3 if accel else 0.0          # 3. accelerometer innovation
             locked = rebase = False
-            if accel:
-                if _clipped(ev):
-                    # after a clip: locked until a drag-low window of 2^(K+1) samples re-bases the velocity
-                    lock, locked = mach_n, True
-                    if phase == 2 and (a - acc0) * acc_g >= -a_drag and baro_ok:
-                        e = h - x1
-                        clp = clp + 1
-                        e0 = e0 - e if clp <= half_n else e0 + e
-                        if clp == win_n:
-                            x2 = x2 + e0 * dt
-                            vb = x2
-                            lock, locked, rebase = 0, False, True
-                            ev = ev | _CLIP_CLEAR
-                    else:
-                        clp, e0 = 0, 0.0
-                elif ((ev & _LIFTOFF) != 0 and x2 > mach_vlo) or (
-                        thrust_g and (phase == 1 or (phase == 0 and (a - acc0) * acc_g > a_coast))):
-                    lock, locked = mach_n, True
-                elif lock > 1:
-                    lock, locked = lock - 1, True
-                elif lock == 1:
-                    if baro_ok:
-                        lock, rebase = 0, True
-                    else:
-                        locked = True
-                if locked:
-                    ev = ev | _MACH
-            # 5. innovation and gate
+            if accel:                                               # 4. Mach lockout
+                lock, locked, rebase, ev, x2, vb, clp, e0 = _mirror_lockout(k, h, a, baro_ok, ev, phase, x1, x2,
+                                                                            vb, lock, clp, e0, acc0)
             use = False
             e1 = 0.0
-            if baro_ok and not locked:
-                if rebase:
-                    x1 = h
-                    rej = 0
-                else:
-                    e1 = h - x1
-                    if -e_gate <= e1 <= e_gate:
-                        rej = 0
-                        use = True
-                    elif rej < gate_n:
-                        rej = rej + 1
-                        ev = ev | _BARO_REJECT
-                    else:
-                        use = True
-            # 6. correct (locked out: X1, X2 only predicted, X3 = the accelerometer)
-            c1 = e1 if use else 0.0
+            if baro_ok and not locked:                              # 5. innovation and gate
+                x1, e1, use, rej, ev = _mirror_gate(k, h, x1, rebase, rej, ev)
+            c1 = e1 if use else 0.0                                 # 6. correct (locked: X3 = the accelerometer)
             if locked:
                 x3 = x3 + e2
             else:
-                x1 = x1 + g11 * c1 + g12 * e2
-                x2 = x2 + g21 * c1 + g22 * e2
-                x3 = x3 + g31 * c1 + g32 * e2
-            # 7. liftoff and Mach delay
-            if (ev & _LIFTOFF) != 0:
-                if dly > 0:
-                    dly = dly - 1
-            elif x2 > v_lift:
-                ev = ev | _LIFTOFF
-                phase = 1
-                dly = dly_n
-            if accel and phase == 1 and (ev & _ACC_CLIP) == 0:
-                if a == 32767:
-                    clp = clp + 1
-                    if clp >= clip_n:
-                        ev = ev | _ACC_CLIP
-                        clp = 0
-                else:
-                    clp = 0
-            # 8. plausibility bound
-            vb = min(max(x2, vb - (dg if gravity_g and vb <= 0 else dv)), vb + du)
-            # 8b. descent record (valid samples)
-            if baro_ok:
+                x1 = x1 + k.g11 * c1 + k.g12 * e2
+                x2 = x2 + k.g21 * c1 + k.g22 * e2
+                x3 = x3 + k.g31 * c1 + k.g32 * e2
+            ev, phase, dly, clp = _mirror_liftoff(k, a, ev, x2, phase, dly, clp)       # 7. liftoff, rail clip
+            vb = min(max(x2, vb - (k.dg if k.gravity_g and vb <= 0 else k.dv)), vb + k.du)   # 8. bound
+            if baro_ok:                                             # 8b. descent record
                 if h > hmax:
                     hmax, ht = h, 0
-                elif ht < desc_n:
+                elif ht < k.desc_n:
                     ht = ht + 1
-            # 9. phases and apogee
-            if phase == 1:
-                if x3 < -a_coast:
-                    cst = cst + 1
-                    if cst >= coast_n:
-                        phase = 2
-                elif cst > 0:
-                    cst = cst - 1
-            if phase == 2:
-                phys = not gravity_g or x2 - vb >= -v_fall
-                high = not floor_g or (x1 >= gnd + h_floor and (not baro_ok or h >= gnd + h_floor))
-                down = not descent_g or not baro_ok or h < hmax or ht >= desc_n
-                if dly == 0 and vb < 0 and not _clipped(ev) and phys and high:
-                    if down:                        # the descent guard pauses the count
-                        neg = neg + 1
-                        if neg >= apo_n:
-                            ev = ev | _APOGEE
-                            phase = 3
-                else:
-                    neg = 0
-            elif phase == 3 and x2 < -v_desc:
-                phase = 4
-            # 10. low-rate prediction (in coast)
-            d = -x3 * dt
+            ev, phase, cst, neg = _mirror_phases(k, h, baro_ok, ev, x1, x2, x3, vb, gnd, hmax, ht, phase, cst,
+                                                 neg, dly)          # 9. phases and apogee
+            d = -x3 * dt                                            # 10. low-rate prediction (in coast)
             if phase == 2 and (ev & _PREDICTED) == 0 and x2 > 0 and x2 < d and not _clipped(ev):
                 apfrac = min(65536.0 * x2 / d, 65535.0)
                 ev = ev | _PREDICTED
@@ -429,7 +487,8 @@ def kalman_matrices(cfg: "BuildConfig") -> tuple[np.ndarray, np.ndarray, np.ndar
     return ss.F.copy(), ss.H.copy(), ss.Q * m2, ss.R * m2
 
 
-def riccati_iteration(cfg: BuildConfig, tol: float = 1e-13, max_iter: int = 10_000_000) -> tuple[np.ndarray, np.ndarray]:
+def riccati_iteration(cfg: BuildConfig, tol: float = 1e-13,
+                      max_iter: int = 10_000_000) -> tuple[np.ndarray, np.ndarray]:
     """Steady-state filter-form gain ``K`` (3 x m) and a-priori covariance ``P`` (word scale^2) by iterating the
     Riccati recursion to convergence (relative change of K below ``tol``). ``K[i, j]`` is the design gain
     ``G(i+1)(j+1)`` (units 1, 1/s, 1/s^2 for the barometer column).
@@ -631,93 +690,41 @@ class SwitchedBound:
     decided: int
 
 
-def kalman_switched_bound(consts: "FirmwareConstants", fm: FloatTrace, adc: np.ndarray,  # noqa: C901 - follows the Kalman step's decisions (gated, transonic, clipped) sample by sample
-                          acc: np.ndarray | None = None) -> SwitchedBound:
-    """Bound on ``|X_int - X_mirror|`` (X1, X2, X3, word scale) for ONE stream, valid at every sample while the
-    integer run takes the same decisions as the mirror ``fm`` (barometer used or not: valid / gated; transonic
-    gains or not). Derivation (docs/numerics.md, "Switched bound"): with ``delta`` the state difference,
+class _StepMatrices:
+    """The per-decision matrices of :func:`kalman_switched_bound`: ``(A, |IKH| @ u, barometer columns or None,
+    accelerometer columns or None)`` of a (used, rebase, locked) combination, built at its first sample (so a gain
+    is read, or found missing, where it was before) and kept."""
 
-        delta_{t+1} = A_t delta_t + w_t,   A_t = (I - K_t H_t) F,   |w_t| <= (I - K_t H_t)|u| + r_t
+    def __init__(self, consts: "FirmwareConstants", F: np.ndarray, u: np.ndarray, rho: Any, accel: bool) -> None:
+        self.F, self.u, self.accel = F, u, accel
+        fg, qg = consts.float_gains, consts.gains
+        self.col = lambda names: np.array([fg[n] for n in names])
+        self.dcol = lambda names: np.array([abs(qg[n].value - fg[n]) for n in names])
+        self.rcol = lambda names: np.array([rho(qg[n].s) for n in names])
+        self.steps: dict[tuple, tuple] = {}
 
-    where ``H_t``/``K_t`` are the measurement rows and design gains applied at sample t (both rows; the
-    accelerometer row only when the barometer was not used: gated, invalid, Mach lockout; on a re-base sample the
-    predicted X1 is dropped and X1 carries the table's rounding; on the velocity re-base after an accelerometer
-    clip X2 also carries the window's innovation error, sum of the margins times 2^-K, plus rho(K)), ``u`` the predict rounding, ``r_t`` the rounding of each gain multiply, the gain quantization times the
-    integer innovation (|e1_int| <= |e1_mirror| + margin), the table interpolation's rounding times the
-    barometer gains, and the accelerometer scale's rounding and quantization. Pad calibration leaves ``delta_0 =
-    (rho(CAL_P) + rho(ALT_SHIFT), 0, 0)`` (GND) and an ACC0 error of rho(CAL_P) counts. Then ``|delta_t| <=
-    sum_s |Phi(t, s+1)| |w_s| + |Phi(t, c0)| |delta_0|``, computed exactly by carrying every product ``Phi`` (no
-    geometric tail, no stability assumption)."""
-    if consts.program not in ("kalman_baro", "kalman_accel"):
-        raise UserError(f"kalman_switched_bound: {consts.program!r} is not a Kalman program")
-    mode = "half_up" if consts.ROUND else "floor"
-    rho = lambda s: rounding_error_bound(s, mode)
-    accel = consts.program == "kalman_accel"
-    adc = np.asarray(adc, dtype=np.float64)
-    acc = np.zeros_like(adc) if acc is None else np.asarray(acc, dtype=np.float64)
-    K = int(consts.K)
-    dt = 2.0 ** -K
-    F = np.array([[1.0, dt, dt * dt / 2], [0.0, 1.0, dt], [0.0, 0.0, 1.0]])
-    fg, qg = consts.float_gains, consts.gains
-    col = lambda names: np.array([fg[n] for n in names])
-    dcol = lambda names: np.array([abs(qg[n].value - fg[n]) for n in names])
-    rcol = lambda names: np.array([rho(qg[n].s) for n in names])
-    b1, b2 = ("G11", "G21", "G31"), ("G12", "G22", "G32")
-    H1 = np.array([[1.0, 0.0, 0.0]])
-    H2 = np.array([[0.0, 0.0, 1.0]])
-    u = np.array([rho(K) + rho(2 * K + 1), rho(K), 0.0])
-    rho_alt = rho(int(consts.ALT_SHIFT))
-    names = fm.names
-    w = fm.words
-    init = fm.init_words
-    prev = np.vstack([init[None, :], w[:-1]])
-    ev = w[:, names.index("EVENTS")].astype(np.int64)
-    cal_prev = prev[:, names.index("CAL")]
-    if accel:
-        lock_prev, lock_now = prev[:, names.index("LOCK")], w[:, names.index("LOCK")]
-        ev_prev = prev[:, names.index("EVENTS")].astype(np.int64)
-        # the velocity re-base after a clip (§6 step 4): CLIP_CLEAR set on this sample; its window is the 2^(K+1)
-        # samples ending here
-        clip_rebase = ((ev & _CLIP_CLEAR) != 0) & ((ev_prev & _CLIP_CLEAR) == 0)
-        win_n = 2 << int(consts.K)
-    ncal = 1 << int(consts.CAL_P)
-    n = len(adc)
-    bound = np.zeros((n, 3))
-    margin = np.zeros(n)
-    ok = (adc >= consts.BARO_MIN) & (adc <= consts.BARO_MAX)
-    if accel:
-        g_acc = qg["ACC_G"]
-        acc0_f = prev[:, names.index("ACC0")]
-        a_err_base = rho(g_acc.s) + abs(g_acc.value - fg["ACC_G"]) * np.abs(acc - acc0_f)
-    # Loop invariants, hoisted: the same expressions as before, evaluated once (or once per (used, trans)).
-    absF = np.abs(F)
-    eye3 = np.eye(3)
-    rho_cal = rho(int(consts.CAL_P))
-    if accel:
-        acc_g = fg["ACC_G"]
-        acc_cal = abs(acc_g) * rho_cal
-    steps: dict[tuple, tuple] = {}
-
-    def step_consts(used: bool, rebase: bool, locked: bool = False) -> tuple:
-        """``(A, |IKH| @ u, barometer columns or None, accelerometer columns or None)`` of a (used, rebase)
-        combination, built at its first sample (so a gain is read, or found missing, where it was before). A
-        re-base sample (kalman_accel, §6 step 5) replaces X1 by the table value h: its X1 row of ``I - K H``
-        loses the predicted X1 (the table's rounding enters w as rho_alt)."""
-        if locked:            # kalman_accel locked out: X1, X2 predicted, X3 = a (its error enters w)
+    def __call__(self, used: bool, rebase: bool, locked: bool = False) -> tuple:
+        """A re-base sample (kalman_accel, §6 step 5) replaces X1 by the table value h: its X1 row of ``I - K H``
+        loses the predicted X1 (the table's rounding enters w as rho_alt); locked out (§6 step 6), X1 and X2 are
+        predicted only and X3 = a (its error enters w)."""
+        steps, F, u = self.steps, self.F, self.u
+        if locked:
             if (used, rebase, locked) not in steps:
                 IKH = np.diag([1.0, 1.0, 0.0])
                 steps[used, rebase, locked] = (IKH @ F, np.abs(IKH) @ u, None, None)
             return steps[used, rebase, locked]
         if (used, rebase) not in steps:
+            col, dcol, rcol = self.col, self.dcol, self.rcol
+            b1, b2 = ("G11", "G21", "G31"), ("G12", "G22", "G32")
             bcols = acols = None
             if used:
-                Hs = [H1]
+                Hs = [np.array([[1.0, 0.0, 0.0]])]
                 Ks = [col(b1)]
                 bcols = (rcol(b1), dcol(b1), np.abs(col(b1)))
             else:
                 Hs, Ks = [], []
-            if accel:
-                Hs.append(H2)
+            if self.accel:
+                Hs.append(np.array([[0.0, 0.0, 1.0]]))
                 Ks.append(col(b2))
                 acols = (rcol(b2), dcol(b2), np.abs(col(b2)))
             if Hs:
@@ -732,84 +739,54 @@ def kalman_switched_bound(consts: "FirmwareConstants", fm: FloatTrace, adc: np.n
             steps[used, rebase] = (IKH @ F, np.abs(IKH) @ u, bcols, acols)
         return steps[used, rebase]
 
-    # The barometer's table value at every valid sample in one call (elementwise: the same floats as one call per
-    # sample). A table that fails on some valid sample falls back to the per-sample call, which raises where it did.
-    h_all = None
-    if adc.ndim == 1:
-        try:
-            h_all = _alt_table_float(consts)(np.where(ok, adc, 0.0))
-        except Exception:  # noqa: BLE001 - re-raised by the per-sample lookup at the sample that needs it
-            h_all = None
-    # The terms sum_s |Phi(t, s+1)| w_s live in preallocated buffers instead of arrays regrown every sample:
-    # phi[cur][:k] is the stack of products (oldest first, as the concatenations built it), ws[:k] the w_s,
-    # wmax[:k] their row maxima. Every array handed to matmul and einsum is a C-contiguous (k, 3, 3) / (k, 3)
-    # block at the start of its buffer, shaped and strided like the fresh arrays before: the same BLAS and einsum
-    # kernels run on the same numbers, so every float is unchanged.
-    cap = n + 1
-    phi = [np.empty((cap, 3, 3)), np.empty((cap, 3, 3))]
-    cur = 0
-    aphi = np.empty((cap, 3, 3))
-    ws = np.empty((cap, 3))
-    wmax = np.empty(cap)
-    k = 0
-    B = np.zeros(3)
-    for t in range(n):
-        if cal_prev[t] < ncal:
-            if ok[t] and cal_prev[t] + 1 == ncal:       # calibration completes: the GND/ACC0 rounding
-                phi[cur][0] = eye3
-                ws[0] = (rho_cal + rho_alt, 0.0, 0.0)
-                wmax[0] = ws[0].max()
-                k = 1
-                B = ws[0].copy()
-            bound[t] = B if cal_prev[t] + 1 >= ncal and ok[t] else np.array([rho_alt, 0.0, 0.0])  # X1 = alt(adc0)
-            continue
-        x1p = prev[t, 0] + prev[t, 1] * dt + prev[t, 2] * dt * dt / 2
-        pred_b = absF @ B + u
-        margin[t] = pred_b[0] + rho_alt
-        crebase = bool(accel and clip_rebase[t])
-        rebase = crebase or bool(accel and lock_prev[t] == 1 and lock_now[t] == 0 and not ev[t] & _MACH)
-        used = bool(ok[t] and not (ev[t] & (_BARO_REJECT | _MACH)) and not rebase)
-        locked = bool(accel and ev[t] & _MACH)
-        A, iku, bcols, acols = step_consts(used, rebase, locked)
-        r = np.zeros(3)
-        if rebase:
-            r[0] += rho_alt
-        if crebase:
-            # X2 += rs(E0, K): E0 sums the window's innovations h - X1 (predicted), each within margin of the
-            # mirror's (the X1 prediction's bound plus the table's rounding), so |dE0| <= sum of the margins and
-            # the re-base adds |dE0| 2^-K + rho(K) to X2's error (column 1 of I - K H is e_1 on this sample)
-            r[1] += float(margin[max(0, t - win_n + 1):t + 1].sum()) * dt + rho(K)
-        if used:
-            e1 = h_all[t] - x1p if h_all is not None else _alt_mirror_e1(consts, adc[t], x1p)
-            e1_int = abs(e1) + margin[t]
-            rc, dc, ac = bcols
-            r += rc + dc * e1_int + ac * rho_alt
-        if locked:
-            r[2] += a_err_base[t] + acc_cal
-        elif accel:
-            e2_int = abs((acc[t] - acc0_f[t]) * acc_g - (prev[t, 2])) + pred_b[2] + a_err_base[t] + acc_cal
-            a_err = a_err_base[t] + acc_cal
-            rc, dc, ac = acols
-            r += rc + dc * e2_int + ac * a_err
-        wt = iku + r
-        nxt = phi[1 - cur]
+
+class _PhiSum:
+    """``B = sum_s |Phi(t, s+1)| w_s`` of :func:`kalman_switched_bound`, carried exactly from sample to sample.
+
+    The terms live in preallocated buffers instead of arrays regrown every sample: ``phi[cur][:k]`` is the stack
+    of products (oldest first, as the concatenations built it), ``ws[:k]`` the w_s, ``wmax[:k]`` their row maxima.
+    Every array handed to matmul and einsum is a C-contiguous (k, 3, 3) / (k, 3) block at the start of its buffer,
+    shaped and strided like the fresh arrays before: the same BLAS and einsum kernels run on the same numbers, so
+    every float is unchanged."""
+
+    def __init__(self, n: int) -> None:
+        cap = n + 1
+        self.phi = [np.empty((cap, 3, 3)), np.empty((cap, 3, 3))]
+        self.cur = 0
+        self.aphi = np.empty((cap, 3, 3))
+        self.ws = np.empty((cap, 3))
+        self.wmax = np.empty(cap)
+        self.k = 0
+
+    def start(self, w0: tuple[float, float, float]) -> np.ndarray:
+        """The pad calibration completes: one term, Phi = I, w = the GND rounding ``w0``; returns B."""
+        self.phi[self.cur][0] = np.eye(3)
+        self.ws[0] = w0
+        self.wmax[0] = self.ws[0].max()
+        self.k = 1
+        return self.ws[0].copy()
+
+    def push(self, A: np.ndarray, wt: np.ndarray) -> np.ndarray:
+        """One sample: every Phi is multiplied by its A, the sample's own term (I, wt) appended; returns B, the
+        terms decayed below 1e-15 of it dropped (they only shrink further)."""
+        phi, ws, wmax, k = self.phi, self.ws, self.wmax, self.k
+        nxt = phi[1 - self.cur]
         if k:
-            np.matmul(A, phi[cur][:k], out=nxt[:k])
-        nxt[k] = eye3
-        cur = 1 - cur
+            np.matmul(A, phi[self.cur][:k], out=nxt[:k])
+        nxt[k] = np.eye(3)
+        self.cur = cur = 1 - self.cur
         ws[k] = wt
         wmax[k] = wt.max()
         k += 1
-        absphis = np.abs(phi[cur][:k], out=aphi[:k])
+        self.k = k
+        absphis = np.abs(phi[cur][:k], out=self.aphi[:k])
         B = np.einsum("sij,sj->i", absphis, ws[:k])
-        # drop terms whose contribution has decayed below 1e-15 of the bound (they only shrink further)
         thr = 1e-15 * max(B.max(), 1e-300)
         # Shortcut, exact: a finite B means every entry of every |Phi| and w is finite (each enters B once), so a
         # term's maximum entry is >= its |Phi[0, 0]|, and rounding is monotone: |Phi[0, 0]| * wmax > thr > 0
         # (so wmax > 0) implies max|Phi| * wmax > thr. When that holds for every term, nothing is dropped.
         if all(map(math.isfinite, B.tolist())) and (absphis[:, 0, 0] * wmax[:k] > thr).all():
-            bound[t] = B
-            continue
+            return B
         # the per-term maximum of the 9 entries as a tree of elementwise maxima (exact, NaN-propagating: the same
         # values as .max(axis=(1, 2)), which reduces each short row separately and costs ~30 ns a term)
         a9 = absphis.reshape(k, 9)
@@ -822,7 +799,109 @@ def kalman_switched_bound(consts: "FirmwareConstants", fm: FloatTrace, adc: np.n
             phi[cur][:m] = phi[cur][:k][keep]
             ws[:m] = ws[:k][keep]
             wmax[:m] = wmax[:k][keep]
-            k = m
+            self.k = m
+        return B
+
+
+def kalman_switched_bound(consts: "FirmwareConstants", fm: FloatTrace, adc: np.ndarray,
+                          acc: np.ndarray | None = None) -> SwitchedBound:
+    """Bound on ``|X_int - X_mirror|`` (X1, X2, X3, word scale) for ONE stream, valid at every sample while the
+    integer run takes the same decisions as the mirror ``fm`` (barometer used or not: valid / gated; transonic
+    gains or not). Derivation (docs/numerics.md, "Switched bound"): with ``delta`` the state difference,
+
+        delta_{t+1} = A_t delta_t + w_t,   A_t = (I - K_t H_t) F,   |w_t| <= (I - K_t H_t)|u| + r_t
+
+    where ``H_t``/``K_t`` are the measurement rows and design gains applied at sample t (both rows; the
+    accelerometer row only when the barometer was not used: gated, invalid, Mach lockout; on a re-base sample the
+    predicted X1 is dropped and X1 carries the table's rounding; on the velocity re-base after an accelerometer
+    clip X2 also carries the window's innovation error, sum of the margins times 2^-K, plus rho(K)), ``u`` the
+    predict rounding, ``r_t`` the rounding of each gain multiply, the gain quantization times the
+    integer innovation (|e1_int| <= |e1_mirror| + margin), the table interpolation's rounding times the
+    barometer gains, and the accelerometer scale's rounding and quantization. Pad calibration leaves ``delta_0 =
+    (rho(CAL_P) + rho(ALT_SHIFT), 0, 0)`` (GND) and an ACC0 error of rho(CAL_P) counts. Then ``|delta_t| <=
+    sum_s |Phi(t, s+1)| |w_s| + |Phi(t, c0)| |delta_0|``, computed exactly by carrying every product ``Phi`` (no
+    geometric tail, no stability assumption): :class:`_PhiSum`, with the matrices of :class:`_StepMatrices`."""
+    if consts.program not in ("kalman_baro", "kalman_accel"):
+        raise UserError(f"kalman_switched_bound: {consts.program!r} is not a Kalman program")
+    mode = "half_up" if consts.ROUND else "floor"
+    rho = lambda s: rounding_error_bound(s, mode)
+    accel = consts.program == "kalman_accel"
+    adc = np.asarray(adc, dtype=np.float64)
+    acc = np.zeros_like(adc) if acc is None else np.asarray(acc, dtype=np.float64)
+    K = int(consts.K)
+    dt = 2.0 ** -K
+    F = np.array([[1.0, dt, dt * dt / 2], [0.0, 1.0, dt], [0.0, 0.0, 1.0]])
+    u = np.array([rho(K) + rho(2 * K + 1), rho(K), 0.0])
+    rho_alt = rho(int(consts.ALT_SHIFT))
+    names, w, init = fm.names, fm.words, fm.init_words
+    prev = np.vstack([init[None, :], w[:-1]])
+    ev = w[:, names.index("EVENTS")].astype(np.int64)
+    cal_prev = prev[:, names.index("CAL")]
+    if accel:
+        lock_prev, lock_now = prev[:, names.index("LOCK")], w[:, names.index("LOCK")]
+        ev_prev = prev[:, names.index("EVENTS")].astype(np.int64)
+        # the velocity re-base after a clip (§6 step 4): CLIP_CLEAR set on this sample; its window is the 2^(K+1)
+        # samples ending here
+        clip_rebase = ((ev & _CLIP_CLEAR) != 0) & ((ev_prev & _CLIP_CLEAR) == 0)
+        win_n = 2 << int(consts.K)
+        g_acc = consts.gains["ACC_G"]
+        acc0_f = prev[:, names.index("ACC0")]
+        a_err_base = rho(g_acc.s) + abs(g_acc.value - consts.float_gains["ACC_G"]) * np.abs(acc - acc0_f)
+        acc_g = consts.float_gains["ACC_G"]
+    ncal = 1 << int(consts.CAL_P)
+    n = len(adc)
+    bound = np.zeros((n, 3))
+    margin = np.zeros(n)
+    ok = (adc >= consts.BARO_MIN) & (adc <= consts.BARO_MAX)
+    absF = np.abs(F)
+    rho_cal = rho(int(consts.CAL_P))
+    acc_cal = abs(acc_g) * rho_cal if accel else 0.0
+    step_consts = _StepMatrices(consts, F, u, rho, accel)
+    # The barometer's table value at every valid sample in one call (elementwise: the same floats as one call per
+    # sample). A table that fails on some valid sample falls back to the per-sample call, which raises where it did.
+    h_all = None
+    if adc.ndim == 1:
+        try:
+            h_all = _alt_table_float(consts)(np.where(ok, adc, 0.0))
+        except Exception:  # noqa: BLE001 - re-raised by the per-sample lookup at the sample that needs it
+            h_all = None
+    terms = _PhiSum(n)
+    B = np.zeros(3)
+    for t in range(n):
+        if cal_prev[t] < ncal:                          # §6 step 1: pad calibration
+            if ok[t] and cal_prev[t] + 1 == ncal:       # calibration completes: the GND/ACC0 rounding
+                B = terms.start((rho_cal + rho_alt, 0.0, 0.0))
+            bound[t] = B if cal_prev[t] + 1 >= ncal and ok[t] else np.array([rho_alt, 0.0, 0.0])  # X1 = alt(adc0)
+            continue
+        x1p = prev[t, 0] + prev[t, 1] * dt + prev[t, 2] * dt * dt / 2      # step 2: predict
+        pred_b = absF @ B + u
+        margin[t] = pred_b[0] + rho_alt
+        crebase = bool(accel and clip_rebase[t])                            # step 4: the decisions the mirror took
+        rebase = crebase or bool(accel and lock_prev[t] == 1 and lock_now[t] == 0 and not ev[t] & _MACH)
+        used = bool(ok[t] and not (ev[t] & (_BARO_REJECT | _MACH)) and not rebase)
+        locked = bool(accel and ev[t] & _MACH)
+        A, iku, bcols, acols = step_consts(used, rebase, locked)
+        r = np.zeros(3)
+        if rebase:                                                          # step 5: X1 = h
+            r[0] += rho_alt
+        if crebase:
+            # X2 += rs(E0, K): E0 sums the window's innovations h - X1 (predicted), each within margin of the
+            # mirror's (the X1 prediction's bound plus the table's rounding), so |dE0| <= sum of the margins and
+            # the re-base adds |dE0| 2^-K + rho(K) to X2's error (column 1 of I - K H is e_1 on this sample)
+            r[1] += float(margin[max(0, t - win_n + 1):t + 1].sum()) * dt + rho(K)
+        if used:                                                            # step 6: the barometer's products
+            e1 = h_all[t] - x1p if h_all is not None else _alt_mirror_e1(consts, adc[t], x1p)
+            e1_int = abs(e1) + margin[t]
+            rc, dc, ac = bcols
+            r += rc + dc * e1_int + ac * rho_alt
+        if locked:                                                          # X3 = a
+            r[2] += a_err_base[t] + acc_cal
+        elif accel:                                                         # the accelerometer's products
+            e2_int = abs((acc[t] - acc0_f[t]) * acc_g - (prev[t, 2])) + pred_b[2] + a_err_base[t] + acc_cal
+            a_err = a_err_base[t] + acc_cal
+            rc, dc, ac = acols
+            r += rc + dc * e2_int + ac * a_err
+        B = terms.push(A, iku + r)
         bound[t] = B
     return SwitchedBound(bound, margin, n)
 
