@@ -30,9 +30,6 @@ GENERATED: frozenset[str] = frozenset()
 #: those branches merge; an entry whose function is gone or no longer long fails test_pending_entries_are_live,
 #: so a stale entry cannot hide a new long function of the same name.
 PENDING: frozenset[str] = frozenset({
-    "firmware_model/model/kernels.py::kalman_step",  # the Kalman step as the spec's named steps
-    "firmware_model/model/float_reference.py::kalman_switched_bound",  # its float mirror, with it
-    "firmware_model/model/float_reference.py::_mirror_kalman_one",
     "firmware_model/flights/montecarlo/sim.py::_flight",  # the shared point-mass integrator (flights in rooms)
 })
 
