@@ -170,7 +170,11 @@ def test_summary_median_worst_misses():
     a = summarize(rs, "altos", "AltOS")
     assert (a.n, a.detected, a.worst_abs_s) == (1, 1, 2.0)
     md = render_markdown(rs, command="fwemu evaluate x")
-    assert "| a | 7 | test |" in md and "miss" in md and "1 missed" in md and "`fwemu evaluate x`" in md
+    assert "| a | 7 | test |" in md and "miss" in md and "`fwemu evaluate x`" in md
+    # rec_half: +1.0, miss, +0.5: none early, burnout unknown, one missed; and the log's computer has a column
+    assert "| recursive 1/2 LSB | 0 | 0 | 0 of 0 known | 0 | 1 |" in md
+    assert "| flight | k | sensor | reference apogee s | alt m | log's computer |" in md
+    assert "| AltOS +2.000 |" in md
     csv_text = render_csv(rs)
     assert csv_text.splitlines()[0].startswith("flight,source,k,sensor,n_samples,ref_time_s")
     head = csv_text.splitlines()[0].split(",")
@@ -193,6 +197,13 @@ def test_summary_leaves_flagged_references_out_of_the_usable_worst_only():
     assert (s.most_early_s, s.most_early_flight) == (pytest.approx(-0.4), "a")
     md = render_markdown(rs)
     assert "(baro_parabola) ⚠" in md and "1 on flagged references left out" in md
+    assert "| log's computer |" not in md                 # no flight has one: no empty column
+    named = render_markdown([_result("rb-m1670 [8-bit, clean, k7]", 10.0, {"kalman_baro": 9.6}),
+                             _result("serial-068 k7", 10.0, {"kalman_baro": 10.1})])
+    # the flight named once: its sensing and k have their own columns
+    per_flight = named.split("| method |")[0]            # (the summary names a row by its whole label)
+    assert "| rb-m1670 | 7 | test |" in per_flight and "| serial-068 | 7 | test |" in per_flight
+    assert "k7" not in per_flight
     late = summarize([_result("a", 10.0, {"kalman_baro": 10.5})], "kalman_baro", "kb")
     assert late.most_early_s is None and late.unusable == 0
 

@@ -8,6 +8,7 @@ import csv
 import io
 import json
 import math
+import re
 from dataclasses import asdict, dataclass
 from typing import Any, Sequence
 
@@ -108,7 +109,7 @@ def _fmt_err(x: float | None) -> str:
 
 def _fmt_censored(r: FlightResult, method: str) -> str:
     b = r.error_bound(method)
-    return "(later than the log's computer" + ("" if b is None else f": ≥ {b:+.3f}") + ")"
+    return "censored" if b is None else f"≥ {b:+.3f} censored"
 
 
 def _danger_marks(r: FlightResult, method: str) -> str:
@@ -123,75 +124,101 @@ def _danger_marks(r: FlightResult, method: str) -> str:
     return (" " + " ".join(marks)) if marks else ""
 
 
+_LABEL_TAIL = re.compile(r"(\s*\[[^\]]*\])?(\s+k\d+)?$")
+
+
+def _flight_name(r: FlightResult) -> str:
+    """The flight's label without what its own columns say (the sensing in brackets, `` kN``)."""
+    return _LABEL_TAIL.sub("", r.name) or r.name
+
+
+def _reference_cell(r: FlightResult) -> str:
+    ref = r.reference
+    if ref.lower_s is not None and ref.upper_s is not None:
+        when = f"[{ref.lower_s:.3f}, {ref.upper_s:.3f}]"
+    else:
+        when = f"{ref.time_s:.3f}" + (f" ±{ref.uncertainty_s:.3f}" if ref.uncertainty_s else "")
+    return (f"{when} ({ref.source}){'' if ref.usable else ' ⚠'}{' ≠ parabola' if ref.disagree else ''}"
+            + ("" if ref.charge_s is None else f"; charge {ref.charge_s:.2f}"))
+
+
+def _error_cell(r: FlightResult, m: str) -> str:
+    """One method's error on one flight (s, + late): the cell of the per-flight table; times are in the CSV/JSON."""
+    if m == "altos":
+        if r.altos_s is None:
+            return ""
+        if r.censored("altos"):
+            return f"{r.own_computer} {_fmt_censored(r, 'altos')}"
+        return f"{r.own_computer} {_fmt_err(r.error('altos'))}{_danger_marks(r, 'altos')}"
+    if m not in r.detections:
+        return "—"
+    d = r.detections[m]
+    if d.failed:
+        return "n/a"
+    if r.censored(m):
+        return _fmt_censored(r, m)
+    return "miss" if d.time_s is None else f"{_fmt_err(r.error(m))}{_danger_marks(r, m)}"
+
+
 def render_markdown(results: Sequence[FlightResult], command: str | None = None) -> str:
-    """The apogee table (Schultz 2002 Tables 1-2 style) and the per-method summary, as Markdown. The first figures:
-    how many detections of each method came more than 1 s early."""
+    """The apogee table (Schultz 2002 Tables 1-2 style) and the per-method summary, as Markdown, the way a person
+    reads it (issue 34): the first figure first (how many detections of each method came more than 1 s early);
+    one error per cell (the detection times are in apogee.csv and apogee.json); the flight named once (its k and
+    sensing have their own columns); the log's own computer as a column only when a flight has one."""
     cols = table_methods(results)
     sums = [(label, summarize(results, m, label)) for m, label in cols]
-    head = ["flight", "k", "sensor", "reference apogee s (±unc, source)", "alt m"] + [label for _, label in cols]
+    own = [(m, label) for m, label in cols if m == "altos"]
+    methods = [(m, label) for m, label in cols if m != "altos"]
+    if own and not any(r.altos_s is not None for r in results):
+        own = []
+    head = (["flight", "k", "sensor", "reference apogee s", "alt m"] + ["log's computer" for _ in own]
+            + [label for _, label in methods])
     lines = md.header(head)
     for r in results:
-        ref = r.reference
-        when = (f"[{ref.lower_s:.3f}, {ref.upper_s:.3f}]" if ref.lower_s is not None and ref.upper_s is not None
-                else f"{ref.time_s:.3f} ±{ref.uncertainty_s:.3f}")
-        cells = [r.name, str(r.k), r.sensor,
-                 f"{when} ({ref.source}){'' if ref.usable else ' ⚠'}"
-                 f"{' ≠ parabola' if ref.disagree else ''}"
-                 + ("" if ref.charge_s is None else f"; charge {ref.charge_s:.2f} ({ref.charge.split(':')[0]})"),
-                 _fmt(ref.altitude_m, 0)]
-        for m, _ in cols:
-            if m == "altos":
-                cells.append("—" if r.altos_s is None else
-                             f"{r.own_computer} {r.altos_s:.2f} ({_fmt_err(r.error('altos'))})"
-                             f"{_danger_marks(r, 'altos')}" if not r.censored("altos") else
-                             f"{r.own_computer} {r.altos_s:.2f} {_fmt_censored(r, 'altos')}")
-            elif m not in r.detections:
-                cells.append("—")
-            else:
-                d = r.detections[m]
-                if d.failed:
-                    cells.append("n/a")
-                elif r.censored(m):
-                    cells.append(("miss" if d.time_s is None else f"{d.time_s:.3f}") + f" {_fmt_censored(r, m)}")
-                else:
-                    cells.append("miss" if d.time_s is None else
-                                 f"{d.time_s:.3f} ({_fmt_err(r.error(m))}){_danger_marks(r, m)}")
+        cells = [_flight_name(r), str(r.k), r.sensor, _reference_cell(r), _fmt(r.reference.altitude_m, 0)]
+        cells += [_error_cell(r, m) for m, _ in own + methods]
         lines.append(md.row(cells))
     headline = "; ".join(f"{label} {s.early_1s} of {s.n}" + (f" (+{s.early_1s_flagged} on flagged references)"
                                                              if s.early_1s_flagged else "") for label, s in sums)
     out = [f"**Detections more than {EARLY_S:g} s before the reference apogee**: {headline}.", "",
-           "Detection time s (error s = detection - reference; + late, miss = never fired). ‼: more than "
-           f"{EARLY_S:g} s early; boost: at or before burnout; M: Mach at the detection when >= {FAST_MACH:g} "
-           "(burnout and Mach: truth for simulated flights, estimated on logs). ⚠: the reference "
-           "carries a warning (the fit is not a free flight near its peak, docs/flights.md); such rows are left out "
-           "of the summary's last column and of its first count. [a, b]: the reference is an interval (0 error "
-           "inside it, else the distance to its nearer end). charge: the log's recovery charge "
-           "(docs/evaluation.md, \"The reference apogee and the log's own charge\"); a method that had not fired "
-           "by then is \"later than the log's computer\": censored, its error only bounded below (≥), left out of "
-           "the medians and counted apart." + (" ≠ parabola: the smoother's and the "
-           "parabola's apogees differ by more than their uncertainties (the reference's notes in apogee.json give "
-           "both)." if any(r.reference.disagree for r in results) else ""), ""] + lines
-    out += [""] + md.header(["method", f"> {EARLY_S:g} s early (flight)", "before burnout",
-                             f"above Mach {FAST_MACH:g}", "flights", "detected", "censored (later than the charge)",
-                             "median abs error s",
-                             "worst abs error s (flight)", "median error s", "early / late", "most early s (flight)",
-                             "worst abs error s, usable references"])
+           "Each cell is the error in s (detection - reference; + late; the detection times are in apogee.csv and "
+           f"apogee.json); miss = never fired. ‼: more than {EARLY_S:g} s early; boost: at or before burnout; M: Mach "
+           f"at the detection when >= {FAST_MACH:g} (burnout and Mach: truth for simulated flights, estimated on "
+           "logs). ⚠: the reference carries a warning (the fit is not a free flight near its peak, "
+           "docs/flights.md); such rows are left out of the summary's first count and of its worst on usable "
+           "references. ±: the reference's uncertainty; [a, b]: the reference is an interval (0 error inside it, "
+           "else the distance to its nearer end). charge: the log's recovery charge (docs/evaluation.md, \"The "
+           "reference apogee and the log's own charge\"); a method that had not fired by then is \"later than the "
+           "log's computer\": censored, its error only bounded below (≥ b censored), left out of the medians and "
+           "counted apart." + (" ≠ parabola: the smoother's and the parabola's apogees differ by more than their "
+                       "uncertainties (the reference's notes in apogee.json give both)."
+                       if any(r.reference.disagree for r in results) else ""), ""] + lines
+    out += [""] + md.header(["method", f"> {EARLY_S:g} s early", "of them flagged", "before burnout",
+                             f"above Mach {FAST_MACH:g}", "missed", "median abs error s", "worst abs error s",
+                             "worst flight", "most early s", "most early flight", "flights", "detected",
+                             "censored", "early / late", "median error s"])
     for (m, label), (_, s) in zip(cols, sums):
-        worst = "—" if s.worst_abs_s is None else f"{s.worst_abs_s:.3f} ({s.worst_flight})"
         miss = s.n - s.detected - s.censored
-        worst += f"; {miss} missed" if miss else ""
-        skipped = sum(1 for r in results if m in r.detections and r.detections[m].failed)
-        worst += f"; {skipped} n/a" if skipped else ""
-        most_early = "—" if s.most_early_s is None else f"{s.most_early_s:+.3f} ({s.most_early_flight})"
-        usable = "—" if s.worst_usable_abs_s is None else f"{s.worst_usable_abs_s:.3f} ({s.worst_usable_flight})"
-        usable += f"; {s.unusable} on flagged references left out" if s.unusable else ""
-        early = f"{s.early_1s}" + (f" ({s.most_early_1s_flight})" if s.most_early_1s_flight else "")
-        early += f"; +{s.early_1s_flagged} flagged" if s.early_1s_flagged else ""
         burn = f"{s.before_burnout}" + (f" of {s.burnout_known} known" if s.burnout_known < s.n else "")
-        med = _fmt(s.median_abs_s) + ("" if s.median_abs_bound_s is None else
-                                      f" (≥ {s.median_abs_bound_s:.3f} with the censored at their bounds)")
-        out.append(md.row([label, early, burn, s.fast, s.n, s.detected, s.censored, med, worst,
-                           _fmt(s.median_s), f"{s.early} / {s.late}", most_early, usable]))
+        med = _fmt(s.median_abs_s) + ("" if s.median_abs_bound_s is None else f" (≥ {s.median_abs_bound_s:.3f})")
+        out.append(md.row([label, s.early_1s, s.early_1s_flagged, burn, s.fast, miss, med, _fmt(s.worst_abs_s),
+                           s.worst_flight or "—", "—" if s.most_early_s is None else f"{s.most_early_s:+.3f}",
+                           s.most_early_flight or "—", s.n, s.detected, s.censored, f"{s.early} / {s.late}",
+                           _fmt(s.median_s)]))
+    notes = []
+    skipped = {label: sum(1 for r in results if m in r.detections and r.detections[m].failed) for m, label in cols}
+    if any(skipped.values()):
+        notes.append("n/a (the method cannot run on the flight, e.g. no accelerometer): "
+                     + ", ".join(f"{label} {n}" for label, n in skipped.items() if n) + ".")
+    usable = [(label, s) for label, s in sums if s.unusable]
+    if usable:
+        notes.append("Worst abs error on usable references only: " + "; ".join(
+            f"{label} {_fmt(s.worst_usable_abs_s)} ({s.worst_usable_flight}; {s.unusable} on flagged references left "
+            "out)" for label, s in usable) + ".")
+    if any(s.median_abs_bound_s is not None for _, s in sums):
+        notes.append("Median abs error (≥ b): b is the median with the censored rows at their bounds, a lower bound "
+                     "of the true median.")
+    out += [""] + notes if notes else []
     if command:
         out += ["", f"Regenerate: `{command}`"]
     return "\n".join(out) + "\n"
