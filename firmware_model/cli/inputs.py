@@ -25,13 +25,13 @@ from typing import Any
 import numpy as np
 
 from firmware_model.cli.args import add_reader_arguments, nonnegative_int
-from firmware_model.flights.evaluation.methods import method_for_firmware
+from firmware_model.flights.evaluation.methods import method_for_firmware, tuning_overrides
 from firmware_model.flights.evaluation.setup import FlightSpec, flight_inputs, load_record, sensor_config
 from firmware_model.model.streams import ACC_PROGRAMS
 from firmware_model.runtime import output
 from firmware_model.runtime.errors import UserError
 from firmware_model.spec.config import PROGRAMS, BuildConfig, load_config, read_config_file
-from firmware_model.spec.tuning import TUNINGS, tuning_fields
+from firmware_model.spec.tuning import TUNINGS
 
 #: Rows written per piece of the streamed CSV.
 _ROWS_PER_WRITE: int = 65536
@@ -133,7 +133,7 @@ def run_inputs(args: argparse.Namespace) -> int:
         if wrong:
             raise UserError(f"{args.config}: {'; '.join(wrong)}: the config's sensors are not the stream's; drop "
                             "these fields (--config-out writes the stream's) or choose --baro/--accel presets")
-        written_cfg = method.config(cfg.k, sensor, **{**tuning_fields(method.program, cfg.k, args.tuning), **given})
+        written_cfg = method.config(cfg.k, sensor, **{**tuning_overrides(method, cfg.k, args.tuning), **given})
     else:
         wrong = _mismatches(cfg, sensor, reads_acc)
         if wrong:

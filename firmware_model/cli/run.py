@@ -18,7 +18,7 @@ import numpy as np
 from firmware_model.cli.args import add_reader_arguments, nonnegative_int
 from firmware_model.firmware.assemble import build_firmware
 from firmware_model.firmware.harness import run_firmware
-from firmware_model.flights.evaluation.methods import ACCEL_PROGRAMS, method_for_firmware
+from firmware_model.flights.evaluation.methods import ACCEL_PROGRAMS, method_for_firmware, tuning_overrides
 from firmware_model.flights.evaluation.setup import (FlightSpec, altitude_of_counts, burnout_time, flight_inputs,
     load_record, reference_for, sensor_config)
 from firmware_model.flights.inputs.runcsv import from_trace
@@ -28,7 +28,7 @@ from firmware_model.runtime.output import write_file
 from firmware_model.runtime.progress import Progress
 from firmware_model.spec.build_constants import build_constants
 from firmware_model.spec.config import BuildConfig
-from firmware_model.spec.tuning import TUNINGS, describe_tuning, tuning_fields
+from firmware_model.spec.tuning import TUNINGS, describe_tuning
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]  # argparse's private class is not generic at runtime
@@ -87,7 +87,7 @@ def run_run(args: argparse.Namespace) -> int:
                         "(the log has none, or --late-start refuse): use kalman_baro")
     fields.pop("k", None)
     fields.pop("program", None)
-    cfg = method.config(k, sensor_config(inputs), **{**tuning_fields(method.program, k, args.tuning), **fields})
+    cfg = method.config(k, sensor_config(inputs), **{**tuning_overrides(method, k, args.tuning), **fields})
     adc = np.asarray(inputs.adc)
     acc = None if inputs.acc is None else np.asarray(inputs.acc)
     time_s = np.asarray(inputs.time_s, dtype=np.float64)

@@ -294,3 +294,11 @@ def test_tuning_overrides():
     assert (cfg.ratio, cfg.rounding) == (1000.0, "half_up")
     with pytest.raises(UserError, match="--tuning 'best'"):
         tuning_overrides(METHODS["kalman_baro"], 6, "best")
+    # a method's own threshold wins over the tuning's (recommended recursive: S = k - 2 at 1/2 LSB); the program
+    # named as firmware has none of its own, so the tuning's applies (fwemu run / inputs --firmware recursive)
+    from firmware_model.flights.evaluation.methods import method_for_firmware
+    eighth = METHODS["rec_eighth"].config(6, {}, **tuning_overrides(METHODS["rec_eighth"], 6, "recommended"))
+    assert (eighth.threshold_q8, eighth.shift) == (32, 4)
+    rec = method_for_firmware("recursive")
+    assert rec.config(6, {}, **tuning_overrides(rec, 6, "recommended")).threshold_q8 == 128
+    assert rec.config(6, {}).threshold_q8 == 64

@@ -138,10 +138,16 @@ def tuning_overrides(method: Method, k: int, tuning: str = "default") -> dict[st
 
 
 
+#: ``--firmware recursive``: the program with no threshold of its own, so that the BuildConfig default (1/4 LSB,
+#: the build ``rec_quarter`` names) or the tuning's recommendation (1/2 LSB) applies.
+_RECURSIVE = Method("recursive", "recursive", "recursive")
+
+
 def method_for_firmware(name: str) -> "Method":
-    """The evaluation :class:`Method` for a program or method name (``recursive`` = ``rec_quarter``)."""
+    """The evaluation :class:`Method` for a program or method name (``recursive``: the program, its threshold from
+    the defaults or the tuning; a method name keeps its own threshold under any tuning)."""
     if name == "recursive":
-        name = "rec_quarter"
+        return _RECURSIVE
     if name not in METHODS or METHODS[name].engine != "model":
         known = ["recursive"] + [m for m, v in METHODS.items() if v.engine == "model"]
         raise UserError(f"--firmware {name!r}: unknown; known: {', '.join(known)}")
