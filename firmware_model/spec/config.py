@@ -194,10 +194,10 @@ BARO_MACH_DELAY_S: float = 8.0
 
 #: The defaults that depend on the program (issue 30: "a default a user gets without asking must be safe"): a field
 #: left ``None`` (not given, or ``null`` in a file) takes its program's value here, else :data:`COMMON_DEFAULTS`.
-#: The Kalman programs' defaults are the designs the evaluation recommends (docs/evaluation.md "Defaults are the
-#: safe designs"): R/q 1,000 (Schultz 2002's 50,000 fired more than 1 s early on 17 runs of set:full and on 8.6 %
-#: of the transonic Monte Carlo at kalman_accel), and for kalman_accel half_up rounding and a 0.05 g accelerometer
-#: model error.
+#: The Kalman programs' defaults are the designs the evaluation recommends (docs/evaluation.md "Issue 30, second
+#: round"): R/q 1,000 and, for kalman_accel, half_up rounding and a 0.05 g accelerometer model error (the designs
+#: they replaced, Schultz 2002's R/q 50,000 without a model error, fired kalman_baro more than 1 s early on 16 runs
+#: of set:full and kalman_accel on 8.6 % of the transonic Monte Carlo). spec.tuning.RECOMMENDED takes them from here.
 PROGRAM_DEFAULTS: dict[str, dict[str, Any]] = {
     "kalman_baro": {"ratio": 1000.0},
     "kalman_accel": {"ratio": 1000.0, "rounding": "half_up", "accel_model_g": 0.05},
@@ -231,7 +231,8 @@ class BuildConfig:
         so 40 m/s arms every flight that coasts 82 m or more; Schultz 2002's ~200 ft/s (61 m/s, the default before)
         never armed a 293 m flight with a long burn that peaked at 60.8 m/s).
       * Kalman: ``noise_model`` (``accel_only``, ``jerk``, ``dwna``), ``ratio`` (R/q, measurement variance over
-        process-noise intensity; ``None``: 1,000 for the Kalman programs, :data:`PROGRAM_DEFAULTS`), ``baro_sigma`` (barometer noise, counts), ``accel_sigma`` (accelerometer noise,
+        process-noise intensity; ``None``: 1,000 for the Kalman programs, :data:`PROGRAM_DEFAULTS`), ``baro_sigma``
+        (barometer noise, counts), ``accel_sigma`` (accelerometer noise,
         counts), ``mach_lo_mps``/``mach_hi_mps`` (Mach-lockout velocity window, m/s), ``mach_innov_m`` (innovation
         that triggers lockout, m), ``baro_min``/``baro_max`` (valid raw ADC range; ``None`` = full range).
       * all: ``liftoff_mps`` (liftoff velocity threshold, m/s).
@@ -267,8 +268,9 @@ class BuildConfig:
         (COAST_N samples); apogee only from COAST (Kalman). ``descent_mps``: DESCENT after apogee below -descent_mps.
       * ``accel_model_g``: kalman_accel's design adds this model error (g, rms) to the accelerometer's noise: the
         axial reading is taken as the vertical acceleration, which on a flight tilted by theta misreads a drag or
-        thrust D by D (1 - cos theta) (0.06 D at 20 degrees), plus scale errors; ``None``: 0.05 g for kalman_accel, 0 otherwise (before
-        issue 30 the default was 0, the noise alone) (docs/gain-design.md, docs/evaluation.md "Accelerometer model error").
+        thrust D by D (1 - cos theta) (0.06 D at 20 degrees), plus scale errors; ``None``: 0.05 g for kalman_accel,
+        0 otherwise (before issue 30 the default was 0, the noise alone) (docs/gain-design.md, docs/evaluation.md
+        "Accelerometer model error").
       * ``clip_s``: ACC_CLIP needs the accelerometer at its rail (32767) for this long in boost (CLIP_N samples; a
         thrust above the range holds it there for the burn, a shock for milliseconds); ``clip_drag_mps2``: after
         ACC_CLIP, a drag reading at or below this (A_DRAG = g + it, in the program's units) is "drag-low": no

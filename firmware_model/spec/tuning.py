@@ -4,7 +4,8 @@ that justifies it; measured on the 6 shared logs and the 28 simulated scenarios 
 Since issue 30 the Kalman programs' :class:`~firmware_model.spec.config.BuildConfig` defaults *are* the recommended
 designs (``config.PROGRAM_DEFAULTS``: a default a user gets without asking must be safe), so for them the two tunings
 build the same firmware; the recursive filter's defaults are Schultz 2002's (S = 5, 1/4 LSB) and its recommendation
-differs. These overrides are what the evaluation recommends. ``recommended_config("kalman_accel", 6)`` gives a ready build config.
+differs. These overrides are what the evaluation recommends. ``recommended_config("kalman_accel", 6)`` gives a ready
+build config.
 """
 
 from __future__ import annotations
@@ -13,22 +14,24 @@ from pathlib import Path
 from typing import Any
 
 from firmware_model.runtime.errors import UserError
-from firmware_model.spec.config import BuildConfig, from_sources, load_config, read_config_file
+from firmware_model.spec.config import PROGRAM_DEFAULTS, BuildConfig, from_sources, load_config, read_config_file
 
 #: The tunings the commands take (``--tuning``): the BuildConfig defaults, or :data:`RECOMMENDED`.
 TUNINGS: tuple[str, ...] = ("default", "recommended")
 
 #: Overrides of the BuildConfig defaults per program, for k = 5..7 (the evaluated range).
 RECOMMENDED: dict[str, dict[int, dict[str, Any]]] = {
-    # R/q 1,000: worst |error| 0.45-0.55 s against 1.0-1.2 s at 50,000, medians 0.05-0.13 s (README table)
-    "kalman_baro": {k: {"ratio": 1000.0} for k in (5, 6, 7)},
+    # The Kalman entries are the programs' defaults since issue 30 (config.PROGRAM_DEFAULTS, one source), spelled out
+    # so that describe_tuning says what they set. kalman_baro, R/q 1,000: worst |error| 0.45-0.55 s against
+    # 1.0-1.2 s at 50,000, medians 0.05-0.13 s (README table)
+    "kalman_baro": {k: dict(PROGRAM_DEFAULTS["kalman_baro"]) for k in (5, 6, 7)},
     # half_up: floor biases the metres state (X2 -1.9 m/s at k = 7 on a still pad, docs/numerics.md); R/q 1,000;
     # a 0.05 g accelerometer model error (the axial reading as vertical on a tilted flight: the Monte Carlo's
     # windy subsonic flights fired more than 1 s early 8.1 % of the time without it, docs/evaluation.md
     # "Accelerometer model error")
-    "kalman_accel": {k: {"ratio": 1000.0, "rounding": "half_up", "accel_model_g": 0.05} for k in (5, 6, 7)},
+    "kalman_accel": {k: dict(PROGRAM_DEFAULTS["kalman_accel"]) for k in (5, 6, 7)},
     # S = k - 2 (a lag of 2^(k-2) samples = 0.25 s at every k), THR = 1/2 LSB (issue 30: at 1/4 and 1/8 LSB the
-    # barometer's noise and an 8-bit ADC's steps fired 4 and 18 runs of set:full more than 1 s early, 1/2 LSB none;
+    # barometer's noise and an 8-bit ADC's steps fired 4 and 19 runs of set:full more than 1 s early, 1/2 LSB none;
     # docs/evaluation.md); the rate gate, its re-base and the 0.06 s apogee evidence after an accelerometer clip at
     # their defaults (README "Field-ready firmware")
     "recursive": {k: {"shift": k - 2, "threshold_q8": 128} for k in (5, 6, 7)},
