@@ -106,7 +106,7 @@ def run_run(args: argparse.Namespace) -> int:
     table = from_trace(trace, cfg, time_s, adc, acc, altitude_of_counts(inputs))
     # the summary first: a failure in it (no reference apogee) must not leave a CSV behind an exit 2 (issue 33)
     text = summary(table, record, inputs, cfg, engine, elapsed, reference_for(record), args.out,
-                   describe_tuning(method.program, k, args.tuning))
+                   describe_tuning(method.program, k, args.tuning, tuning_overrides(method, k, args.tuning)))
     if args.out is not None:
         write_file(args.out, table.to_csv())
     print(text)

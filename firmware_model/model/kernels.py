@@ -471,7 +471,7 @@ def _alt(adc, c, rnd):  # type: ignore[no-untyped-def]
 @njit(cache=True)
 def kalman_init(st, adc, acc, c):  # type: ignore[no-untyped-def]
     """X1 = GND = alt(adc) (0 for an invalid sample); X2 = X3 = 0; ACC0 = acc (kalman_accel only); EVENTS =
-    APFRAC = 0; SUMZ = SUMA = 0; CAL = REJ = NEG = 0."""
+    APFRAC = 0; SUMZ = SUMA = 0; CAL = REJ = NEG = 0; HMAX = X1; HT = 0."""
     h = 0
     if c[C_BARO_MIN] <= adc and adc <= c[C_BARO_MAX]:
         h = _alt(adc, c, c[C_ROUND])

@@ -61,11 +61,12 @@ def tuning_fields(program: str, k: int, tuning: str = "default") -> dict[str, An
     return dict(RECOMMENDED.get(program, {}).get(k, {}))
 
 
-def describe_tuning(program: str, k: int, tuning: str) -> str:
-    """One line for a command's output: which tuning, and what it set."""
+def describe_tuning(program: str, k: int, tuning: str, applied: dict[str, Any] | None = None) -> str:
+    """One line for a command's output: which tuning, and what it set (``applied``: the fields the command took
+    from it, when a method's own fields kept some out; default all of :func:`tuning_fields`)."""
     if tuning == "default":
         return "tuning: default (the BuildConfig defaults)"
-    fields = tuning_fields(program, k, tuning)
+    fields = tuning_fields(program, k, tuning) if applied is None else applied
     if not fields:
         return f"tuning: recommended has no entry for {program} at k={k}: the defaults are kept"
     return "tuning: recommended (" + ", ".join(f"{name}={value}" for name, value in fields.items()) + ")"

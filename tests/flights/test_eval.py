@@ -302,3 +302,6 @@ def test_tuning_overrides():
     rec = method_for_firmware("recursive")
     assert rec.config(6, {}, **tuning_overrides(rec, 6, "recommended")).threshold_q8 == 128
     assert rec.config(6, {}).threshold_q8 == 64
+    from firmware_model.spec.tuning import describe_tuning
+    said = describe_tuning("recursive", 6, "recommended", tuning_overrides(METHODS["rec_eighth"], 6, "recommended"))
+    assert said == "tuning: recommended (shift=4)"            # what the build took, not the 1/2 LSB it kept out
