@@ -48,7 +48,7 @@ import numpy as np
 FORCE_PURE: bool = bool(globals().get("FORCE_PURE", False))
 
 
-def _load_numba():  # type: ignore[no-untyped-def]
+def _load_numba():
     if FORCE_PURE or os.environ.get("FWEMU_NO_NUMBA", "").strip() not in ("", "0"):
         return None
     try:
@@ -73,7 +73,7 @@ if _numba is not None:
         # holds a lock around the kernel call. Read by numba at the first parallel launch.
         _numba.config.THREADING_LAYER = "forksafe"
 else:
-    def njit(*args, **kwargs):  # type: ignore[no-redef]
+    def njit(*args, **kwargs):  # type: ignore[no-redef, unused-ignore]  # redefined only where numba is absent
         """No numba: the decorated function stays plain Python."""
         if args and callable(args[0]):
             return args[0]
@@ -257,9 +257,9 @@ INT32_MIN = -2147483648
 INT32_MAX = 2147483647
 
 
-def pack_constants(consts, dtype=np.int64) -> np.ndarray:  # type: ignore[no-untyped-def]
-    """The constants array of a :class:`~firmware_model.spec.build_constants.FirmwareConstants` (indices ``C_*``); gains a
-    program does not have are (0, 0). ``dtype=object`` gives Python ints (the uncompiled path)."""
+def pack_constants(consts, dtype=np.int64) -> np.ndarray:
+    """The constants array of a :class:`~firmware_model.spec.build_constants.FirmwareConstants` (indices ``C_*``);
+    gains a program does not have are (0, 0). ``dtype=object`` gives Python ints (the uncompiled path)."""
     values = [int(getattr(consts, name)) for name in _SCALARS]
     for name in _GAINS:
         g = consts.gains.get(name)
@@ -271,7 +271,7 @@ def pack_constants(consts, dtype=np.int64) -> np.ndarray:  # type: ignore[no-unt
 
 # ------------------------------------------------------------------------------------------- fixed point
 @njit(cache=True)
-def rs(x, s, rnd):  # type: ignore[no-untyped-def]
+def rs(x, s, rnd):
     """Rounding right shift (docs/firmware-spec.md §1): floor (``rnd == 0``) or half_up (``rnd == 1``),
     computed as ``(x >> s) + bit(s-1) of x`` (no intermediate value beyond x)."""
     if s <= 0:
@@ -283,13 +283,13 @@ def rs(x, s, rnd):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def _w32(x):  # type: ignore[no-untyped-def]
+def _w32(x):
     """wrap32: the exact integer reduced to signed 32-bit two's complement."""
     return ((x + 2147483648) & 4294967295) - 2147483648
 
 
 @njit("int64(int64, int64, int64)", cache=True)
-def _note(w, x, wid):  # type: ignore[no-untyped-def]
+def _note(w, x, wid):
     """``wid`` if no wrap was noted yet in this sample (``w == 0``) and the exact ``x`` is outside int32.
 
     Compiled for this one signature at import (cached): its callers pass the wrap id as a constant (``W_X1``
@@ -303,7 +303,7 @@ def _note(w, x, wid):  # type: ignore[no-untyped-def]
 
 # ------------------------------------------------------------------------------------------- recursive (§5)
 @njit(cache=True)
-def recursive_init(st, adc, acc, c):  # type: ignore[no-untyped-def]
+def recursive_init(st, adc, acc, c):
     """EST = EXT = wrap32(z << 8); VEL = 0; ACC0 = acc; EVENTS = 0; ZL = wrap32(z); SUMA = CAL = REJ = NEG = 0."""
     z = adc * c[C_BARO_SIGN]
     st[EST] = _w32(z << 8)       # exact for |z| < 2^23: every ADC word; a pascal word wraps as LSL.L does
@@ -322,14 +322,14 @@ def recursive_init(st, adc, acc, c):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True, inline="always")
-def _clipped(ev):  # type: ignore[no-untyped-def]
+def _clipped(ev):
     """ACC_CLIP and not CLIP_CLEAR: after an accelerometer clip, before the speed is known again (docs/firmware-spec.md
     §5, §6: no apogee evidence, no prediction; kalman_accel keeps the barometer out)."""
     return (ev & (ACC_CLIP | CLIP_CLEAR)) == ACC_CLIP
 
 
 @njit(cache=True, inline="always")
-def _rail_count(st, i_clp, phase, ev, acc, clip_n):  # type: ignore[no-untyped-def]
+def _rail_count(st, i_clp, phase, ev, acc, clip_n):
     """docs/firmware-spec.md §5 step 3 and §6 step 7 (the accelerometer programs): in BOOST and before ACC_CLIP,
     st[i_clp] counts consecutive samples at the accelerometer's rail (32767); the CLIP_N-th sets ACC_CLIP and
     CLP = 0. Returns EVENTS."""
@@ -345,7 +345,7 @@ def _rail_count(st, i_clp, phase, ev, acc, clip_n):  # type: ignore[no-untyped-d
 
 
 @njit(cache=True, inline="always")
-def recursive_step(st, adc, acc, c):  # type: ignore[no-untyped-def]
+def recursive_step(st, adc, acc, c):
     """docs/firmware-spec.md §5 steps 0-6; returns the first wrap id of the sample (0: none)."""
     rnd = c[C_ROUND]
     S = c[C_S]
@@ -440,13 +440,13 @@ def recursive_step(st, adc, acc, c):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def seed_literal_init(st, adc, acc, c):  # type: ignore[no-untyped-def]
+def seed_literal_init(st, adc, acc, c):
     """EST = z << 8."""
     st[EST] = _w32((adc * c[C_BARO_SIGN]) << 8)
 
 
 @njit(cache=True, inline="always")
-def seed_literal_step(st, adc, acc, c):  # type: ignore[no-untyped-def]
+def seed_literal_step(st, adc, acc, c):
     """The Schultz 2002 listing as written: EST += rs(EST, S) - (z << (8 - S)); no flight logic."""
     S = c[C_S]
     est = st[EST]
@@ -458,7 +458,7 @@ def seed_literal_step(st, adc, acc, c):  # type: ignore[no-untyped-def]
 
 # ------------------------------------------------------------------------------------------- Kalman (§6)
 @njit(cache=True, inline="always")
-def _alt(adc, c, rnd):  # type: ignore[no-untyped-def]
+def _alt(adc, c, rnd):
     """alt(adc) (docs/firmware-spec.md §2a): the table node below plus rs((next - node) * f, ALT_SHIFT). The
     result lies between two int32 nodes, so it never wraps; the product is below 2^46."""
     s = c[C_ALT_SHIFT]
@@ -469,7 +469,7 @@ def _alt(adc, c, rnd):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def kalman_init(st, adc, acc, c):  # type: ignore[no-untyped-def]
+def kalman_init(st, adc, acc, c):
     """X1 = GND = alt(adc) (0 for an invalid sample); X2 = X3 = 0; ACC0 = acc (kalman_accel only); EVENTS =
     APFRAC = 0; SUMZ = SUMA = 0; CAL = REJ = NEG = 0; HMAX = X1; HT = 0."""
     h = 0
@@ -499,7 +499,8 @@ def kalman_init(st, adc, acc, c):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True, inline="always")
-def kalman_step(st, adc, acc, c, accel):  # type: ignore[no-untyped-def]  # long: split into numba helpers 2x slower
+def kalman_step(  # noqa: C901 - the spec's steps 0-10 in one body, see below
+        st, adc, acc, c, accel):  # long: split into numba helpers 2x slower
     """docs/firmware-spec.md §6 steps 0-10 (``accel``: kalman_accel, else kalman_baro); returns the first wrap id.
 
     Wrap bookkeeping as the numpy model has it: SUMZ, SUMA (calibration); X1, X2 (predict), mulg(acc), e2, e1,
@@ -752,20 +753,20 @@ def kalman_step(st, adc, acc, c, accel):  # type: ignore[no-untyped-def]  # long
 
 
 @njit(cache=True, inline="always")
-def kalman_baro_step(st, adc, acc, c):  # type: ignore[no-untyped-def]
+def kalman_baro_step(st, adc, acc, c):
     """kalman_baro: :func:`kalman_step` without the accelerometer and the lockout."""
     return kalman_step(st, adc, acc, c, False)
 
 
 @njit(cache=True, inline="always")
-def kalman_accel_step(st, adc, acc, c):  # type: ignore[no-untyped-def]
+def kalman_accel_step(st, adc, acc, c):
     """kalman_accel: :func:`kalman_step` with the accelerometer innovation and the Mach lockout."""
     return kalman_step(st, adc, acc, c, True)
 
 
 # ------------------------------------------------------------------------------------------- driver
 @njit(cache=True)
-def _init(prog, st, adc, acc, c):  # type: ignore[no-untyped-def]
+def _init(prog, st, adc, acc, c):
     if prog == P_RECURSIVE:
         recursive_init(st, adc, acc, c)
     elif prog == P_SEED_LITERAL:
@@ -783,14 +784,14 @@ _OUT_KALMAN_ACCEL = OUT_COLS["kalman_accel"]
 
 
 @njit(cache=True, inline="always")
-def _copy_out(st, cols, row):  # type: ignore[no-untyped-def]
+def _copy_out(st, cols, row):
     """``row[j] = st[cols[j]]``: the output words of the state (``cols`` an array or a tuple)."""
     for j in range(len(cols)):
         row[j] = st[cols[j]]
 
 
 @njit(cache=True)
-def _stream_recursive(st, adc, acc, c, out):  # type: ignore[no-untyped-def]
+def _stream_recursive(st, adc, acc, c, out):
     """Samples 0..n-1 of one stream through :func:`recursive_step`: (first wrap sample or -1, its wrap id)."""
     f = -1
     wid = 0
@@ -803,7 +804,7 @@ def _stream_recursive(st, adc, acc, c, out):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def _stream_seed_literal(st, adc, acc, c, out):  # type: ignore[no-untyped-def]
+def _stream_seed_literal(st, adc, acc, c, out):
     """Samples 0..n-1 of one stream through :func:`seed_literal_step`: (first wrap sample or -1, its wrap id)."""
     f = -1
     wid = 0
@@ -816,7 +817,7 @@ def _stream_seed_literal(st, adc, acc, c, out):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def _stream_kalman_baro(st, adc, acc, c, out):  # type: ignore[no-untyped-def]
+def _stream_kalman_baro(st, adc, acc, c, out):
     """Samples 0..n-1 of one stream through :func:`kalman_baro_step`: (first wrap sample or -1, its wrap id)."""
     f = -1
     wid = 0
@@ -829,7 +830,7 @@ def _stream_kalman_baro(st, adc, acc, c, out):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def _stream_kalman_accel(st, adc, acc, c, out):  # type: ignore[no-untyped-def]
+def _stream_kalman_accel(st, adc, acc, c, out):
     """Samples 0..n-1 of one stream through :func:`kalman_accel_step`: (first wrap sample or -1, its wrap id)."""
     f = -1
     wid = 0
@@ -842,7 +843,7 @@ def _stream_kalman_accel(st, adc, acc, c, out):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def run_stream(prog, st, adc, acc, c, cols, init_row, out):  # type: ignore[no-untyped-def]
+def run_stream(prog, st, adc, acc, c, cols, init_row, out):
     """One stream (``adc``/``acc`` of shape ``(n,)``) through program ``prog``: ``init`` on sample 0 into
     ``init_row``, then ``step`` on samples 0..n-1 into ``out[i]`` (the state entries ``cols``); ``st`` is the
     state. Returns (first sample with a wrap or -1, its wrap id or 0).
@@ -865,7 +866,7 @@ def run_stream(prog, st, adc, acc, c, cols, init_row, out):  # type: ignore[no-u
 
 
 @njit(cache=True, parallel=True)
-def run_streams(prog, adc, acc, c, cols, state, init_out, out, first, word):  # type: ignore[no-untyped-def]
+def run_streams(prog, adc, acc, c, cols, state, init_out, out, first, word):
     """Run every stream ``s`` of ``adc``/``acc`` (shape ``(streams, n)``) through program ``prog``
     (:func:`run_stream`), the streams in parallel when compiled. Writes ``init_out[s, j]`` and ``out[s, i, j]``
     (the state entries ``cols[j]``), ``first[s]`` (first sample with a wrap, or -1) and ``word[s]`` (its wrap
@@ -877,7 +878,7 @@ def run_streams(prog, adc, acc, c, cols, state, init_out, out, first, word):  # 
 
 
 @njit(cache=True)
-def run_streams_serial(prog, adc, acc, c, cols, state, init_out, out, first, word):  # type: ignore[no-untyped-def]
+def run_streams_serial(prog, adc, acc, c, cols, state, init_out, out, first, word):
     """:func:`run_streams` on the calling thread only: for small calls, where waking the worker threads costs
     more than the work (0.02-0.2 ms per call on this loaded machine, against ~4 us for 100 samples). About half
     as fast per sample as the parallel driver even on one stream (numba marks the array arguments of a parallel

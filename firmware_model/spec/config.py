@@ -17,8 +17,8 @@ from typing import Any
 from firmware_model.runtime.errors import UserError
 from firmware_model.spec.atmosphere import G0 as _G0
 
-#: TeleMetrum v1 (MP3H6115A through a 16-bit-scaled ADC; the AltosUI log notes in docs/flights.md): raw = (P/1000*0.009 - 0.095)*32752,
-#: i.e. P(raw) = PA_AT_ZERO + PA_PER_COUNT * raw.
+#: TeleMetrum v1 (MP3H6115A through a 16-bit-scaled ADC; the AltosUI log notes in docs/flights.md):
+#: raw = (P/1000*0.009 - 0.095)*32752, i.e. P(raw) = PA_AT_ZERO + PA_PER_COUNT * raw.
 TELEMETRUM_PA_PER_COUNT: float = 1000.0 / (0.009 * 2047 * 16)
 TELEMETRUM_PA_AT_ZERO: float = 0.095 / 0.009 * 1000.0
 

@@ -11,7 +11,8 @@ Process noise ``Q`` per noise model, with ``q = baro_sigma^2 / ratio`` (so that 
 barometer; docs/gain-design.md explains each ``q``):
 
 * ``accel_only``: ``Q = diag(0, 0, q)``; ``q`` is the variance (units^2/s^4) added to the acceleration state
-  **per sample** (Schultz, Schultz n.d.; the Digital Detection of Rocket Apogee notes' ``Q = [0 0 0; 0 0 0; 0 0 1]``). Not scaled by dt.
+  **per sample** (Schultz, Schultz n.d.; the Digital Detection of Rocket Apogee notes'
+  ``Q = [0 0 0; 0 0 0; 0 0 1]``). Not scaled by dt.
 * ``jerk``: continuous white-noise jerk of spectral density ``q`` (units^2/s^5), discretised exactly:
   ``Q = q [[dt^5/20, dt^4/8, dt^3/6], [dt^4/8, dt^3/3, dt^2/2], [dt^3/6, dt^2/2, dt]]`` (ESP June 2001, AltOS).
 * ``dwna``: discrete white-noise acceleration increment: ``Q = G G^T q`` with ``G = [dt^2/2, dt, 1]^T``; ``q`` is
@@ -123,7 +124,8 @@ def _dare_residual(F: dm.Matrix, H: dm.Matrix, Q: dm.Matrix, R: dm.Matrix, P: dm
     return dm.max_abs(diff) / max(dm.max_abs(P), dm.max_abs(Q), 1e-300)
 
 
-def solve_dare(F: np.ndarray, H: np.ndarray, Q: np.ndarray, R: np.ndarray, where: str = "design") -> tuple[np.ndarray, int]:
+def solve_dare(F: np.ndarray, H: np.ndarray, Q: np.ndarray, R: np.ndarray,
+               where: str = "design") -> tuple[np.ndarray, int]:
     """A priori steady-state covariance P of the filter DARE ``P = F (P - P H^T (H P H^T + R)^-1 H P) F^T + Q``
     by the structure-preserving doubling algorithm (SDA; quadratic convergence, so poles near 1 cost ~log2 of
     the time constant), in the machine-independent arithmetic of :mod:`~firmware_model.spec.detmath`. Returns
@@ -283,6 +285,7 @@ def design_kalman(k: int, noise_model: str, ratio: float | None, *, with_accel: 
     dt = math.ldexp(1.0, -k)
     norm = baro_sigma**2  # K is invariant under a common scaling of Q and R: solve with R_baro = 1
     if q is None:
+        assert ratio is not None  # exactly one of them is None: checked above
         q = norm / ratio
         q_norm = 1.0 / ratio  # not q / norm: the design must depend on the ratio alone, to the last bit
     else:

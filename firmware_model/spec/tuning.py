@@ -45,7 +45,8 @@ def recommended_config(program: str, k: int, **overrides: Any) -> BuildConfig:
     if program not in RECOMMENDED:
         raise UserError(f"tuning: no recommendation for program {program!r}; known: {', '.join(RECOMMENDED)}")
     if k not in RECOMMENDED[program]:
-        raise UserError(f"tuning: no recommendation for k={k!r} (evaluated: {', '.join(map(str, RECOMMENDED[program]))})")
+        evaluated = ", ".join(map(str, RECOMMENDED[program]))
+        raise UserError(f"tuning: no recommendation for k={k!r} (evaluated: {evaluated})")
     fields = dict(RECOMMENDED[program][k])
     fields.update(overrides)
     return BuildConfig(program=program, k=k, **fields)
