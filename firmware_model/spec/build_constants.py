@@ -13,8 +13,10 @@ from :func:`build_constants`. Conversions (documented in docs/gain-design.md), a
   ``APO_N`` = max(1, round(seconds * 2^k)).
 * Recursive velocities (``V_LIFT`` for recursive programs, ``V_GATE``): ``v_mps * accel_counts_per_mps2 * 2^K``
   (accelerometer counts x samples: VEL is the running sum of ``acc - ACC0``).
-* ``THR = threshold_q8``; ``BARO_MIN``/``BARO_MAX`` = ``cfg.baro_range`` (ADC counts, or pascals for the pascal
-  kind); ``ROUND`` 0 floor / 1 half_up; ``PASCAL`` = 1 for ``baro_kind`` pascal, else 0.
+* ``THR = max(threshold_q8, ceil(threshold_sigmas * 256 * baro_sigma * sqrt(a / (2 - a))))`` with a = 2^-S (the
+  filtered word's noise: :func:`recursive_threshold`; ``threshold_sigmas`` 0, the default: ``threshold_q8``);
+  ``BARO_MIN``/``BARO_MAX`` = ``cfg.baro_range`` (ADC counts, or pascals for the pascal kind); ``ROUND`` 0 floor /
+  1 half_up; ``PASCAL`` = 1 for ``baro_kind`` pascal, else 0.
 * Gains: :func:`quantize_gain` (16-bit mantissa, >= 15 significant bits).
 """
 
@@ -31,6 +33,21 @@ from firmware_model.spec.atmosphere import G0
 from firmware_model.spec.config import KALMAN_UNITS_PER_MPS, BuildConfig
 from firmware_model.spec.fixed import INT32_MAX, INT32_MIN, MAX_SHIFT, QGain, _round_half_away, quantize_gain
 from firmware_model.spec.gain_design import describe, float_gains, innovation_sigma_m
+
+
+def recursive_threshold(cfg: BuildConfig, where: str = "config") -> int:
+    """THR (Q24.8 counts): ``threshold_q8``, raised to ``threshold_sigmas`` standard deviations of the recursive
+    filter's output noise when that is larger. EST = EST + (z - EST) 2^-S is a one-pole low-pass: white input noise
+    of variance sigma^2 leaves sigma^2 a / (2 - a) in it (a = 2^-S), so EST's fall below its own running maximum
+    by less than a few of its sigmas is what noise does on a flat top, not a descent (docs/firmware-spec.md §3)."""
+    if cfg.threshold_sigmas == 0:
+        return cfg.threshold_q8
+    a = math.ldexp(1.0, -cfg.shift)
+    noise_q8 = cfg.threshold_sigmas * 256.0 * cfg.baro_sigma * math.sqrt(a / (2.0 - a))
+    if not noise_q8 < float(1 << 20):
+        raise UserError(f"{where}: threshold_sigmas={cfg.threshold_sigmas!r} x baro_sigma={cfg.baro_sigma!r}: "
+                        f"the threshold {noise_q8:.6g} is beyond 2^20 (Q24.8)")
+    return max(cfg.threshold_q8, math.ceil(noise_q8))
 
 
 def _round_int(name: str, value: float, where: str) -> int:
@@ -209,7 +226,7 @@ def _build_constants(cfg: BuildConfig) -> FirmwareConstants:
         ROUND=1 if cfg.rounding == "half_up" else 0,
         BARO_SIGN=cfg.baro_sign,
         S=cfg.shift,
-        THR=cfg.threshold_q8,
+        THR=recursive_threshold(cfg, where),
         V_LIFT=_round_int("V_LIFT", cfg.liftoff_mps * (rec_v if recursive else kalman_v), where),
         V_GATE=_round_int("V_GATE", cfg.gate_mps * rec_v, where),
         gains=gains,

@@ -148,6 +148,7 @@ FIELDS: dict[str, Rule] = {
                                   why="a 16-bit word spanning at least 1 m/s^2"),
     "shift": Rule("int", 1, 8, why="recursive filter shift S: ADC << (8-S) must be a left shift"),
     "threshold_q8": Rule("int", 1, 1 << 20, why="apogee threshold, Q24.8"),
+    "threshold_sigmas": Rule("number", 0.0, 100.0, why="apogee threshold in sigmas of the filtered noise; 0 = off"),
     "gate_mps": _SPEED,
     "noise_model": Rule("choice", choices=NOISE_MODELS),
     "ratio": Rule("number", 0.0, 1e12, lo_open=True, why="R/q; above 1e12 the process noise vanishes"),
@@ -226,7 +227,10 @@ class BuildConfig:
       * ``k``: sample period dt = 2^-k s (0..10). ``rounding``: ``floor`` or ``half_up`` (``None``: the program's
         default, :data:`PROGRAM_DEFAULTS`: half_up for kalman_accel, floor for every other program).
       * recursive: ``shift`` S (weight 2^-S, 1..8), ``threshold_q8`` (apogee threshold below the extreme in Q24.8
-        units of 1/256 count: 128 = 1/2 LSB, 64 = 1/4, 32 = 1/8), ``gate_mps`` (velocity gate, m/s;
+        units of 1/256 count: 128 = 1/2 LSB, 64 = 1/4, 32 = 1/8), ``threshold_sigmas`` (the threshold is at least
+        this many standard deviations of the filtered barometer noise, ``baro_sigma * sqrt(2^-S / (2 - 2^-S))``
+        counts: a fall of the filter's output below its extreme smaller than its own noise is not evidence; 0, the
+        default, leaves ``threshold_q8`` alone; docs/firmware-spec.md §3 ``THR``), ``gate_mps`` (velocity gate, m/s;
         default 40 since issue 30: a rocket that coasts h metres after burnout had at least sqrt(2 g h) at burnout,
         so 40 m/s arms every flight that coasts 82 m or more; Schultz 2002's ~200 ft/s (61 m/s, the default before)
         never armed a 293 m flight with a long burn that peaked at 60.8 m/s).
@@ -303,6 +307,7 @@ class BuildConfig:
     accel_counts_per_mps2: float = 2048.0 / 9.80665
     shift: int = 5
     threshold_q8: int = 64
+    threshold_sigmas: float = 0.0
     gate_mps: float = 40.0
     noise_model: str = "accel_only"
     ratio: float = None  # type: ignore[assignment]  # None: the program's default, filled in by __post_init__
