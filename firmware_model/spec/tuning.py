@@ -34,8 +34,9 @@ RECOMMENDED: dict[str, dict[int, dict[str, Any]]] = {
     # barometer's noise and an 8-bit ADC's steps fired 4 and 19 runs of set:full more than 1 s early, 1/2 LSB none;
     # docs/evaluation.md) and at least 3 sigmas of the filtered barometer noise (issue 30, third round: at a fixed
     # 1/2 LSB a 7-8 Pa barometer near 8 km fired 8 of 10,000 ram-pressure Monte Carlo flights more than 1 s
-    # early at k = 6, where S = 4 leaves 0.18 of the noise in EST; with it 0); the rate gate, its re-base and the 0.06 s apogee evidence after an accelerometer clip at
-    # their defaults (README "Field-ready firmware")
+    # early at k = 6, where S = 4 leaves 0.18 of the noise in EST; with it 0); the rate gate, its re-base and the
+    # 0.06 s apogee evidence after an accelerometer clip at their defaults (docs/history/evaluation-rounds.md,
+    # "Recursive filter, field-ready")
     "recursive": {k: {"shift": k - 2, "threshold_q8": 128, "threshold_sigmas": 3.0} for k in (5, 6, 7)},
 }
 
