@@ -274,7 +274,8 @@ def test_flight_vector_cases_carry_provenance_and_licence():
         first = doc["events_first_sample"]
         assert 0 < first["LIFTOFF"] < truth["apogee_sample"] < doc["input"]["n_samples"], name
         # every flight case fires; kalman_baro and recursive within 2 s of the reference (k = 5: 64 samples);
-        # kalman_accel is seconds early on these high flights (docs/evaluation.md: linear counts/m), only fires
+        # kalman_accel is seconds early on these high flights (docs/history/evaluation-rounds.md: linear counts/m),
+        # only fires
         assert first["APOGEE"] >= 0, name
         if not name.startswith("kalman_accel"):
             assert abs(first["APOGEE"] - truth["apogee_sample"]) <= 64, name

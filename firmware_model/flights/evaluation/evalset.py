@@ -1,5 +1,5 @@
 """The evaluation set behind the README's apogee table, and how command-line FLIGHT arguments become
-:class:`~firmware_model.flights.evaluation.setup.FlightSpec` rows (docs/evaluation.md, "The evaluation set").
+:class:`~firmware_model.flights.evaluation.setup.FlightSpec` rows (docs/evaluation.md, "The evaluation sets").
 
 * ``set:eval`` (:func:`evaluation_set`): every simulated scenario (:func:`flights.scenarios.scenario_names`) with
   each of the sensings its catalogue tags suggest (:func:`scenario_variants`: 8/10/12/16-bit MPX4115-class ADCs,
