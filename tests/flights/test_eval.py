@@ -209,7 +209,8 @@ def test_summary_leaves_flagged_references_out_of_the_usable_worst_only():
 
 
 # ---------------------------------------------------------------------------------------------------- subsonic flights
-#: The stated window for kalman_baro (default build: k = 7, R/q = 50,000, floor) on subsonic 1-DOF flights sensed by a
+#: The stated window for kalman_baro (default build, k = 7; set when the default was R/q = 50,000, floor, and not
+#: re-measured since issue 30 made R/q 1,000 with the guards the default) on subsonic 1-DOF flights sensed by a
 #: noisy 16-bit MPX4115-class barometer: error = detection - true apogee in [-3.5, +0.6] s, and never before burnout.
 #: Measured on 150 random flights of the same box (docs/evaluation.md), field-ready firmware: median +0.07 s, max
 #: +0.32 s, min -2.53 s (before it: median -0.01 s, max +0.19 s, min -2.74 s); the
