@@ -203,8 +203,9 @@ def build_firmware(cfg_or_consts: Union[BuildConfig, FirmwareConstants]) -> Firm
     :func:`firmware_model.spec.build_constants.build_constants`, or ready :class:`FirmwareConstants`).
 
     Builds are cached in this process on (program, equates, source file mtimes) and on disk by content
-    (:func:`cache_dir`, :func:`build_key`: program, equates, the sources, the assembler's own source). Raises :class:`UserError` for a bad config or
-    constants, :class:`isa.errors.AssemblyError` if the sources do not assemble (naming file and line)."""
+    (:func:`cache_dir`, :func:`build_key`: program, equates, the sources, the assembler's own source). Raises
+    :class:`UserError` for a bad config or constants, :class:`isa.errors.AssemblyError` if the sources do not
+    assemble (naming file and line)."""
     if isinstance(cfg_or_consts, BuildConfig):
         consts = build_constants(cfg_or_consts)
     elif isinstance(cfg_or_consts, FirmwareConstants):
@@ -266,8 +267,8 @@ def clear_cache() -> None:
     _assemble_cached.cache_clear()
 
 
-__all__ = ["ASM_DIR", "SOURCES", "source_path_text", "FirmwareBuild", "build_firmware", "source_files", "clear_cache", "cache_dir",
-           "build_key",
+__all__ = ["ASM_DIR", "SOURCES", "source_path_text", "FirmwareBuild", "build_firmware", "source_files", "clear_cache",
+           "cache_dir", "build_key",
            "ROM_START", "ROM_SIZE", "RAM_START", "RAM_SIZE", "STACK_TOP", "IO_START", "IO_SIZE", "BARO_ADC",
            "ACCEL_ADC", "BARO_PA", "write_inputs"]
 

@@ -84,7 +84,8 @@ class FlightRecord:
             raise UserError(f"{where}: time is not finite at row {int(np.argmin(np.isfinite(t)))}")
         bad = np.nonzero(np.diff(t) <= 0)[0]
         if bad.size:
-            raise UserError(f"{where}: time does not increase at row {int(bad[0]) + 1} ({t[bad[0]]} -> {t[bad[0] + 1]})")
+            raise UserError(f"{where}: time does not increase at row {int(bad[0]) + 1} "
+                            f"({t[bad[0]]} -> {t[bad[0] + 1]})")
         for name in ("pressure_pa", "accel_mps2", "temperature_c", "accel_counts"):
             arr = getattr(self, name)
             if arr is not None and np.asarray(arr).shape != (n,):
@@ -94,8 +95,9 @@ class FlightRecord:
     def _check_plausible(self, t: np.ndarray, where: str) -> None:
         """Issue 33: a pressure outside :data:`PRESSURE_RANGE_PA` (1e308 Pa reached the barometer model) or an
         acceleration beyond :data:`MAX_ACCEL_MPS2` is an error naming the file's line (``row_lines``) or the row. (A
-        clock jump is judged later, where the flight is known: :mod:`firmware_model.flights.inputs.firmware_inputs` refuses
-        one before apogee naming its line and ends the stream at one after it, with a note: docs/flights.md "Gaps".)"""
+        clock jump is judged later, where the flight is known: :mod:`firmware_model.flights.inputs.firmware_inputs`
+        refuses one before apogee naming its line and ends the stream at one after it, with a note: docs/flights.md
+        "Gaps".)"""
         def at(i: int) -> str:
             if self.row_lines is not None and len(self.row_lines) == len(t):
                 return f"{where}:{int(self.row_lines[i])}"
@@ -149,4 +151,5 @@ class FlightRecord:
         cal = self.accel_calibration or {}
         if "counts_per_mps2" not in cal:
             raise UserError(f"{self.name}: accelerometer counts without a calibration (counts_per_mps2)")
-        return (np.asarray(self.accel_counts, dtype=np.float64) - cal.get("offset_counts", 0.0)) / cal["counts_per_mps2"]
+        counts = np.asarray(self.accel_counts, dtype=np.float64)
+        return (counts - cal.get("offset_counts", 0.0)) / cal["counts_per_mps2"]

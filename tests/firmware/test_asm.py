@@ -1,4 +1,5 @@
-"""The arithmetic macros of firmware_model/firmware/asm/fwemu.inc, run on the emulated 68000, against exact integer math.
+"""The arithmetic macros of firmware_model/firmware/asm/fwemu.inc, run on the emulated 68000, against exact integer
+math.
 
 * ``MULG m,s,src,dst,tmp`` must give ``wrap32(rs(e*m, s, mode))`` for ALL int32 ``e``, every signed 16-bit ``m``
   and every ``s`` in 0..47, both roundings; ``src`` preserved; clocks independent of ``e``.

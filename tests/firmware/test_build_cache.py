@@ -1,4 +1,5 @@
-"""The on-disk cache of assembled firmware builds (firmware_model/firmware/assemble.py): content-keyed, never stale, atomic."""
+"""The on-disk cache of assembled firmware builds (firmware_model/firmware/assemble.py): content-keyed, never stale,
+atomic."""
 
 from __future__ import annotations
 

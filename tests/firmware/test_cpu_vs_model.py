@@ -301,11 +301,11 @@ def test_harness_rejects_bad_input(adc: np.ndarray, acc: np.ndarray | None, matc
 
 # ---------------------------------------------------------------------------------------------------- issue 20
 def _dip_flight_stream(program: str, k: int, rounding: str, pascal: bool):
-    """A supersonic flight with a 500 m transonic dip, a jump and a noise burst (tests/support/transonic.py), for the ADC
-    kind (the vectors' case sensor) or the pascal kind; Kalman builds with R/q 1,000 (the recommended tuning) and a
-    12 s Mach delay (so DLY still counts when COAST begins). The accelerometer also reads a 0.5 s glitch of -8 g
-    1.5 s into the boost, which starts and then breaks a coast count and makes kalman_accel's velocity fall faster
-    than the plausibility bound DV allows."""
+    """A supersonic flight with a 500 m transonic dip, a jump and a noise burst (tests/support/transonic.py), for the
+    ADC kind (the vectors' case sensor) or the pascal kind; Kalman builds with R/q 1,000 (the recommended tuning) and a
+    12 s Mach delay (so DLY still counts when COAST begins). The accelerometer also reads a 0.5 s glitch of -8 g 1.5 s
+    into the boost, which starts and then breaks a coast count and makes kalman_accel's velocity fall faster than the
+    plausibility bound DV allows."""
     from firmware_model.vectors.cases import case_config
     from tests.support.transonic import DipFlight, dip_stream
 
@@ -404,7 +404,8 @@ def _clipped_flight(scenario: str, k: int) -> tuple[np.ndarray, np.ndarray, dict
     """A simulated M6400 flight at Mach 1.67 (30-51 g boost: the default +-16 g accelerometer sits at its rail for
     the whole burn) sensed as the apogee table senses it (16-bit MPX4115 barometer, default accelerometer, noisy),
     cut 3 s after the reference apogee: (adc, acc, the sensor's BuildConfig fields)."""
-    from firmware_model.flights.evaluation.setup import FlightSpec, load_record, reference_for, sensor_config, sensors_for
+    from firmware_model.flights.evaluation.setup import (FlightSpec, load_record, reference_for, sensor_config,
+                                                         sensors_for)
     from firmware_model.flights.inputs.firmware_inputs import firmware_inputs
 
     record = load_record(f"sim:{scenario}")
@@ -455,8 +456,8 @@ def test_cpu_equals_model_clipped_accelerometer_flights(scenario: str, program: 
 
 
 # ---------------------------------------------------------------------------------------------------- issue 30
-#: The ram-pressure scenarios of issue 30 (firmware_model.flights.simulate.scenarios: a port reading ram pressure in boost,
-#: 1-DOF and RocketPy, some logs starting in boost), each with the first barometer of its set:full variants.
+#: The ram-pressure scenarios of issue 30 (firmware_model.flights.simulate.scenarios: a port reading ram pressure in
+#: boost, 1-DOF and RocketPy, some logs starting in boost), each with the first barometer of its set:full variants.
 RAM_SCENARIOS: tuple[tuple[str, str], ...] = (
     ("ram-m1670-m156-easymega-boostlog", "ms5607"), ("ram-l1350-m114-telemega", "analog-12"),
     ("ram-l1350-m137-weak", "analog-10"), ("ram-m1670-m145-boostlog", "ms5607"),

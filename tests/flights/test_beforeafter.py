@@ -12,7 +12,8 @@ import pytest
 from firmware_model.runtime.errors import UserError
 from firmware_model.flights.studies.beforeafter import main, rescore, stats, table
 
-SHARED = Path(os.environ.get("FWEMU_SHARED_FLIGHTS") or Path(__file__).resolve().parents[2].parent / "shared" / "flights")
+SHARED = Path(os.environ.get("FWEMU_SHARED_FLIGHTS")
+              or Path(__file__).resolve().parents[2].parent / "shared" / "flights")
 
 
 def _flight(name, k, ref, dets, usable=True, altos=None, source=None):

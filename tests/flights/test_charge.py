@@ -16,7 +16,8 @@ from firmware_model.flights.reconstruct.run import reconstruct_log
 from firmware_model.runtime.errors import UserError
 from tests.support.ejection import ejection_logs
 
-SHARED = Path(os.environ.get("FWEMU_SHARED_FLIGHTS") or Path(__file__).resolve().parents[2].parent / "shared" / "flights")
+SHARED = Path(os.environ.get("FWEMU_SHARED_FLIGHTS")
+              or Path(__file__).resolve().parents[2].parent / "shared" / "flights")
 S882 = SHARED / "altosui" / "2012-04-07-serial-882-flight-001.csv"
 
 

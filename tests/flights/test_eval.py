@@ -209,7 +209,8 @@ def test_summary_leaves_flagged_references_out_of_the_usable_worst_only():
 
 
 # ---------------------------------------------------------------------------------------------------- subsonic flights
-#: The stated window for kalman_baro (default build: k = 7, R/q = 50,000, floor) on subsonic 1-DOF flights sensed by a
+#: The stated window for kalman_baro (default build, k = 7; set when the default was R/q = 50,000, floor, and not
+#: re-measured since issue 30 made R/q 1,000 with the guards the default) on subsonic 1-DOF flights sensed by a
 #: noisy 16-bit MPX4115-class barometer: error = detection - true apogee in [-3.5, +0.6] s, and never before burnout.
 #: Measured on 150 random flights of the same box (docs/evaluation.md), field-ready firmware: median +0.07 s, max
 #: +0.32 s, min -2.53 s (before it: median -0.01 s, max +0.19 s, min -2.74 s); the
@@ -274,7 +275,8 @@ def test_flight_vector_cases_carry_provenance_and_licence():
         first = doc["events_first_sample"]
         assert 0 < first["LIFTOFF"] < truth["apogee_sample"] < doc["input"]["n_samples"], name
         # every flight case fires; kalman_baro and recursive within 2 s of the reference (k = 5: 64 samples);
-        # kalman_accel is seconds early on these high flights (docs/evaluation.md: linear counts/m), only fires
+        # kalman_accel is seconds early on these high flights (docs/history/evaluation-rounds.md: linear counts/m),
+        # only fires
         assert first["APOGEE"] >= 0, name
         if not name.startswith("kalman_accel"):
             assert abs(first["APOGEE"] - truth["apogee_sample"]) <= 64, name

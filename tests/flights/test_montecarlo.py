@@ -75,8 +75,8 @@ def test_spec_errors_name_the_file_and_the_value(tmp_path):
 def test_cli_bad_spec_is_one_line_exit_2(tmp_path):
     p = tmp_path / "s.toml"
     p.write_text('scenario = "nope"\n')
-    r = subprocess.run([sys.executable, "-c", "from firmware_model.cli.main import entry; entry()", "montecarlo", str(p),
-                        "--out", str(tmp_path / "o")], capture_output=True, text=True, cwd=ROOT,
+    r = subprocess.run([sys.executable, "-c", "from firmware_model.cli.main import entry; entry()", "montecarlo",
+                        str(p), "--out", str(tmp_path / "o")], capture_output=True, text=True, cwd=ROOT,
                        env={**os.environ, "PYTHONPATH": str(ROOT)})
     assert r.returncode == 2, r.stderr
     assert "unknown scenario 'nope'" in r.stderr and "Traceback" not in r.stderr
@@ -420,7 +420,8 @@ def test_real_flight_ram_spec_draws_the_ram_error_in_the_pipeline():
         d = a.pressure[i, :n] - b.pressure[i, :n]
         fade = a.params[i]["pressure_error.ram_fade_s"]
         assert np.all(d[t < a.burnout_s[i]] >= -1e-9) and d.max() > 300.0
-        assert np.array_equal(a.pressure[i, :n][t > a.burnout_s[i] + fade], b.pressure[i, :n][t > a.burnout_s[i] + fade])
+        after = t > a.burnout_s[i] + fade
+        assert np.array_equal(a.pressure[i, :n][after], b.pressure[i, :n][after])
     ps = [prm["pressure_error.ram_cp"] for prm in a.params]
     assert len(set(ps)) == len(ids) and all(0.01 <= x <= 0.2 for x in ps)
 

@@ -21,7 +21,8 @@ from firmware_model.flights.readers import FORMATS, detect_format, read_flight
 from tests.support.profiles import examples
 
 #: <repo>/../shared/flights; FWEMU_SHARED_FLIGHTS overrides it (a git worktree lives elsewhere than its checkout).
-SHARED = Path(os.environ.get("FWEMU_SHARED_FLIGHTS") or Path(__file__).resolve().parents[2].parent / "shared" / "flights")
+SHARED = Path(os.environ.get("FWEMU_SHARED_FLIGHTS")
+              or Path(__file__).resolve().parents[2].parent / "shared" / "flights")
 needs_shared = pytest.mark.skipif(not SHARED.is_dir(), reason="../shared/flights is absent")
 ALTOS = {
     "2012-04-07-serial-882-flight-001": "5", "2012-05-28-serial-319-flight-005": "5",

@@ -19,7 +19,8 @@ from firmware_model.flights.reference.apogee_reference import liftoff_time, refe
 from firmware_model.flights.inputs.sensors import BaroSensor
 from tests.support.profiles import examples
 
-SHARED = Path(os.environ.get("FWEMU_SHARED_FLIGHTS") or Path(__file__).resolve().parents[2].parent / "shared" / "flights")
+SHARED = Path(os.environ.get("FWEMU_SHARED_FLIGHTS")
+              or Path(__file__).resolve().parents[2].parent / "shared" / "flights")
 needs_shared = pytest.mark.skipif(not SHARED.is_dir(), reason="../shared/flights is absent")
 
 
@@ -29,7 +30,8 @@ def _ballistic(ta: float, v0: float, pad_alt: float, noise_m: float, quant_pa: f
     rng = np.random.default_rng(seed)
     tb = (ta * G0) / (60.0 + G0)                                         # v(tb) = 60 tb = g (ta - tb)
     t = np.arange(-1.0, ta, 0.01)
-    t = np.concatenate([t, np.arange(t[-1] + 0.1, ta + 6.0, 0.1) if rate_change else np.arange(t[-1] + 0.01, ta + 6.0, 0.01)])
+    tail = np.arange(t[-1] + 0.1, ta + 6.0, 0.1) if rate_change else np.arange(t[-1] + 0.01, ta + 6.0, 0.01)
+    t = np.concatenate([t, tail])
     hb = 0.5 * 60.0 * tb * tb
     h = np.where(t < 0, 0.0, np.where(t < tb, 0.5 * 60.0 * t * t, hb + 60.0 * tb * (t - tb) - 0.5 * G0 * (t - tb) ** 2))
     ha = float(hb + (60.0 * tb) ** 2 / (2 * G0))

@@ -71,7 +71,8 @@ def test_rate_change_and_gap_reported() -> None:
     g, out, rep = resample(t, {"y": y}, 7, "linear")
     assert len(rep.rate_changes) == 1
     rc = rep.rate_changes[0]
-    assert rc.time_s == pytest.approx(9.99, abs=0.011) and rc.from_hz == pytest.approx(100) and rc.to_hz == pytest.approx(10)
+    assert rc.time_s == pytest.approx(9.99, abs=0.011)
+    assert rc.from_hz == pytest.approx(100) and rc.to_hz == pytest.approx(10)
     assert len(rep.gaps) == 1 and rep.gaps[0].start_s == pytest.approx(15.0) and rep.gaps[0].periods == pytest.approx(7)
     assert "rate change" in rep.summary() and "gaps" in rep.summary()
 
@@ -93,15 +94,15 @@ def test_missing_values_and_outside_span() -> None:
         grid(0, 0.2, 0.7)
 
 
-SHARED = __import__("pathlib").Path(__import__("os").environ.get("FWEMU_SHARED_FLIGHTS") or
-                                    __import__("pathlib").Path(__file__).resolve().parents[2].parent / "shared" / "flights")
+SHARED = __import__("pathlib").Path(__import__("os").environ.get("FWEMU_SHARED_FLIGHTS") or __import__("pathlib")
+                                    .Path(__file__).resolve().parents[2].parent / "shared" / "flights")
 
 
 @pytest.mark.skipif(not SHARED.is_dir(), reason="../shared/flights is absent")
 def test_altosui_rate_change_found_where_the_log_slows() -> None:
-    """Each AltosUI log switches from 100 to ~10 samples/s once after apogee; the report finds that one change at
-    the start of the first long interval (independently: the first row after boost whose next interval is
-    longer than 50 ms and whose next 20 intervals have a median above 50 ms), and hedy (100 samples/s throughout) has none."""
+    """Each AltosUI log switches from 100 to ~10 samples/s once after apogee; the report finds that one change at the
+    start of the first long interval (independently: the first row after boost whose next interval is longer than 50 ms
+    and whose next 20 intervals have a median above 50 ms), and hedy (100 samples/s throughout) has none."""
     from firmware_model.flights.readers import read_flight
 
     for path in sorted((SHARED / "altosui").glob("*.csv")):

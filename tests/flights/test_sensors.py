@@ -15,7 +15,8 @@ from firmware_model.runtime.errors import UserError
 from firmware_model.flights.inputs.sensors import ACCEL_PRESETS, BARO_PRESETS, AccelSensor, BaroSensor
 from tests.support.profiles import examples
 
-SHARED = Path(os.environ.get("FWEMU_SHARED_FLIGHTS") or Path(__file__).resolve().parents[2].parent / "shared" / "flights")
+SHARED = Path(os.environ.get("FWEMU_SHARED_FLIGHTS")
+              or Path(__file__).resolve().parents[2].parent / "shared" / "flights")
 
 baro_sensors = st.one_of(
     st.sampled_from(sorted(BARO_PRESETS)).map(BaroSensor.preset),
@@ -42,7 +43,8 @@ def test_baro_deterministic_and_in_range(sensor: BaroSensor, nz, p: np.ndarray, 
     exact = BaroSensor(**{**sensor.to_dict(), "noise_pa": 0.0, "noise_counts": 0.0})
     pc = np.minimum(np.maximum(p, s.p_min_pa), s.p_max_pa)
     hi = (1 << s.bits) - 1 if s.kind == "adc" else s.p_max_pa
-    want = np.minimum(np.maximum(np.round(s.counts_per_pa * pc + s.offset_counts), 0 if s.kind == "adc" else s.p_min_pa), hi)
+    lo = 0 if s.kind == "adc" else s.p_min_pa
+    want = np.minimum(np.maximum(np.round(s.counts_per_pa * pc + s.offset_counts), lo), hi)
     np.testing.assert_array_equal(exact.counts(p), want)
 
 

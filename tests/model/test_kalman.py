@@ -250,7 +250,8 @@ def test_bound_has_teeth_a_wrong_gate_breaks_it():
 @pytest.mark.parametrize("noise_model", ["accel_only", "jerk", "dwna"])
 @pytest.mark.parametrize("k", [4, 6, 8])
 def test_design_gains_match_plain_riccati_iteration(program, ratio, noise_model, k):
-    """The design's doubling solution equals an independent plain Riccati iteration (float_reference.riccati_iteration)."""
+    """The design's doubling solution equals an independent plain Riccati iteration
+    (float_reference.riccati_iteration)."""
     cfg = BuildConfig(program=program, k=k, noise_model=noise_model, ratio=ratio)
     K, _ = riccati_iteration(cfg)
     consts = build_constants(cfg)
@@ -285,9 +286,9 @@ def test_mirror_equals_steady_state_ideal_and_time_varying_converges(program):
 @settings(max_examples=examples(30), deadline=None)
 @given(cfg=fst.build_configs(programs=("kalman_baro", "kalman_accel")), data=st.data())
 def test_kalman_table_translation_invariant_exactly(cfg, data):
-    """Adding an integer c to every altitude-table node gives X1 + c, GND + c, HMAX + c, SUMZ + 2^CAL_P c and
-    identical X2, X3, EVENTS, APFRAC and counters (HT too: the descent record compares altitudes only): the predict never reads X1's absolute value and e1 = h - X1, the pad
-    average rs(SUMZ + 2^p c, p) = rs(SUMZ, p) + c exactly."""
+    """Adding an integer c to every altitude-table node gives X1 + c, GND + c, HMAX + c, SUMZ + 2^CAL_P c and identical
+    X2, X3, EVENTS, APFRAC and counters (HT too: the descent record compares altitudes only): the predict never reads
+    X1's absolute value and e1 = h - X1, the pad average rs(SUMZ + 2^p c, p) = rs(SUMZ, p) + c exactly."""
     adc = data.draw(fst.adc_streams(max_len=150))
     acc = data.draw(fst.accel_streams(min_len=len(adc), max_len=len(adc)))
     consts = build_constants(cfg)
@@ -310,10 +311,10 @@ def test_kalman_table_translation_invariant_exactly(cfg, data):
 
 
 def _fixed_point_box(consts) -> tuple[tuple[int, int], tuple[int, int], tuple[int, int]]:
-    """Bounds on (X1 - h, X2, X3), h = alt(adc), at any fixed point of kalman_baro under a constant input (no
-    flight logic firing, no gate). At a fixed point: mulg(e, G31) = 0; rs(X3, K) = -mulg(e, G21); rs(X2, K) +
-    rs(X3, 2K+1) = -mulg(e, G11); X1 - h = mulg(e, G11) - e, with e = h - X1_predicted. Enumerating e over the (small) zero set
-    of mulg(., G31) gives the box."""
+    """Bounds on (X1 - h, X2, X3), h = alt(adc), at any fixed point of kalman_baro under a constant input (no flight
+    logic firing, no gate). At a fixed point: mulg(e, G31) = 0; rs(X3, K) = -mulg(e, G21); rs(X2, K) + rs(X3, 2K+1) =
+    -mulg(e, G11); X1 - h = mulg(e, G11) - e, with e = h - X1_predicted. Enumerating e over the (small) zero set of
+    mulg(., G31) gives the box."""
     mode = "half_up" if consts.ROUND else "floor"
     g = consts.gains
     K = consts.K
@@ -390,10 +391,10 @@ def test_wrap_detected_outside_the_design_range():
 
 
 # ---------------------------------------------------------------------------------------------------- transonic flight
-# Spec §6 (history: kalman_baro used to lock out too, and kalman_accel's lockout (Schultz n.d.) set X1 to the measurement;
-# the field-ready change replaced the lockout by transonic barometer gains in kalman_accel and an innovation gate;
-# issue 20 brought back a lockout in kalman_accel, keyed on the accelerometer's velocity, with a settling time and
-# a re-base of X1 when the barometer returns).
+# Spec §6 (history: kalman_baro used to lock out too, and kalman_accel's lockout (Schultz n.d.) set X1 to the
+# measurement; the field-ready change replaced the lockout by transonic barometer gains in kalman_accel and an
+# innovation gate; issue 20 brought back a lockout in kalman_accel, keyed on the accelerometer's velocity, with a
+# settling time and a re-base of X1 when the barometer returns).
 # The transonic flight of the committed vectors: 14 g for 2.5 s, peak ~307 m/s,
 # the barometer reads 60 m high while the true speed is in 290..375 m/s (a step up entering, down leaving).
 def _fast_flight(program: str, k: int, rounding: str, error_m: float = 60.0):

@@ -83,7 +83,7 @@ def test_numba_right_shift_floors_like_python():
                 assert KC.rs(np.int64(x), np.int64(s), np.int64(rnd)) == rs_exact(x, s, mode), (x, s, mode)
 
 
-# ---------------------------------------------------------------------------------------------------- one step, extremes
+# -------------------------------------------------------------------------------------------------- one step, extremes
 @st.composite
 def _extreme_case(draw):
     """(program, constants, state, adc, acc) with values drawn from the int32 / register extremes."""
@@ -328,7 +328,8 @@ def test_engine_argument_and_env_switch():
         run_model(consts, np.array([1, 2]), engine="fast")
     code = ("import numpy as np\n"
             "from firmware_model.model.run import compiled_kernels, run_model\n"
-            "from firmware_model.spec.build_constants import build_constants\nfrom firmware_model.spec.config import BuildConfig\n"
+            "from firmware_model.spec.build_constants import build_constants\n"
+            "from firmware_model.spec.config import BuildConfig\n"
             "from firmware_model.runtime.errors import UserError\n"
             "c = build_constants(BuildConfig(program='kalman_accel'))\n"
             "print(compiled_kernels().COMPILED, run_model(c, np.full(5, 30000)).words[-1].tolist())\n"

@@ -21,8 +21,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from firmware_model.spec.config import BuildConfig
-from firmware_model.spec.gain_design import (closed_loop_poles, design_config, design_kalman, measurement, process_noise,
-                                   steady_state, transition)
+from firmware_model.spec.gain_design import (closed_loop_poles, design_config, design_kalman, measurement,
+                                             process_noise, steady_state, transition)
 from firmware_model.spec.design_report import design_report
 from firmware_model.runtime.errors import UserError
 
@@ -130,9 +130,9 @@ def test_monte_carlo_error_covariance_matches_p_post() -> None:
     * The empirical covariance of the a posteriori error (x - x_hat) must match P_post (8000 chains: ~1.6%
       sampling error per variance; 10% tolerance).
     * Orthogonality: the a posteriori error is uncorrelated with the innovation for the optimal filter-form K
-      (|correlation| < 0.05, ~3 sampling sigma); the predictor-form gain F K applied as a filter-form
-      correction gives Cov(err, innovation) = (K - F K) S, a correlation of about -0.26 in altitude here (measured), which
-      the same estimate must see (so this test has power against the predictor/filter-form mix-up).
+      (|correlation| < 0.05, ~3 sampling sigma); the predictor-form gain F K applied as a filter-form correction gives
+      Cov(err, innovation) = (K - F K) S, a correlation of about -0.26 in altitude here (measured), which the same
+      estimate must see (so this test has power against the predictor/filter-form mix-up).
     """
     ss = design_kalman(0, "dwna", 1e3, with_accel=False, baro_sigma=BARO_SIGMA)
     rng = np.random.default_rng(20240601)

@@ -1,5 +1,5 @@
 """The evaluation set behind the README's apogee table, and how command-line FLIGHT arguments become
-:class:`~firmware_model.flights.evaluation.setup.FlightSpec` rows (docs/evaluation.md, "The evaluation set").
+:class:`~firmware_model.flights.evaluation.setup.FlightSpec` rows (docs/evaluation.md, "The evaluation sets").
 
 * ``set:eval`` (:func:`evaluation_set`): every simulated scenario (:func:`flights.scenarios.scenario_names`) with
   each of the sensings its catalogue tags suggest (:func:`scenario_variants`: 8/10/12/16-bit MPX4115-class ADCs,
@@ -225,11 +225,11 @@ def named_set(name: str) -> list[FlightSpec]:
 def resolve_flights(items: Iterable[str], simulated: bool = False, logs: bool = False, ks: Sequence[int] = (7,),
                     baro: str | None = None, accel: str | None = None, noise: bool = True,
                     format: str | None = None, **reader: Any) -> list[FlightSpec]:
-    """FLIGHT arguments -> rows: files and ``sim:NAME`` (``sim:all``: every scenario) at each k in ``ks`` with the given sensing (files keep
-    their own sensor and get no added noise unless a preset is named), ``set:NAME`` as defined, then every
-    scenario (``simulated``) and every shared log (``logs``). ``reader``: reader options for the FLIGHT files
-    (``sensor``, ``columns``, ``site_altitude_m``, ``flight``) and ``late`` (a late start's accelerometer, also
-    for ``logs``)."""
+    """FLIGHT arguments -> rows: files and ``sim:NAME`` (``sim:all``: every scenario) at each k in ``ks`` with the given
+    sensing (files keep their own sensor and get no added noise unless a preset is named), ``set:NAME`` as defined, then
+    every scenario (``simulated``) and every shared log (``logs``). ``reader``: reader options for the FLIGHT files
+    (``sensor``, ``columns``, ``site_altitude_m``, ``flight``) and ``late`` (a late start's accelerometer, also for
+    ``logs``)."""
     specs: list[FlightSpec] = []
     for k in ks:
         if not isinstance(k, int) or not 0 <= k <= 10:

@@ -1,5 +1,5 @@
-"""Apogee evaluation: run every firmware method over flights and build the apogee table (docs/evaluation.md; Schultz 2002
-Tables 1-2). docs/evaluation.md has the decisions and the findings.
+"""Apogee evaluation: run every firmware method over flights and build the apogee table (docs/evaluation.md;
+Schultz 2002 Tables 1-2). docs/evaluation.md has the decisions and the findings.
 
 A **method** is a firmware program with its tuning (:data:`METHODS`): the recursive filter at 1/2, 1/4 and 1/8 LSB
 (``threshold_q8`` 128 / 64 / 32), ``kalman_baro``, ``kalman_accel``, and the ideal float Kalman filter (since issue
@@ -19,9 +19,9 @@ would fire the charge. The low-rate prediction (``APOGEE_PREDICTED`` + ``APFRAC`
 **Error** = detection time - reference time (positive = late).
 
 **Reference**: for simulated flights the true apogee (``Truth.apogee_time_s``, uncertainty 0); for real logs the
-robust parabola of :func:`firmware_model.flights.reference.apogee_reference.reference_apogee` with its uncertainty. AltOS's own
-detection (AltosUI logs: ``record.events["altos_apogee"]``, the first ``drogue`` row) is reported beside, with its
-error against the same reference.
+robust parabola of :func:`firmware_model.flights.reference.apogee_reference.reference_apogee` with its uncertainty.
+AltOS's own detection (AltosUI logs: ``record.events["altos_apogee"]``, the first ``drogue`` row) is reported beside,
+with its error against the same reference.
 
 **Dangerous detections** (issue 20): a detection more than :data:`EARLY_S` (1 s) before the reference is marked
 ``‼`` in its cell; per method the summary counts them first, then the detections made before burnout and those

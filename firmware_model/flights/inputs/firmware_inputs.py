@@ -5,11 +5,11 @@ sensor models (:mod:`.sensors`) on the resampled pressure and specific force, no
 ``numpy.random.default_rng(seed)`` (barometer first, then accelerometer).
 
 Pad time: the firmware's ``init`` reads sample 0 as the pad (ground level, the accelerometer's 1 g), and a pad
-calibration averaging 2^p samples needs more (docs/firmware-spec.md). By default the stream starts
-:data:`DEFAULT_PAD_S` = 2.0 s before liftoff (:func:`~firmware_model.flights.reference.apogee_reference.liftoff_time`). Real logs
-often start later (AltosUI logs begin 0.3 s before boost): grid samples before the log's first row are filled with
-the **pad values** (median pressure and specific force of the rows before liftoff, else of the first row) and the
-report counts them (``before_log``) and says so in a note. Noise is added to them like to every other sample.
+calibration averaging 2^p samples needs more (docs/firmware-spec.md). By default the stream starts :data:`DEFAULT_PAD_S`
+= 2.0 s before liftoff (:func:`~firmware_model.flights.reference.apogee_reference.liftoff_time`). Real logs often start
+later (AltosUI logs begin 0.3 s before boost): grid samples before the log's first row are filled with the **pad
+values** (median pressure and specific force of the rows before liftoff, else of the first row) and the report counts
+them (``before_log``) and says so in a note. Noise is added to them like to every other sample.
 """
 
 from __future__ import annotations
@@ -143,10 +143,10 @@ def check_span(record: FlightRecord, a: float, b: float, k: int, max_gap_s: floa
 
 
 def _end_before_gap(record: FlightRecord, a: float, b: float, max_gap_s: float) -> tuple[float, str]:
-    """The default end of the stream: the log's last row, or the row before the first gap longer than
-    ``max_gap_s`` when that gap comes 3 s or more after the lowest pressure (the apogee) of the rows before it: a
-    logger that slows down or pauses after the flight (an AltOS nose cone still logging 37 minutes later) ends the stream there,
-    said in the report. A gap before the apogee is left to :func:`check_span` (refused)."""
+    """The default end of the stream: the log's last row, or the row before the first gap longer than ``max_gap_s`` when
+    that gap comes 3 s or more after the lowest pressure (the apogee) of the rows before it: a logger that slows down or
+    pauses after the flight (an AltOS nose cone still logging 37 minutes later) ends the stream there, said in the
+    report. A gap before the apogee is left to :func:`check_span` (refused)."""
     t = np.asarray(record.time_s, dtype=np.float64)
     p = np.asarray(record.pressure_pa, dtype=np.float64)
     d = np.diff(t)

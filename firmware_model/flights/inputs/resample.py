@@ -77,8 +77,8 @@ class ResampleReport:
             out.append(f"  log rate change at t = {rc.time_s:.3f} s: {rc.from_hz:.4g} -> {rc.to_hz:.4g} samples/s")
         if self.gaps:
             worst = max(self.gaps, key=lambda g: g.end_s - g.start_s)
-            out.append(f"  {len(self.gaps)} gaps longer than 2 input periods (longest {worst.end_s - worst.start_s:.3f} s"
-                       f" at t = {worst.start_s:.3f} s)")
+            out.append(f"  {len(self.gaps)} gaps longer than 2 input periods "
+                       f"(longest {worst.end_s - worst.start_s:.3f} s at t = {worst.start_s:.3f} s)")
         for name, n in self.missing.items():
             if n:
                 out.append(f"  {name}: {n} missing values skipped")

@@ -14,10 +14,10 @@ Per chunk, everything batched over its flights:
    and nothing after a flight's own end is read, the model being causal);
 5. the first APOGEE sample is the detection; the error is its time minus the true apogee time.
 
-The firmware build of a method is fixed for the whole run, as on a real deployment: it is made for the nominal
-sensor preset at the nominal site, its noise figures measured on the pad of the nominal flight
-(:func:`firmware_model.flights.evaluation.setup.sensor_config`, as ``fwemu evaluate`` does); the dispersed flights then fly
-with it. A spec that draws the sensor preset (``baro``/``accel`` = choice) gets one build per preset.
+The firmware build of a method is fixed for the whole run, as on a real deployment: it is made for the nominal sensor
+preset at the nominal site, its noise figures measured on the pad of the nominal flight
+(:func:`firmware_model.flights.evaluation.setup.sensor_config`, as ``fwemu evaluate`` does); the dispersed flights then
+fly with it. A spec that draws the sensor preset (``baro``/``accel`` = choice) gets one build per preset.
 """
 
 from __future__ import annotations
@@ -98,12 +98,12 @@ def _dip_model(p: np.ndarray, mach: np.ndarray, prm: dict[str, np.ndarray]) -> n
 def _real_flight_model(p: np.ndarray, mach: np.ndarray, prm: dict[str, np.ndarray]) -> np.ndarray:
     """The barometer errors of real flight (:func:`firmware_model.flights.simulate.pressure_errors.real_flight_errors`,
     issue 20), batched over flights with per-flight parameters: the port error and the transonic dip
-    (:func:`~firmware_model.flights.simulate.pressure_errors.pressure_coefficient` of the Mach number, times ``q``), and the
-    altitude jump at each crossing of ``jump_mach`` (the shock passing the port), rising over ``jump_rise_s`` and
+    (:func:`~firmware_model.flights.simulate.pressure_errors.pressure_coefficient` of the Mach number, times ``q``), and
+    the altitude jump at each crossing of ``jump_mach`` (the shock passing the port), rising over ``jump_rise_s`` and
     relaxing with ``jump_decay_s``; with the parameters of "real_flight_ram" also issue 30's ram error in boost
     (:func:`~firmware_model.flights.simulate.pressure_errors.ram_coefficient`, ending at each flight's burnout
-    ``_burnout_s``, on the stream's time axis). Not here: the noise bursts and the ejection spike of the
-    deterministic model (the Monte Carlo's spikes stand in for them)."""
+    ``_burnout_s``, on the stream's time axis). Not here: the noise bursts and the ejection spike of the deterministic
+    model (the Monte Carlo's spikes stand in for them)."""
     dt = float(prm["_dt"][0])
     col = {k: v[:, None] for k, v in prm.items() if not k.startswith("_")}
     shape = SimpleNamespace(**col)
@@ -290,8 +290,8 @@ def sense_chunk(spec: dict[str, Any], seed: int, flight_ids: list[int] | tuple[i
     t1, c1 = time.perf_counter(), time.process_time()
     n_rec = np.abs(ev[:, 0]).astype(np.int64)
     finished = ev[:, 0] > 0
-    # the stream starts pad_s before liftoff, as flights.firmware_inputs.firmware_inputs does (liftoff: the record sample
-    # before the vertical velocity first exceeds 0.01 m/s, flights.reference.liftoff_time's rule), so a replayed
+    # the stream starts pad_s before liftoff, as flights.firmware_inputs.firmware_inputs does (liftoff: the record
+    # sample before the vertical velocity first exceeds 0.01 m/s, flights.reference.liftoff_time's rule), so a replayed
     # flight gives `fwemu run` the very same samples
     up = sim["vz"] > 0.01
     lift = np.where(up.any(axis=1), np.maximum(up.argmax(axis=1) - 1, 0), 0)
@@ -377,8 +377,9 @@ def _add(timing: dict[str, float], phase: str, t0: float, c0: float, t1: float, 
 
 def run_task(task: dict[str, Any]) -> dict[str, Any]:
     """The engine's task function: ``{"spec", "seed", "flights", "threads"}`` -> ``{"rows": run_chunk's columns,
-    "seconds": {"sim", "sensing", "model", "rows"} (wall) and "cpu" (the process's CPU seconds)}``. ``threads`` (optional): numba threads in this worker (1
-    when several workers share the machine); the rows do not depend on it."""
+    "seconds": {"sim", "sensing", "model", "rows"} (wall) and "cpu" (the process's CPU seconds)}``. ``threads``
+    (optional): numba threads in this worker (1 when several workers share the machine); the rows do not depend on
+    it."""
     threads = task.get("threads")
     if threads:
         try:

@@ -387,7 +387,8 @@ def _pre_charge_reference(t: np.ndarray, h: np.ndarray, noise: float, charge: Re
         "fits": {k: {key: f[key] for key in ("time_s", "altitude_m", "se_s", "used", "rejected", "curvature_mps2",
                                             "inflation", "pinned_s")} for k, f in fits.items()},
         "curvature_mps2": nominal["curvature_mps2"], "resolution_s": resolution, "vertex_s": tv,
-        "vertex_se_s": nominal["se_s"], "vertex_pinned_s": nominal["pinned_s"], "velocity_at_charge_mps": v, "velocity_at_charge_se_mps": sv,
+        "vertex_se_s": nominal["se_s"], "vertex_pinned_s": nominal["pinned_s"], "velocity_at_charge_mps": v,
+        "velocity_at_charge_se_mps": sv,
         "deployment_cut": True,
     })
     interval = None

@@ -17,17 +17,17 @@
    a shock before it): AltOS logs at 100 (or 50) samples/s up to its apogee state and at 10 or 5 after it (the
    shared README), so the drop is its decision even where the CSV has no state column. A shock before it wins.
 4. **The ejection's pressure signature** (``pressure``), only without 1-3: in the flight's top, the first
-   barometric-altitude sample that, with the next ones for at least :data:`PULSE_MIN_S` and two samples,
-   differs in the same direction from the line through the
-   samples in the :data:`PULSE_BEFORE_S` before it (at least three; the flight's own climb or fall) by more than max(:data:`PULSE_SIGMAS` x the
-   robust noise, :data:`PULSE_MIN_M`): a charge's pulse of tens to hundreds of metres lasting 0.1-0.5 s (the shared
-   README, "What real supersonic barometers look like", (d)). Two samples and 50 ms, because a single-sample glitch
-   (or two at 100 samples/s) is not a pulse; a pulse shorter than two intervals of a 5 samples/s tail is missed.
+   barometric-altitude sample that, with the next ones for at least :data:`PULSE_MIN_S` and two samples, differs in the
+   same direction from the line through the samples in the :data:`PULSE_BEFORE_S` before it (at least three; the
+   flight's own climb or fall) by more than max(:data:`PULSE_SIGMAS` x the robust noise, :data:`PULSE_MIN_M`): a
+   charge's pulse of tens to hundreds of metres lasting 0.1-0.5 s (the shared README, "What real supersonic barometers
+   look like", (d)). Two samples and 50 ms, because a single-sample glitch (or two at 100 samples/s) is not a pulse; a
+   pulse shorter than two intervals of a 5 samples/s tail is missed.
 
 **The flight's top**: the contiguous run of samples around the highest point of the 7-sample running median of the
-barometric altitude where that median stays within max(:data:`TOP_FRACTION` x the peak height,
-:data:`TOP_MIN_M`) of the peak, bridging excursions shorter than :data:`TOP_GAP_S` (a charge's own pulse): a burn's peak, a staging shock or a transonic jump lies far below it; an apogee
-charge, even a delayed one, inside it.
+barometric altitude where that median stays within max(:data:`TOP_FRACTION` x the peak height, :data:`TOP_MIN_M`) of the
+peak, bridging excursions shorter than :data:`TOP_GAP_S` (a charge's own pulse): a burn's peak, a staging shock or a
+transonic jump lies far below it; an apogee charge, even a delayed one, inside it.
 
 Pyro / igniter voltage columns (AltosUI ``drogue_voltage``, ``igniter_a`` ...) are not read by the readers and
 are not used.
@@ -62,9 +62,9 @@ MEDIAN_HALF: int = 3
 
 @dataclass(frozen=True)
 class RecoveryCharge:
-    """``time_s`` on the record's axis; ``evidence``: ``state`` / ``accelerometer`` / ``rate`` / ``pressure``; ``detail``:
-    readable (which event or how big a shock); ``rate_hz``: the log's sample rate just after it; ``own``: the
-    log's own computer's event (else inferred from the data)."""
+    """``time_s`` on the record's axis; ``evidence``: ``state`` / ``accelerometer`` / ``rate`` / ``pressure``;
+    ``detail``: readable (which event or how big a shock); ``rate_hz``: the log's sample rate just after it; ``own``:
+    the log's own computer's event (else inferred from the data)."""
 
     time_s: float
     evidence: str

@@ -3,12 +3,12 @@
 
     batches.py CASES_H CASE_DIR OUT_DIR BUDGET_BYTES [--only REGEX] [--max-object BYTES]
 
-Writes OUT_DIR/batch_NN.h (each a complete case table in the format of cases.h: the per-case includes, FWV_N_CASES
-and fwv_cases[]) and OUT_DIR/batches.txt (one line per batch: its file name, estimated bytes, and the names of the cases it checks
-(wholly or a slice)). The
-cases keep the order of CASES_H. A case's size is estimated from its header's N_SAMPLES / N_WORDS macros (inputs at
-4 bytes a sample, words at 4 bytes, plus a fixed overhead); a case larger than the budget on its own goes into a
-batch of its own, and the board's linker script then reports the overflow by name rather than dropping the case.
+Writes OUT_DIR/batch_NN.h (each a complete case table in the format of cases.h: the per-case includes, FWV_N_CASES and
+fwv_cases[]) and OUT_DIR/batches.txt (one line per batch: its file name, estimated bytes, and the names of the cases it
+checks (wholly or a slice)). The cases keep the order of CASES_H. A case's size is estimated from its header's N_SAMPLES
+/ N_WORDS macros (inputs at 4 bytes a sample, words at 4 bytes, plus a fixed overhead); a case larger than the budget on
+its own goes into a batch of its own, and the board's linker script then reports the overflow by name rather than
+dropping the case.
 
 Splitting: a case whose expected array is larger than --max-object (avr-gcc refuses objects of 32 KiB and more) or
 whose size alone exceeds the budget is split into slices by sample: slice [a, b) keeps the inputs of samples 0..b-1
