@@ -366,7 +366,7 @@ def test_run_takes_tuning(fwemu):
     rbase = ["run", "--firmware", "recursive", "--input", "sim:rb-m1670-m105", "--k", "6", "--model", "--quiet"]
     rrec, rdflt = fwemu(*rbase, "--tuning", "recommended"), fwemu(*rbase)
     assert rrec.returncode == 0 and rdflt.returncode == 0, rrec.stderr + rdflt.stderr
-    assert "tuning: recommended (shift=4, threshold_q8=128)" in rrec.stdout
+    assert "tuning: recommended (shift=4, threshold_q8=128, threshold_sigmas=3.0)" in rrec.stdout
     rapo = [line for line in rrec.stdout.splitlines() if line.startswith("apogee:")]
     assert rapo and rapo != [line for line in rdflt.stdout.splitlines() if line.startswith("apogee:")]
     bad = fwemu(*base, "--tuning", "best")

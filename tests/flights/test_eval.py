@@ -306,4 +306,4 @@ def test_tuning_overrides():
     assert rec.config(6, {}).threshold_q8 == 64
     from firmware_model.spec.tuning import describe_tuning
     said = describe_tuning("recursive", 6, "recommended", tuning_overrides(METHODS["rec_eighth"], 6, "recommended"))
-    assert said == "tuning: recommended (shift=4)"            # what the build took, not the 1/2 LSB it kept out
+    assert said == "tuning: recommended (shift=4, threshold_sigmas=3.0)"  # what the build took, not the 1/2 LSB

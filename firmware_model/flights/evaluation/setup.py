@@ -247,8 +247,8 @@ def flight_context(record: FlightRecord, source: str = "") -> tuple[float | None
     flights: :func:`flights.scenarios.scenario_mach`; other records with truth: |v|/c). Real logs: burnout =
     :func:`burnout_time` from the liftoff estimate; speed = the axial specific force minus g integrated from
     liftoff until it first falls to zero (after that the rocket is past apogee and slow: 0), else (no
-    accelerometer) the slope of the barometric altitude over 0.5 s; Mach = speed / standard speed of sound at the
-    pad altitude + the barometric altitude (clipped at the pad)."""
+    accelerometer) the slope of the barometric altitude over the 0.5 s before the sample; Mach = speed / standard
+    speed of sound at the pad altitude + the barometric altitude (clipped at the pad)."""
     t = np.asarray(record.time_s, dtype=np.float64)
     if record.truth is not None and record.truth.velocity_mps is not None:
         burn = (record.provenance.get("summary") or {}).get("burnout_s") if record.provenance else None
@@ -279,9 +279,12 @@ def flight_context(record: FlightRecord, source: str = "") -> tuple[float | None
         if down.size:
             v[down[0]:] = 0.0
         return burnout_time(record, lift), np.clip(v, 0.0, None) / c, "accelerometer estimate"
+    # The slope over the 0.5 s before each sample (the sample itself left out), not centred on it: a detection is
+    # judged by the speed the data showed until then, and the charge's own row and the rows after it carry its
+    # pressure pulse (juno3-rrc3's RRC3 charge row reads 191 hPa against 580 hPa: Mach 63 from a centred window).
     win = 0.5
-    j = np.clip(np.searchsorted(t, t + win / 2), 0, t.size - 1)
-    i = np.clip(np.searchsorted(t, t - win / 2), 0, t.size - 1)
+    j = np.maximum(np.arange(t.size) - 1, 0)
+    i = np.clip(np.searchsorted(t, t - win), 0, t.size - 1)
     hh = np.asarray(atm.altitude_m(p_f)) - pad_m
     v = np.where(t[j] > t[i], (hh[j] - hh[i]) / np.maximum(t[j] - t[i], 1e-9), 0.0)
     return None, np.abs(v) / c, "barometric estimate"
