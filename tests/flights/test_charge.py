@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from pathlib import Path
 
@@ -87,3 +88,20 @@ def test_simulated_ejection_logs_default() -> None:
         else:
             assert abs(ref.time_s - lg.apogee_s) <= ref.uncertainty_s
         assert abs(ref.time_s - lg.apogee_s) <= 0.3
+
+
+def test_pressure_pulse_before_the_logs_own_event_is_the_charge() -> None:
+    """A barometer-only log whose own computer's event comes 3 s after another charge's pulse (a motor's backup, a
+    second computer): the pulse is the charge (rule 1's exception), and the reference is fitted before it. The
+    same log with the event at the pulse's row keeps the event (its own pulse may show a row early)."""
+    logs = [lg for lg in ejection_logs(8, 5) if lg.evidence == "state"]
+    assert logs
+    for lg in logs:
+        base = dataclasses.replace(lg.record, accel_mps2=None, accel_counts=None, accel_calibration=None)
+        late = dataclasses.replace(base, events={"altos_drogue": lg.logged_charge_s + 3.0})
+        ch = recovery_charge(late)
+        assert ch is not None and ch.evidence == "pressure", ch
+        assert lg.charge_s - 0.0101 <= ch.time_s <= lg.logged_charge_s + 1e-6, ch
+        assert "before the log's own altos_drogue" in ch.detail
+        own = recovery_charge(dataclasses.replace(base, events={"altos_drogue": lg.logged_charge_s}))
+        assert own is not None and own.evidence == "state" and own.time_s == lg.logged_charge_s

@@ -12,7 +12,11 @@
    :data:`SHOCK_HALF_S` of it but at least :data:`SHOCK_NEIGHBOURS` on each side, the sample itself left out. A
    single sample counts: at the 5-10 samples/s a log drops to at apogee, a charge is one row. A shock before the
    log's own event is taken instead of it (another computer's charge, or a separation: the flight after it is not
-   free either).
+   free either). Likewise a **pressure pulse** (rule 4's signature) in the flight's top that starts more than
+   :data:`PULSE_BEFORE_STATE_S` before the log's own event: another charge fired first (a motor's backup ejection, a
+   second computer: redundant altimeters are the rule in high-power rocketry), and the flight after it is not free.
+   Measured: juno3-rrc3's RRC3 fired at 30.45 s, but a 60 m pulse of 0.2 s at 24.65 s, while the log still
+   climbed at about 12 m/s, left a flat top and a second disturbance that the parabola through 30.45 s had fitted.
 3. **The log's rate dropping** (``rate``) by :data:`RATE_DROP` times or more in the flight's top, without 1 (or
    a shock before it): AltOS logs at 100 (or 50) samples/s up to its apogee state and at 10 or 5 after it (the
    shared README), so the drop is its decision even where the CSV has no state column. A shock before it wins.
@@ -57,6 +61,9 @@ TOP_FRACTION: float = 0.1
 TOP_MIN_M: float = 30.0
 TOP_GAP_S: float = 1.0
 RATE_DROP: float = 3.0
+#: A pressure pulse counts before the log's own event (rule 1) when it starts more than this (s) before the event's
+#: row: the own charge's pulse can show one row early, and a log's slowest top is 5 samples/s (0.2 s a row).
+PULSE_BEFORE_STATE_S: float = 0.25
 MEDIAN_HALF: int = 3
 
 
@@ -203,6 +210,10 @@ def recovery_charge(record: FlightRecord) -> RecoveryCharge | None:
     if shock is not None and state is not None and shock[0] < state[0]:
         return RecoveryCharge(shock[0], "accelerometer", f"accelerometer shock {shock[1]:.1f} g, before the log's "
                               f"own {state[1]} at {state[0]:.2f} s", _rate_after(t, shock[0]), False)
+    early = None if top is None or state is None else pressure_pulse(t, h, top[0], min(top[1], state[0]))
+    if early is not None and early[0] < state[0] - PULSE_BEFORE_STATE_S:
+        return RecoveryCharge(early[0], "pressure", f"barometric pulse {early[1]:+.0f} m, before the log's own "
+                              f"{state[1]} at {state[0]:.2f} s", _rate_after(t, early[0]), False)
     if state is not None:
         who = record.provenance.get("own_computer", "AltOS" if state[1].startswith("altos_") else "own computer")
         return RecoveryCharge(state[0], "state", f"{who} {state[1]}", _rate_after(t, state[0]), True)
