@@ -189,14 +189,14 @@ FIELDS: dict[str, Rule] = {
     "descent_hold_s": Rule("number", 0.0, 60.0, unit="s", why="the descent guard's bound on the wait"),
 }
 
-#: kalman_baro's default Mach delay (s, issue 30; docs/evaluation.md "Issue 30"): no apogee until this long after
-#: liftoff, longer than the burns of the supersonic flights whose port reads ram pressure (up to 6 s).
+#: kalman_baro's default Mach delay (s, issue 30; docs/history/evaluation-rounds.md "Issue 30"): no apogee until
+#: this long after liftoff, longer than the burns of the supersonic flights whose port reads ram pressure (up to 6 s).
 BARO_MACH_DELAY_S: float = 8.0
 
 #: The defaults that depend on the program (issue 30: "a default a user gets without asking must be safe"): a field
 #: left ``None`` (not given, or ``null`` in a file) takes its program's value here, else :data:`COMMON_DEFAULTS`.
-#: The Kalman programs' defaults are the designs the evaluation recommends (docs/evaluation.md "Issue 30, second
-#: round"): R/q 1,000 and, for kalman_accel, half_up rounding and a 0.05 g accelerometer model error (the designs
+#: The Kalman programs' defaults are the designs the evaluation recommends (docs/history/evaluation-rounds.md
+#: "Issue 30, second round"): R/q 1,000 and, for kalman_accel, half_up rounding and a 0.05 g accelerometer model error (the designs
 #: they replaced, Schultz 2002's R/q 50,000 without a model error, fired kalman_baro more than 1 s early on 16 runs
 #: of set:full and kalman_accel on 8.6 % of the transonic Monte Carlo). spec.tuning.RECOMMENDED takes them from here.
 PROGRAM_DEFAULTS: dict[str, dict[str, Any]] = {
@@ -273,8 +273,8 @@ class BuildConfig:
       * ``accel_model_g``: kalman_accel's design adds this model error (g, rms) to the accelerometer's noise: the
         axial reading is taken as the vertical acceleration, which on a flight tilted by theta misreads a drag or
         thrust D by D (1 - cos theta) (0.06 D at 20 degrees), plus scale errors; ``None``: 0.05 g for kalman_accel,
-        0 otherwise (before issue 30 the default was 0, the noise alone) (docs/gain-design.md, docs/evaluation.md
-        "Accelerometer model error").
+        0 otherwise (before issue 30 the default was 0, the noise alone) (docs/gain-design.md,
+        docs/history/evaluation-rounds.md "Accelerometer model error").
       * ``clip_s``: ACC_CLIP needs the accelerometer at its rail (32767) for this long in boost (CLIP_N samples; a
         thrust above the range holds it there for the burn, a shock for milliseconds); ``clip_drag_mps2``: after
         ACC_CLIP, a drag reading at or below this (A_DRAG = g + it, in the program's units) is "drag-low": no

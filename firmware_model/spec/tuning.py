@@ -27,7 +27,7 @@ RECOMMENDED: dict[str, dict[int, dict[str, Any]]] = {
     "kalman_baro": {k: dict(PROGRAM_DEFAULTS["kalman_baro"]) for k in (5, 6, 7)},
     # half_up: floor biases the metres state (X2 -1.9 m/s at k = 7 on a still pad, docs/numerics.md); R/q 1,000;
     # a 0.05 g accelerometer model error (the axial reading as vertical on a tilted flight: the Monte Carlo's
-    # windy subsonic flights fired more than 1 s early 8.1 % of the time without it, docs/evaluation.md
+    # windy subsonic flights fired more than 1 s early 8.1 % of the time without it, docs/history/evaluation-rounds.md
     # "Accelerometer model error")
     "kalman_accel": {k: dict(PROGRAM_DEFAULTS["kalman_accel"]) for k in (5, 6, 7)},
     # S = k - 2 (a lag of 2^(k-2) samples = 0.25 s at every k), THR = 1/2 LSB (issue 30: at 1/4 and 1/8 LSB the
