@@ -193,12 +193,12 @@ FIELDS: dict[str, Rule] = {
 #: this long after liftoff, longer than the burns of the supersonic flights whose port reads ram pressure (up to 6 s).
 BARO_MACH_DELAY_S: float = 8.0
 
-#: The defaults that depend on the program (issue 30: "a default a user gets without asking must be safe"): a field
-#: left ``None`` (not given, or ``null`` in a file) takes its program's value here, else :data:`COMMON_DEFAULTS`.
-#: The Kalman programs' defaults are the designs the evaluation recommends (docs/history/evaluation-rounds.md
-#: "Issue 30, second round"): R/q 1,000 and, for kalman_accel, half_up rounding and a 0.05 g accelerometer model
-#: error (the designs they replaced, Schultz 2002's R/q 50,000 without a model error, fired kalman_baro more than 1 s early on 16 runs
-#: of set:full and kalman_accel on 8.6 % of the transonic Monte Carlo). spec.tuning.RECOMMENDED takes them from here.
+#: The defaults that depend on the program (issue 30: "a default a user gets without asking must be safe"): a field left
+#: ``None`` (not given, or ``null`` in a file) takes its program's value here, else :data:`COMMON_DEFAULTS`. The Kalman
+#: programs' defaults are the designs the evaluation recommends (docs/history/evaluation-rounds.md "Issue 30, second
+#: round"): R/q 1,000 and, for kalman_accel, half_up rounding and a 0.05 g accelerometer model error (the designs they
+#: replaced, Schultz 2002's R/q 50,000 without a model error, fired kalman_baro more than 1 s early on 16 runs of
+#: set:full and kalman_accel on 8.6 % of the transonic Monte Carlo). spec.tuning.RECOMMENDED takes them from here.
 PROGRAM_DEFAULTS: dict[str, dict[str, Any]] = {
     "kalman_baro": {"ratio": 1000.0},
     "kalman_accel": {"ratio": 1000.0, "rounding": "half_up", "accel_model_g": 0.05},
