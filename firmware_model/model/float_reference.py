@@ -238,7 +238,7 @@ def _mirror_kalman(consts: "FirmwareConstants", g: dict[str, float], adc: np.nda
     # the state before the first sample: X1 = GND = the first sample's altitude, ACC0 = the first acc, the rest 0
     cols = [x1, zeros, zeros] + ([acc[:, 0]] if accel else []) + [zeros, zeros, x1, zeros]
     init = np.stack(cols + ([zeros] if accel else []) + [zeros, zeros, zeros] + [zeros] * (7 if accel else 4)
-                    + [x1, zeros], axis=-1)   # HMAX = X1, HT = 0
+                    + [x1, zeros] + ([x1] if accel else []), axis=-1)   # HMAX = X1, HT = 0 (kalman_accel HP = X1)
     out = np.empty((n_streams, n, init.shape[-1]))
     for s in range(n_streams):
         out[s] = _mirror_kalman_one(consts, g, accel, h_all[s], baro_ok_all[s], acc[s])
@@ -250,8 +250,8 @@ class _MirrorConsts:
 
     __slots__ = ("accel", "dt", "half_dt2", "ncal", "e_gate", "gate_n", "apo_n", "mach_vlo", "v_lift", "mach_n",
                  "dly_n", "dv", "du", "a_coast", "coast_n", "v_desc", "a_drag", "clip_n", "thrust_g", "gravity_g",
-                 "floor_g", "descent_g", "dg", "v_fall", "h_floor", "desc_n", "half_n", "win_n", "acc_g", "g11",
-                 "g21", "g31", "g12", "g22", "g32")
+                 "floor_g", "descent_g", "dg", "v_fall", "h_floor", "desc_n", "h_step", "half_n", "win_n", "acc_g",
+                 "g11", "g21", "g31", "g12", "g22", "g32")
 
     def __init__(self, consts: "FirmwareConstants", g: dict[str, float], accel: bool) -> None:
         self.accel = accel
@@ -268,6 +268,7 @@ class _MirrorConsts:
         self.thrust_g, self.gravity_g, self.floor_g, self.descent_g = (bool(guards & b) for b in (1, 2, 4, 8))
         self.dg, self.v_fall, self.h_floor = float(consts.DG), float(consts.V_FALL), float(consts.H_FLOOR)
         self.desc_n = int(consts.DESC_N)
+        self.h_step = float(consts.H_STEP)
         self.half_n, self.win_n = 1 << int(consts.K), 2 << int(consts.K)
         self.acc_g = g["ACC_G"] if accel else 0.0
         self.g11, self.g21, self.g31 = (float(g[n]) for n in ("G11", "G21", "G31"))
@@ -289,12 +290,12 @@ def _mirror_calibrate(k: _MirrorConsts, h: float, a: float, sumz: float, suma: f
     return sumz, suma, cal, x1, hmax, gnd, acc0
 
 
-def _mirror_clip_window(k: _MirrorConsts, h: float, a: float, baro_ok: bool, ev: int, phase: int, x1: float,
+def _mirror_clip_window(k: _MirrorConsts, h: float, a: float, steady: bool, ev: int, phase: int, x1: float,
                         x2: float, vb: float, clp: int, e0: float, acc0: float) -> tuple:
     """§6 step 4, clip: locked until a drag-low window of 2^(K+1) samples in coast re-bases the velocity by the
     difference of its halves' innovations. Returns (lock, locked, rebase, ev, x2, vb, clp, e0)."""
     lock, locked, rebase = k.mach_n, True, False
-    if phase == 2 and (a - acc0) * k.acc_g >= -k.a_drag and baro_ok:
+    if phase == 2 and (a - acc0) * k.acc_g >= -k.a_drag and steady:
         e = h - x1
         clp = clp + 1
         e0 = e0 - e if clp <= k.half_n else e0 + e
@@ -308,13 +309,14 @@ def _mirror_clip_window(k: _MirrorConsts, h: float, a: float, baro_ok: bool, ev:
     return lock, locked, rebase, ev, x2, vb, clp, e0
 
 
-def _mirror_lockout(k: _MirrorConsts, h: float, a: float, baro_ok: bool, ev: int, phase: int, x1: float,
+def _mirror_lockout(k: _MirrorConsts, h: float, a: float, steady: bool, ev: int, phase: int, x1: float,
                     x2: float, vb: float, lock: int, clp: int, e0: float, acc0: float) -> tuple:
     """§6 step 4 (kalman_accel): the barometer is out near Mach 1 or while the motor may push (thrust guard), then
-    MACH_N samples more, and comes back with a re-base. Returns (lock, locked, rebase, ev, x2, vb, clp, e0)."""
+    MACH_N samples more, and comes back with a re-base on a steady sample. Returns (lock, locked, rebase, ev, x2, vb,
+    clp, e0)."""
     locked = rebase = False
     if _clipped(ev):
-        lock, locked, rebase, ev, x2, vb, clp, e0 = _mirror_clip_window(k, h, a, baro_ok, ev, phase, x1, x2, vb,
+        lock, locked, rebase, ev, x2, vb, clp, e0 = _mirror_clip_window(k, h, a, steady, ev, phase, x1, x2, vb,
                                                                          clp, e0, acc0)
     elif ((ev & _LIFTOFF) != 0 and x2 > k.mach_vlo) or (
             k.thrust_g and (phase == 1 or (phase == 0 and (a - acc0) * k.acc_g > k.a_coast))):
@@ -322,7 +324,7 @@ def _mirror_lockout(k: _MirrorConsts, h: float, a: float, baro_ok: bool, ev: int
     elif lock > 1:
         lock, locked = lock - 1, True
     elif lock == 1:
-        if baro_ok:
+        if steady:
             lock, rebase = 0, True
         else:
             locked = True
@@ -416,7 +418,7 @@ def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: 
     k = _MirrorConsts(consts, g, accel)
     dt, half_dt2, acc_g = k.dt, k.half_dt2, k.acc_g
     hs, oks, accs = h_all.tolist(), baro_ok_all.tolist(), acc.tolist()
-    x1 = gnd = hmax = hs[0]
+    x1 = gnd = hmax = hp = hs[0]
     ht = 0
     x2 = x3 = sumz = suma = apfrac = vb = 0.0
     acc0 = accs[0]
@@ -436,8 +438,9 @@ def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: 
             x2 = x2 + x3 * dt
             e2 = (a - acc0) * acc_g - x3 if accel else 0.0          # 3. accelerometer innovation
             locked = rebase = False
-            if accel:                                               # 4. Mach lockout
-                lock, locked, rebase, ev, x2, vb, clp, e0 = _mirror_lockout(k, h, a, baro_ok, ev, phase, x1, x2,
+            if accel:                                               # 4. Mach lockout, steady re-base
+                steady = baro_ok and -k.h_step <= h - hp <= k.h_step
+                lock, locked, rebase, ev, x2, vb, clp, e0 = _mirror_lockout(k, h, a, steady, ev, phase, x1, x2,
                                                                             vb, lock, clp, e0, acc0)
             use = False
             e1 = 0.0
@@ -457,6 +460,8 @@ def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: 
                     hmax, ht = h, 0
                 elif ht < k.desc_n:
                     ht = ht + 1
+                if accel:
+                    hp = h
             ev, phase, cst, neg = _mirror_phases(k, h, baro_ok, ev, x1, x2, x3, vb, gnd, hmax, ht, phase, cst,
                                                  neg, dly)          # 9. phases and apogee
             d = -x3 * dt                                            # 10. low-rate prediction (in coast)
@@ -465,7 +470,7 @@ def _mirror_kalman_one(consts: "FirmwareConstants", g: dict[str, float], accel: 
                 ev = ev | _PREDICTED
         if accel:
             rows.append((x1, x2, x3, acc0, ev, apfrac, gnd, sumz, suma, cal, rej, neg, phase, cst, dly, vb, lock,
-                         clp, e0, hmax, ht))
+                         clp, e0, hmax, ht, hp))
         else:
             rows.append((x1, x2, x3, ev, apfrac, gnd, sumz, cal, rej, neg, phase, cst, dly, vb, hmax, ht))
     return rows

@@ -125,8 +125,9 @@ CLP = 17
 E0 = 18
 HMAX = 19
 HT = 20
+HP = 21
 #: Length of the per-stream state array (the largest program's).
-N_STATE = 21
+N_STATE = 22
 
 #: PHASE values (docs/firmware-spec.md §4a; equal to firmware_model.trace.PHASES' indices, checked by a test).
 PH_PAD = 0
@@ -141,7 +142,7 @@ OUT_COLS: dict[str, tuple[int, ...]] = {
     "recursive_seed_literal": (EST,),
     "kalman_baro": (X1, X2, X3, EVENTS, APFRAC, GND, SUMZ, CAL, REJ, NEG, PHASE, CST, DLY, VB, HMAX, HT),
     "kalman_accel": (X1, X2, X3, ACC0, EVENTS, APFRAC, GND, SUMZ, SUMA, CAL, REJ, NEG, PHASE, CST, DLY, VB, LOCK,
-                     CLP, E0, HMAX, HT),
+                     CLP, E0, HMAX, HT, HP),
 }
 
 #: Constant indices (docs/firmware-spec.md §3); gains as (mantissa, shift) pairs.
@@ -196,15 +197,16 @@ C_DG = 47
 C_V_FALL = 48
 C_H_FLOOR = 49
 C_DESC_N = 50
+C_H_STEP = 51
 #: The altitude table's nodes follow the scalars: c[C_ALT + j] is node j (docs/firmware-spec.md §2a).
-C_ALT = 51
-N_CONST = 51
+C_ALT = 52
+N_CONST = 52
 _SCALARS = ("K", "ROUND", "BARO_SIGN", "S", "THR", "V_LIFT", "V_GATE", "MACH_VLO", "MACH_VHI", "MACH_E",
             "BARO_MIN", "BARO_MAX")
 _GAINS = ("G11", "G21", "G31", "G12", "G22", "G32", "ACC_G", "G11T", "G21T", "G31T")
 _SCALARS2 = ("ALT_SHIFT", "CAL_P", "E_GATE", "GATE_N", "APO_N", "MACH_N", "DLY_N", "DV", "A_COAST", "COAST_N",
              "V_DESC", "DU", "A_DRAG", "CLIP_N", "GUARDS", "DG", "V_FALL", "H_FLOOR",
-             "DESC_N")
+             "DESC_N", "H_STEP")
 
 #: Wrap ids returned by the steps: the name of the quantity (as firmware_model.model.run.ModelTrace.wrap_word).
 WRAP_NAMES: tuple[str, ...] = ("", "EST", "VEL", "X1", "X2", "X3", "e1", "e2", "mulg(acc,ACC_G)",
@@ -471,7 +473,8 @@ def _alt(adc, c, rnd):
 @njit(cache=True)
 def kalman_init(st, adc, acc, c):
     """X1 = GND = alt(adc) (0 for an invalid sample); X2 = X3 = 0; ACC0 = acc (kalman_accel only); EVENTS =
-    APFRAC = 0; SUMZ = SUMA = 0; CAL = REJ = NEG = 0; HMAX = X1; HT = 0."""
+    APFRAC = 0; SUMZ = SUMA = 0; CAL = REJ = NEG = 0; HMAX = X1; HT = 0; HP = X1 (kalman_accel's; kalman_baro
+    keeps it unread)."""
     h = 0
     if c[C_BARO_MIN] <= adc and adc <= c[C_BARO_MAX]:
         h = _alt(adc, c, c[C_ROUND])
@@ -479,6 +482,7 @@ def kalman_init(st, adc, acc, c):
     st[GND] = h
     st[HMAX] = h
     st[HT] = 0
+    st[HP] = h
     st[X2] = 0
     st[X3] = 0
     st[ACC0] = acc
@@ -565,7 +569,9 @@ def kalman_step(  # noqa: C901 - the spec's steps 0-10 in one body, see below
         e2 = a - x3
         w = _note(w, e2, W_E2)
         e2 = _w32(e2)
-    # 4. Mach lockout (kalman_accel): no barometer above MACH_VLO and MACH_N samples after; then re-base
+    # 4. Mach lockout (kalman_accel): no barometer above MACH_VLO and MACH_N samples after; then re-base, on a steady
+    #    sample only (within H_STEP of the previous valid one: a spike is not a reading to re-base on)
+    steady = baro_ok and -c[C_H_STEP] <= h - st[HP] and h - st[HP] <= c[C_H_STEP]
     locked = False
     rebase = False
     if accel:
@@ -574,7 +580,7 @@ def kalman_step(  # noqa: C901 - the spec's steps 0-10 in one body, see below
             # 2^(k+1)-sample window in coast, which then re-bases the velocity (§6 step 4, "clip")
             locked = True
             st[LOCK] = c[C_MACH_N]
-            if st[PHASE] == PH_COAST and a >= -c[C_A_DRAG] and baro_ok:
+            if st[PHASE] == PH_COAST and a >= -c[C_A_DRAG] and steady:
                 e = h - x1
                 w = _note(w, e, W_E1)
                 e = _w32(e)
@@ -609,7 +615,7 @@ def kalman_step(  # noqa: C901 - the spec's steps 0-10 in one body, see below
             st[LOCK] = st[LOCK] - 1
             locked = True
         elif st[LOCK] == 1:
-            if baro_ok:
+            if steady:
                 st[LOCK] = 0
                 rebase = True
             else:
@@ -706,6 +712,8 @@ def kalman_step(  # noqa: C901 - the spec's steps 0-10 in one body, see below
             st[HT] = 0
         elif st[HT] < c[C_DESC_N]:
             st[HT] = st[HT] + 1
+        if accel:
+            st[HP] = h
     # 9. phases and apogee
     if st[PHASE] == PH_BOOST:
         if x3 < -c[C_A_COAST]:

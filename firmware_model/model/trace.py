@@ -20,7 +20,7 @@ STATE_WORDS: dict[str, tuple[tuple[str, int], ...]] = {
                     ("HMAX", 4), ("HT", 2)),
     "kalman_accel": (("X1", 4), ("X2", 4), ("X3", 4), ("ACC0", 4), ("EVENTS", 2), ("APFRAC", 2), ("GND", 4),
                      ("SUMZ", 4), ("SUMA", 4), ("CAL", 2), ("REJ", 2), ("NEG", 2), ("PHASE", 2), ("CST", 2),
-                     ("DLY", 2), ("VB", 4), ("LOCK", 2), ("CLP", 2), ("E0", 4), ("HMAX", 4), ("HT", 2)),
+                     ("DLY", 2), ("VB", 4), ("LOCK", 2), ("CLP", 2), ("E0", 4), ("HMAX", 4), ("HT", 2), ("HP", 4)),
 }
 
 #: Values of the ``PHASE`` word (docs/firmware-spec.md §4a), by name.

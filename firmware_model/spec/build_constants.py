@@ -102,6 +102,7 @@ class FirmwareConstants:
     V_FALL: int = 0
     H_FLOOR: int = 0
     DESC_N: int = 0
+    H_STEP: int = INT32_MAX
 
     @property
     def ALT_N(self) -> int:
@@ -130,13 +131,13 @@ class FirmwareConstants:
         """Assembler symbols (all int32): K ROUND BARO_SIGN S THR V_LIFT V_GATE MACH_VLO MACH_VHI MACH_E BARO_MIN
         BARO_MAX ALT_SHIFT ALT_N CAL_P E_GATE GATE_N APO_N PASCAL (1: the barometer is the 32-bit pascal word
         ``BARO_PA``) MACH_N DLY_N DV A_COAST COAST_N V_DESC DU A_DRAG CLIP_N (issue 20's flight logic) GUARDS DG
-        V_FALL H_FLOOR DESC_N (issue 30's physical guards) and, per gain, ``<NAME>_M`` and ``<NAME>_S``. (The
+        V_FALL H_FLOOR DESC_N H_STEP (issue 30's physical guards) and, per gain, ``<NAME>_M`` and ``<NAME>_S``. (The
         table nodes themselves are ROM data: :meth:`data_source`.)"""
         eq = {name: int(getattr(self, name)) for name in
               ("K", "ROUND", "BARO_SIGN", "S", "THR", "V_LIFT", "V_GATE", "MACH_VLO", "MACH_VHI", "MACH_E",
                "BARO_MIN", "BARO_MAX", "ALT_SHIFT", "ALT_N", "CAL_P", "E_GATE", "GATE_N", "APO_N", "PASCAL",
                "MACH_N", "DLY_N", "DV", "A_COAST", "COAST_N", "V_DESC", "DU", "A_DRAG", "CLIP_N",
-               "GUARDS", "DG", "V_FALL", "H_FLOOR", "DESC_N")}
+               "GUARDS", "DG", "V_FALL", "H_FLOOR", "DESC_N", "H_STEP")}
         for name, g in self.gains.items():
             eq[f"{name}_M"] = int(g.m)
             eq[f"{name}_S"] = int(g.s)
@@ -202,7 +203,11 @@ def _build_constants(cfg: BuildConfig) -> FirmwareConstants:
                       DG=max(1, _round_int("DG", G0 * kalman_v * cfg.dt, where)),
                       V_FALL=_round_int("V_FALL", cfg.fall_margin_mps * kalman_v, where),
                       H_FLOOR=_round_int("H_FLOOR", cfg.floor_m * 256.0, where),
-                      DESC_N=min(65535, _round_int("DESC_N", cfg.descent_hold_s * 2.0**cfg.k, where)))
+                      DESC_N=min(65535, _round_int("DESC_N", cfg.descent_hold_s * 2.0**cfg.k, where)),
+                      # issue 30, third round: kalman_accel re-bases X1 only on a steady sample (§6 step 4)
+                      H_STEP=INT32_MAX if cfg.gate_sigmas == 0 else max(1, _round_int(
+                          "H_STEP", (cfg.baro_rate_mps * cfg.dt + cfg.gate_sigmas * math.sqrt(2.0) * cfg.baro_sigma
+                                     / cfg.units_per_metre) * 256.0, where)))
     if cfg.program == "recursive":
         # §5 steps 1, 5, 6: pad calibration of ACC0, the barometer rate gate (raw counts per sample), the apogee
         # evidence after an accelerometer clip

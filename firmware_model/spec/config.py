@@ -196,12 +196,12 @@ BARO_MACH_DELAY_S: float = 8.0
 #: The defaults that depend on the program (issue 30: "a default a user gets without asking must be safe"): a field left
 #: ``None`` (not given, or ``null`` in a file) takes its program's value here, else :data:`COMMON_DEFAULTS`. The Kalman
 #: programs' defaults are the designs the evaluation recommends (docs/history/evaluation-rounds.md "Issue 30, second
-#: round"): R/q 1,000 and, for kalman_accel, half_up rounding and a 0.05 g accelerometer model error (the designs they
+#: round"): R/q 1,000 and, for kalman_accel, half_up rounding and a 0.15 g accelerometer model error (the designs they
 #: replaced, Schultz 2002's R/q 50,000 without a model error, fired kalman_baro more than 1 s early on 16 runs of
 #: set:full and kalman_accel on 8.6 % of the transonic Monte Carlo). spec.tuning.RECOMMENDED takes them from here.
 PROGRAM_DEFAULTS: dict[str, dict[str, Any]] = {
     "kalman_baro": {"ratio": 1000.0},
-    "kalman_accel": {"ratio": 1000.0, "rounding": "half_up", "accel_model_g": 0.05},
+    "kalman_accel": {"ratio": 1000.0, "rounding": "half_up", "accel_model_g": 0.15},
 }
 #: The program-dependent fields' values for every other program (the recursive programs, Schultz 2002's listing).
 COMMON_DEFAULTS: dict[str, Any] = {"ratio": 50_000.0, "rounding": "floor", "accel_model_g": 0.0}
@@ -272,9 +272,9 @@ class BuildConfig:
         (COAST_N samples); apogee only from COAST (Kalman). ``descent_mps``: DESCENT after apogee below -descent_mps.
       * ``accel_model_g``: kalman_accel's design adds this model error (g, rms) to the accelerometer's noise: the
         axial reading is taken as the vertical acceleration, which on a flight tilted by theta misreads a drag or
-        thrust D by D (1 - cos theta) (0.06 D at 20 degrees), plus scale errors; ``None``: 0.05 g for kalman_accel,
-        0 otherwise (before issue 30 the default was 0, the noise alone) (docs/gain-design.md,
-        docs/history/evaluation-rounds.md "Accelerometer model error").
+        thrust D by D (1 - cos theta) (0.06 D at 20 degrees) in boost and by D (1 - sin gamma), the whole drag, near
+        apogee where the flight path gamma is far from vertical, plus scale errors; ``None``: 0.15 g for kalman_accel
+        (0.05 g in issue 30's second round, 0 before it), 0 otherwise (docs/gain-design.md).
       * ``clip_s``: ACC_CLIP needs the accelerometer at its rail (32767) for this long in boost (CLIP_N samples; a
         thrust above the range holds it there for the burn, a shock for milliseconds); ``clip_drag_mps2``: after
         ACC_CLIP, a drag reading at or below this (A_DRAG = g + it, in the program's units) is "drag-low": no

@@ -26,9 +26,9 @@ RECOMMENDED: dict[str, dict[int, dict[str, Any]]] = {
     # 1.0-1.2 s at 50,000, medians 0.05-0.13 s (README table)
     "kalman_baro": {k: dict(PROGRAM_DEFAULTS["kalman_baro"]) for k in (5, 6, 7)},
     # half_up: floor biases the metres state (X2 -1.9 m/s at k = 7 on a still pad, docs/numerics.md); R/q 1,000;
-    # a 0.05 g accelerometer model error (the axial reading as vertical on a tilted flight: the Monte Carlo's
-    # windy subsonic flights fired more than 1 s early 8.1 % of the time without it, docs/history/evaluation-rounds.md
-    # "Accelerometer model error")
+    # a 0.15 g accelerometer model error (the axial reading as vertical: on a tilted flight, and near apogee where the
+    # flight path is far from vertical the whole drag; without a model error the Monte Carlo's windy subsonic flights
+    # fired more than 1 s early 8.1 % of the time, with 0.05 g 22 of 10,000 ram-pressure flights; docs/gain-design.md)
     "kalman_accel": {k: dict(PROGRAM_DEFAULTS["kalman_accel"]) for k in (5, 6, 7)},
     # S = k - 2 (a lag of 2^(k-2) samples = 0.25 s at every k), THR = 1/2 LSB (issue 30: at 1/4 and 1/8 LSB the
     # barometer's noise and an 8-bit ADC's steps fired 4 and 19 runs of set:full more than 1 s early, 1/2 LSB none;

@@ -146,7 +146,7 @@ def cases_table_header(results: Sequence[CaseResult], guard: str) -> str:
                                                 "ALT_SHIFT", "ALT_N", "CAL_P", "E_GATE", "GATE_N", "APO_N",
                                                 "MACH_N", "DLY_N", "DV", "A_COAST", "COAST_N", "V_DESC", "DU",
                                                 "A_DRAG", "CLIP_N", "GUARDS", "DG", "V_FALL", "H_FLOOR",
-                                                "DESC_N"))
+                                                "DESC_N", "H_STEP"))
                   + ", " + (f"fwv_{_alt_tag(res.consts)}" if res.consts.ALT_TABLE else "0") + "}")
         adc_ptr, pa_ptr = ("0", f"fwv_{name}_pa") if res.spec.cfg.pascal else (f"fwv_{name}_adc", "0")
         rows.append(f'    {{"{name}", {C_PROGRAM_ENUM[program]}, {consts},\n'

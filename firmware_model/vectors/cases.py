@@ -34,7 +34,7 @@ SCALAR_CONSTANTS: tuple[str, ...] = ("K", "ROUND", "BARO_SIGN", "S", "THR", "V_L
                                      "MACH_VHI", "MACH_E", "BARO_MIN", "BARO_MAX", "ALT_SHIFT", "ALT_N", "CAL_P",
                                      "E_GATE", "GATE_N", "APO_N", "MACH_N", "DLY_N", "DV", "A_COAST", "COAST_N",
                                      "V_DESC", "DU", "A_DRAG", "CLIP_N", "GUARDS", "DG", "V_FALL", "H_FLOOR",
-                                     "DESC_N")
+                                     "DESC_N", "H_STEP")
 
 # ------------------------------------------------------------------------------------------- the case matrix
 #: k values (sample period 2^-k s) of the committed set.
@@ -92,7 +92,8 @@ Q_FORMATS: dict[str, dict[str, str]] = {
                             "re-base window so far)",
                      "E0": "Q24.8 m (re-base window: sum of the second half's innovations minus the first's)",
                      "HMAX": "Q24.8 m (highest valid barometric altitude)",
-                     "HT": "uint16 valid samples since HMAX last rose"},
+                     "HT": "uint16 valid samples since HMAX last rose",
+                     "HP": "Q24.8 m (the last valid barometric altitude)"},
 }
 
 

@@ -266,10 +266,11 @@ def spec_kalman_step(c: object, st: dict[str, int], adc: int, acc: int) -> dict[
     e2 = wrap32(a - x3) if accel else 0
     locked = rebase = False
     if accel:                                                         # 4. Mach lockout
+        steady = ok and -c.H_STEP <= hh - st["HP"] <= c.H_STEP         # issue 30: re-base on a steady sample
         if ev & CLIP and not ev & CLEAR:                              # clip: barometer out until the window
             locked = True
             st["LOCK"] = c.MACH_N
-            if st["PHASE"] == 2 and a >= -c.A_DRAG and ok:
+            if st["PHASE"] == 2 and a >= -c.A_DRAG and steady:
                 e = wrap32(hh - x1)
                 st["CLP"] += 1
                 st["E0"] = wrap32(st["E0"] - e if st["CLP"] <= 1 << K else st["E0"] + e)
@@ -287,7 +288,7 @@ def spec_kalman_step(c: object, st: dict[str, int], adc: int, acc: int) -> dict[
         elif st["LOCK"] > 1:
             st["LOCK"], locked = st["LOCK"] - 1, True
         elif st["LOCK"] == 1:
-            if ok:
+            if steady:
                 st["LOCK"], rebase = 0, True
             else:
                 locked = True
@@ -339,6 +340,8 @@ def spec_kalman_step(c: object, st: dict[str, int], adc: int, acc: int) -> dict[
             st["HMAX"], st["HT"] = hh, 0
         elif st["HT"] < c.DESC_N:
             st["HT"] += 1
+        if accel:
+            st["HP"] = hh
     if st["PHASE"] == 1:                                              # 9. phases and apogee
         if x3 < -c.A_COAST:
             st["CST"] += 1
@@ -491,7 +494,7 @@ def _kalman_state(board: _Board, **words: int) -> dict[str, int]:
     c = board.build.consts
     base = {"X1": 0, "X2": 0, "X3": 0, "ACC0": 0, "EVENTS": 0, "APFRAC": 0, "GND": 0, "SUMZ": 0, "SUMA": 0,
             "CAL": 1 << c.CAL_P, "REJ": 0, "NEG": 0, "PHASE": 0, "CST": 0, "DLY": 0, "VB": 0, "LOCK": 0,
-            "CLP": 0, "E0": 0, "HMAX": 0, "HT": 0}
+            "CLP": 0, "E0": 0, "HMAX": 0, "HT": 0, "HP": 0}
     base.update(words)
     return {name: base[name] for name in board.build.variables}
 
@@ -580,11 +583,16 @@ def test_kalman_one_step_boundaries(program: str, k: int, rounding: str, data: s
     hmax = data.draw(st.one_of(_near(hh, hh), st.integers(INT32_MIN, INT32_MAX)), label="HMAX")
     ht = data.draw(st.sampled_from(tuple(sorted({0, 1, max(0, c.DESC_N - 1), c.DESC_N, c.DESC_N + 1, 65535}))),
                    label="HT")
+    # issue 30, third round: the previous valid altitude HP at/next to h -+ H_STEP (the steady test of the re-base),
+    # or anywhere an altitude can be (|HP| <= 2^30, as the spec's exact difference assumes)
+    hp = data.draw(st.one_of(st.sampled_from((hh - c.H_STEP, hh + c.H_STEP, hh)).flatmap(
+        lambda v: st.integers(-2, 2).map(lambda d: max(-(1 << 30), min(1 << 30, v + d)))),
+        st.integers(-(1 << 30), 1 << 30)), label="HP")
     if mode == "free":
         x3 = data.draw(st.one_of(st.just(x3), _near(-c.A_COAST)), label="X3_coast")
     state = _kalman_state(board, X1=x1, X2=x2, X3=x3, ACC0=acc0, EVENTS=events, CAL=cal, REJ=rej, NEG=neg,
                           SUMZ=sumz, SUMA=suma, GND=12345, PHASE=phase, CST=cstv, DLY=dly, VB=vb, LOCK=lock,
-                          CLP=clp, E0=e0, HMAX=hmax, HT=ht)
+                          CLP=clp, E0=e0, HMAX=hmax, HT=ht, HP=hp)
     got = board.step(dict(state), adc, acc)
     want = spec_kalman_step(c, dict(state), adc, acc)
     want = {name: want[name] for name in board.build.variables}
@@ -707,11 +715,12 @@ def test_clip_counter_and_window_exact_boundaries(program: str, k: int, rounding
     """The clipped accelerometer (spec §5 steps 2, 3, 6; §6 steps 4, 7, 9b), every combination of: EVENTS with
     ACC_CLIP / CLIP_CLEAR (and without), PHASE BOOST or COAST, CLP at/next to CLIP_N, 2^K and 2^(K+1), the
     accelerometer at the rail / next to it / at-next to the drag bound -A_DRAG, the barometer valid or not
-    (Kalman), E0 at 0 and the int32 ends (the re-base's wraps). CPU == spec after one step, and the branches are
-    reached: ACC_CLIP set by the rail count, CLIP_CLEAR set (kalman_accel: with X2 re-based), a window reset."""
+    (Kalman) and, valid, steady or one step beyond H_STEP from HP (kalman_accel: a spike resets the window), E0 at
+    0 and the int32 ends (the re-base's wraps). CPU == spec after one step, and the branches are reached: ACC_CLIP
+    set by the rail count, CLIP_CLEAR set (kalman_accel: with X2 re-based), a window reset, a spike's reset."""
     board = _board(program, k, rounding)
     c = board.build.consts
-    seen = {"clip": 0, "clear": 0, "reset": 0, "rebase": 0}
+    seen = {"clip": 0, "clear": 0, "reset": 0, "rebase": 0, "spike": 0}
     if program == "recursive":
         acc0 = 2048
         accs = (32767, 32766, acc0 - c.A_DRAG - 1, acc0 - c.A_DRAG, acc0 - c.A_DRAG + 1)
@@ -742,11 +751,14 @@ def test_clip_counter_and_window_exact_boundaries(program: str, k: int, rounding
             for clp in _clp_values(c):
                 for acc in accs:
                     for e0 in (0, INT32_MAX, INT32_MIN, -12345):
-                        for baro in (adc, 0):                      # valid, invalid (below BARO_MIN)
+                        # valid and steady, valid one step beyond H_STEP from HP (kalman_accel: not steady),
+                        # invalid (below BARO_MIN)
+                        for baro, hp in ((adc, hh), (adc, hh - c.H_STEP - 1), (0, hh)):
                             x2, x3 = -256, 0                       # X2 < 0: VB < 0, so 9b's evidence is tested
                             x1 = wrap32(hh - 1000 - rs_exact(x2, k, h))
                             state = _kalman_state(board, X1=x1, X2=x2, X3=x3, ACC0=acc0, EVENTS=events,
-                                                  PHASE=phase, CLP=clp, E0=e0, VB=-256, NEG=max(0, c.APO_N - 1))
+                                                  PHASE=phase, CLP=clp, E0=e0, VB=-256, NEG=max(0, c.APO_N - 1),
+                                                  HP=hp)
                             got = board.step(dict(state), baro, acc)
                             want = spec_kalman_step(c, dict(state), baro, acc)
                             want = {name: want[name] for name in board.build.variables}
@@ -754,9 +766,13 @@ def test_clip_counter_and_window_exact_boundaries(program: str, k: int, rounding
                             seen["clip"] += bool(got["EVENTS"] & CLIP and not events & CLIP)
                             seen["clear"] += bool(got["EVENTS"] & CLEAR and not events & CLEAR)
                             seen["reset"] += accel and clp > 0 and got["CLP"] == 0
+                            seen["spike"] += bool(accel and hp != hh and events == LIFTOFF | CLIP and phase == 2
+                                                  and clp == (2 << k) - 1 and got["CLP"] == 0
+                                                  and not got["EVENTS"] & CLEAR)
                             seen["rebase"] += bool(got["EVENTS"] & CLEAR and not events & CLEAR
                                                    and got["X1"] != wrap32(x1 + rs_exact(x2, k, h)))
     if accel:
         assert all(seen.values()), seen
     else:
         assert not seen["clip"] and not seen["clear"], seen        # kalman_baro never sets either bit
+        assert not seen["spike"]

@@ -376,7 +376,7 @@ def test_run_takes_tuning(fwemu):
 def test_compare_takes_tuning(fwemu):
     rec = fwemu("compare", "--program", "kalman_accel", "--k", "6", "--tuning", "recommended")
     assert rec.returncode == 0, rec.stderr
-    assert "tuning: recommended (ratio=1000.0, rounding=half_up, accel_model_g=0.05)" in rec.stdout
+    assert "tuning: recommended (ratio=1000.0, rounding=half_up, accel_model_g=0.15)" in rec.stdout
     assert "rounding=half_up" in rec.stdout.splitlines()[1]
     # a flag wins over the tuning
     floor = fwemu("compare", "--program", "kalman_accel", "--k", "6", "--tuning", "recommended",

@@ -136,7 +136,7 @@ def test_equates_are_int32_and_complete(program: str, k: int, rounding: str) -> 
     base = {"K", "ROUND", "BARO_SIGN", "S", "THR", "V_LIFT", "V_GATE", "MACH_VLO", "MACH_VHI", "MACH_E",
             "BARO_MIN", "BARO_MAX", "ALT_SHIFT", "ALT_N", "CAL_P", "E_GATE", "GATE_N", "APO_N", "PASCAL",
             "MACH_N", "DLY_N", "DV", "A_COAST", "COAST_N", "V_DESC", "DU", "A_DRAG", "CLIP_N", "GUARDS", "DG", "V_FALL",
-            "H_FLOOR", "DESC_N"}
+            "H_FLOOR", "DESC_N", "H_STEP"}
     gain_keys = {f"{n}_{p}" for n in c.gains for p in ("M", "S")}
     assert set(eq) == base | gain_keys
     for name, value in eq.items():
@@ -162,7 +162,7 @@ def test_design_gain_below_2_pow_minus_33_is_built_as_zero() -> None:
     design value kept as the target (the model-vs-mirror bound carries its <= 2^-33 error), instead of refusing
     the build: here k = 10 with an accelerometer trusted 10x more than the model (G31 ~ 3.8e-11), and a noise-free
     8-bit barometer with a 1-count accelerometer (G31 ~ 1e-16). quantize_gain itself still refuses it."""
-    # accel_model_g 0: the accelerometer as trusted as its noise alone (the default's 0.05 g model error would
+    # accel_model_g 0: the accelerometer as trusted as its noise alone (the default's model error would
     # lift G31 far above 2^-33)
     for cfg in (BuildConfig(program="kalman_accel", k=10, ratio=0.1, accel_model_g=0.0),
                 BuildConfig(program="kalman_accel", k=5, baro_bits=8, units_per_metre=3.5 / 256, baro_sigma=0.5,

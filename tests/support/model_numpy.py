@@ -223,7 +223,7 @@ def _run_seed_literal(consts: "FirmwareConstants", mode: str, adc: np.ndarray, a
 def _run_kalman(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np.ndarray,
                 tr: _WrapTracker) -> tuple[np.ndarray, np.ndarray]:
     """docs/firmware-spec.md §6 (kalman_baro: X1 X2 X3 EVENTS APFRAC GND SUMZ CAL REJ NEG PHASE CST DLY VB HMAX HT;
-    kalman_accel: X1 X2 X3 ACC0 EVENTS APFRAC GND SUMZ SUMA CAL REJ NEG PHASE CST DLY VB LOCK CLP E0 HMAX HT)."""
+    kalman_accel: X1 X2 X3 ACC0 EVENTS APFRAC GND SUMZ SUMA CAL REJ NEG PHASE CST DLY VB LOCK CLP E0 HMAX HT HP)."""
     accel = consts.program == "kalman_accel"
     n_streams, n = adc.shape
     K = int(consts.K)
@@ -262,10 +262,12 @@ def _run_kalman(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np
     e0 = np.zeros(n_streams, dtype=np.int64)
     hmax = x1.copy()
     ht = np.zeros(n_streams, dtype=np.int64)
+    hp = x1.copy()
 
     def row():
         cols = [x1, x2, x3] + ([acc0] if accel else []) + [ev, apfrac, gnd, sumz] + ([suma] if accel else [])
-        return cols + [cal, rej, neg, phase, cst, dly, vb] + ([lock, clp, e0] if accel else []) + [hmax, ht]
+        return (cols + [cal, rej, neg, phase, cst, dly, vb] + ([lock, clp, e0] if accel else []) + [hmax, ht]
+                + ([hp] if accel else []))
 
     init = np.stack(row(), axis=-1)
     out = np.empty((n_streams, n, init.shape[-1]), dtype=np.int64)
@@ -279,6 +281,7 @@ def _run_kalman(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np
     thrust_g, gravity_g, floor_g, descent_g = (bool(guards & b) for b in (1, 2, 4, 8))
     dg, v_fall, h_floor = np.int64(consts.DG), np.int64(consts.V_FALL), np.int64(consts.H_FLOOR)
     desc_n = np.int64(consts.DESC_N)
+    h_step = np.int64(consts.H_STEP)
     for i in range(n):
         ev = ev & LATCHED_EVENTS
         baro_ok = baro_ok_all[:, i]
@@ -312,8 +315,10 @@ def _run_kalman(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np
         rebase = np.zeros(n_streams, dtype=bool)
         if accel:
             # after a clip: locked until a 2^(K+1)-sample window of drag-low coast samples re-bases the velocity
+            # a re-base only on a steady sample: within H_STEP of the previous valid one
+            steady = baro_ok & (h - hp >= -h_step) & (h - hp <= h_step)
             clipm = run & _clipped(ev)
-            win = clipm & (phase == _PH_COAST) & (a >= -a_drag) & baro_ok
+            win = clipm & (phase == _PH_COAST) & (a >= -a_drag) & steady
             if win.any():
                 e = tr.w32(np.where(win, h - x1, 0), i, "e1")
                 clp = np.where(win, clp + 1, clp)
@@ -331,8 +336,8 @@ def _run_kalman(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np
                                    | (thrust_g & ((phase == _PH_BOOST) | ((phase == _PH_PAD) & (a > a_coast)))))
             settle = run & ~clipm & ~fast & (lock > 1)
             last = run & ~clipm & ~fast & (lock == 1)
-            locked = (clipm & ~done) | fast | settle | (last & ~baro_ok)
-            rebase = (last & baro_ok) | done
+            locked = (clipm & ~done) | fast | settle | (last & ~steady)
+            rebase = (last & steady) | done
             lock = np.where(clipm, np.where(done, 0, mach_n),
                             np.where(fast, mach_n, np.where(settle, lock - 1, np.where(rebase, 0, lock))))
             ev = np.where(locked, ev | _MACH, ev)
@@ -378,6 +383,8 @@ def _run_kalman(consts: "FirmwareConstants", mode: str, adc: np.ndarray, acc: np
         rise = rec & (h > hmax)
         ht = np.where(rise, 0, np.where(rec & (ht < desc_n), ht + 1, ht))
         hmax = np.where(rise, h, hmax)
+        if accel:
+            hp = np.where(rec, h, hp)
         # 9. phases and apogee
         boost = run & (phase == _PH_BOOST)
         low = x3 < -a_coast

@@ -91,6 +91,7 @@ void fw_init(fw_program prog, const fw_consts *c, fw_state *st, int32_t adc, int
     st->E0 = 0;
     st->HMAX = 0;
     st->HT = 0;
+    st->HP = 0;
     switch (prog) {
     case FW_RECURSIVE:
         st->EST = z8;
@@ -109,6 +110,7 @@ void fw_init(fw_program prog, const fw_consts *c, fw_state *st, int32_t adc, int
         st->X1 = baro_valid(c, adc) ? fw_alt(c, adc) : 0;
         st->GND = st->X1;
         st->HMAX = st->X1;
+        st->HP = st->X1;
         break;
     }
 }
@@ -240,7 +242,7 @@ static void step_kalman(const fw_consts *c, fw_state *st, int32_t adc, int16_t a
     const int32_t ncal = (int32_t)1 << c->CAL_P;
     int64_t t1, t2;
     int32_t h = 0, e1 = 0, e2 = 0, a = 0;
-    int baro_ok, use, locked = 0, rebase = 0;
+    int baro_ok, steady = 0, use, locked = 0, rebase = 0;
     int64_t c1_1 = 0, c1_2 = 0, c1_3 = 0, c2_1 = 0, c2_2 = 0, c2_3 = 0;
 
     /* 0. per-sample bits, barometer range, h = alt(adc) for a valid sample */
@@ -285,12 +287,15 @@ static void step_kalman(const fw_consts *c, fw_state *st, int32_t adc, int16_t a
     }
     /* 4. Mach lockout (kalman_accel): after ACC_CLIP no barometer until a 2^(K+1)-sample drag-low coast window
           re-bases X2 from the innovation drift (second half minus first half, over 1 s); else no barometer while
-          X2 > MACH_VLO and MACH_N samples after; then re-base */
+          X2 > MACH_VLO and MACH_N samples after; then re-base. Only a steady sample (within H_STEP of the previous
+          valid one: |h|, |HP| <= 2^30, so the difference is exact) counts for the window or re-bases. */
     if (with_accel) {
+        const int64_t dh = (int64_t)h - (int64_t)st->HP;
+        steady = baro_ok && dh >= -(int64_t)c->H_STEP && dh <= (int64_t)c->H_STEP;
         if (FW_CLIPPED(st->EVENTS)) {
             locked = 1;
             st->LOCK = (uint16_t)c->MACH_N;
-            if (st->PHASE == FW_PH_COAST && (int64_t)a >= -(int64_t)c->A_DRAG && baro_ok) {
+            if (st->PHASE == FW_PH_COAST && (int64_t)a >= -(int64_t)c->A_DRAG && steady) {
                 int64_t e = fw_wrap32((int64_t)h - (int64_t)st->X1); /* X1 predicted */
                 st->CLP = (uint16_t)(st->CLP + 1u);
                 if ((int32_t)st->CLP <= ((int32_t)1 << K)) {
@@ -320,7 +325,7 @@ static void step_kalman(const fw_consts *c, fw_state *st, int32_t adc, int16_t a
             st->LOCK = (uint16_t)(st->LOCK - 1u);
             locked = 1;
         } else if (st->LOCK == 1u) {
-            if (baro_ok) {
+            if (steady) {
                 st->LOCK = 0;
                 rebase = 1;
             } else {
@@ -397,6 +402,9 @@ static void step_kalman(const fw_consts *c, fw_state *st, int32_t adc, int16_t a
             st->HT = 0;
         } else if ((int32_t)st->HT < c->DESC_N) {
             st->HT = (uint16_t)(st->HT + 1u);
+        }
+        if (with_accel) {
+            st->HP = h;
         }
     }
     /* 9. phases and apogee */
@@ -489,8 +497,8 @@ int fw_words(fw_program prog, const fw_state *st, int32_t out[FW_MAX_WORDS])
         out[5] = st->APFRAC; out[6] = st->GND; out[7] = st->SUMZ; out[8] = st->SUMA; out[9] = st->CAL;
         out[10] = st->REJ; out[11] = st->NEG; out[12] = st->PHASE; out[13] = st->CST; out[14] = st->DLY;
         out[15] = st->VB; out[16] = st->LOCK; out[17] = st->CLP; out[18] = st->E0; out[19] = st->HMAX;
-        out[20] = st->HT;
-        return 21;
+        out[20] = st->HT; out[21] = st->HP;
+        return 22;
     }
     return 0;
 }
@@ -504,7 +512,7 @@ const char *fw_word_name(fw_program prog, int i)
                                      "PHASE", "CST", "DLY", "VB", "HMAX", "HT"};
     static const char *const ka[] = {"X1", "X2", "X3", "ACC0", "EVENTS", "APFRAC", "GND", "SUMZ", "SUMA", "CAL",
                                      "REJ", "NEG", "PHASE", "CST", "DLY", "VB", "LOCK", "CLP", "E0", "HMAX",
-                                     "HT"};
+                                     "HT", "HP"};
     switch (prog) {
     case FW_RECURSIVE:
         return (i >= 0 && i < 13) ? rec[i] : "?";
@@ -513,7 +521,7 @@ const char *fw_word_name(fw_program prog, int i)
     case FW_KALMAN_BARO:
         return (i >= 0 && i < 16) ? kb[i] : "?";
     case FW_KALMAN_ACCEL:
-        return (i >= 0 && i < 21) ? ka[i] : "?";
+        return (i >= 0 && i < 22) ? ka[i] : "?";
     }
     return "?";
 }

@@ -93,6 +93,7 @@ typedef struct {
     int32_t V_FALL;     /* Kalman gravity guard: evidence needs X2 - VB >= -V_FALL, Q24.8 m/s */
     int32_t H_FLOOR;    /* Kalman floor guard: evidence needs X1 and h at least H_FLOOR above GND, Q24.8 m */
     int32_t DESC_N;     /* Kalman descent guard: evidence needs h < HMAX, or HMAX to be DESC_N valid samples old */
+    int32_t H_STEP;     /* kalman_accel: only a steady sample, |h - HP| <= H_STEP, re-bases X1, Q24.8 m */
     const int32_t *ALT; /* [ALT_N] table nodes, Q24.8 m (FW_ALT_READ) */
 } fw_consts;
 
@@ -114,6 +115,7 @@ typedef struct {
                                 half), Q24.8 m */
     int32_t HMAX;            /* Kalman: the highest valid barometric altitude h since the pad calibration, Q24.8 m */
     uint16_t HT;             /* Kalman: valid samples since HMAX last rose, 0..DESC_N */
+    int32_t HP;              /* kalman_accel: h of the last valid sample (the re-base's steady test), Q24.8 m */
 } fw_state;
 
 /* Flight phases of the PHASE word (docs/firmware-spec.md section 4a). */
@@ -124,7 +126,7 @@ typedef struct {
 #define FW_PH_DESCENT 4u
 
 /* Maximum number of output words of any program. */
-#define FW_MAX_WORDS 21
+#define FW_MAX_WORDS 22
 
 /* Exact helpers (exposed for unit tests). */
 int32_t fw_wrap32(int64_t x);                      /* x reduced to int32 two's complement */
