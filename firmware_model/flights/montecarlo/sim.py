@@ -87,10 +87,9 @@ class Tables(NamedTuple):
     c_tab: np.ndarray
 
 
-def _motor_at(tb, seg, tau, fs, dry, prop):
+def _motor_at(mt, mf, mcum, seg, tau, fs, dry, prop):
     """(thrust, mass, segment) at time ``tau`` of the base motor table (the flight's time / its time scale), thrust
     x ``fs``; the propellant left is proportional to the impulse still to come. ``seg`` only moves forward."""
-    mt, mf, mcum = tb.mt, tb.mf, tb.mcum
     nk = mt.shape[0]
     if tau >= mt[nk - 1]:
         return 0.0, dry, seg
@@ -103,25 +102,23 @@ def _motor_at(tb, seg, tau, fs, dry, prop):
     return thrust, dry + prop * (1.0 - imp / mcum[nk - 1]), seg
 
 
-def _rail_accel(p, cd_tab, rho, c, thrust, mass, cvx, cvz, rx, rz):
+def _rail_accel(cd_tab, cd_scale, area, rho, c, thrust, mass, cvx, cvz, rx, rz):
     """(ax, ay, az, axial specific force, Mach) on the rail: motion along the rail, held while thrust cannot lift
     the rocket; drag from the speed along it."""
     va = cvx * rx + cvz * rz
     spd = abs(va)
-    cd = pm.cd_at(cd_tab, spd, c) * p[_CDS]
-    drag = pm.drag_force(rho, va, spd, cd) * p[_AREA]   # ((0.5 rho va spd) cd) area: the rail's own order
+    cd = pm.cd_at(cd_tab, spd, c) * cd_scale
+    drag = pm.drag_force(rho, va, spd, cd) * area   # ((0.5 rho va spd) cd) area: the rail's own order
     a_al = (thrust - drag) / mass - G0 * rz
     if a_al < 0.0 and va <= 0.0:
         a_al = 0.0                     # held on the rail until thrust exceeds weight
     return a_al * rx, 0.0, a_al * rz, a_al + G0 * rz, spd / c
 
 
-def _free_accel(p, cd_tab, rho, c, thrust, mass, drogue, w, wcx, wcy, cvx, cvy, cvz):
-    """(ax, ay, az, axial specific force, Mach) off the rail: thrust and drag along the velocity relative to the
-    wind ``w`` (zero angle of attack), the drogue's drag area added once it is open."""
-    ux = cvx - w * wcx
-    uy = cvy - w * wcy
-    uz = cvz
+def _free_accel(cd_tab, cd_scale, area, cda_d, drogue, rho, c, thrust, mass, ux, uy, uz):
+    """(ax, ay, az, axial specific force, Mach) off the rail: thrust and drag along the air-relative velocity ``u``
+    (zero angle of attack), the drogue's drag area ``cda_d`` added once it is open; the accelerometer reads the
+    magnitude of the specific force once the drogue pulls."""
     spd = math.sqrt(ux * ux + uy * uy + uz * uz)
     if spd > 1e-9:
         ux /= spd
@@ -131,153 +128,131 @@ def _free_accel(p, cd_tab, rho, c, thrust, mass, drogue, w, wcx, wcy, cvx, cvy, 
         ux = 0.0
         uy = 0.0
         uz = 1.0
-    cd = pm.cd_at(cd_tab, spd, c) * p[_CDS]
-    drag = pm.drag_force(rho, spd, spd, cd * p[_AREA] + (p[_CDA_D] if drogue else 0.0))
-    fmag = (thrust - drag) / mass      # specific force along the air-relative velocity
+    cd = pm.cd_at(cd_tab, spd, c) * cd_scale
+    fmag = (thrust - pm.drag_force(rho, spd, spd, cd * area + (cda_d if drogue else 0.0))) / mass   # along u
     return fmag * ux, fmag * uy, fmag * uz - G0, abs(fmag) if drogue else fmag, spd / c
 
 
-def _wind_at(p, logz, z):
-    """The horizontal wind speed at height ``z`` AGL: ``u10 (max(z, 2 m) / 10 m)^a`` (the log heights are
-    tabulated per metre)."""
-    wind = p[_WIND]
+def _wind_at(wind, wexp, logz, z):
+    """The horizontal wind speed at height ``z`` AGL: ``u10 (max(z, 2 m) / 10 m)^a`` (log heights per metre)."""
     if wind == 0.0:
         return 0.0
     iz = min(max(int(z), 0), logz.shape[0] - 1)
-    return wind * math.exp(p[_WEXP] * logz[iz]) if p[_WEXP] != 0.0 else wind
-
-
-def _slopes(k, y, t, h, tb, p, geo, on_rail, apo, drogue, seg):
-    """The four RK4 slopes of the state ``y`` (x, y, z, vx, vy, vz) from time ``t`` into ``k`` (6, 4); returns the
-    axial specific force and Mach of the first stage (what is recorded) and the motor segment."""
-    rx, rz, wcx, wcy, sroot = geo
-    f0 = 0.0
-    m0 = 0.0
-    for s in range(4):
-        if s == 0:
-            cz, cvx, cvy, cvz, ts_ = y[2], y[3], y[4], y[5], t   # (x, y: the forces do not depend on them)
-        else:
-            cz = pm.rk4_stage(y[2], h, k[2, s - 1], s)
-            cvx = pm.rk4_stage(y[3], h, k[3, s - 1], s)
-            cvy = pm.rk4_stage(y[4], h, k[4, s - 1], s)
-            cvz = pm.rk4_stage(y[5], h, k[5, s - 1], s)
-            ts_ = t + h if s == 3 else t + 0.5 * h
-        thrust, mass, seg = _motor_at(tb, seg, ts_ / p[_TS], p[_FS], p[_DRY], p[_PROP])
-        u = pm.table_coord(p[_TSCALE] * (p[_SITE] + cz))
-        rho = p[_TSCALE] * pm.table_at(tb.rho_tab, u)
-        c = pm.table_at(tb.c_tab, u) / sroot
-        if on_rail:
-            ax, ay, az, fax, mach = _rail_accel(p, tb.cd_tab, rho, c, thrust, mass, cvx, cvz, rx, rz)
-        else:
-            w = _wind_at(p, tb.logz, cz)
-            ax, ay, az, fax, mach = _free_accel(p, tb.cd_tab, rho, c, thrust, mass, drogue, w, wcx, wcy,
-                                                cvx, cvy, cvz)
-            if (not apo) and cz <= 0.0 and cvz <= 0.0 and az < 0.0:
-                ax, ay, az, fax = 0.0, 0.0, 0.0, G0    # on the ground before lift-off: held
-        k[0, s] = cvx
-        k[1, s] = cvy
-        k[2, s] = cvz
-        k[3, s] = ax
-        k[4, s] = ay
-        k[5, s] = az
-        if s == 0:
-            f0 = fax
-            m0 = mach
-    return f0, m0, seg
+    return wind * math.exp(wexp * logz[iz]) if wexp != 0.0 else wind
 
 
 def _flight(grid, tb, p, out, ev):
-    """One flight (scalar RK4) with the parameters ``p`` (:data:`P_COLS`). Writes the recorded columns ``out`` (z,
-    vz, az, fax, mach) and ``ev`` (see :data:`EVENTS`)."""
+    """One flight (scalar RK4) with the parameters ``p`` (a row of :data:`P_COLS`). Writes the recorded columns
+    ``out`` (z, vz, az, fax, mach) and ``ev`` (see :data:`EVENTS`)."""
     h, m_per, max_rec, max_steps = grid
-    rx = math.sin(p[_INCL])
-    rz = math.cos(p[_INCL])
-    geo = (rx, rz, math.cos(p[_WDIR]), math.sin(p[_WDIR]), math.sqrt(p[_TSCALE]))
-    y = np.zeros(6)                    # x, y, z, vx, vy, vz
-    yn = np.empty(6)
-    k = np.empty((6, 4))
+    mt, mf, mcum, cd_tab, logz, rho_tab, c_tab = tb
+    z_out, vz_out, az_out, fax_out, mach_out = out
+    dry, prop, ts, fs, cd_scale, area, cda_d = p[_DRY], p[_PROP], p[_TS], p[_FS], p[_CDS], p[_AREA], p[_CDA_D]
+    site, tscale, wind, wexp = p[_SITE], p[_TSCALE], p[_WIND], p[_WEXP]
+    sroot = math.sqrt(tscale)
+    rx, rz = math.sin(p[_INCL]), math.cos(p[_INCL])
+    wcx, wcy = math.cos(p[_WDIR]), math.sin(p[_WDIR])
+    x = y = z = vx = vy = vz = 0.0
     on_rail, apo, landed, finished = True, False, False, False
     t_apo = z_apo = t_lift = t_rail = np.nan
-    max_mach = 0.0
-    max_speed = 0.0
+    max_mach = max_speed = 0.0
     end_t = np.inf
-    seg = 0
-    n_rec = 0
-    n = 0
+    seg = n_rec = n = 0
+    kx, ky, kz, kvx, kvy, kvz = np.zeros(4), np.zeros(4), np.zeros(4), np.zeros(4), np.zeros(4), np.zeros(4)
     while True:
         t = n * h
+        drogue = apo and t >= t_apo + p[_DELAY]
+        f0 = m0 = 0.0
+        for s in range(4):
+            if landed:
+                kx[s] = ky[s] = kz[s] = kvx[s] = kvy[s] = kvz[s] = 0.0
+                continue
+            if s == 0:
+                cz, cvx, cvy, cvz, ts_ = z, vx, vy, vz, t   # (x, y: the forces do not depend on them)
+            else:
+                cz = pm.rk4_stage(z, h, kz[s - 1], s)
+                cvx = pm.rk4_stage(vx, h, kvx[s - 1], s)
+                cvy = pm.rk4_stage(vy, h, kvy[s - 1], s)
+                cvz = pm.rk4_stage(vz, h, kvz[s - 1], s)
+                ts_ = t + h if s == 3 else t + 0.5 * h
+            thrust, mass, seg = _motor_at(mt, mf, mcum, seg, ts_ / ts, fs, dry, prop)
+            u = pm.table_coord(tscale * (site + cz))
+            rho = tscale * pm.table_at(rho_tab, u)
+            c = pm.table_at(c_tab, u) / sroot
+            if on_rail:
+                ax, ay, az, fax, mach = _rail_accel(cd_tab, cd_scale, area, rho, c, thrust, mass, cvx, cvz, rx, rz)
+            else:
+                w = _wind_at(wind, wexp, logz, cz)
+                ax, ay, az, fax, mach = _free_accel(cd_tab, cd_scale, area, cda_d, drogue, rho, c, thrust, mass,
+                                                    cvx - w * wcx, cvy - w * wcy, cvz)
+                if (not apo) and cz <= 0.0 and cvz <= 0.0 and az < 0.0:
+                    ax, ay, az, fax = 0.0, 0.0, 0.0, G0    # on the ground before lift-off: held
+            kx[s], ky[s], kz[s], kvx[s], kvy[s], kvz[s] = cvx, cvy, cvz, ax, ay, az
+            if s == 0:
+                f0, m0 = fax, mach
         if landed:
-            k[:, :] = 0.0
             f0, m0 = G0, 0.0
-        else:
-            drogue = apo and t >= t_apo + p[_DELAY]
-            f0, m0, seg = _slopes(k, y, t, h, tb, p, geo, on_rail, apo, drogue, seg)
         if n % m_per == 0:
-            out[0][n_rec] = y[2]
-            out[1][n_rec] = y[5]
-            out[2][n_rec] = k[5, 0]
-            out[3][n_rec] = f0
-            out[4][n_rec] = m0
+            z_out[n_rec], vz_out[n_rec], az_out[n_rec], fax_out[n_rec], mach_out[n_rec] = z, vz, kvz[0], f0, m0
             n_rec += 1
             if t >= end_t:
                 finished = True
                 break
         if n >= max_steps or n_rec >= max_rec:
             break
-        for i in range(6):
-            yn[i] = pm.rk4_step(y[i], h, k[i])
-        if np.isnan(t_lift) and (yn[3] * rx + yn[5] * rz) > 0.0:
+        xn, yn, zn = pm.rk4_step(x, h, kx), pm.rk4_step(y, h, ky), pm.rk4_step(z, h, kz)
+        vxn, vyn, vzn = pm.rk4_step(vx, h, kvx), pm.rk4_step(vy, h, kvy), pm.rk4_step(vz, h, kvz)
+        if np.isnan(t_lift) and (vxn * rx + vzn * rz) > 0.0:
             t_lift = t + h
-        if on_rail and (yn[0] * rx + yn[2] * rz) >= p[_RAIL]:
+        if on_rail and (xn * rx + zn * rz) >= p[_RAIL]:
             on_rail = False
             t_rail = t + h
-        if (not apo) and (not np.isnan(t_lift)) and y[5] > 0.0 and yn[5] <= 0.0:
-            t_apo, z_apo = pm.apogee_in_step(t, h, y[2], y[5], yn[5])
+        if (not apo) and (not np.isnan(t_lift)) and vz > 0.0 and vzn <= 0.0:
+            t_apo, z_apo = pm.apogee_in_step(t, h, z, vz, vzn)
             apo = True
             end_t = t_apo + p[_DESCENT]
-        if yn[2] < 0.0 and apo and not landed:
+        if zn < 0.0 and apo and not landed:
             landed = True
             end_t = min(end_t, t + h)
-        if yn[2] < 0.0 and not apo:
-            yn[2] = 0.0
-            yn[5] = max(yn[5], 0.0)
+        if zn < 0.0 and not apo:
+            zn = 0.0
+            vzn = max(vzn, 0.0)
         if landed:
-            yn[2] = yn[3] = yn[4] = yn[5] = 0.0
-        max_speed = max(max_speed, math.sqrt(yn[3] * yn[3] + yn[4] * yn[4] + yn[5] * yn[5]))
+            zn = vxn = vyn = vzn = 0.0
+        max_speed = max(max_speed, math.sqrt(vxn * vxn + vyn * vyn + vzn * vzn))
         max_mach = max(max_mach, m0)
-        y[:] = yn
+        x, y, z, vx, vy, vz = xn, yn, zn, vxn, vyn, vzn
         n += 1
     ev[0] = n_rec if finished else -n_rec
-    ev[1] = t_apo
-    ev[2] = z_apo
-    ev[3] = t_lift
-    ev[4] = max_mach
-    ev[5] = t_rail
-    ev[6] = max_speed
+    ev[1], ev[2], ev[3], ev[4], ev[5], ev[6] = t_apo, z_apo, t_lift, max_mach, t_rail, max_speed
 
 
 def _batch(grid, tb, p, outs, ev):
     """Every flight of the batch; ``p`` (nf, len(P_COLS)) holds the per-flight parameters, ``outs`` the recorded
     columns (z, vz, az, fax, mach), each (nf, max_rec)."""
     for i in _prange(p.shape[0]):
-        _flight(grid, tb, p[i], (outs[0][i], outs[1][i], outs[2][i], outs[3][i], outs[4][i]), ev[i])
+        _flight_k(grid, tb, p[i], (outs[0][i], outs[1][i], outs[2][i], outs[3][i], outs[4][i]), ev[i])
 
 
-#: The loop over flights: numba.prange once the kernel is compiled (a parallel loop), else range.
+#: The loop over flights and the flight :func:`_batch` runs: numba.prange and :func:`_flight` compiled on its own
+#: once the kernel is compiled (as a call, not inlined into the parallel loop: inlining it there costs tens of
+#: seconds of compile time), else range and :func:`_flight`.
 _prange = range
+_flight_k = _flight
 _KERNELS: list = []
 
 
 def _batch_kernel():
     """The batch kernel, compiled on first use when numba is importable (a lazy load of a heavy optional
     dependency: importing this module stays cheap for the CLI); else the same source in Python."""
-    global _prange
+    global _prange, _flight_k
     if not _KERNELS:
-        if pm.register_for_numba(_motor_at, _rail_accel, _free_accel, _wind_at, _slopes, _flight):
+        if pm.register_for_numba(_motor_at, _rail_accel, _free_accel, _wind_at):
             import numba  # lazy: heavy, optional
 
             _prange = numba.prange
-            _KERNELS.append(numba.njit(cache=True, nogil=True, parallel=True)(_batch))
+            _flight_k = pm.njit_cached(_flight, nogil=True)
+            _KERNELS.append(pm.njit_cached(_batch, nogil=True, parallel=True))
         else:  # pragma: no cover - exercised where numba is absent
             _KERNELS.append(_batch)
     return _KERNELS[0]

@@ -27,8 +27,10 @@ last bits, and each keeps its own.
 from __future__ import annotations
 
 import functools
+import hashlib
 import importlib.util
 from math import ceil
+from pathlib import Path
 
 import numpy as np
 
@@ -125,17 +127,46 @@ def apogee_in_step(t, h, z, v, v_new):
 SCALAR_HELPERS = (table_coord, table_at, cd_at, drag_force, rk4_stage, rk4_step, apogee_in_step)
 
 
+def njit_cached(fn, **options):
+    """``numba.njit(cache=True, **options)(fn)`` whose on-disk cache also goes stale when this module changes.
+
+    numba checks a cached function against its own source file only (numba issue 6845), while a simulator's loop
+    has the helpers above compiled into it: without this, an edited helper would keep running from the cache of
+    an unchanged simulator module. The cache index's source stamp becomes (numba's stamp, sha256 of this file);
+    should numba's internals move, the function is compiled in every process instead (never stale)."""
+    import numba  # lazy: heavy, optional
+
+    disp = numba.njit(cache=True, **options)(fn)
+    try:
+        index = disp._cache._cache_file
+        index._source_stamp = (index._source_stamp, source_digest())
+    except AttributeError:  # pragma: no cover - numba internals moved (or NUMBA_DISABLE_JIT: nothing is cached)
+        if not numba.config.DISABLE_JIT:
+            from numba.core.caching import NullCache
+
+            disp._cache = NullCache()
+    return disp
+
+
+@functools.cache
+def source_digest() -> bytes:
+    """sha256 of this module's source (part of the compiled loops' cache stamp, :func:`njit_cached`)."""
+    return hashlib.sha256(Path(__file__).read_bytes()).digest()
+
+
 def register_for_numba(*functions) -> bool:
     """Make :data:`SCALAR_HELPERS` and ``functions`` (a simulator's own helpers) callable from numba-compiled
-    code, the module's names staying the plain Python functions; each function is registered once. False
-    (nothing done) without numba. Call it before compiling a loop that uses them."""
+    code, inlined into their callers (``inline="always"``: kept as calls, a helper that takes arrays costs a
+    reference count per array and call, 20-30 % of the loop), the module's names staying the plain Python
+    functions; each function is registered once. False (nothing done) without numba. Call it before compiling a
+    loop that uses them."""
     if not HAVE_NUMBA:
         return False
     from numba.extending import register_jitable  # lazy: heavy, optional
 
     for fn in SCALAR_HELPERS + functions:
         if fn not in _REGISTERED:
-            register_jitable(fn)
+            register_jitable(inline="always")(fn)
             _REGISTERED.add(fn)
     return True
 

@@ -1,6 +1,6 @@
-"""A fast vectorised 1-DOF point-mass rocket model with truth (docs/flights-sim.md).
+"""A fast 1-DOF point-mass rocket model with truth (docs/flights-sim.md).
 
-Physics (vertical axis, up positive; one column per flight, all flights of a batch integrated together):
+Physics (vertical axis, up positive; each flight of a batch integrated alone, by the same loop):
 
     dz/dt = v
     dv/dt = T(t)/m(t) - 0.5 rho(h) v|v| (Cd(M) A + CdA_drogue [after deploy]) / m(t) - g0
@@ -10,7 +10,7 @@ Physics (vertical axis, up positive; one column per flight, all flights of a bat
 * ``rho``, the speed of sound ``c`` (Mach ``M = |v|/c``) and the recorded pressure come from
   :mod:`firmware_model.spec.atmosphere` at ``site_altitude_m + z``; inside the integrator density and speed of sound
   are looked up in tables of that module's functions at 1 m spacing (linear interpolation; relative error
-  < 1e-8), the recorded pressure is the module's exact function.
+  < 1e-8; :mod:`.pointmass`), the recorded pressure is the module's exact function.
 * ``Cd(M)``: a (Mach, Cd) table (default: RocketPy's Calisto power-off curve) times ``cd_scale``, held constant
   outside the table; ``A = pi d^2 / 4``.
 * ``g0`` = 9.80665 m/s^2 constant: altitudes are geopotential, the convention of the atmosphere module.
@@ -19,7 +19,8 @@ Physics (vertical axis, up positive; one column per flight, all flights of a bat
 * Recovery: a drogue of drag area ``drogue_cd_area_m2`` opens ``drogue_delay_s`` after the true apogee (full
   area at once); the record ends ``descent_s`` after apogee (or at landing: z = 0, at rest).
 
-Integration: classic RK4 with a fixed step ``h = 1 / (record_hz * ceil(internal_hz / record_hz))`` (the largest
+Integration (the RK4 step, tables and drag of :mod:`.pointmass`, shared with the Monte Carlo's 3-DOF flight):
+classic RK4 with a fixed step ``h = 1 / (record_hz * ceil(internal_hz / record_hz))`` (the largest
 step <= 1/internal_hz that divides the record period; internal_hz defaults to 1000); states are recorded every
 ``ceil(internal_hz / record_hz)`` steps, on the regular grid ``t_k = (k - n_pad) / record_hz`` (t = 0 at
 ignition). The model is deterministic: same parameters, same bytes (no randomness inside; :func:`random_flights`
@@ -178,37 +179,14 @@ def _prepare(rockets: list[Rocket], launches: list[Launch]) -> _Batch:
                   thrust=thrust, mass=mass, rho_tab=rho_tab, c_tab=c_tab)
 
 
-def _accel(fl, tabs, zz, vv, jj, drogue, apo, landed):
-    """dv/dt at altitude ``zz`` and velocity ``vv`` with the thrust and mass of half step ``jj``; 0 once landed and
-    while held on the pad (until thrust exceeds weight). ``fl``, ``tabs``: as in :func:`_kernel_py`; ``drogue``
-    1.0 once the drogue is open, else 0.0."""
-    site, _descent, _delay, dry, area, cda_d = fl
-    cd_row, thrust, mass, rho_tab, c_tab = tabs
-    if jj < thrust.shape[0]:
-        tm = thrust[jj]
-        mm = mass[jj]
-    else:
-        tm = 0.0
-        mm = dry
-    u = pm.table_coord(site + zz)
-    rho = pm.table_at(rho_tab, u)
-    c = pm.table_at(c_tab, u)
-    speed = abs(vv)
-    cd = pm.cd_at(cd_row, speed, c)
-    drag = pm.drag_force(rho, vv, speed, cd * area + drogue * cda_d)
-    a = (tm - drag) / mm - G0
-    if landed or ((not apo) and zz <= 0.0 and vv <= 0.0 and a < 0.0):
-        a = 0.0
-    return a
-
-
 def _kernel_py(grid, fl, tabs, rec, events):
     """One flight, scalar RK4 (compiled with numba when it is installed). ``grid`` = (step h, steps per record,
     max steps); ``fl`` = (site altitude, descent_s, drogue delay, dry mass, area, drogue CdA); ``tabs`` = (drag
     row, thrust and mass at half steps, density, speed of sound); fills ``rec`` = (z, v, a) and ``events`` =
     [n_rec, t_apo, z_apo, t_lift, t_land, vmax, mach_max, end_t] (events[0] = -1: not finished in time)."""
     h, m_per, max_steps = grid
-    site, descent, delay = fl[0], fl[1], fl[2]
+    site, descent, delay, dry, area, cda_d = fl
+    cd_row, thrust, mass, rho_tab, c_tab = tabs
     zrec, vrec, arec = rec
     z = 0.0
     v = 0.0
@@ -230,7 +208,21 @@ def _kernel_py(grid, fl, tabs, rec, events):
             zz = z if s == 0 else pm.rk4_stage(z, h, kz[s - 1], s)
             vv = v if s == 0 else pm.rk4_stage(v, h, kv[s - 1], s)
             kz[s] = 0.0 if landed else vv
-            kv[s] = _accel(fl, tabs, zz, vv, j + (s + 1) // 2, drogue, apo, landed)
+            jj = j + (s + 1) // 2          # thrust and mass at t, t + h/2, t + h/2, t + h
+            if jj < thrust.shape[0]:
+                tm = thrust[jj]
+                mm = mass[jj]
+            else:
+                tm = 0.0
+                mm = dry
+            u = pm.table_coord(site + zz)
+            rho = pm.table_at(rho_tab, u)
+            c = pm.table_at(c_tab, u)
+            cd = pm.cd_at(cd_row, abs(vv), c)
+            a = (tm - pm.drag_force(rho, vv, abs(vv), cd * area + drogue * cda_d)) / mm - G0
+            if landed or ((not apo) and zz <= 0.0 and vv <= 0.0 and a < 0.0):
+                a = 0.0                     # landed, or held on the pad until thrust exceeds weight
+            kv[s] = a
         if n % m_per == 0:
             zrec[n_rec] = z
             vrec[n_rec] = v
@@ -261,7 +253,7 @@ def _kernel_py(grid, fl, tabs, rec, events):
             z_new = 0.0
             v_new = 0.0
         vmax = max(vmax, v_new)
-        mach_max = max(mach_max, abs(v_new) / pm.table_at(tabs[4], pm.table_coord(site + z_new)))
+        mach_max = max(mach_max, abs(v_new) / pm.table_at(c_tab, pm.table_coord(site + z_new)))
         z = z_new
         v = v_new
         n += 1
@@ -283,11 +275,9 @@ HAVE_NUMBA: bool = pm.HAVE_NUMBA
 def compiled_kernel():
     """:func:`_kernel_py` compiled by numba (the same source), or None without numba. A lazy load
     (docs/architecture.md): importing numba costs about a second, which only a simulation should pay."""
-    if not pm.register_for_numba(_accel):
+    if not pm.register_for_numba():
         return None
-    import numba  # lazy: heavy, optional
-
-    return numba.njit(cache=True, nogil=True)(_kernel_py)
+    return pm.njit_cached(_kernel_py, nogil=True)
 
 
 def _integrate_kernel(b: _Batch, kernel):
