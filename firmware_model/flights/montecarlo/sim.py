@@ -28,9 +28,9 @@ vertical rail this is sim1dof's flight (cross-checked in tests/flights/test_mont
 
 The kernel is compiled with numba (``prange`` over flights) on first use when numba is importable; every flight is
 integrated alone with the same arithmetic, so a flight's bytes do not depend on its batch. One flight is
-:func:`_flight` (the step loop and the events) over :func:`_slopes` (the four RK4 stages: motor, atmosphere, on
-the rail or off it), its parameters grouped: the grid (:class:`Grid`), the batch's tables (:class:`Tables`), the
-flight's row of ``params`` (:data:`P_COLS`) and its output columns.
+:func:`_flight` (the four RK4 stages, the step and its events) over :func:`_motor_at`, :func:`_rail_accel`,
+:func:`_free_accel` and :func:`_wind_at` (inlined by numba), its parameters grouped: the grid (:class:`Grid`), the
+batch's tables (:class:`Tables`), the flight's row of ``params`` (:data:`P_COLS`) and its output columns.
 """
 
 from __future__ import annotations
