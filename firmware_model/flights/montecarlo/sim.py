@@ -29,7 +29,7 @@ vertical rail this is sim1dof's flight (cross-checked in tests/flights/test_mont
 The kernel is compiled with numba (``prange`` over flights) on first use when numba is importable; every flight is
 integrated alone with the same arithmetic, so a flight's bytes do not depend on its batch. One flight is
 :func:`_flight` (the four RK4 stages, the step and its events) over :func:`_motor_at`, :func:`_rail_accel`,
-:func:`_free_accel` and :func:`_wind_at` (inlined by numba), its parameters grouped: the grid (:class:`Grid`), the
+:func:`_free_accel` and :func:`_wind_at`, its parameters grouped: the grid (:class:`Grid`), the
 batch's tables (:class:`Tables`), the flight's row of ``params`` (:data:`P_COLS`) and its output columns.
 """
 

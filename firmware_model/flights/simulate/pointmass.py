@@ -156,17 +156,18 @@ def source_digest() -> bytes:
 
 def register_for_numba(*functions) -> bool:
     """Make :data:`SCALAR_HELPERS` and ``functions`` (a simulator's own helpers) callable from numba-compiled
-    code, inlined into their callers (``inline="always"``: kept as calls, a helper that takes arrays costs a
-    reference count per array and call, 20-30 % of the loop), the module's names staying the plain Python
-    functions; each function is registered once. False (nothing done) without numba. Call it before compiling a
-    loop that uses them."""
+    code, the module's names staying the plain Python functions; each function is registered once. The scalar
+    helpers are inlined by numba into every use (``inline="always"``); a simulator's own helpers, larger and called
+    once per stage, stay calls (inlining them too made the Monte Carlo kernel's compile 2.7 s longer for no
+    measurable speed; docs/flights-sim.md). False (nothing done) without numba. Call it before compiling a loop
+    that uses them."""
     if not HAVE_NUMBA:
         return False
     from numba.extending import register_jitable  # lazy: heavy, optional
 
     for fn in SCALAR_HELPERS + functions:
         if fn not in _REGISTERED:
-            register_jitable(inline="always")(fn)
+            register_jitable(inline="always" if fn in SCALAR_HELPERS else "never")(fn)
             _REGISTERED.add(fn)
     return True
 
