@@ -1,15 +1,16 @@
-"""Speed of the 1-DOF flight simulator (firmware_model.flights.simulate.sim1dof): its three engines side by side, in
-one run.
+"""Speed of the 1-DOF flight simulator (firmware_model.flights.simulate.sim1dof): its two engines and the numpy
+oracle side by side, in one run.
 
 ``make bench`` runs this file. Flights are drawn by ``random_flights``' parameter box (subsonic K400C/K828FJ
 rockets, ~8-25 s of flight, 1 kHz internal RK4 step, recorded at ``--record-hz``). Measured through the public
 ``simulate_1dof`` (preparation and FlightRecord construction included):
 
 * flights/s on **one flight** per call: ``kernel`` (numba), ``python`` (the kernel's source uncompiled), ``numpy``
-  (the vectorised integrator with a batch of one);
+  (the vectorised integrator of tests/support/sim1dof_numpy.py, the engine sim1dof had before issue 34 and now
+  the tests' oracle, with a batch of one);
 * flights/s on **one call of ``--batch`` flights**: ``kernel`` (a loop over compiled per-flight calls) and
   ``numpy`` (all flights integrated together, arrays over flights);
-* that all engines give the **same bytes** for every flight measured.
+* that all give the **same bytes** for every flight measured.
 
 Steady state is the best of ``--reps`` calls after a warm-up call. Start-up is measured apart in a fresh process:
 the import of sim1dof and the first call (loading numba's cached machine code, or compiling it when the cache is
@@ -35,6 +36,7 @@ single_threaded_blas()  # before numpy loads: no OpenBLAS pool busy-waiting on t
 import numpy as np  # noqa: E402 - imported after single_threaded_blas(): numpy must not load first
 
 from firmware_model.flights.simulate import sim1dof as s1  # noqa: E402 - imported after single_threaded_blas(): numpy must not load first
+from tests.support.sim1dof_numpy import simulate_numpy  # noqa: E402 - imported after single_threaded_blas(): numpy must not load first
 
 _STARTUP = """
 import time
@@ -54,6 +56,13 @@ def _digest(recs) -> str:
         for a in (r.pressure_pa, r.accel_mps2, r.truth.altitude_m, r.truth.velocity_mps):
             h.update(np.ascontiguousarray(a).tobytes())
     return h.hexdigest()
+
+
+def _simulate(engine: str, rockets, launches):
+    """simulate_1dof through ``engine``; "numpy": the oracle of tests/support/sim1dof_numpy.py."""
+    if engine == "numpy":
+        return simulate_numpy(rockets, launches)
+    return s1.simulate_1dof(rockets, launches, engine=engine)
 
 
 def _best(fn, reps: int) -> tuple[float, object]:
@@ -87,8 +96,7 @@ def main() -> int:
             continue
         rk.append(r)
         lc.append(s1.Launch(record_hz=a.record_hz, site_altitude_m=float(1500.0 * u[7])))
-    secs = sum(r.truth.apogee_time_s + 5.0 for r in s1.simulate_1dof(rk, lc, engine="numpy" if not s1.HAVE_NUMBA
-                                                                     else "kernel"))
+    secs = sum(r.truth.apogee_time_s + 5.0 for r in _simulate("kernel" if s1.HAVE_NUMBA else "numpy", rk, lc))
     print(f"{a.batch} flights, {secs:.0f} s of flight in all (mean {secs / a.batch:.1f} s), record {a.record_hz:g} Hz,"
           f" internal step {s1._step_count(launch)[1] * 1e3:g} ms")
 
@@ -96,12 +104,12 @@ def main() -> int:
     single: dict[str, float] = {}
     digests = {}
     for e in engines:
-        t, out = _best(lambda e=e: s1.simulate_1dof(rk[0], lc[0], engine=e), a.reps)
+        t, out = _best(lambda e=e: _simulate(e, rk[0], lc[0]), a.reps)
         single[e] = 1.0 / t
         digests.setdefault("single", set()).add(_digest(out))
     batch: dict[str, float] = {}
     for e in [x for x in engines if x != "python"]:
-        t, out = _best(lambda e=e: s1.simulate_1dof(rk, lc, engine=e), max(1, a.reps - 1))
+        t, out = _best(lambda e=e: _simulate(e, rk, lc), max(1, a.reps - 1))
         batch[e] = a.batch / t
         digests.setdefault("batch", set()).add(_digest(out))
     print("\nflights/s (steady state, best of reps)")

@@ -19,6 +19,7 @@ from firmware_model.flights.simulate import scenarios as sc
 from firmware_model.flights.simulate import sim1dof as s1
 from firmware_model.flights.strategies import flights
 from tests.support.profiles import examples
+from tests.support.sim1dof_numpy import simulate_numpy
 
 G = atm.G0
 
@@ -155,17 +156,22 @@ def test_step_size_error_is_below_a_centimetre():
         assert abs(f.truth.apogee_time_s - b.truth.apogee_time_s) < 1e-4
 
 
-def test_engines_agree_and_runs_are_deterministic():
+def test_engines_agree_with_the_numpy_oracle_and_runs_are_deterministic():
+    """The per-flight loop (shared point-mass helpers), uncompiled and compiled, gives the bytes of the
+    independent numpy integrator (tests/support/sim1dof_numpy.py), flight by flight and in a batch."""
     rockets = [s1.Rocket("a", 14.0, 0.1, mo.load_motor("K400C")),
                s1.Rocket("b", 3.0, 0.1, mo.load_motor("K828FJ").scaled(0.5, 1.0), drogue_cd_area_m2=0.3)]
     launch = s1.Launch(record_hz=50.0, internal_hz=250.0, descent_s=2.0)
-    ref = [_digest(r) for r in s1.simulate_1dof(rockets, launch, engine="numpy")]
-    assert ref == [_digest(r) for r in s1.simulate_1dof(rockets, launch, engine="numpy")]
+    ref = [_digest(r) for r in simulate_numpy(rockets, launch)]
+    assert ref == [_digest(r) for r in simulate_numpy(rockets, launch)]
     assert ref == [_digest(r) for r in s1.simulate_1dof(rockets, launch, engine="python")]
     if s1.HAVE_NUMBA:
         assert ref == [_digest(r) for r in s1.simulate_1dof(rockets, launch, engine="kernel")]
     # batching does not change a flight
-    assert ref[1] == _digest(s1.simulate_1dof(rockets[1], launch, engine="numpy")[0])
+    assert ref[1] == _digest(simulate_numpy(rockets[1], launch)[0])
+    assert ref[1] == _digest(s1.simulate_1dof(rockets[1], launch, engine="python")[0])
+    with pytest.raises(UserError, match="unknown engine 'numpy'"):
+        s1.simulate_1dof(rockets[1], launch, engine="numpy")
 
 
 def test_random_flights_seeded():
@@ -185,7 +191,9 @@ def test_bad_parameters_are_user_errors():
     with pytest.raises(UserError, match="site altitude"):
         s1.simulate_1dof(s1.Rocket("x", 5.0, 0.1, m), s1.Launch(site_altitude_m=9000.0))
     with pytest.raises(UserError, match="not finished"):
-        s1.simulate_1dof(s1.Rocket("x", 5.0, 0.1, m), s1.Launch(max_time_s=3.0), engine="numpy")
+        s1.simulate_1dof(s1.Rocket("x", 5.0, 0.1, m), s1.Launch(max_time_s=3.0), engine="python")
+    with pytest.raises(UserError, match="not finished"):
+        simulate_numpy(s1.Rocket("x", 5.0, 0.1, m), s1.Launch(max_time_s=3.0))
     with pytest.raises(UserError, match="thrust never exceeds weight"):
         s1.simulate_1dof(s1.Rocket("x", 60.0, 0.1, m))
     with pytest.raises(UserError, match="unknown motor"):

@@ -29,9 +29,7 @@ GENERATED: frozenset[str] = frozenset()
 #: Long functions being split on other branches (issue 34), "path::qualified name". The lead empties this set as
 #: those branches merge; an entry whose function is gone or no longer long fails test_pending_entries_are_live,
 #: so a stale entry cannot hide a new long function of the same name.
-PENDING: frozenset[str] = frozenset({
-    "firmware_model/flights/montecarlo/sim.py::_flight",  # the shared point-mass integrator (flights in rooms)
-})
+PENDING: frozenset[str] = frozenset()
 
 _REASON = re.compile(r"#\s*long:\s*\S")
 

@@ -37,7 +37,9 @@ from firmware_model.flights.montecarlo.spec import distributions, fingerprint, i
 from firmware_model.runtime.engine import Backend, ChunkStore, run_chunks
 from firmware_model.runtime.errors import UserError
 
-_SOURCES = ("pipeline.py", "sim.py", "spec.py", "results.py")
+#: The Monte Carlo's sources, relative to this folder: its own modules and the point-mass integration its flights
+#: share with sim1dof (what ``code_version`` hashes).
+_SOURCES = ("pipeline.py", "sim.py", "spec.py", "results.py", "../simulate/pointmass.py")
 
 
 def code_version() -> str:

@@ -3,10 +3,11 @@
 Each :class:`Scenario` is physics only (a rocket, a launch, the simulator, and the static-pressure error effects of
 :mod:`.pressure_errors`: the barometer errors of real flight (``baro_errors``, the ``rb-`` and ``rp-rb-``
 scenarios), the step (Kumar-style, not realistic; ``transonic``) or single-sample spikes); sensor models (ADC
-bits, noise) and k are applied later by the evaluation, which may use the suggested ``tags``. ``simulate_scenario(name)`` is deterministic (same name, same bytes), cached in the
-process, and RocketPy scenarios are also cached on disk (``$FWEMU_CACHE`` or ``~/.cache/fwemu/flights``), keyed
-by a hash of the scenario's physics (rocket, launch, simulator settings), the simulator sources and the
-motor/drag data files (pressure effects are applied after the cache, so changing them does not re-run RocketPy).
+bits, noise) and k are applied later by the evaluation, which may use the suggested ``tags``.
+``simulate_scenario(name)`` is deterministic (same name, same bytes), cached in the process, and RocketPy
+scenarios are also cached on disk (``$FWEMU_CACHE`` or ``~/.cache/fwemu/flights``), keyed by a hash of the
+scenario's physics (rocket, launch, simulator settings), the simulator sources and the motor/drag data files
+(pressure effects are applied after the cache, so changing them does not re-run RocketPy).
 
 Classes by peak Mach: ``subsonic`` < 0.9, ``transonic`` 0.9..1.2, ``supersonic`` 1.3..2.0 (checked by the tests).
 """
@@ -140,7 +141,8 @@ _CATALOGUE: tuple[Scenario, ...] = (
     _s("trans-l1350-m094", "L1350 rocket peaking at Mach ~0.94: near-sonic, no step", "transonic",
        {"motor": "L1350", "dry_mass_kg": 10.0, "diameter_m": 0.13},
        {"baro": ["analog-10", "analog-16"], "noise": ["noisy"], "k": [6]}),
-    _s("trans-m1670-m105", "M1670 rocket through Mach 1.05 with the +60 m step (Kumar-style, not realistic)", "transonic",
+    _s("trans-m1670-m105", "M1670 rocket through Mach 1.05 with the +60 m step (Kumar-style, not realistic)",
+       "transonic",
        {"motor": "M1670", "dry_mass_kg": 12.0, "diameter_m": 0.127},
        {"baro": ["analog-10", "analog-16", "ms5607"], "noise": ["none", "noisy"], "k": [5, 6, 7]}, transonic=_TS),
     _s("trans-m1670-m105-clean", "trans-m1670-m105 without the pressure step (the pair isolates the effect)",

@@ -1,6 +1,6 @@
-"""A fast vectorised 1-DOF point-mass rocket model with truth (docs/flights-sim.md).
+"""A fast 1-DOF point-mass rocket model with truth (docs/flights-sim.md).
 
-Physics (vertical axis, up positive; one column per flight, all flights of a batch integrated together):
+Physics (vertical axis, up positive; each flight of a batch integrated alone, by the same loop):
 
     dz/dt = v
     dv/dt = T(t)/m(t) - 0.5 rho(h) v|v| (Cd(M) A + CdA_drogue [after deploy]) / m(t) - g0
@@ -10,7 +10,7 @@ Physics (vertical axis, up positive; one column per flight, all flights of a bat
 * ``rho``, the speed of sound ``c`` (Mach ``M = |v|/c``) and the recorded pressure come from
   :mod:`firmware_model.spec.atmosphere` at ``site_altitude_m + z``; inside the integrator density and speed of sound
   are looked up in tables of that module's functions at 1 m spacing (linear interpolation; relative error
-  < 1e-8), the recorded pressure is the module's exact function.
+  < 1e-8; :mod:`.pointmass`), the recorded pressure is the module's exact function.
 * ``Cd(M)``: a (Mach, Cd) table (default: RocketPy's Calisto power-off curve) times ``cd_scale``, held constant
   outside the table; ``A = pi d^2 / 4``.
 * ``g0`` = 9.80665 m/s^2 constant: altitudes are geopotential, the convention of the atmosphere module.
@@ -19,7 +19,8 @@ Physics (vertical axis, up positive; one column per flight, all flights of a bat
 * Recovery: a drogue of drag area ``drogue_cd_area_m2`` opens ``drogue_delay_s`` after the true apogee (full
   area at once); the record ends ``descent_s`` after apogee (or at landing: z = 0, at rest).
 
-Integration: classic RK4 with a fixed step ``h = 1 / (record_hz * ceil(internal_hz / record_hz))`` (the largest
+Integration (the RK4 step, tables and drag of :mod:`.pointmass`, shared with the Monte Carlo's 3-DOF flight):
+classic RK4 with a fixed step ``h = 1 / (record_hz * ceil(internal_hz / record_hz))`` (the largest
 step <= 1/internal_hz that divides the record period; internal_hz defaults to 1000); states are recorded every
 ``ceil(internal_hz / record_hz)`` steps, on the regular grid ``t_k = (k - n_pad) / record_hz`` (t = 0 at
 ignition). The model is deterministic: same parameters, same bytes (no randomness inside; :func:`random_flights`
@@ -34,27 +35,20 @@ time and altitude from the internal-step zero crossing of v, interpolated linear
 from __future__ import annotations
 
 import functools
-import importlib.util
 from dataclasses import asdict, dataclass
-from functools import lru_cache
 from math import ceil, pi
 from typing import Sequence
 
 import numpy as np
 
-from firmware_model.flights.simulate.motors import ThrustCurve, default_drag_curve, load_motor
 from firmware_model.flights.record import FlightRecord, Truth
+from firmware_model.flights.simulate import pointmass as pm
+from firmware_model.flights.simulate.motors import ThrustCurve, default_drag_curve, load_motor
 from firmware_model.runtime.errors import UserError
 from firmware_model.runtime.output import interrupts_deferred
 from firmware_model.spec import atmosphere as atm
 
 G0 = atm.G0
-
-#: Atmosphere table range (m, geopotential above sea level) and spacing used inside the integrator.
-_TABLE_LO_M, _TABLE_HI_M, _TABLE_STEP_M = -1000.0, 40_000.0, 1.0
-#: Common Mach grid onto which every flight's drag table is resampled (uniform: O(1) lookup).
-_MACH_STEP = 0.01
-_MACH_MAX = 4.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -114,27 +108,16 @@ class Launch:
     max_time_s: float = 300.0
 
 
-@lru_cache(maxsize=1)
-def _atmosphere_tables() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    h = np.arange(_TABLE_LO_M, _TABLE_HI_M + _TABLE_STEP_M / 2, _TABLE_STEP_M)
-    return h, atm.density_kg_m3(h), atm.speed_of_sound_mps(h)
-
-
 def _resampled_drag(rockets: Sequence[Rocket]) -> np.ndarray:
-    grid = np.arange(0.0, _MACH_MAX + _MACH_STEP / 2, _MACH_STEP)
-    out = np.empty((len(rockets), grid.size + 1))
-    for i, r in enumerate(rockets):
-        mach, cd = r.drag_curve()
-        out[i, :-1] = np.interp(grid, mach, cd)
-        out[i, -1] = out[i, -2]
-    return out
+    """Every rocket's drag curve (cd_scale included) on the common uniform Mach grid (:func:`.pointmass.drag_table`),
+    one row per rocket."""
+    return np.array([pm.drag_table(*r.drag_curve()) for r in rockets])
 
 
 def _step_count(launch: Launch) -> tuple[int, float]:
     if not (launch.record_hz > 0 and launch.internal_hz > 0):
         raise UserError(f"1-DOF: record_hz and internal_hz must be > 0 (got {launch.record_hz}, {launch.internal_hz})")
-    m = max(1, ceil(launch.internal_hz / launch.record_hz - 1e-9))
-    return m, 1.0 / (launch.record_hz * m)
+    return pm.step_size(launch.record_hz, launch.internal_hz)
 
 
 @dataclass
@@ -186,7 +169,7 @@ def _prepare(rockets: list[Rocket], launches: list[Launch]) -> _Batch:
         r = rockets[int(weak[0])]
         raise UserError(f"1-DOF: rocket {r.name}: thrust never exceeds weight (peak {r.motor.thrust_n.max():.0f} N, "
                         f"lift-off mass {r.liftoff_mass_kg:.2f} kg): it would never leave the pad")
-    _, rho_tab, c_tab = _atmosphere_tables()
+    rho_tab, c_tab = pm.atmosphere_tables()
     return _Batch(h=h, m_per=m_per, max_steps=int(ceil(max_time / h)),
                   site=np.array([l.site_altitude_m for l in launches], dtype=np.float64),
                   descent=np.array([l.descent_s for l in launches], dtype=np.float64),
@@ -196,171 +179,49 @@ def _prepare(rockets: list[Rocket], launches: list[Launch]) -> _Batch:
                   thrust=thrust, mass=mass, rho_tab=rho_tab, c_tab=c_tab)
 
 
-def _lookup(tab, x):
-    """Linear interpolation in a table on the uniform atmosphere grid (clamped at the ends)."""
-    u = (x - _TABLE_LO_M) * (1.0 / _TABLE_STEP_M)
-    i = np.minimum(np.maximum(u, 0.0), tab.shape[0] - 1.000001).astype(np.int64)
-    fr = np.minimum(np.maximum(u - i, 0.0), 1.0)
-    return tab[i] * (1.0 - fr) + tab[i + 1] * fr
-
-
-def _integrate_numpy(b: _Batch):
-    """RK4 over all flights at once (numpy arrays over flights). Returns recorded (z, v, a) lists per flight and
-    the per-flight event arrays."""
-    nf = b.dry.size
-    nj = b.thrust.shape[0]
-    n_mach = b.cd_tab.shape[1] - 1
-    rows = np.arange(nf)
-    h = b.h
-
-    def deriv(j, zz, v, apo, drogue, landed):
-        if j < nj:
-            tm, mm = b.thrust[j], b.mass[j]
-        else:
-            tm, mm = 0.0, b.dry
-        alt = b.site + zz
-        rho = _lookup(b.rho_tab, alt)
-        c = _lookup(b.c_tab, alt)
-        x = np.abs(v) / c * (1.0 / _MACH_STEP)
-        i0 = np.minimum(x.astype(np.int64), n_mach - 1)
-        fr = np.minimum(x - i0, 1.0)
-        cd = b.cd_tab[rows, i0] * (1.0 - fr) + b.cd_tab[rows, i0 + 1] * fr
-        drag = 0.5 * rho * v * np.abs(v) * (cd * b.area + drogue * b.cda_d)
-        a = (tm - drag) / mm - G0
-        held = ~apo & (zz <= 0.0) & (v <= 0.0) & (a < 0.0)   # on the pad: held until thrust exceeds weight
-        return np.where(landed | held, 0.0, a)
-
-    z = np.zeros(nf)
-    v = np.zeros(nf)
-    apo = np.zeros(nf, dtype=bool)
-    landed = np.zeros(nf, dtype=bool)
-    t_apo = np.full(nf, np.nan)
-    z_apo = np.full(nf, np.nan)
-    t_lift = np.full(nf, np.nan)
-    t_land = np.full(nf, np.nan)
-    vmax = np.zeros(nf)
-    mach_max = np.zeros(nf)
-    end_t = np.full(nf, np.inf)
-    rec_z, rec_v, rec_a = [], [], []
-    n = 0
-    while True:
-        t = n * h
-        j = 2 * n
-        drogue = (apo & (t >= t_apo + b.delay)).astype(np.float64)
-        k1v = deriv(j, z, v, apo, drogue, landed)
-        if n % b.m_per == 0:
-            rec_z.append(z)
-            rec_v.append(v)
-            rec_a.append(k1v)
-            if np.all(t >= end_t):
-                break
-        if n >= b.max_steps:
-            raise UserError(f"1-DOF: flights not finished after {b.max_steps * h:g} s (apogee found: "
-                            f"{int(apo.sum())} of {nf})")
-        k1z = np.where(landed, 0.0, v)
-        v2 = v + 0.5 * h * k1v
-        k2v = deriv(j + 1, z + 0.5 * h * k1z, v2, apo, drogue, landed)
-        k2z = np.where(landed, 0.0, v2)
-        v3 = v + 0.5 * h * k2v
-        k3v = deriv(j + 1, z + 0.5 * h * k2z, v3, apo, drogue, landed)
-        k3z = np.where(landed, 0.0, v3)
-        v4 = v + h * k3v
-        k4v = deriv(j + 2, z + h * k3z, v4, apo, drogue, landed)
-        k4z = np.where(landed, 0.0, v4)
-        z_new = z + h / 6.0 * (k1z + 2.0 * k2z + 2.0 * k3z + k4z)
-        v_new = v + h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v)
-        lift = np.isnan(t_lift) & (v_new > 0.0)
-        t_lift[lift] = t + h
-        cross = ~apo & (v > 0.0) & (v_new <= 0.0)
-        if np.any(cross):
-            frac = v[cross] / (v[cross] - v_new[cross])
-            tau = frac * h
-            acc = (v_new[cross] - v[cross]) / h
-            t_apo[cross] = t + tau
-            z_apo[cross] = z[cross] + v[cross] * tau + 0.5 * acc * tau * tau
-            apo = apo | cross
-            end_t[cross] = t_apo[cross] + b.descent[cross]
-        below = z_new < 0.0
-        sink = below & ~apo
-        z_new = np.where(sink, 0.0, z_new)
-        v_new = np.where(sink, np.maximum(v_new, 0.0), v_new)
-        land = below & apo & ~landed
-        if np.any(land):
-            t_land[land] = t + h
-            end_t[land] = np.minimum(end_t[land], t + h)
-            landed = landed | land
-        z_new = np.where(landed, 0.0, z_new)
-        v_new = np.where(landed, 0.0, v_new)
-        vmax = np.maximum(vmax, v_new)
-        mach_max = np.maximum(mach_max, np.abs(v_new) / _lookup(b.c_tab, b.site + z_new))
-        z, v = z_new, v_new
-        n += 1
-    Z, V, A = np.array(rec_z), np.array(rec_v), np.array(rec_a)
-    out = []
-    for i in range(nf):
-        out.append((Z[:, i], V[:, i], A[:, i]))
-    return out, t_apo, z_apo, t_lift, t_land, vmax, mach_max, end_t
-
-
-def _kernel_py(h, m_per, max_steps, site, descent, delay, dry, area, cda_d, cd_row, thrust, mass, rho_tab, c_tab,
-               zrec, vrec, arec, events):
-    """One flight, scalar RK4, the same arithmetic as :func:`_integrate_numpy` (compiled with numba when it is
-    installed). Fills zrec/vrec/arec; events = [n_rec, t_apo, z_apo, t_lift, t_land, vmax, mach_max, end_t]."""
-    nj = thrust.shape[0]
-    n_mach = cd_row.shape[0] - 1
-    ntab = rho_tab.shape[0]
+def _kernel_py(grid, fl, tabs, rec, events):
+    """One flight, scalar RK4 (compiled with numba when it is installed). ``grid`` = (step h, steps per record,
+    max steps); ``fl`` = (site altitude, descent_s, drogue delay, dry mass, area, drogue CdA); ``tabs`` = (drag
+    row, thrust and mass at half steps, density, speed of sound); fills ``rec`` = (z, v, a) and ``events`` =
+    [n_rec, t_apo, z_apo, t_lift, t_land, vmax, mach_max, end_t] (events[0] = -1: not finished in time)."""
+    h, m_per, max_steps = grid
+    site, descent, delay, dry, area, cda_d = fl
+    cd_row, thrust, mass, rho_tab, c_tab = tabs
+    zrec, vrec, arec = rec
     z = 0.0
     v = 0.0
     apo = False
     landed = False
-    t_apo = np.nan
-    z_apo = np.nan
-    t_lift = np.nan
-    t_land = np.nan
+    t_apo = z_apo = t_lift = t_land = np.nan
     vmax = 0.0
     mach_max = 0.0
     end_t = np.inf
     n_rec = 0
     n = 0
+    kz = np.empty(4)
     kv = np.empty(4)
     while True:
         t = n * h
         j = 2 * n
         drogue = 1.0 if (apo and t >= t_apo + delay) else 0.0
-        zz = z
-        vv = v
         for s in range(4):
-            if s == 1:
-                zz = z + 0.5 * h * (0.0 if landed else v)
-                vv = v + 0.5 * h * kv[0]
-            elif s == 2:
-                zz = z + 0.5 * h * (0.0 if landed else v + 0.5 * h * kv[0])
-                vv = v + 0.5 * h * kv[1]
-            elif s == 3:
-                zz = z + h * (0.0 if landed else v + 0.5 * h * kv[1])
-                vv = v + h * kv[2]
-            jj = j + (0 if s == 0 else (1 if s < 3 else 2))
-            if jj < nj:
+            zz = z if s == 0 else pm.rk4_stage(z, h, kz[s - 1], s)
+            vv = v if s == 0 else pm.rk4_stage(v, h, kv[s - 1], s)
+            kz[s] = 0.0 if landed else vv
+            jj = j + (s + 1) // 2          # thrust and mass at t, t + h/2, t + h/2, t + h
+            if jj < thrust.shape[0]:
                 tm = thrust[jj]
                 mm = mass[jj]
             else:
                 tm = 0.0
                 mm = dry
-            alt = site + zz
-            u = (alt - _TABLE_LO_M) * (1.0 / _TABLE_STEP_M)
-            uc = min(max(u, 0.0), ntab - 1.000001)
-            it = int(uc)
-            ft = min(max(u - it, 0.0), 1.0)
-            rho = rho_tab[it] * (1.0 - ft) + rho_tab[it + 1] * ft
-            c = c_tab[it] * (1.0 - ft) + c_tab[it + 1] * ft
-            x = abs(vv) / c * (1.0 / _MACH_STEP)
-            i0 = min(int(x), n_mach - 1)
-            fr = min(x - i0, 1.0)
-            cd = cd_row[i0] * (1.0 - fr) + cd_row[i0 + 1] * fr
-            drag = 0.5 * rho * vv * abs(vv) * (cd * area + drogue * cda_d)
-            a = (tm - drag) / mm - G0
+            u = pm.table_coord(site + zz)
+            rho = pm.table_at(rho_tab, u)
+            c = pm.table_at(c_tab, u)
+            cd = pm.cd_at(cd_row, abs(vv), c)
+            a = (tm - pm.drag_force(rho, vv, abs(vv), cd * area + drogue * cda_d)) / mm - G0
             if landed or ((not apo) and zz <= 0.0 and vv <= 0.0 and a < 0.0):
-                a = 0.0
+                a = 0.0                     # landed, or held on the pad until thrust exceeds weight
             kv[s] = a
         if n % m_per == 0:
             zrec[n_rec] = z
@@ -372,23 +233,12 @@ def _kernel_py(h, m_per, max_steps, site, descent, delay, dry, area, cda_d, cd_r
         if n >= max_steps or n_rec >= zrec.shape[0]:
             events[0] = -1.0
             return
-        if landed:
-            k1z = k2z = k3z = k4z = 0.0
-        else:
-            k1z = v
-            k2z = v + 0.5 * h * kv[0]
-            k3z = v + 0.5 * h * kv[1]
-            k4z = v + h * kv[2]
-        z_new = z + h / 6.0 * (k1z + 2.0 * k2z + 2.0 * k3z + k4z)
-        v_new = v + h / 6.0 * (kv[0] + 2.0 * kv[1] + 2.0 * kv[2] + kv[3])
+        z_new = pm.rk4_step(z, h, kz)
+        v_new = pm.rk4_step(v, h, kv)
         if np.isnan(t_lift) and v_new > 0.0:
             t_lift = t + h
         if (not apo) and v > 0.0 and v_new <= 0.0:
-            frac = v / (v - v_new)
-            tau = frac * h
-            acc = (v_new - v) / h
-            t_apo = t + tau
-            z_apo = z + v * tau + 0.5 * acc * tau * tau
+            t_apo, z_apo = pm.apogee_in_step(t, h, z, v, v_new)
             apo = True
             end_t = t_apo + descent
         if z_new < 0.0:
@@ -403,13 +253,7 @@ def _kernel_py(h, m_per, max_steps, site, descent, delay, dry, area, cda_d, cd_r
             z_new = 0.0
             v_new = 0.0
         vmax = max(vmax, v_new)
-        alt = site + z_new
-        u = (alt - _TABLE_LO_M) * (1.0 / _TABLE_STEP_M)
-        uc = min(max(u, 0.0), ntab - 1.000001)
-        it = int(uc)
-        ft = min(max(u - it, 0.0), 1.0)
-        c = c_tab[it] * (1.0 - ft) + c_tab[it + 1] * ft
-        mach_max = max(mach_max, abs(v_new) / c)
+        mach_max = max(mach_max, abs(v_new) / pm.table_at(c_tab, pm.table_coord(site + z_new)))
         z = z_new
         v = v_new
         n += 1
@@ -424,21 +268,22 @@ def _kernel_py(h, m_per, max_steps, site, descent, delay, dry, area, cda_d, cd_r
 
 
 #: Whether the optional 'fast' extra (numba) is installed; found without importing it.
-HAVE_NUMBA: bool = importlib.util.find_spec("numba") is not None
+HAVE_NUMBA: bool = pm.HAVE_NUMBA
 
 
 @functools.cache
 def compiled_kernel():
     """:func:`_kernel_py` compiled by numba (the same source), or None without numba. A lazy load
     (docs/architecture.md): importing numba costs about a second, which only a simulation should pay."""
-    if not HAVE_NUMBA:
+    if not pm.register_for_numba():
         return None
-    import numba  # lazy: heavy, optional
-
-    return numba.njit(cache=True, nogil=True)(_kernel_py)
+    return pm.njit_cached(_kernel_py, nogil=True)
 
 
 def _integrate_kernel(b: _Batch, kernel):
+    """Every flight of ``b`` through ``kernel`` (:func:`_kernel_py` or its compiled form), one call per flight.
+    Returns the recorded (z, v, a) per flight and the per-flight event arrays (t_apo, z_apo, t_lift, t_land, vmax,
+    mach_max, end_t)."""
     nf = b.dry.size
     max_rec = b.max_steps // b.m_per + 2
     out = []
@@ -446,9 +291,10 @@ def _integrate_kernel(b: _Batch, kernel):
     for i in range(nf):
         zr, vr, ar = np.empty(max_rec), np.empty(max_rec), np.empty(max_rec)
         e = ev[i]
-        kernel(b.h, b.m_per, b.max_steps, b.site[i], b.descent[i], b.delay[i], b.dry[i], b.area[i], b.cda_d[i],
-               np.ascontiguousarray(b.cd_tab[i]), np.ascontiguousarray(b.thrust[:, i]),
-               np.ascontiguousarray(b.mass[:, i]), b.rho_tab, b.c_tab, zr, vr, ar, e)
+        fl = (b.site[i], b.descent[i], b.delay[i], b.dry[i], b.area[i], b.cda_d[i])
+        tabs = (np.ascontiguousarray(b.cd_tab[i]), np.ascontiguousarray(b.thrust[:, i]),
+                np.ascontiguousarray(b.mass[:, i]), b.rho_tab, b.c_tab)
+        kernel((b.h, b.m_per, b.max_steps), fl, tabs, (zr, vr, ar), e)
         if e[0] < 0:
             raise UserError(f"1-DOF: flight {i} not finished after {b.max_steps * b.h:g} s")
         k = int(e[0])
@@ -457,18 +303,17 @@ def _integrate_kernel(b: _Batch, kernel):
 
 
 #: Integrator used by :func:`simulate_1dof` by default: "kernel" (numba-compiled scalar RK4 per flight; needs the
-#: 'fast' extra); without numba: "python" (the same loop uncompiled) up to 8 flights, "numpy" (vectorised over
-#: flights) for larger batches. All three do the same arithmetic (same bytes; tested).
-DEFAULT_ENGINE: str = "kernel" if HAVE_NUMBA else "numpy"
+#: 'fast' extra), else "python" (the same loop uncompiled; same bytes, tested).
+DEFAULT_ENGINE: str = "kernel" if HAVE_NUMBA else "python"
 
 
 def simulate_1dof(rockets: Sequence[Rocket] | Rocket, launch: Launch | Sequence[Launch] = Launch(),
                   names: Sequence[str] | None = None, provenance: dict | None = None,
                   engine: str | None = None) -> list[FlightRecord]:
     """Simulate every rocket (with its launch: one for all, or one per rocket; ``record_hz`` and ``internal_hz``
-    must be common) and return one :class:`FlightRecord` each. ``engine``: "numpy" integrates all flights at once
-    (arrays over flights), "kernel" runs the numba-compiled per-flight loop (default when numba is installed),
-    "python" the same loop uncompiled (slow; for tests)."""
+    must be common) and return one :class:`FlightRecord` each. ``engine``: "kernel" runs the numba-compiled
+    per-flight loop (the default when numba is installed), "python" the same loop uncompiled (the default
+    without numba)."""
     if isinstance(rockets, Rocket):
         rockets = [rockets]
     rockets = list(rockets)
@@ -479,20 +324,23 @@ def simulate_1dof(rockets: Sequence[Rocket] | Rocket, launch: Launch | Sequence[
     if len(launches) != nf:
         raise UserError(f"1-DOF: {nf} rockets but {len(launches)} launches")
     b = _prepare(rockets, launches)
-    if engine is None:   # numba if installed; else the uncompiled loop for a few flights, numpy for batches
-        engine = DEFAULT_ENGINE if HAVE_NUMBA else ("python" if nf <= 8 else "numpy")
-    if engine == "numpy":
-        res = _integrate_numpy(b)
-    elif engine == "kernel":
+    engine = DEFAULT_ENGINE if engine is None else engine
+    if engine == "kernel":
         if not HAVE_NUMBA:
-            raise UserError("1-DOF: engine 'kernel' needs numba (install the 'fast' extra) or use engine='numpy'")
-
+            raise UserError("1-DOF: engine 'kernel' needs numba (install the 'fast' extra) or use engine='python'")
         with interrupts_deferred():  # the first call compiles (seconds): an interrupt waits for it
             res = _integrate_kernel(b, compiled_kernel())
     elif engine == "python":
         res = _integrate_kernel(b, _kernel_py)
     else:
-        raise UserError(f"1-DOF: unknown engine {engine!r} (numpy, kernel, python)")
+        raise UserError(f"1-DOF: unknown engine {engine!r} (kernel, python)")
+    return _records(rockets, launches, b, res, names, provenance)
+
+
+def _records(rockets: list[Rocket], launches: list[Launch], b: _Batch, res, names: Sequence[str] | None = None,
+            provenance: dict | None = None) -> list[FlightRecord]:
+    """The :class:`FlightRecord` of every flight from an integrator's result ``res`` (:func:`_integrate_kernel`'s
+    form) on the batch ``b``: the pad rows, the record up to its end, the pressure, truth and provenance."""
     series, t_apo, z_apo, t_lift, t_land, vmax, mach_max, end_t = res
     recs = []
     for i, (r, l) in enumerate(zip(rockets, launches)):
@@ -506,7 +354,8 @@ def simulate_1dof(rockets: Sequence[Rocket] | Rocket, launch: Launch | Sequence[
         burn_t = r.motor.burn_time_s
         bi = n_pad + int(round(burn_t * l.record_hz))
         provenance_i = {
-            "source": "firmware_model.flights.simulate.sim1dof", "format": "simulation", "simulator": "1-DOF point mass",
+            "source": "firmware_model.flights.simulate.sim1dof", "format": "simulation",
+            "simulator": "1-DOF point mass",
             "licence": "MIT (this project; motor and drag tables from RocketPy, MIT)",
             "integrator": f"RK4, fixed step {b.h * 1e3:.6g} ms", "record_hz": l.record_hz,
             "rocket": r.describe(), "launch": asdict(l),
@@ -628,7 +477,6 @@ def random_flights(n: int, seed: int, box: Box = Box(), launch: Launch = Launch(
         if r is None:
             continue
         rockets.append(r)
-        launches.append(Launch(**{**asdict(launch),
-                                  "site_altitude_m": float(box.site_altitude_m[0]
-                                                           + (box.site_altitude_m[1] - box.site_altitude_m[0]) * u[7])}))
+        lo, hi = box.site_altitude_m
+        launches.append(Launch(**{**asdict(launch), "site_altitude_m": float(lo + (hi - lo) * u[7])}))
     return simulate_1dof(rockets, launches, provenance={"seed": seed})
