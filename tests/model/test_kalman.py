@@ -287,9 +287,9 @@ def test_mirror_equals_steady_state_ideal_and_time_varying_converges(program):
 @given(cfg=fst.build_configs(programs=("kalman_baro", "kalman_accel")), data=st.data())
 def test_kalman_table_translation_invariant_exactly(cfg, data):
     """Adding an integer c to every altitude-table node gives X1 + c, GND + c, HMAX + c, HP + c, SUMZ + 2^CAL_P c,
-    identical
-    X2, X3, EVENTS, APFRAC and counters (HT too: the descent record compares altitudes only): the predict never reads
-    X1's absolute value and e1 = h - X1, the pad average rs(SUMZ + 2^p c, p) = rs(SUMZ, p) + c exactly."""
+    identical X2, X3, EVENTS, APFRAC and counters (HT too: the descent record compares altitudes only): the
+    predict never reads X1's absolute value and e1 = h - X1, the pad average rs(SUMZ + 2^p c, p) = rs(SUMZ, p) + c
+    exactly."""
     adc = data.draw(fst.adc_streams(max_len=150))
     acc = data.draw(fst.accel_streams(min_len=len(adc), max_len=len(adc)))
     consts = build_constants(cfg)
