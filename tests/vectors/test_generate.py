@@ -128,7 +128,9 @@ def test_case_matrix_size_and_coverage(docs: dict[str, dict]) -> None:
     names = {spec.name for spec in vec_cases.case_matrix()}
     assert names == set(docs)
     total = sum(p.stat().st_size for p in VECTORS.rglob("*") if p.is_file() and "build" not in p.parts)
-    assert total < 30.0e6    # 29.40 MB since issue 30's descent guard (+1.7 MB: HMAX and HT, 6 bytes a sample of
+    assert total < 31.0e6    # 30.04 MB since issue 30's third round (+0.64 MB: HP, 4 bytes a sample of every
+    #                          kalman_accel case in its JSON and header, H_STEP and threshold_sigmas in every case);
+    #                          29.40 MB since issue 30's descent guard (+1.7 MB: HMAX and HT, 6 bytes a sample of
     #                          every Kalman case, in its JSON and its header, and DESC_N);
     #                          27.70 MB since issue 30 (+0.28 MB: GUARDS, DG, V_FALL, H_FLOOR in every case's JSON
     #                          and header, ~410 bytes x 680 cases);
