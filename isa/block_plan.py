@@ -35,7 +35,7 @@ from isa.semantics import CF, M32, NF, VF, XF, ZF, _M, _MEMORY_MODES, _lowers_sp
 __all__ = ["BLOCK_MAX", "TAIL_BUDGET", "block_entries"]
 
 #: Most instructions in one compiled block.
-BLOCK_MAX = 400
+BLOCK_MAX = 480
 #: Decoding goes on past a BRA/JMP/RTS/... while a branch of the block targets code at most this many bytes after
 #: the branch and beyond the transfer (that code may be reached inside the block).
 _FORWARD_WINDOW = 512
