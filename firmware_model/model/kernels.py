@@ -571,10 +571,10 @@ def kalman_step(  # noqa: C901 - the spec's steps 0-10 in one body, see below
         e2 = _w32(e2)
     # 4. Mach lockout (kalman_accel): no barometer above MACH_VLO and MACH_N samples after; then re-base, on a steady
     #    sample only (within H_STEP of the previous valid one: a spike is not a reading to re-base on)
-    steady = baro_ok and -c[C_H_STEP] <= h - st[HP] and h - st[HP] <= c[C_H_STEP]
     locked = False
     rebase = False
     if accel:
+        steady = baro_ok and -c[C_H_STEP] <= h - st[HP] and h - st[HP] <= c[C_H_STEP]
         if _clipped(ev):
             # after an accelerometer clip: the barometer stays out until the drag reading has been low for a
             # 2^(k+1)-sample window in coast, which then re-bases the velocity (§6 step 4, "clip")
